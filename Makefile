@@ -1,0 +1,59 @@
+# Front door of the project. `make demo` and `make test` work on a fresh Debian machine: they set up
+# what is missing (tools/setup.sh), build, and run everything that uses multicast inside the project's
+# own network namespace (tools/netns).
+SHELL      := /bin/bash
+ROOT       := $(abspath .)
+VENV       := $(ROOT)/.venv
+PY         := $(VENV)/bin/python
+BUILD      := $(ROOT)/build
+SITE       := $(shell ls -d $(VENV)/lib/python3*/site-packages 2>/dev/null | head -1)
+NETNS      := $(ROOT)/tools/netns
+JOBS       ?= 2
+export PYTHONPATH := $(ROOT):$(BUILD)/gen/python
+export PATH       := $(VENV)/bin:$(PATH)
+export T1_BUILD   := $(BUILD)
+export MUJOCO_GL  ?= osmesa
+export PYOPENGL_PLATFORM ?= osmesa
+
+# Simulator arguments for `make sim`, e.g. make sim SIM_ARGS="--spawn fallen:3 --clock lockstep"
+SIM_ARGS ?= --scenario flat --spawn standing --clock realtime
+
+.PHONY: all setup build test test-fast sim spy demo bench clean
+
+all: build
+
+setup: $(VENV)/.requirements.sha
+$(VENV)/.requirements.sha: requirements.txt tools/setup.sh
+	tools/setup.sh
+
+build: setup
+	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_PREFIX_PATH=$(SITE) -DPython3_EXECUTABLE=$(PY) >/dev/null
+	cmake --build $(BUILD) -j $(JOBS)
+
+# Everything: C unit tests (CTest) and Python tests (pytest), all inside one private network namespace.
+test: build
+	$(NETNS) bash -c 'set -e; ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS); \
+	  $(PY) -m pytest -q tests'
+
+# Skip tests marked slow (for quick iteration; CI runs `make test`).
+test-fast: build
+	$(NETNS) bash -c 'set -e; ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS); \
+	  $(PY) -m pytest -q -m "not slow" tests'
+
+sim: build
+	$(NETNS) $(PY) -m sim_hil $(SIM_ARGS)
+
+# lcm-spy decoding every project type, in the same kind of namespace (start the sim inside it too:
+# `make spy` launches a sim in the background so there is traffic to look at).
+spy: build
+	$(NETNS) bash -c '$(PY) -m sim_hil --scenario flat --spawn standing --clock realtime --duration 600 & \
+	  CLASSPATH=$(BUILD)/gen/java/t1_lcmtypes.jar lcm-spy --lcm-url="$$T1_LCM_URL"; kill %1'
+
+demo: build
+	$(NETNS) $(PY) -m sim_hil.demo
+
+bench: build
+	$(NETNS) $(PY) -m tests.bench
+
+clean:
+	rm -rf $(BUILD)

@@ -1,0 +1,35 @@
+"""Joint order, channel names and the default LCM URL, read from messages/contract.json (the one source;
+C++ gets the same values in a header generated at build time)."""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+_DATA = json.loads((Path(__file__).with_name("contract.json")).read_text())
+
+NUM_JOINTS: int = _DATA["num_joints"]
+JOINT_NAMES: tuple[str, ...] = tuple(_DATA["joints"])
+CHANNELS: dict[str, str] = dict(_DATA["channels"])
+DEFAULT_LCM_URL: str = _DATA["lcm_url"]
+
+CH_IMU = CHANNELS["imu"]
+CH_JOINT_STATE = CHANNELS["joint_state"]
+CH_JOINT_CMD = CHANNELS["joint_cmd"]
+CH_JOYSTICK = CHANNELS["joystick"]
+CH_RUNTIME_CMD = CHANNELS["runtime_cmd"]
+CH_CONTROLLER_STATUS = CHANNELS["controller_status"]
+CH_OBS = CHANNELS["obs"]
+CH_ACTION = CHANNELS["action"]
+CH_SIM_STATUS = CHANNELS["sim_status"]
+
+assert len(JOINT_NAMES) == NUM_JOINTS, "contract.json: joints list length differs from num_joints"
+
+
+def lcm_url() -> str:
+    """The LCM URL to use: $T1_LCM_URL (set by tools/netns) or the contract default (ttl=0)."""
+    return os.environ.get("T1_LCM_URL", DEFAULT_LCM_URL)
+
+
+def joint_index(name: str) -> int:
+    return JOINT_NAMES.index(name)
