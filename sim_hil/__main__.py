@@ -1,0 +1,3 @@
+from sim_hil.cli import main
+
+raise SystemExit(main())

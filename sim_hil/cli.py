@@ -1,0 +1,70 @@
+"""`python -m sim_hil`: start the simulated T1 and serve it over LCM (run inside tools/netns)."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from messages import contract
+from sim_hil import config
+from sim_hil.faults import FaultSpecError
+
+EXIT_OK, EXIT_USAGE, EXIT_RUNTIME = 0, 2, 3
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from sim_hil.scenarios import SCENARIOS
+    p = argparse.ArgumentParser(prog="python -m sim_hil", description=__doc__,
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--scenario", default="flat", choices=SCENARIOS)
+    p.add_argument("--spawn", default="standing", help="standing | kneeling | fallen:SEED")
+    p.add_argument("--clock", default="realtime", choices=("realtime", "lockstep"))
+    p.add_argument("--seed", type=int, default=0, help="scenario layout, fault and noise draws")
+    p.add_argument("--duration", type=float, default=None, help="sim seconds to run (default: forever)")
+    p.add_argument("--physics-dt", type=float, default=config.DEFAULT_PHYSICS_DT_S, help="MuJoCo step [s]")
+    p.add_argument("--faults", default="", help="fault specs, see sim_hil/faults.py, e.g. 'drop:rate=0.1@2'")
+    p.add_argument("--record", metavar="OUT.mp4", help="write a video of the run")
+    p.add_argument("--can-log", metavar="OUT.asc", help="log every CAN frame (.asc, .blf, .csv, .log ...)")
+    p.add_argument("--can-interface", default="virtual", choices=("virtual", "udp_multicast"),
+                   help="python-can interface of the 4 buses (udp_multicast: visible to outside tools)")
+    p.add_argument("--lcm-url", default=None, help="default: $T1_LCM_URL or " + contract.DEFAULT_LCM_URL)
+    p.add_argument("--lockstep-timeout", type=float, default=config.LOCKSTEP_TIMEOUT_S,
+                   help="wall seconds to wait for the command answering a state")
+    p.add_argument("--quiet", action="store_true", help="no status line")
+    return p
+
+
+def _status_line(sim) -> None:
+    s = sim.status_message()
+    print(f"\rt={sim.data.time:7.2f}s rtf={s.real_time_factor:5.2f} trunk={s.trunk_height:.3f}m "
+          f"waist={s.waist_height:.3f}m cmds={sim.lcm.cmds_received} dropped={s.cmds_dropped} "
+          f"timeouts={s.lockstep_timeouts} late_frames={s.frames_late} faults=[{s.active_faults}]   ",
+          end="", file=sys.stderr, flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    from sim_hil.sim import SimConfig, Simulator
+    cfg = SimConfig(scenario=args.scenario, spawn=args.spawn, clock=args.clock, seed=args.seed,
+                    duration_s=args.duration, physics_dt_s=args.physics_dt, faults=args.faults,
+                    lcm_url=args.lcm_url or contract.lcm_url(), can_interface=args.can_interface,
+                    can_log=args.can_log, record=args.record, lockstep_timeout_s=args.lockstep_timeout)
+    if args.duration is not None and args.duration <= 0:
+        print("sim_hil: --duration must be > 0", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        sim = Simulator(cfg)
+    except (ValueError, FaultSpecError) as exc:
+        print(f"sim_hil: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except RuntimeError as exc:
+        print(f"sim_hil: {exc}", file=sys.stderr)
+        return EXIT_RUNTIME
+    print(f"sim_hil: {cfg.scenario} spawn={cfg.spawn} clock={cfg.clock} physics_dt={cfg.physics_dt_s}s "
+          f"lcm={cfg.lcm_url}", file=sys.stderr)
+    try:
+        sim.run(None if args.quiet else _status_line)
+    except KeyboardInterrupt:
+        pass
+    if not args.quiet:
+        print(file=sys.stderr)
+    return EXIT_OK

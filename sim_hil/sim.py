@@ -1,0 +1,200 @@
+"""The simulated T1: MuJoCo physics behind the emulated motor bus, driven over LCM.
+
+One control tick k (2 ms of sim time):
+  1. publish state k: T1_IMU and T1_JOINT_STATE (decoded from the motors' reply frames), stamped with
+     sim time;
+  2. get the command: lockstep waits for the one answering state k (state_seq = k; a timeout is counted
+     and the motors keep their last command, so their watchdog decides); realtime takes the newest;
+  3. bus cycle: 23 command frames onto the 4 buses → firmware_like motors;
+  4. physics substeps: each motor's firmware step gives its torque from its (possibly frozen) encoder,
+     MuJoCo integrates; scheduled pushes are applied as torso impulses;
+  5. reply frames back to the host: that is state k+1.
+Realtime mode paces ticks against the wall clock; lockstep runs as fast as the client answers.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from t1 import sim_status_t
+
+from sim_hil import config, model as t1model
+from sim_hil.faults import FaultSchedule, parse_faults
+from sim_hil.imu import Imu
+from sim_hil.lcm_bridge import LcmBridge
+from sim_hil.motor_bus import MotorBus
+
+
+@dataclass
+class SimConfig:
+    scenario: str = "flat"
+    spawn: str = "standing"          # standing | kneeling | fallen:SEED
+    clock: str = "lockstep"          # lockstep | realtime
+    seed: int = 0
+    duration_s: float | None = None  # None = run until interrupted
+    physics_dt_s: float = config.DEFAULT_PHYSICS_DT_S
+    faults: str = ""
+    lcm_url: str = ""
+    can_interface: str = "virtual"
+    can_log: str | None = None
+    record: str | None = None
+    lockstep_timeout_s: float = config.LOCKSTEP_TIMEOUT_S
+
+
+def parse_spawn(spawn: str) -> tuple[str, int]:
+    kind, _, seed = spawn.partition(":")
+    if kind not in ("standing", "kneeling", "fallen"):
+        raise ValueError(f"--spawn '{spawn}': expected standing | kneeling | fallen:SEED")
+    if kind == "fallen":
+        if not seed.isdigit():
+            raise ValueError(f"--spawn '{spawn}': fallen needs a non-negative integer seed, e.g. fallen:3")
+        return kind, int(seed)
+    if seed:
+        raise ValueError(f"--spawn '{spawn}': only fallen takes a seed")
+    return kind, 0
+
+
+class Simulator:
+    def __init__(self, cfg: SimConfig):
+        if cfg.clock not in ("lockstep", "realtime"):
+            raise ValueError(f"--clock '{cfg.clock}': expected lockstep | realtime")
+        substeps = config.CONTROL_DT_S / cfg.physics_dt_s
+        if cfg.physics_dt_s <= 0 or abs(substeps - round(substeps)) > 1e-9:
+            raise ValueError(f"--physics-dt {cfg.physics_dt_s}: must divide the {config.CONTROL_DT_S} s "
+                             "control period (0.002, 0.001, 0.0005, ...)")
+        spawn_kind, spawn_seed = parse_spawn(cfg.spawn)
+        faults = parse_faults(cfg.faults)      # raises FaultSpecError with the bad part named
+        self.cfg = cfg
+        self.substeps = int(round(substeps))
+        self.model, self.scenario = t1model.build_model(cfg.scenario, cfg.seed)
+        self.model.opt.timestep = cfg.physics_dt_s
+        self.data = mujoco.MjData(self.model)
+        qpos, qvel = t1model.spawn_state(self.model, spawn_kind, spawn_seed)
+        self.data.qpos[:], self.data.qvel[:] = qpos, qvel
+        self.data.time = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
+        pushes = [f"push:x={p[0]},y={p[1]},z={p[2]}@{t}" for t, p in self.scenario.pushes]
+        self.faults = FaultSchedule(faults + parse_faults(";".join(pushes)))
+        self.rng = np.random.default_rng(cfg.seed)
+        self.imu = Imu(self.model, self.rng)
+        self.bus = MotorBus(cfg.can_interface, cfg.can_log, self.rng)
+        self.lcm = LcmBridge(cfg.lcm_url)
+        self.trunk_id = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "Trunk")
+        self.seq = 0
+        self.lockstep_timeouts = 0
+        self._frozen_q: dict[int, float] = {}
+        self._status_every = max(1, int(round(1.0 / (config.STATUS_RATE_HZ * config.CONTROL_DT_S))))
+        self._rtf = 0.0
+        self._rtf_mark = (time.perf_counter(), 0.0)
+        self.recorder = None
+        if cfg.record:
+            from sim_hil.recorder import Recorder
+            self.recorder = Recorder(self.model, cfg.record)
+        # Power-on: motors answer once so the host has a state to publish at k = 0.
+        self.bus.exchange_replies(*self._encoders(), self.data.qfrc_actuator[6:].copy(), 0)
+
+    # ---- helpers -------------------------------------------------------------------------------------
+    @property
+    def now_us(self) -> int:
+        return int(round(self.data.time * 1e6))
+
+    def _encoders(self) -> tuple[np.ndarray, np.ndarray]:
+        """What the motor encoders read: true joint state, except frozen encoders stuck at their value."""
+        q = self.data.qpos[7:].copy()
+        dq = self.data.qvel[6:].copy()
+        frozen = self.faults.frozen_joints(self.data.time)
+        for i in list(self._frozen_q):
+            if i not in frozen:
+                del self._frozen_q[i]
+        for i in frozen:
+            q[i] = self._frozen_q.setdefault(i, q[i])
+            dq[i] = 0.0
+        return q, dq
+
+    def _publish_state(self) -> None:
+        t = self.data.time
+        quat, gyro, accel = self.imu.read(self.data, self.faults.imu_noise(t), self.faults.imu_bias(t))
+        b = self.bus
+        self.lcm.publish_state(self.now_us, self.seq, quat, gyro, accel, b.q, b.dq, b.tau, b.status)
+
+    def _apply_pushes(self) -> None:
+        self.data.xfrc_applied[self.trunk_id, :3] = 0.0
+        for impulse in self.faults.due_pushes(self.data.time):
+            # An impulse J [N·s] delivered as a constant force J/dt over one physics step.
+            self.data.xfrc_applied[self.trunk_id, :3] += np.asarray(impulse) / self.model.opt.timestep
+
+    def status_message(self) -> sim_status_t:
+        s = sim_status_t()
+        s.utime, s.step = self.now_us, self.seq
+        s.real_time_factor = float(self._rtf)
+        s.scenario, s.clock = self.scenario.name, self.cfg.clock
+        s.active_faults = self.faults.describe(self.data.time)
+        s.trunk_height = float(t1model.trunk_height(self.data))
+        s.waist_height = float(t1model.waist_height(self.data))
+        s.fallen = s.trunk_height < config.FALLEN_TRUNK_HEIGHT_M
+        s.base_pos = self.data.qpos[:3].tolist()
+        s.base_lin_vel = self.data.qvel[:3].tolist()
+        s.lockstep_timeouts, s.cmds_dropped = self.lockstep_timeouts, self.lcm.cmds_dropped
+        s.frames_late = self.bus.frames_late
+        s.bus_utilisation = [float(u) for u in self.bus.utilisation()]
+        return s
+
+    # ---- the tick ------------------------------------------------------------------------------------
+    def tick(self) -> None:
+        self._publish_state()
+        if self.cfg.clock == "lockstep":
+            first = self.lcm.latest is None
+            wait = config.LOCKSTEP_FIRST_COMMAND_TIMEOUT_S if first else self.cfg.lockstep_timeout_s
+            if not self.lcm.wait_for_answer(self.seq, wait, time.perf_counter):
+                self.lockstep_timeouts += 1
+        else:
+            self.lcm.poll(0.0)
+
+        t = self.data.time
+        dead = self.faults.dead_joints(t)
+        drop = self.faults.drop_rate(t)
+        fresh = self.lcm.latest_frames
+        self.lcm.latest_frames = None          # a command is sent on the bus once, as on the robot
+        self.bus.send_commands(fresh, self.now_us, drop, self.faults.delay_ticks(t), dead)
+        for _ in range(self.substeps):
+            q_enc, dq_enc = self._encoders()
+            tau = self.bus.motor_torques(q_enc, dq_enc, self.now_us, dead)
+            self.data.ctrl[:] = tau
+            self._apply_pushes()
+            mujoco.mj_step(self.model, self.data)
+        q_enc, dq_enc = self._encoders()
+        self.bus.exchange_replies(q_enc, dq_enc, tau, self.now_us, drop, dead)
+        self.seq += 1
+
+        if self.recorder is not None:
+            self.recorder.maybe_capture(self.data)
+        if self.seq % self._status_every == 0:
+            wall, sim_t = time.perf_counter(), self.data.time
+            self._rtf = (sim_t - self._rtf_mark[1]) / max(wall - self._rtf_mark[0], 1e-9)
+            self._rtf_mark = (wall, sim_t)
+            self.lcm.publish_status(self.status_message())
+
+    def run(self, on_status=None) -> None:
+        """Tick until duration (or forever). Realtime: tick k starts at wall start + k·dt."""
+        n_ticks = None if self.cfg.duration_s is None else int(round(self.cfg.duration_s / config.CONTROL_DT_S))
+        start = time.perf_counter()
+        try:
+            while n_ticks is None or self.seq < n_ticks:
+                if self.cfg.clock == "realtime":
+                    # Spend the time until this tick's deadline handling LCM, not sleeping blindly.
+                    while (remaining := start + self.seq * config.CONTROL_DT_S - time.perf_counter()) > 0:
+                        self.lcm.poll(remaining)
+                self.tick()
+                if on_status is not None and self.seq % self._status_every == 0:
+                    on_status(self)
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        if self.recorder is not None:
+            self.recorder.close()
+            self.recorder = None
+        self.bus.close()
