@@ -1,0 +1,18 @@
+// Fixed numbers of the runtime: loop rate, decimation, message sizes. Tunable safety numbers live in
+// SafetyConfig (safety.hpp); the robot's joint table lives in firmware_like (t1_motor_protocol.h).
+#pragma once
+#include <cstddef>
+#include <cstdint>
+
+namespace t1rt {
+
+inline constexpr std::size_t kJoints = 23;          // = t1::kNumJoints = T1_NUM_MOTORS (checked statically)
+inline constexpr double kLoopDtS = 0.002;           // control loop period [s] (500 Hz)
+inline constexpr int64_t kLoopPeriodNs = 2'000'000;  // same, [ns]
+inline constexpr int kPolicyDecimation = 10;         // policy runs every 10th tick (50 Hz)
+inline constexpr double kControlDtToleranceS = 1e-9;  // artifact control_dt must match 0.002 * 10 within this
+inline constexpr int kStatusEveryTicks = 50;         // T1_CONTROLLER_STATUS at 10 Hz
+inline constexpr std::size_t kTimingWindow = 1024;    // samples in the p99 window (about 2 s at 500 Hz)
+inline constexpr int kSchemaVersion = 1;             // policies/ARTIFACT.md schema handled here
+
+}  // namespace t1rt

@@ -1,0 +1,93 @@
+// The controller: one tick function shared by the realtime and the lockstep clock, the policy hot-reload
+// worker, and telemetry. Everything the tick touches is allocated before the loop starts.
+#pragma once
+#include <atomic>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "t1/action_t.hpp"
+#include "t1/controller_status_t.hpp"
+#include "t1/joint_command_t.hpp"
+#include "t1/observation_t.hpp"
+#include "t1rt/periodic_task.hpp"
+#include "t1rt/policy.hpp"
+#include "t1rt/safety.hpp"
+#include "t1rt/transport.hpp"
+
+namespace t1rt {
+
+struct ControllerOptions {
+  std::string policy_path;
+  std::string lcm_url;          // resolved (resolve_lcm_url)
+  ClockMode clock = ClockMode::kRealtime;
+  bool autostart = false;       // PASSIVE -> DAMPING -> PREPARE -> POLICY without operator commands
+  bool quiet = false;           // no live status line
+  double duration_s = 0.0;      // wall-clock run time; <= 0: until SIGINT/SIGTERM
+  int lockstep_wait_ms = 100;   // one handleTimeout slice while waiting for a state in lockstep
+  SafetyConfig safety;
+};
+
+class Controller {
+ public:
+  Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial_policy);
+  ~Controller();
+
+  bool open(std::string* error);  // LCM transport; false on failure
+  // The single code path: one control tick on the newest state at time now_s (see StateView for clocks).
+  void tick(double now_s);
+  bool step_lockstep(int timeout_ms);  // waits for a joint_state_t, then ticks; false on timeout
+  void step_realtime();                // sleeps to the next deadline, drains LCM, ticks
+  void run();                          // until stop() or duration
+  void stop() { stop_.store(true); }
+
+  // Hot reload (runtime_cmd_t load_policy, SIGHUP): validated on the worker thread, swapped at a policy tick.
+  void request_reload(const std::string& path);  // empty path = reload the current file
+  static void notify_sighup();                   // async-signal-safe
+
+  Supervisor& supervisor() { return supervisor_; }
+  PolicyEngine& policy() { return *engine_; }
+  PeriodicTask& task() { return task_; }
+  LcmTransport& transport() { return transport_; }
+  int64_t ticks() const { return ticks_; }
+  int64_t policy_ticks() const { return policy_ticks_; }
+  const t1::joint_command_t& last_command() const { return command_; }
+  std::string reload_message();  // last reload result (copy, for tests)
+
+ private:
+  void handle_commands();
+  void adopt_ready_policy();
+  void publish_status(double now_s);
+  void print_live_line(double now_s);
+  void reload_worker();
+  StateView state_view(double now_s) const;
+
+  ControllerOptions opt_;
+  Supervisor supervisor_;
+  LcmTransport transport_;
+  PeriodicTask task_;
+  std::unique_ptr<PolicyEngine> engine_;
+  t1::joint_command_t command_{};
+  t1::observation_t obs_msg_{};
+  t1::action_t action_msg_{};
+  t1::controller_status_t status_{};
+  float command_vel_[3] = {0, 0, 0};  // gated joystick command [m/s, m/s, rad/s]
+  int64_t ticks_ = 0, policy_ticks_ = 0, policy_phase_ = 0, cmd_seq_ = 0;
+  int64_t last_live_ns_ = 0;
+  std::atomic<bool> stop_{false};
+
+  // reload worker state (guarded by reload_mutex_)
+  std::mutex reload_mutex_;
+  std::condition_variable reload_cv_;
+  std::thread reload_thread_;
+  bool reload_requested_ = false, worker_exit_ = false;
+  std::string reload_path_, current_path_, reload_message_;
+  std::unique_ptr<PolicyEngine> ready_, retired_;
+  std::atomic<bool> ready_flag_{false};
+  std::atomic<bool> message_changed_{false};
+  char reload_info_[512] = {0};  // loop-side copy of the last reload result
+};
+
+}  // namespace t1rt

@@ -1,0 +1,118 @@
+// Safety supervisor: modes, state checks and command clamps. The rules live in ONE file,
+// src/safety_supervisor.cpp; nothing else in the runtime may change a joint command.
+//
+// Modes and transitions (start-up mode PASSIVE):
+//   PASSIVE  --set_mode damping | autostart-->  DAMPING  --set_mode prepare | autostart-->  PREPARE
+//   PREPARE  --(ramp finished) set_mode policy | autostart-->  POLICY
+//   any but FAULT --set_mode passive/damping--> that mode;  estop --> DAMPING (FAULT stays FAULT)
+//   any --fault--> FAULT (latched damping);  FAULT --reset--> DAMPING (only way out)
+#pragma once
+#include <array>
+#include <cstdint>
+
+#include "t1/joint_command_t.hpp"
+#include "t1rt/artifact.hpp"
+
+namespace t1rt {
+
+enum class Mode : int8_t { kPassive = 0, kDamping = 1, kPrepare = 2, kPolicy = 3, kFault = 4 };
+const char* mode_name(Mode mode);
+bool parse_mode(const char* text, Mode* mode);  // passive | damping | prepare | policy
+
+// Supervisor fault bits: the low 16 are latched FAULT causes, the high ones are live warnings.
+namespace fault_bit {
+inline constexpr int32_t kImuStale = 1 << 0;
+inline constexpr int32_t kJointStale = 1 << 1;
+inline constexpr int32_t kNonFiniteState = 1 << 2;
+inline constexpr int32_t kNonFiniteObs = 1 << 3;
+inline constexpr int32_t kNonFiniteAction = 1 << 4;
+inline constexpr int32_t kMotorFault = 1 << 5;
+inline constexpr int32_t kImuHold = 1 << 16;
+inline constexpr int32_t kJointHold = 1 << 17;
+inline constexpr int32_t kJoystickStale = 1 << 18;
+inline constexpr int32_t kTargetClamped = 1 << 19;
+inline constexpr int32_t kRateLimited = 1 << 20;
+inline constexpr int32_t kTorqueClamped = 1 << 21;
+inline constexpr int32_t kMotorWarning = 1 << 22;    // fault bits seen in DAMPING (blocks PREPARE)
+inline constexpr int32_t kMotorOverLimit = 1 << 23;  // OVER_LIMIT: information, never a fault
+}  // namespace fault_bit
+
+struct SafetyConfig {
+  double hold_age_s = 0.010;         // state older than this: hold the last target
+  double fault_age_s = 0.050;        // state older than this: FAULT
+  double joystick_stale_s = 0.250;   // joystick older than this: zero command
+  double prepare_duration_s = 2.0;   // PREPARE ramp from the current pose to the default pose
+  float max_target_step_rad = 0.05f; // target rate limit per 2 ms tick (25 rad/s, above every motor's speed)
+  float joint_range_fraction = 0.95f;  // targets clamped to this centred fraction of the joint range
+};
+
+// The newest robot state as the loop sees it. Times share one clock: CLOCK_MONOTONIC receive time in
+// realtime mode, the messages' own utime (sim time) in lockstep mode.
+struct StateView {
+  double now_s = 0.0;
+  bool have_imu = false;
+  double imu_time_s = 0.0;
+  const float* quat = nullptr;  // 4
+  const float* gyro = nullptr;  // 3
+  bool have_joint = false;
+  double joint_time_s = 0.0;
+  const float* q = nullptr;              // 23 [rad]
+  const float* dq = nullptr;             // 23 [rad/s]
+  const int32_t* motor_status = nullptr; // 23 firmware bits
+};
+
+class Supervisor {
+ public:
+  explicit Supervisor(const SafetyConfig& config = SafetyConfig{});
+  Mode mode() const { return mode_; }
+
+  // Operator inputs (runtime_cmd_t), applied before the tick they arrive in.
+  void request_mode(Mode target);  // takes effect in the next begin_tick (needs the state); refusals -> last_info()
+  void estop();                    // DAMPING now (FAULT stays latched)
+  void reset();                    // FAULT -> DAMPING; ignored otherwise
+
+  void note_imu_seq(int64_t seq);
+  void note_joint_seq(int64_t seq);
+  int64_t imu_seq_gaps() const { return imu_gaps_; }
+  int64_t joint_seq_gaps() const { return joint_gaps_; }
+
+  // Joystick staleness: copies the command, or zeros it when older than joystick_stale_s.
+  void gate_joystick(double now_s, bool have, double stamp_s, const float* in3, float* out3);
+
+  // Phase 1 of a tick: transitions and state checks. Returns true when the policy may run on this state
+  // (mode POLICY, state fresh and finite). entered_policy() tells whether POLICY began in this tick.
+  bool begin_tick(const StateView& state, const PolicyArtifact& artifact);
+  bool entered_policy() const { return entered_policy_; }
+  bool prepare_done() const { return prepare_ticks_ >= prepare_total_ticks_; }
+  void fault(int32_t bit, const char* reason);
+
+  // Phase 2: the command for this tick (policy_target: the latest policy q_target [rad]).
+  void finish_tick(const StateView& state, const PolicyArtifact& artifact, const JointArray& policy_target,
+                   t1::joint_command_t& out);
+
+  int32_t fault_bits() const { return latched_bits_ | warning_bits_; }
+  const char* last_fault() const { return last_fault_.data(); }
+  const char* last_info() const { return last_info_.data(); }
+
+ private:
+  void set_info(const char* text);
+  void enter(Mode mode, const StateView& state);
+  void clamp_targets(const StateView& state, const PolicyArtifact& a, JointArray& target);
+
+  SafetyConfig cfg_;
+  Mode mode_ = Mode::kPassive;
+  bool has_request_ = false;
+  Mode requested_ = Mode::kPassive;
+  bool entered_policy_ = false;
+  bool holding_ = false;
+  int32_t latched_bits_ = 0, warning_bits_ = 0;
+  int64_t last_imu_seq_ = -1, last_joint_seq_ = -1, imu_gaps_ = 0, joint_gaps_ = 0;
+  int64_t prepare_ticks_ = 0, prepare_total_ticks_ = 1;
+  JointArray prepare_start_{};
+  JointArray last_target_{};  // last commanded q_des [rad]: reference of the rate limit and of "hold"
+  bool have_last_target_ = false;
+  std::array<char, 160> last_fault_{};
+  std::array<char, 160> last_info_{};
+};
+
+}  // namespace t1rt

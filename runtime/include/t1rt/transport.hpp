@@ -1,0 +1,81 @@
+// LCM transport on the C API: subscriptions decode straight into preallocated message slots (the fixed-size
+// state messages decode without heap use); publishing encodes into one preallocated buffer.
+// Heap use that remains, on purpose, off the hot path: runtime_cmd_t carries std::string verb/argument,
+// so decoding an operator command allocates (rare, operator-driven, never per tick).
+#pragma once
+#include <lcm/lcm.h>
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "t1/imu_t.hpp"
+#include "t1/joint_state_t.hpp"
+#include "t1/joystick_t.hpp"
+#include "t1/runtime_cmd_t.hpp"
+
+namespace t1rt {
+
+class Supervisor;
+
+enum class ClockMode { kRealtime, kLockstep };
+const char* clock_name(ClockMode mode);
+
+template <class Message>
+struct MessageSlot {
+  Message msg{};
+  bool have = false;
+  double stamp_s = 0.0;  // realtime: CLOCK_MONOTONIC receive time; lockstep: msg.utime (sim time) [s]
+  int64_t received = 0;
+};
+
+// LCM URL: --lcm-url, else $T1_LCM_URL, else t1::kDefaultLcmUrl.
+std::string resolve_lcm_url(const std::string& cli_url);
+
+class LcmTransport {
+ public:
+  static constexpr std::size_t kEncodeBufferBytes = 64 * 1024;
+  static constexpr std::size_t kCommandQueue = 8;
+
+  LcmTransport() = default;
+  ~LcmTransport();
+  LcmTransport(const LcmTransport&) = delete;
+  LcmTransport& operator=(const LcmTransport&) = delete;
+
+  // Creates the LCM instance and subscribes; false + *error on failure.
+  bool open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error);
+  int handle(int timeout_ms);  // >0 handled a message, 0 timeout, <0 error
+  void drain();                // handle everything already queued, without waiting
+
+  template <class Message>
+  bool publish(const char* channel, const Message& msg) {
+    const int size = msg.getEncodedSize();
+    if (size < 0 || static_cast<std::size_t>(size) > buffer_.size()) return false;
+    if (msg.encode(buffer_.data(), 0, size) != size) return false;
+    return lcm_publish(lcm_, channel, buffer_.data(), static_cast<unsigned>(size)) == 0;
+  }
+
+  MessageSlot<t1::imu_t> imu;
+  MessageSlot<t1::joint_state_t> joint;
+  MessageSlot<t1::joystick_t> joystick;
+  bool new_joint_state = false;  // set by a joint_state_t arrival; the lockstep loop clears it
+  std::array<t1::runtime_cmd_t, kCommandQueue> commands;
+  std::size_t command_count = 0;
+  int64_t commands_dropped = 0;
+  int64_t decode_errors = 0;
+
+ private:
+  static void on_imu(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
+  static void on_joint(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
+  static void on_joystick(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
+  static void on_command(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
+  double stamp(int64_t utime) const;
+
+  lcm_t* lcm_ = nullptr;
+  ClockMode clock_ = ClockMode::kRealtime;
+  Supervisor* supervisor_ = nullptr;
+  std::vector<uint8_t> buffer_;
+};
+
+}  // namespace t1rt

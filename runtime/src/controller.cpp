@@ -1,0 +1,269 @@
+#include "t1rt/controller.hpp"
+
+#include <cstdio>
+#include <cstring>
+
+#include "t1_contract.hpp"
+
+namespace t1rt {
+
+namespace {
+std::atomic<bool> g_sighup{false};
+constexpr std::size_t kStringReserve = 512;   // status strings reuse this capacity: no per-tick allocation
+constexpr std::size_t kObsReserve = 1024;     // observation_t vectors: largest obs size without reallocation
+constexpr int64_t kLiveLinePeriodNs = 200'000'000;  // terminal status line at 5 Hz
+constexpr double kSToUs = 1e6, kSToMs = 1e3;
+
+void assign_bounded(std::string& dst, const char* src) {
+  const std::size_t n = std::min(std::strlen(src), dst.capacity());
+  dst.assign(src, n);
+}
+}  // namespace
+
+Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial)
+    : opt_(options), supervisor_(options.safety), engine_(std::move(initial)) {
+  current_path_ = opt_.policy_path;
+  for (std::string* s : {&status_.mode_name, &status_.policy_name, &status_.policy_hash, &status_.clock,
+                         &status_.last_fault, &status_.info})
+    s->reserve(kStringReserve);
+  obs_msg_.raw.reserve(kObsReserve);
+  obs_msg_.normalized.reserve(kObsReserve);
+  action_msg_.action.reserve(kJoints);
+  reload_message_.reserve(kStringReserve);
+  if (opt_.autostart) supervisor_.request_mode(Mode::kDamping);
+  reload_thread_ = std::thread(&Controller::reload_worker, this);
+}
+
+Controller::~Controller() {
+  {
+    std::lock_guard<std::mutex> lock(reload_mutex_);
+    worker_exit_ = true;
+  }
+  reload_cv_.notify_all();
+  reload_thread_.join();
+}
+
+bool Controller::open(std::string* error) {
+  return transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, error);
+}
+
+void Controller::notify_sighup() { g_sighup.store(true); }
+
+void Controller::request_reload(const std::string& path) {
+  {
+    std::lock_guard<std::mutex> lock(reload_mutex_);
+    reload_path_ = path;
+    reload_requested_ = true;
+  }
+  reload_cv_.notify_all();
+}
+
+std::string Controller::reload_message() {
+  std::lock_guard<std::mutex> lock(reload_mutex_);
+  return reload_message_;
+}
+
+void Controller::reload_worker() {
+  std::unique_lock<std::mutex> lock(reload_mutex_);
+  for (;;) {
+    reload_cv_.wait(lock, [this] { return reload_requested_ || worker_exit_ || retired_; });
+    if (worker_exit_) return;
+    retired_.reset();  // the old engine is freed here, never on the loop thread
+    if (!reload_requested_) continue;
+    reload_requested_ = false;
+    const std::string path = reload_path_.empty() ? current_path_ : reload_path_;
+    lock.unlock();
+    std::unique_ptr<PolicyEngine> engine;
+    std::string message;
+    try {
+      engine = std::make_unique<PolicyEngine>(load_artifact(path));
+      message = "reload ok: " + path + " (" + engine->artifact().name + ", " + engine->artifact().content_hash.substr(0, 12) + ")";
+    } catch (const std::exception& e) {
+      message = "reload REJECTED, old policy kept: " + path + ": " + e.what();
+    }
+    lock.lock();
+    reload_message_ = message.substr(0, kStringReserve - 1);
+    if (engine) {
+      ready_ = std::move(engine);
+      current_path_ = path;
+      ready_flag_.store(true);
+    }
+    message_changed_.store(true);
+  }
+}
+
+void Controller::adopt_ready_policy() {
+  if (!ready_flag_.load()) return;
+  std::unique_lock<std::mutex> lock(reload_mutex_, std::try_to_lock);
+  if (!lock.owns_lock()) return;  // never block the tick: try again at the next policy tick
+  std::swap(engine_, ready_);
+  retired_ = std::move(ready_);
+  ready_flag_.store(false);
+  engine_->reset();
+  lock.unlock();
+  reload_cv_.notify_all();
+}
+
+StateView Controller::state_view(double now_s) const {
+  StateView s;
+  s.now_s = now_s;
+  s.have_imu = transport_.imu.have;
+  s.imu_time_s = transport_.imu.stamp_s;
+  s.quat = transport_.imu.msg.quat;
+  s.gyro = transport_.imu.msg.gyro;
+  s.have_joint = transport_.joint.have;
+  s.joint_time_s = transport_.joint.stamp_s;
+  s.q = transport_.joint.msg.q;
+  s.dq = transport_.joint.msg.dq;
+  s.motor_status = transport_.joint.msg.motor_status;
+  return s;
+}
+
+void Controller::handle_commands() {
+  for (std::size_t i = 0; i < transport_.command_count; ++i) {
+    const t1::runtime_cmd_t& c = transport_.commands[i];
+    Mode mode;
+    if (c.verb == "estop") supervisor_.estop();
+    else if (c.verb == "reset") supervisor_.reset();
+    else if (c.verb == "load_policy") request_reload(c.argument);
+    else if (c.verb == "set_mode" && parse_mode(c.argument.c_str(), &mode)) supervisor_.request_mode(mode);
+    else std::fprintf(stderr, "t1-runtime: ignored runtime_cmd_t verb '%s' argument '%s'\n", c.verb.c_str(), c.argument.c_str());
+  }
+  transport_.command_count = 0;
+}
+
+void Controller::tick(double now_s) {
+  if (g_sighup.exchange(false)) request_reload("");
+  handle_commands();
+  const StateView s = state_view(now_s);
+  const auto& js = transport_.joystick;
+  supervisor_.gate_joystick(now_s, js.have, js.stamp_s, &js.msg.vx, command_vel_);
+
+  // Autostart walks the mode ladder as soon as each step's preconditions hold.
+  if (opt_.autostart) {
+    const Mode m = supervisor_.mode();
+    if (m == Mode::kDamping) supervisor_.request_mode(Mode::kPrepare);
+    else if (m == Mode::kPrepare && supervisor_.prepare_done()) supervisor_.request_mode(Mode::kPolicy);
+  }
+  const bool may_run_policy = supervisor_.begin_tick(s, engine_->artifact());
+  if (supervisor_.entered_policy()) {
+    engine_->reset();
+    policy_phase_ = 0;
+  }
+  if (may_run_policy && policy_phase_ % kPolicyDecimation == 0) {
+    adopt_ready_policy();
+    const auto result = engine_->step(s.quat, s.gyro, command_vel_, s.q, s.dq);
+    if (result == PolicyEngine::Result::kNonFiniteObs) supervisor_.fault(fault_bit::kNonFiniteObs, "non-finite observation");
+    if (result == PolicyEngine::Result::kNonFiniteAction) supervisor_.fault(fault_bit::kNonFiniteAction, "non-finite action");
+    ++policy_ticks_;
+    const int64_t utime = static_cast<int64_t>(now_s * kSToUs);
+    obs_msg_.utime = action_msg_.utime = utime;
+    obs_msg_.policy_tick = action_msg_.policy_tick = policy_ticks_;
+    const auto& raw = engine_->obs_raw();
+    obs_msg_.size = static_cast<int32_t>(raw.size());
+    obs_msg_.raw.assign(raw.data(), raw.data() + raw.size());
+    obs_msg_.normalized.assign(engine_->obs_normalized().data(), engine_->obs_normalized().data() + raw.size());
+    action_msg_.size = static_cast<int32_t>(kJoints);
+    action_msg_.action.assign(engine_->action().begin(), engine_->action().end());
+    std::copy(engine_->q_target().begin(), engine_->q_target().end(), action_msg_.q_target);
+    transport_.publish(t1::CH_OBS, obs_msg_);
+    transport_.publish(t1::CH_ACTION, action_msg_);
+  }
+  if (may_run_policy) ++policy_phase_;
+  else if (supervisor_.mode() != Mode::kPolicy) adopt_ready_policy();  // no policy running: swap at once
+
+  supervisor_.finish_tick(s, engine_->artifact(), engine_->q_target(), command_);
+  command_.utime = static_cast<int64_t>(now_s * kSToUs);
+  command_.seq = cmd_seq_++;
+  command_.state_seq = transport_.joint.have ? transport_.joint.msg.seq : -1;
+  transport_.publish(t1::CH_JOINT_CMD, command_);
+  ++ticks_;
+  if (ticks_ % kStatusEveryTicks == 0) publish_status(now_s);
+}
+
+void Controller::publish_status(double now_s) {
+  const Mode mode = supervisor_.mode();
+  status_.utime = static_cast<int64_t>(now_s * kSToUs);
+  status_.mode = static_cast<int8_t>(mode);
+  assign_bounded(status_.mode_name, mode_name(mode));
+  assign_bounded(status_.policy_name, engine_->artifact().name.c_str());
+  assign_bounded(status_.policy_hash, engine_->artifact().content_hash.c_str());
+  assign_bounded(status_.clock, clock_name(opt_.clock));
+  status_.ticks = ticks_;
+  status_.policy_ticks = policy_ticks_;
+  status_.overruns = task_.overruns();
+  status_.seq_gaps_imu = supervisor_.imu_seq_gaps();
+  status_.seq_gaps_joint = supervisor_.joint_seq_gaps();
+  TimingStats& late = task_.lateness();
+  TimingStats& comp = task_.compute();
+  status_.lateness_us_last = static_cast<float>(late.last());
+  status_.lateness_us_mean = static_cast<float>(late.mean());
+  status_.lateness_us_p99 = static_cast<float>(late.p99());
+  status_.lateness_us_max = static_cast<float>(late.max());
+  status_.compute_us_last = static_cast<float>(comp.last());
+  status_.compute_us_mean = static_cast<float>(comp.mean());
+  status_.compute_us_p99 = static_cast<float>(comp.p99());
+  status_.compute_us_max = static_cast<float>(comp.max());
+  auto age_ms = [now_s](bool have, double t) { return have ? static_cast<float>((now_s - t) * kSToMs) : -1.0f; };
+  status_.imu_age_ms = age_ms(transport_.imu.have, transport_.imu.stamp_s);
+  status_.joint_age_ms = age_ms(transport_.joint.have, transport_.joint.stamp_s);
+  status_.joystick_age_ms = age_ms(transport_.joystick.have, transport_.joystick.stamp_s);
+  status_.fault_bits = supervisor_.fault_bits();
+  assign_bounded(status_.last_fault, supervisor_.last_fault());
+  if (message_changed_.load()) {
+    std::unique_lock<std::mutex> lock(reload_mutex_, std::try_to_lock);
+    if (lock.owns_lock()) {
+      std::snprintf(reload_info_, sizeof(reload_info_), "%s", reload_message_.c_str());
+      message_changed_.store(false);
+    }
+  }
+  char info[kStringReserve + 200];  // supervisor info (160) + reload message
+  std::snprintf(info, sizeof(info), "%s%s%s", supervisor_.last_info(), reload_info_[0] ? " | " : "", reload_info_);
+  assign_bounded(status_.info, info);
+  transport_.publish(t1::CH_CONTROLLER_STATUS, status_);
+  if (!opt_.quiet) print_live_line(now_s);
+}
+
+void Controller::print_live_line(double) {
+  const int64_t now = monotonic_ns();
+  if (now - last_live_ns_ < kLiveLinePeriodNs) return;
+  last_live_ns_ = now;
+  std::fprintf(stderr, "\r%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint %5.1f ms | ovr %lld | %.60s   ",
+               status_.mode_name.c_str(), static_cast<long long>(ticks_), static_cast<long long>(policy_ticks_),
+               status_.lateness_us_p99, status_.compute_us_p99, status_.imu_age_ms, status_.joint_age_ms,
+               static_cast<long long>(task_.overruns()), status_.last_fault.c_str());
+}
+
+bool Controller::step_lockstep(int timeout_ms) {
+  const int64_t start = monotonic_ns();
+  while (!transport_.new_joint_state) {
+    const int64_t left_ms = timeout_ms - (monotonic_ns() - start) / 1'000'000;
+    if (left_ms <= 0 || transport_.handle(static_cast<int>(left_ms)) < 0) return false;
+  }
+  transport_.drain();  // the IMU or commands sent alongside this state
+  transport_.new_joint_state = false;
+  const int64_t t0 = monotonic_ns();
+  tick(transport_.joint.stamp_s);  // sim time of the state being answered
+  task_.compute().add(static_cast<double>(monotonic_ns() - t0) / 1000.0);
+  return true;
+}
+
+void Controller::step_realtime() {
+  const int64_t wake_ns = task_.wait_next();
+  transport_.drain();
+  tick(static_cast<double>(wake_ns) * 1e-9);
+  task_.end_compute();
+}
+
+void Controller::run() {
+  const int64_t start = monotonic_ns();
+  const int64_t end = opt_.duration_s > 0 ? start + static_cast<int64_t>(opt_.duration_s * 1e9) : INT64_MAX;
+  task_.start();
+  while (!stop_.load() && monotonic_ns() < end) {
+    if (opt_.clock == ClockMode::kLockstep) step_lockstep(opt_.lockstep_wait_ms);
+    else step_realtime();
+  }
+  if (!opt_.quiet) std::fprintf(stderr, "\n");
+}
+
+}  // namespace t1rt

@@ -1,0 +1,113 @@
+// t1-runtime: the fixed-rate controller CLI. Exit codes:
+//   0 ok (duration reached or SIGINT/SIGTERM)   2 usage error        3 bad policy artifact
+//   4 LCM initialisation failure                5 --rt-required and a real-time setup step failed
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+#include "t1rt/controller.hpp"
+
+namespace {
+enum ExitCode { kExitOk = 0, kExitUsage = 2, kExitBadArtifact = 3, kExitLcm = 4, kExitRt = 5 };
+
+t1rt::Controller* g_controller = nullptr;
+
+void on_stop_signal(int) {
+  if (g_controller) g_controller->stop();
+}
+void on_sighup(int) { t1rt::Controller::notify_sighup(); }
+
+void usage(FILE* out) {
+  std::fprintf(out,
+      "usage: t1-runtime --policy PATH [options]\n"
+      "  --policy PATH          policy artifact (*.safetensors, policies/ARTIFACT.md); required\n"
+      "  --clock realtime|lockstep  realtime: own 500 Hz clock (default); lockstep: one tick per T1_JOINT_STATE,\n"
+      "                         answered by T1_JOINT_CMD with state_seq = that state's seq\n"
+      "  --lcm-url URL          LCM URL (default: $T1_LCM_URL, else the contract default)\n"
+      "  --rt                   SCHED_FIFO, mlockall, CPU pinning, /dev/cpu_dma_latency=0 (failures reported)\n"
+      "  --rt-required          like --rt, but any failed step is fatal (exit 5)\n"
+      "  --rt-cpu N             core for --rt pinning (default 1; -1 = no pinning)\n"
+      "  --autostart            go PASSIVE -> DAMPING -> PREPARE -> POLICY by itself\n"
+      "  --duration S           stop after S wall-clock seconds (default: run until SIGINT/SIGTERM)\n"
+      "  --quiet                no live status line\n"
+      "  --help                 this text\n"
+      "signals: SIGHUP reloads the current policy file; SIGINT/SIGTERM stop.\n"
+      "exit codes: 0 ok, 2 usage, 3 bad artifact, 4 LCM init failure, 5 --rt-required setup failure\n");
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  t1rt::ControllerOptions opt;
+  std::string cli_url;
+  bool rt = false, rt_required = false;
+  t1rt::RtOptions rt_options;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* name) -> const char* {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "t1-runtime: %s needs a value\n", name);
+        std::exit(kExitUsage);
+      }
+      return argv[++i];
+    };
+    if (a == "--help" || a == "-h") { usage(stdout); return kExitOk; }
+    else if (a == "--policy") opt.policy_path = value("--policy");
+    else if (a == "--clock") {
+      const std::string c = value("--clock");
+      if (c == "realtime") opt.clock = t1rt::ClockMode::kRealtime;
+      else if (c == "lockstep") opt.clock = t1rt::ClockMode::kLockstep;
+      else { std::fprintf(stderr, "t1-runtime: --clock must be realtime or lockstep, not '%s'\n", c.c_str()); return kExitUsage; }
+    } else if (a == "--lcm-url") cli_url = value("--lcm-url");
+    else if (a == "--rt") rt = true;
+    else if (a == "--rt-required") rt = rt_required = true;
+    else if (a == "--rt-cpu") rt_options.cpu = std::atoi(value("--rt-cpu"));
+    else if (a == "--autostart") opt.autostart = true;
+    else if (a == "--quiet") opt.quiet = true;
+    else if (a == "--duration") {
+      char* end = nullptr;
+      const char* v = value("--duration");
+      opt.duration_s = std::strtod(v, &end);
+      if (!end || *end || opt.duration_s <= 0) { std::fprintf(stderr, "t1-runtime: --duration needs seconds > 0, not '%s'\n", v); return kExitUsage; }
+    } else { std::fprintf(stderr, "t1-runtime: unknown argument '%s'\n", a.c_str()); usage(stderr); return kExitUsage; }
+  }
+  if (opt.policy_path.empty()) { std::fprintf(stderr, "t1-runtime: --policy PATH is required\n"); usage(stderr); return kExitUsage; }
+  opt.lcm_url = t1rt::resolve_lcm_url(cli_url);
+
+  std::unique_ptr<t1rt::PolicyEngine> engine;
+  try {
+    engine = std::make_unique<t1rt::PolicyEngine>(t1rt::load_artifact(opt.policy_path));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "t1-runtime: bad policy artifact %s: %s\n", opt.policy_path.c_str(), e.what());
+    return kExitBadArtifact;
+  }
+  const auto& art = engine->artifact();
+  std::fprintf(stderr, "t1-runtime: policy '%s' hash %.12s trained=%s obs %d layers %zu; clock %s; LCM %s\n",
+               art.name.c_str(), art.content_hash.c_str(), art.trained ? "true" : "false", art.obs_size,
+               art.layers.size(), t1rt::clock_name(opt.clock), opt.lcm_url.c_str());
+
+  t1rt::Controller controller(opt, std::move(engine));
+  std::string error;
+  if (!controller.open(&error)) { std::fprintf(stderr, "t1-runtime: LCM init failed: %s\n", error.c_str()); return kExitLcm; }
+
+  t1rt::RtSetup rt_setup;
+  if (rt) {
+    for (const std::string& line : rt_setup.apply(rt_options)) std::fprintf(stderr, "t1-runtime: rt %s\n", line.c_str());
+    if (rt_required && !rt_setup.all_ok()) { std::fprintf(stderr, "t1-runtime: --rt-required: real-time setup failed\n"); return kExitRt; }
+  }
+  g_controller = &controller;
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
+  std::signal(SIGHUP, on_sighup);
+  controller.run();
+  g_controller = nullptr;
+  auto& task = controller.task();
+  std::fprintf(stderr, "t1-runtime: stopped in %s after %lld ticks (%lld policy); lateness p99 %.1f us max %.1f us; "
+               "compute p99 %.1f us max %.1f us; overruns %lld; last fault: %s\n",
+               t1rt::mode_name(controller.supervisor().mode()), static_cast<long long>(controller.ticks()),
+               static_cast<long long>(controller.policy_ticks()), task.lateness().p99(), task.lateness().max(),
+               task.compute().p99(), task.compute().max(), static_cast<long long>(task.overruns()),
+               controller.supervisor().last_fault()[0] ? controller.supervisor().last_fault() : "none");
+  return kExitOk;
+}

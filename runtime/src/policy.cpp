@@ -1,0 +1,131 @@
+#include "t1rt/policy.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace t1rt {
+
+namespace {
+constexpr double kTwoPi = 2.0 * M_PI;
+
+// Wrap to [-pi, pi).
+double wrap_pi(double x) {
+  double y = std::fmod(x + M_PI, kTwoPi);
+  if (y < 0) y += kTwoPi;
+  return y - M_PI;
+}
+
+template <typename F>
+void apply(Eigen::VectorXf& v, F f) {
+  for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = f(v[i]);
+}
+}  // namespace
+
+void projected_gravity(const float* quat_wxyz, float* out3) {
+  double w = quat_wxyz[0], x = quat_wxyz[1], y = quat_wxyz[2], z = quat_wxyz[3];
+  const double n = std::sqrt(w * w + x * x + y * y + z * z);
+  if (n > 0.0) {
+    w /= n; x /= n; y /= n; z /= n;
+  }
+  // R^T (0,0,-1) = -(third row of R) transposed.
+  out3[0] = static_cast<float>(-2.0 * (x * z - w * y));
+  out3[1] = static_cast<float>(-2.0 * (y * z + w * x));
+  out3[2] = static_cast<float>(-(1.0 - 2.0 * (x * x + y * y)));
+}
+
+void build_observation(const PolicyArtifact& a, const ObsInputs& in, Eigen::Ref<Eigen::VectorXf> out) {
+  Eigen::Index k = 0;
+  for (const ObsTerm& term : a.obs_terms) {
+    const std::string& n = term.name;  // compared, never copied: no allocation
+    if (n == "gyro") {
+      for (int i = 0; i < 3; ++i) out[k++] = in.gyro[i];
+    } else if (n == "gravity") {
+      float g[3];
+      projected_gravity(in.imu_quat, g);
+      for (float v : g) out[k++] = v;
+    } else if (n == "command") {
+      for (int i = 0; i < 3; ++i) out[k++] = in.command[i];
+    } else if (n == "joint_pos") {
+      for (std::size_t i = 0; i < kJoints; ++i) out[k++] = in.q[i] - a.default_pose[i];
+    } else if (n == "joint_vel") {
+      for (std::size_t i = 0; i < kJoints; ++i) out[k++] = in.dq[i];
+    } else if (n == "last_action") {
+      for (std::size_t i = 0; i < kJoints; ++i) out[k++] = in.last_action[i];
+    } else if (n == "phase") {
+      out[k++] = std::cos(in.gait_phase[0]);
+      out[k++] = std::cos(in.gait_phase[1]);
+      out[k++] = std::sin(in.gait_phase[0]);
+      out[k++] = std::sin(in.gait_phase[1]);
+    }
+  }
+}
+
+void GaitPhase::reset() { phase_ = {0.0f, static_cast<float>(-M_PI)}; }
+
+void GaitPhase::advance(double frequency_hz, double control_dt_s, const float* command3, double freeze_norm) {
+  const double norm = std::sqrt(double(command3[0]) * command3[0] + double(command3[1]) * command3[1] +
+                                double(command3[2]) * command3[2]);
+  if (norm < freeze_norm) return;
+  const double step = kTwoPi * frequency_hz * control_dt_s;
+  for (float& p : phase_) p = static_cast<float>(wrap_pi(double(p) + step));
+}
+
+Mlp::Mlp(const PolicyArtifact& artifact) : artifact_(artifact), action_(static_cast<Eigen::Index>(kJoints)) {
+  for (const DenseLayer& l : artifact.layers) activations_.emplace_back(l.bias.size());
+}
+
+const Eigen::VectorXf& Mlp::run(const Eigen::VectorXf& input) {
+  const std::size_t last = artifact_.layers.size() - 1;
+  for (std::size_t i = 0; i <= last; ++i) {
+    const DenseLayer& l = artifact_.layers[i];
+    Eigen::VectorXf& h = activations_[i];
+    h.noalias() = l.weight * (i == 0 ? input : activations_[i - 1]);
+    h += l.bias;
+    if (i == last) break;  // last layer is linear
+    switch (artifact_.activation) {
+      case Activation::kSwish: apply(h, [](float x) { return x / (1.0f + std::exp(-x)); }); break;
+      case Activation::kElu: apply(h, [](float x) { return x > 0.0f ? x : std::expm1(x); }); break;
+      case Activation::kTanh: apply(h, [](float x) { return std::tanh(x); }); break;
+      case Activation::kRelu: apply(h, [](float x) { return x > 0.0f ? x : 0.0f; }); break;
+    }
+  }
+  const Eigen::VectorXf& out = activations_[last];
+  if (artifact_.output_rule == OutputRule::kTanhNormal) {
+    for (Eigen::Index i = 0; i < action_.size(); ++i) action_[i] = std::tanh(out[i]);  // loc half, squashed
+  } else {
+    action_ = out;
+  }
+  return action_;
+}
+
+PolicyEngine::PolicyEngine(PolicyArtifact artifact)
+    : artifact_(std::move(artifact)), mlp_(artifact_), obs_raw_(artifact_.obs_size), obs_norm_(artifact_.obs_size) {
+  reset();
+}
+
+void PolicyEngine::reset() {
+  last_action_.fill(0.0f);
+  q_target_ = artifact_.default_pose;
+  gait_.reset();
+}
+
+PolicyEngine::Result PolicyEngine::step(const float* imu_quat, const float* gyro, const float* command,
+                                        const float* q, const float* dq) {
+  gait_.advance(artifact_.gait_frequency_hz, artifact_.control_dt_s, command, artifact_.phase_freeze_command_norm);
+  ObsInputs in{imu_quat, gyro, command, q, dq, last_action_.data(), gait_.phase()};
+  build_observation(artifact_, in, obs_raw_);
+  obs_norm_ = (obs_raw_ - artifact_.obs_mean).cwiseQuotient(artifact_.obs_std);
+  if (!obs_norm_.allFinite()) return Result::kNonFiniteObs;
+  const Eigen::VectorXf& action = mlp_.run(obs_norm_);
+  if (inject_nan_action_ || !action.allFinite()) {
+    inject_nan_action_ = false;
+    return Result::kNonFiniteAction;
+  }
+  for (std::size_t i = 0; i < kJoints; ++i) {
+    last_action_[i] = action[static_cast<Eigen::Index>(i)];
+    q_target_[i] = artifact_.default_pose[i] + artifact_.action_scale[i] * last_action_[i];
+  }
+  return Result::kOk;
+}
+
+}  // namespace t1rt

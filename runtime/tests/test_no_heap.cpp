@@ -1,0 +1,86 @@
+// No heap allocation inside the loop after start. This binary interposes malloc/calloc/realloc (and so
+// operator new, which calls malloc) and counts calls made while `g_counting` is set.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+
+#include "lcm_peer.hpp"
+#include "t1rt/controller.hpp"
+#include "test_artifact.hpp"
+
+extern "C" void* __libc_malloc(size_t);
+extern "C" void* __libc_calloc(size_t, size_t);
+extern "C" void* __libc_realloc(void*, size_t);
+
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+thread_local bool t_loop_thread = false;  // count only the loop thread (LCM/gtest threads are not the loop)
+void note() {
+  if (g_counting.load(std::memory_order_relaxed) && t_loop_thread) g_allocations.fetch_add(1);
+}
+}  // namespace
+
+extern "C" void* malloc(size_t n) { note(); return __libc_malloc(n); }
+extern "C" void* calloc(size_t a, size_t b) { note(); return __libc_calloc(a, b); }
+extern "C" void* realloc(void* p, size_t n) { note(); return __libc_realloc(p, n); }
+
+using namespace t1rt;
+using namespace t1rt::testing;
+
+TEST(NoHeap, CounterSeesAllocations) {
+  t_loop_thread = true;
+  g_allocations = 0;
+  g_counting = true;
+  auto* p = new std::vector<int>(1000);
+  g_counting = false;
+  delete p;
+  t_loop_thread = false;
+  EXPECT_GE(g_allocations.load(), 1);
+}
+
+// N lockstep ticks through POLICY (observation, MLP, supervisor, LCM handle + publish of every message,
+// status at 10 Hz): zero allocations on the loop thread.
+TEST(NoHeap, LoopTicksAllocateNothing) {
+  LcmPeer peer;
+  ASSERT_TRUE(peer.ok()) << "run inside tools/netns";
+  ControllerOptions opt;
+  opt.policy_path = write_spec("noheap", make_spec({256, 128, 128}));
+  opt.lcm_url = resolve_lcm_url("");
+  opt.clock = ClockMode::kLockstep;
+  opt.quiet = true;
+  opt.autostart = true;
+  opt.safety.prepare_duration_s = 0.02;
+  Controller ctrl(opt, std::make_unique<PolicyEngine>(load_artifact(opt.policy_path)));
+  std::string error;
+  ASSERT_TRUE(ctrl.open(&error)) << error;
+  const JointArray pose = ctrl.policy().artifact().default_pose;
+  t1::imu_t imu{};
+  imu.quat[0] = 1.0f;
+  t1::joint_state_t js{};
+  std::copy(pose.begin(), pose.end(), js.q);
+  t1::joystick_t stick{};
+  stick.vx = 0.5f;
+  constexpr int kWarmup = 100, kCounted = 1000;
+  long counted_ticks = 0;
+  for (int k = 1; k <= kWarmup + kCounted; ++k) {
+    imu.utime = js.utime = stick.utime = k * 2000;
+    imu.seq = js.seq = stick.seq = k;
+    peer.publish(t1::CH_IMU, imu);
+    peer.publish(t1::CH_JOYSTICK, stick);
+    peer.publish(t1::CH_JOINT_STATE, js);
+    t_loop_thread = true;
+    if (k > kWarmup) g_counting = true;
+    const bool ticked = ctrl.step_lockstep(500);
+    g_counting = false;
+    t_loop_thread = false;
+    ASSERT_TRUE(ticked);
+    if (k > kWarmup) ++counted_ticks;
+    peer.drain();
+  }
+  EXPECT_EQ(ctrl.supervisor().mode(), Mode::kPolicy) << ctrl.supervisor().last_fault();
+  EXPECT_GE(ctrl.policy_ticks(), kCounted / kPolicyDecimation);
+  EXPECT_EQ(counted_ticks, kCounted);
+  EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in " << kCounted << " loop ticks";
+}
