@@ -29,6 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lcm-url", default=None, help="default: $T1_LCM_URL or " + contract.DEFAULT_LCM_URL)
     p.add_argument("--lockstep-timeout", type=float, default=config.LOCKSTEP_TIMEOUT_S,
                    help="wall seconds to wait for the command answering a state")
+    p.add_argument("--status-rate", type=float, default=config.STATUS_RATE_HZ, help="T1_SIM_STATUS rate [Hz]")
     p.add_argument("--quiet", action="store_true", help="no status line")
     return p
 
@@ -47,7 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     cfg = SimConfig(scenario=args.scenario, spawn=args.spawn, clock=args.clock, seed=args.seed,
                     duration_s=args.duration, physics_dt_s=args.physics_dt, faults=args.faults,
                     lcm_url=args.lcm_url or contract.lcm_url(), can_interface=args.can_interface,
-                    can_log=args.can_log, record=args.record, lockstep_timeout_s=args.lockstep_timeout)
+                    can_log=args.can_log, record=args.record, lockstep_timeout_s=args.lockstep_timeout,
+                    status_rate_hz=args.status_rate)
     if args.duration is not None and args.duration <= 0:
         print("sim_hil: --duration must be > 0", file=sys.stderr)
         return EXIT_USAGE

@@ -1,5 +1,7 @@
-"""Offscreen video of a run: a camera that follows the Trunk, frames at VIDEO_FPS of sim time, mp4 at the end.
-Uses MuJoCo's renderer (MUJOCO_GL=osmesa on a headless machine, egl on a GPU) and mediapy/ffmpeg."""
+"""Offscreen video of a run: a camera that follows the Trunk. During the run only the pose (qpos) is kept
+at VIDEO_FPS of sim time, so recording never slows realtime pacing (software GL renders a frame in tens of
+ms); the frames are rendered and encoded to mp4 when the run ends. MUJOCO_GL=osmesa on a headless machine,
+egl on a GPU."""
 from __future__ import annotations
 
 import os
@@ -14,31 +16,46 @@ os.environ.setdefault("MUJOCO_GL", "osmesa")
 os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
 
 
+def tracking_camera(model: mujoco.MjModel) -> mujoco.MjvCamera:
+    camera = mujoco.MjvCamera()
+    camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+    camera.trackbodyid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "Trunk")
+    camera.distance, camera.elevation, camera.azimuth = 2.8, -15.0, 135.0
+    return camera
+
+
+def render_video(model: mujoco.MjModel, poses: list[np.ndarray], path: Path, fps: int) -> None:
+    import mediapy
+    height, width = config.VIDEO_SIZE
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    data = mujoco.MjData(model)
+    camera = tracking_camera(model)
+    renderer = mujoco.Renderer(model, height=height, width=width)
+    try:
+        frames = []
+        for qpos in poses:
+            data.qpos[:] = qpos
+            mujoco.mj_kinematics(model, data)
+            renderer.update_scene(data, camera)
+            frames.append(renderer.render())
+        mediapy.write_video(str(path), frames, fps=fps)
+    finally:
+        renderer.close()
+
+
 class Recorder:
     def __init__(self, model: mujoco.MjModel, path: str, fps: int = config.VIDEO_FPS):
-        self.path = Path(path)
+        self.model, self.path, self.fps = model, Path(path), fps
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.fps = fps
-        height, width = config.VIDEO_SIZE
-        model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
-        model.vis.global_.offheight = max(model.vis.global_.offheight, height)
-        self.renderer = mujoco.Renderer(model, height=height, width=width)
-        self.camera = mujoco.MjvCamera()
-        self.camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-        self.camera.trackbodyid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "Trunk")
-        self.camera.distance, self.camera.elevation, self.camera.azimuth = 2.5, -15.0, 135.0
-        self.frames: list[np.ndarray] = []
+        self.poses: list[np.ndarray] = []
         self._next_t = 0.0
 
     def maybe_capture(self, data: mujoco.MjData) -> None:
-        if data.time + 1e-9 < self._next_t:
-            return
-        self._next_t += 1.0 / self.fps
-        self.renderer.update_scene(data, self.camera)
-        self.frames.append(self.renderer.render())
+        if data.time + 1e-9 >= self._next_t:
+            self._next_t += 1.0 / self.fps
+            self.poses.append(data.qpos.copy())
 
     def close(self) -> None:
-        import mediapy
-        if self.frames:
-            mediapy.write_video(str(self.path), self.frames, fps=self.fps)
-        self.renderer.close()
+        if self.poses:
+            render_video(self.model, self.poses, self.path, self.fps)

@@ -41,6 +41,7 @@ class SimConfig:
     can_log: str | None = None
     record: str | None = None
     lockstep_timeout_s: float = config.LOCKSTEP_TIMEOUT_S
+    status_rate_hz: float = config.STATUS_RATE_HZ
 
 
 def parse_spawn(spawn: str) -> tuple[str, int]:
@@ -86,7 +87,9 @@ class Simulator:
         self.seq = 0
         self.lockstep_timeouts = 0
         self._frozen_q: dict[int, float] = {}
-        self._status_every = max(1, int(round(1.0 / (config.STATUS_RATE_HZ * config.CONTROL_DT_S))))
+        if not 0 < cfg.status_rate_hz <= 1.0 / config.CONTROL_DT_S:
+            raise ValueError(f"--status-rate {cfg.status_rate_hz}: must be in (0, {1 / config.CONTROL_DT_S:g}] Hz")
+        self._status_every = max(1, int(round(1.0 / (cfg.status_rate_hz * config.CONTROL_DT_S))))
         self._rtf = 0.0
         self._rtf_mark = (time.perf_counter(), 0.0)
         self.recorder = None
@@ -137,6 +140,9 @@ class Simulator:
         s.fallen = s.trunk_height < config.FALLEN_TRUNK_HEIGHT_M
         s.base_pos = self.data.qpos[:3].tolist()
         s.base_lin_vel = self.data.qvel[:3].tolist()
+        w, x, y, z = self.data.qpos[3:7]
+        yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+        s.forward_velocity = float(np.cos(yaw) * self.data.qvel[0] + np.sin(yaw) * self.data.qvel[1])
         s.lockstep_timeouts, s.cmds_dropped = self.lockstep_timeouts, self.lcm.cmds_dropped
         s.frames_late = self.bus.frames_late
         s.bus_utilisation = [float(u) for u in self.bus.utilisation()]

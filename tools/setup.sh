@@ -6,7 +6,7 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
 APT_PACKAGES=(
   build-essential cmake ninja-build pkg-config git
-  libeigen3-dev nlohmann-json3-dev libgtest-dev libglib2.0-dev
+  libeigen3-dev nlohmann-json3-dev libgtest-dev libglib2.0-dev libssl-dev
   default-jdk-headless            # javac for the lcm-spy type jar; java for lcm-spy
   iproute2 util-linux             # ip, unshare: the project network namespace (tools/netns)
   libosmesa6 libgl1 xvfb ffmpeg   # offscreen MuJoCo rendering for videos; headless lcm-spy check
