@@ -2,26 +2,17 @@
 shape: two processes talking LCM inside the project namespace)."""
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import lcm
 import numpy as np
 from t1 import sim_status_t
 
 from messages import contract
+from sim_hil.launch import start_sim
 from sim_hil.scripted_client import ScriptedClient
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def start_sim(*args: str) -> subprocess.Popen:
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "build/gen/python")]))
-    return subprocess.Popen([sys.executable, "-m", "sim_hil", "--quiet", *args], cwd=ROOT, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+__all__ = ["start_sim", "run_with_client", "hold_pose", "StatusRecorder"]
 
 
 class StatusRecorder:

@@ -11,8 +11,9 @@ import pytest
 from t1 import controller_status_t, joint_command_t
 
 from messages import contract
-from tests.runtime_harness import UNTRAINED_STUDENT, start_runtime, stop
-from tests.sim_harness import start_sim
+from sim_hil.launch import ROOT, start_runtime, start_sim, stop
+
+UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained.safetensors"
 
 SIM_SECONDS = 20.0
 

@@ -30,7 +30,6 @@ Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyE
   obs_msg_.normalized.reserve(kObsReserve);
   action_msg_.action.reserve(kJoints);
   reload_message_.reserve(kStringReserve);
-  if (opt_.autostart) supervisor_.request_mode(Mode::kDamping);
   reload_thread_ = std::thread(&Controller::reload_worker, this);
 }
 
@@ -139,10 +138,13 @@ void Controller::tick(double now_s) {
   const auto& js = transport_.joystick;
   supervisor_.gate_joystick(now_s, js.have, js.stamp_s, &js.msg.vx, command_vel_);
 
-  // Autostart walks the mode ladder as soon as each step's preconditions hold.
+  // Autostart walks the mode ladder as soon as each step's preconditions hold. It leaves PASSIVE only once
+  // both state streams are live, so a runtime started before the robot (or the sim) waits instead of
+  // faulting on stale state.
   if (opt_.autostart) {
     const Mode m = supervisor_.mode();
-    if (m == Mode::kDamping) supervisor_.request_mode(Mode::kPrepare);
+    if (m == Mode::kPassive && s.have_imu && s.have_joint) supervisor_.request_mode(Mode::kDamping);
+    else if (m == Mode::kDamping) supervisor_.request_mode(Mode::kPrepare);
     else if (m == Mode::kPrepare && supervisor_.prepare_done()) supervisor_.request_mode(Mode::kPolicy);
   }
   const bool may_run_policy = supervisor_.begin_tick(s, engine_->artifact());
