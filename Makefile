@@ -46,7 +46,7 @@ sim: build
 # lcm-spy decoding every project type, in the same kind of namespace (start the sim inside it too:
 # `make spy` launches a sim in the background so there is traffic to look at).
 spy: build
-	$(NETNS) bash -c '$(PY) -m sim_hil --scenario flat --spawn standing --clock realtime --duration 600 & \
+	$(NETNS) bash -c '$(PY) -m sim_hil --quiet --scenario flat --spawn standing --clock realtime --duration 600 & \
 	  CLASSPATH=$(BUILD)/gen/java/t1_lcmtypes.jar lcm-spy --lcm-url="$$T1_LCM_URL"; kill %1'
 
 demo: build

@@ -20,8 +20,9 @@ from can.interfaces.virtual import VirtualBus, channels_lock
 from sim_hil import firmware as fw
 
 BUS_PERIOD_US = 2000            # one command + reply round per control tick (2 ms)
-UDP_GROUPS = ("239.74.163.2", "239.74.163.3", "239.74.163.4", "239.74.163.5")  # IPv4: the IPv6 default
-                                # group delivers nothing inside the namespace (DEPENDENCIES.md)
+UDP_GROUP = "239.74.163.2"      # IPv4: the IPv6 default group delivers nothing inside the namespace
+UDP_BASE_PORT = 43113           # bus b on port 43113 + b: Linux delivers a group's datagrams to every
+                                # socket bound to the port, whatever group it joined, so ports separate buses
 NO_REPLY = 1 << 8               # host-side status bit (above the 8 firmware bits): no reply frame this cycle
 
 
@@ -64,7 +65,7 @@ def _open_pair(interface: str, bus_index: int) -> tuple[can.BusABC, can.BusABC]:
         kw = dict(channel=channel, receive_own_messages=False, preserve_timestamps=True)
         return SimVirtualBus(**kw), SimVirtualBus(**kw)
     if interface == "udp_multicast":
-        kw = dict(interface="udp_multicast", channel=UDP_GROUPS[bus_index], hop_limit=0)
+        kw = dict(interface="udp_multicast", channel=UDP_GROUP, port=UDP_BASE_PORT + bus_index, hop_limit=0)
         return can.Bus(**kw), can.Bus(**kw)
     raise ValueError(f"unknown --can-interface '{interface}' (virtual | udp_multicast)")
 

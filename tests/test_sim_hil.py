@@ -92,3 +92,44 @@ def test_bad_cli_input_is_named(netns):
         _, err = proc.communicate(timeout=60)
         assert proc.returncode == 2, (args, err)
         assert needle in err, (args, err)
+
+
+def test_udp_multicast_buses_are_visible_to_outside_python_can_tools(netns, tmp_path):
+    """An outside python-can tool on one bus sees that bus's frames only, can inject a command frame that
+    moves a motor, and --can-log writes every frame to a standard ASC file."""
+    import can
+    import lcm
+
+    from messages import contract
+    from sim_hil.motor_bus import UDP_BASE_PORT, UDP_GROUP
+    from sim_hil.launch import start_sim
+
+    head = 0
+    bus_index = fw.BUS_OF_MOTOR[head]
+    tap = can.Bus(interface="udp_multicast", channel=UDP_GROUP, port=UDP_BASE_PORT + bus_index, hop_limit=0)
+    lc = lcm.LCM(contract.lcm_url())
+    head_q: list[float] = []
+    lc.subscribe(contract.CH_JOINT_STATE, lambda _c, d: head_q.append(joint_state_t.decode(d).q[head]))
+    log = tmp_path / "bus.asc"
+    proc = start_sim("--clock", "realtime", "--duration", "1.5", "--can-interface", "udp_multicast",
+                     "--can-log", str(log))
+    seen: set[int] = set()
+    goal = HOME.copy()
+    goal[head] = 0.5
+    frame = fw.pack_commands(goal, np.zeros(23), KP, KD, np.zeros(23))[8 * head: 8 * head + 8]
+    try:
+        while proc.poll() is None:
+            msg = tap.recv(0.01)
+            if msg is not None:
+                seen.add(msg.arbitration_id)
+            if head_q:   # the sim is up: inject the head's command every cycle, as a host would
+                tap.send(can.Message(arbitration_id=fw.cmd_can_id(head), data=frame, is_extended_id=False))
+            lc.handle_timeout(0)
+    finally:
+        tap.shutdown()
+    assert proc.returncode == 0, proc.communicate()[1]
+    on_bus = {fw.reply_can_id(i) for i in range(23) if fw.BUS_OF_MOTOR[i] == bus_index}
+    assert on_bus <= seen and not (seen - on_bus - {fw.cmd_can_id(head)})
+    assert head_q[-1] == pytest.approx(0.5, abs=0.05), "the injected frame did not drive the motor"
+    text = log.read_text()
+    assert "Begin Triggerblock" in text and text.count(" Rx ") > 1000
