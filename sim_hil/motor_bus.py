@@ -49,6 +49,16 @@ class SimVirtualBus(VirtualBus):
             if bus_queue is not self.queue or self.receive_own_messages:
                 bus_queue.put_nowait(msg)
 
+    def drain(self) -> list[can.Message]:
+        """Everything queued, without BusABC.recv's per-frame filtering and debug logging (no filters are
+        set on the simulator's own endpoints)."""
+        out = []
+        try:
+            while True:
+                out.append(self.queue.get_nowait())
+        except queue.Empty:
+            return out
+
     def _recv_internal(self, timeout: float | None):
         try:
             if not timeout:
@@ -70,6 +80,15 @@ def _open_pair(interface: str, bus_index: int) -> tuple[can.BusABC, can.BusABC]:
     raise ValueError(f"unknown --can-interface '{interface}' (virtual | udp_multicast)")
 
 
+def _drain(end: can.BusABC) -> list[can.Message]:
+    if isinstance(end, SimVirtualBus):
+        return end.drain()
+    out = []
+    while (msg := end.recv(0.0)) is not None:
+        out.append(msg)
+    return out
+
+
 class MotorBus:
     """Host ⇄ 4 buses ⇄ 23 firmware motors. Call `cycle()` once per tick, `motor_torques()` per substep."""
 
@@ -86,6 +105,7 @@ class MotorBus:
         self._late: list[deque] = [deque() for _ in self.ends]      # frames carried to the next cycle
         self._delayed: deque = deque()                               # (due_cycle, bus, msg) from faults
         self.cycle_index = 0
+        self._rx_frames = bytearray(8 * n)                          # command frames as the motors see them
         self.frames_sent = 0
         self.frames_dropped = 0
         # Host's view of the joints, updated from reply frames (quantised like the real bus).
@@ -141,12 +161,21 @@ class MotorBus:
                 self._put_on_wire(bus, msg)
 
     def _deliver_to_motors(self, now_us: int, dead: set[int]) -> None:
+        """Each motor latches the newest well-formed command frame addressed to it (one batched firmware
+        call); odd-length frames go through the per-frame path so the firmware flags them BAD_FRAME."""
+        mask = 0
         for _, motor_end in self.ends:
-            while (msg := motor_end.recv(0.0)) is not None:
+            for msg in _drain(motor_end):
                 i = self._cmd_id_to_motor.get(msg.arbitration_id)
                 if i is None or i in dead:
                     continue                   # not for a motor, or the motor is off the bus
-                self.motors.receive(i, bytes(msg.data), now_us)
+                if len(msg.data) == fw.CMD_DLC:
+                    self._rx_frames[8 * i: 8 * i + 8] = msg.data
+                    mask |= 1 << i
+                else:
+                    self.motors.receive(i, bytes(msg.data), now_us)
+        if mask:
+            self.motors.receive_all(bytes(self._rx_frames), now_us, mask)
 
     def motor_torques(self, q: np.ndarray, dq: np.ndarray, now_us: int, dead: set[int]) -> np.ndarray:
         """Firmware step of every motor at the physics rate → joint torques [N·m]."""
@@ -168,7 +197,7 @@ class MotorBus:
         got = np.zeros(fw.NUM_MOTORS, dtype=bool)
         frames = bytearray(8 * fw.NUM_MOTORS)
         for host_end, _ in self.ends:
-            while (msg := host_end.recv(0.0)) is not None:
+            for msg in _drain(host_end):
                 i = self._reply_id_to_motor.get(msg.arbitration_id)
                 if i is None:
                     continue
