@@ -52,8 +52,9 @@ spy: build
 demo: build
 	$(NETNS) $(PY) -m sim_hil.demo
 
+# make bench BENCH_ARGS=--quick : 10 s loop runs instead of 60 s
 bench: build
-	$(NETNS) $(PY) -m tests.bench
+	$(NETNS) $(PY) -m tests.bench $(BENCH_ARGS)
 
 clean:
 	rm -rf $(BUILD)

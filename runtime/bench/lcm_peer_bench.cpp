@@ -1,0 +1,194 @@
+// t1rt_bench_lcm_peer: plays a lockstep simulator and measures state->command latency over LCM. For each
+// k it publishes T1_IMU then T1_JOINT_STATE (seq k, utime k * 2 ms of sim time) and waits for the
+// T1_JOINT_CMD whose state_seq is k; latency = publish of the state -> arrival of its command (CLOCK_MONOTONIC).
+// The answering side (the target) is t1-runtime --clock lockstep or t1rt_bench_lcm_echo; with --echo-url a
+// t1rt_bench_lcm_echo on a second LCM URL is driven in alternation, so both see the same machine load. Ticks on which the
+// runtime evaluated the policy are told apart by the T1_ACTION it publishes before that tick's command.
+// Prints one JSON line for tests/bench/runtime_bench.py.
+#include <lcm/lcm.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bench_util.hpp"
+#include "t1/action_t.hpp"
+#include "t1/controller_status_t.hpp"
+#include "t1/imu_t.hpp"
+#include "t1/joint_command_t.hpp"
+#include "t1/joint_state_t.hpp"
+#include "t1_contract.hpp"
+#include "t1rt/constants.hpp"
+#include "t1rt/periodic_task.hpp"
+#include "t1rt/transport.hpp"
+
+namespace {
+using t1rt::bench::Args;
+using t1rt::bench::usage_error;
+
+constexpr int64_t kSimTickUs = 2000;            // lockstep sim time per state [us] (500 Hz)
+constexpr float kGravityMps2 = 9.81f;           // accelerometer reading at rest [m/s^2]
+constexpr int kConnectRetryMs = 100;            // re-send state 0 until the answering process listens
+constexpr int kMaxWarmupExchanges = 20000;      // 40 s of sim time: more means the runtime never got to POLICY
+
+const char* kHelp =
+    "usage: t1rt_bench_lcm_peer [--count N] [--warmup N] [--wait-policy] [--timeout-ms MS] [--connect-s S]\n"
+    "                           [--lcm-url URL] [--echo-url URL]\n"
+    "  --lcm-url URL    the target's LCM URL (default $T1_LCM_URL, else the contract default)\n"
+    "  --echo-url URL   also drive a t1rt_bench_lcm_echo listening on URL, alternating exchange by exchange\n"
+    "  --count N        recorded exchanges (default 5000)\n"
+    "  --warmup N       unrecorded exchanges first (default 2000)\n"
+    "  --wait-policy    keep warming up until T1_CONTROLLER_STATUS reports POLICY (for t1-runtime --autostart)\n"
+    "  --timeout-ms MS  give up when one command takes longer (default 1000)\n"
+    "  --connect-s S    how long to wait for the first answer (default 10)\n"
+    "prints one JSON line: latency [us] median/p99/max, overall, split into policy / non-policy ticks, echo\n";
+
+struct Peer {
+  lcm_t* lcm = nullptr;
+  t1::imu_t imu{};
+  t1::joint_state_t state{};
+  t1::joint_command_t command{};
+  t1::controller_status_t status{};
+  std::vector<uint8_t> buffer;
+  int64_t want_seq = -1;
+  int64_t answer_ns = 0;   // arrival time of the command answering want_seq
+  bool answered = false;
+  bool action_seen = false;
+  int8_t mode = -1;        // latest controller_status_t.mode, -1 before the first status
+  std::string fault;
+
+  template <class M>
+  void publish(const char* channel, const M& m) {
+    const int size = m.encode(buffer.data(), 0, static_cast<int>(buffer.size()));
+    if (size > 0) lcm_publish(lcm, channel, buffer.data(), static_cast<unsigned>(size));
+  }
+};
+
+void on_command(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+  const int64_t now = t1rt::monotonic_ns();
+  auto* p = static_cast<Peer*>(user);
+  if (p->command.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return;
+  if (p->command.state_seq == p->want_seq && !p->answered) {
+    p->answered = true;
+    p->answer_ns = now;
+  }
+}
+void on_action(const lcm_recv_buf_t*, const char*, void* user) { static_cast<Peer*>(user)->action_seen = true; }
+void on_status(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+  auto* p = static_cast<Peer*>(user);
+  if (p->status.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return;
+  p->mode = p->status.mode;
+  p->fault = p->status.last_fault;
+}
+
+// Publishes state k; returns the latency [us] of its answer, or a negative value on timeout.
+double exchange(Peer& p, int64_t k, int timeout_ms) {
+  p.imu.seq = p.state.seq = k;
+  p.imu.utime = p.state.utime = k * kSimTickUs;
+  p.want_seq = k;
+  p.answered = p.action_seen = false;
+  p.publish(t1::CH_IMU, p.imu);
+  const int64_t t0 = t1rt::monotonic_ns();
+  p.publish(t1::CH_JOINT_STATE, p.state);
+  const int64_t deadline = t0 + static_cast<int64_t>(timeout_ms) * 1'000'000;
+  while (!p.answered) {
+    const int64_t left_ms = (deadline - t1rt::monotonic_ns()) / 1'000'000;
+    if (left_ms <= 0 || lcm_handle_timeout(p.lcm, static_cast<int>(left_ms)) < 0) return -1.0;
+  }
+  return static_cast<double>(p.answer_ns - t0) * 1e-3;
+}
+
+// Opens LCM on `url` and subscribes to what the answering side sends; false if LCM cannot start.
+bool open_peer(Peer& p, const std::string& url) {
+  p.lcm = lcm_create(url.c_str());
+  if (!p.lcm) return false;
+  p.buffer.resize(static_cast<std::size_t>(std::max(p.state.getEncodedSize(), p.imu.getEncodedSize())));
+  p.imu.quat[0] = 1.0f;  // upright, at rest: (w x y z) = identity
+  p.imu.accel[2] = kGravityMps2;
+  lcm_subscribe(p.lcm, t1::CH_JOINT_CMD, &on_command, &p);
+  lcm_subscribe(p.lcm, t1::CH_ACTION, &on_action, &p);
+  lcm_subscribe(p.lcm, t1::CH_CONTROLLER_STATUS, &on_status, &p);
+  return true;
+}
+
+// The answering process may still be starting: re-send state 0 until it answers.
+bool connect(Peer& p, double connect_s) {
+  const int tries = static_cast<int>(connect_s * 1000.0 / kConnectRetryMs) + 1;
+  for (int i = 0; i < tries; ++i)
+    if (exchange(p, 0, kConnectRetryMs) >= 0.0) return true;
+  return false;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  int count = 5000, warmup = 2000, timeout_ms = 1000;
+  double connect_s = 10.0;
+  bool wait_policy = false;
+  std::string url, echo_url;
+  Args args(argc, argv);
+  while (args.next()) {
+    const std::string f = args.flag();
+    if (f == "--help" || f == "-h") { std::fputs(kHelp, stdout); return 0; }
+    else if (f == "--count") count = static_cast<int>(args.number(1));
+    else if (f == "--warmup") warmup = static_cast<int>(args.number(0));
+    else if (f == "--wait-policy") wait_policy = true;
+    else if (f == "--timeout-ms") timeout_ms = static_cast<int>(args.number(1));
+    else if (f == "--connect-s") connect_s = args.number(0.1);
+    else if (f == "--lcm-url") url = args.value();
+    else if (f == "--echo-url") echo_url = args.value();
+    else usage_error(argv[0], "unknown argument '" + f + "'");
+  }
+  const bool with_echo = !echo_url.empty();
+  Peer p, echo;
+  if (!open_peer(p, t1rt::resolve_lcm_url(url)) || (with_echo && !open_peer(echo, echo_url))) {
+    std::fprintf(stderr, "%s: lcm_create failed\n", argv[0]);
+    return t1rt::bench::kExitRun;
+  }
+  if (!connect(p, connect_s) || (with_echo && !connect(echo, connect_s))) {
+    std::fprintf(stderr, "%s: no T1_JOINT_CMD answered state 0 within %.1f s%s\n", argv[0], connect_s,
+                 with_echo ? " (target or echo)" : "");
+    return t1rt::bench::kExitRun;
+  }
+  // One step: the target, then (interleaved, so both see the same machine load) the echo.
+  auto step = [&](int64_t k, double* target_us, double* echo_us) {
+    *target_us = exchange(p, k, timeout_ms);
+    *echo_us = with_echo ? exchange(echo, k, timeout_ms) : 0.0;
+    if (*target_us >= 0.0 && *echo_us >= 0.0) return true;
+    std::fprintf(stderr, "%s: state %lld unanswered by the %s after %d ms\n", argv[0], static_cast<long long>(k),
+                 *target_us < 0.0 ? "target" : "echo", timeout_ms);
+    return false;
+  };
+  int64_t k = 1;
+  int warm = 0;
+  double target_us = 0.0, echo_us = 0.0;
+  for (; warm < warmup || (wait_policy && p.mode != t1::joint_command_t::MODE_POLICY); ++k, ++warm) {
+    if (warm >= kMaxWarmupExchanges || p.mode == t1::joint_command_t::MODE_FAULT) {
+      std::fprintf(stderr, "%s: answering process did not reach POLICY (status mode %d, last fault '%s')\n",
+                   argv[0], p.mode, p.fault.c_str());
+      return t1rt::bench::kExitRun;
+    }
+    if (!step(k, &target_us, &echo_us)) return t1rt::bench::kExitRun;
+  }
+
+  std::vector<double> all_us, policy_us, plain_us, echo_all_us;
+  all_us.reserve(static_cast<std::size_t>(count));
+  echo_all_us.reserve(static_cast<std::size_t>(count));
+  for (int i = 0; i < count; ++i, ++k) {
+    if (!step(k, &target_us, &echo_us)) return t1rt::bench::kExitRun;
+    all_us.push_back(target_us);
+    (p.action_seen ? policy_us : plain_us).push_back(target_us);
+    if (with_echo) echo_all_us.push_back(echo_us);
+  }
+  lcm_handle_timeout(p.lcm, 0);  // pick up a last status
+  std::string out;
+  t1rt::bench::json_summary(out, "latency_us", t1rt::bench::summarize(all_us));
+  t1rt::bench::json_summary(out, "policy_tick_us", t1rt::bench::summarize(policy_us));
+  t1rt::bench::json_summary(out, "plain_tick_us", t1rt::bench::summarize(plain_us));
+  t1rt::bench::json_summary(out, "echo_us", t1rt::bench::summarize(echo_all_us));
+  t1rt::bench::json_number(out, "warmup_exchanges", warm);
+  t1rt::bench::json_number(out, "final_mode", p.mode);
+  t1rt::bench::json_print(out);
+  lcm_destroy(p.lcm);
+  if (with_echo) lcm_destroy(echo.lcm);
+  return 0;
+}
