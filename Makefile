@@ -6,7 +6,8 @@ ROOT       := $(abspath .)
 VENV       := $(ROOT)/.venv
 PY         := $(VENV)/bin/python
 BUILD      := $(ROOT)/build
-SITE       := $(shell ls -d $(VENV)/lib/python3*/site-packages 2>/dev/null | head -1)
+# Deferred (=): the venv may only exist once `setup` has run.
+SITE        = $(shell ls -d $(VENV)/lib/python3*/site-packages 2>/dev/null | head -1)
 NETNS      := $(ROOT)/tools/netns
 JOBS       ?= 2
 export PYTHONPATH := $(ROOT):$(BUILD)/gen/python
@@ -58,3 +59,20 @@ bench: build
 
 clean:
 	rm -rf $(BUILD)
+
+# Evaluation in the loop (the seed's chapter 6; sim_hil/eval): seeded lockstep trials of the student and,
+# with EVAL_BASELINE=GETUP,JOYSTICK, the baseline composite; reports under out/eval/<scenario>/.
+# e.g. make eval-getup EVAL_ARGS="--trials 20" EVAL_BASELINE=policies/getup.safetensors,policies/joystick.safetensors
+EVAL_POLICY   ?= $(firstword $(wildcard policies/student.safetensors) policies/student_untrained.safetensors)
+EVAL_BASELINE ?=
+EVAL_ARGS     ?=
+EVAL_FLAGS     = --policy $(EVAL_POLICY) $(if $(EVAL_BASELINE),--baseline $(EVAL_BASELINE)) $(EVAL_ARGS)
+.PHONY: eval-getup eval-push eval-wall eval-puddle
+eval-getup: build
+	$(NETNS) $(PY) -m sim_hil.eval getup $(EVAL_FLAGS)
+eval-push: build
+	$(NETNS) $(PY) -m sim_hil.eval push $(EVAL_FLAGS)
+eval-wall: build
+	$(NETNS) $(PY) -m sim_hil.eval wall $(EVAL_FLAGS)
+eval-puddle: build
+	$(NETNS) $(PY) -m sim_hil.eval puddle $(EVAL_FLAGS)

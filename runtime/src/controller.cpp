@@ -20,8 +20,14 @@ void assign_bounded(std::string& dst, const char* src) {
 }
 }  // namespace
 
-Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial)
-    : opt_(options), supervisor_(options.safety), engine_(std::move(initial)) {
+Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial,
+                       std::unique_ptr<PolicyEngine> upright)
+    : opt_(options), supervisor_(options.safety), engine_(std::move(initial)), upright_(std::move(upright)) {
+  if (upright_) check_composite_pair(engine_->artifact(), upright_->artifact());  // throws before any thread
+  // Composite: PREPARE ramps to the upright member's default pose (a stand), which is also the member
+  // that runs first unless the waist is low.
+  active_ = upright_ ? upright_.get() : engine_.get();
+  member_ = CompositeMember::kUpright;
   current_path_ = opt_.policy_path;
   for (std::string* s : {&status_.mode_name, &status_.policy_name, &status_.policy_hash, &status_.clock,
                          &status_.last_fault, &status_.info})
@@ -43,7 +49,7 @@ Controller::~Controller() {
 }
 
 bool Controller::open(std::string* error) {
-  return transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, error);
+  return transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, error, composite());
 }
 
 void Controller::notify_sighup() { g_sighup.store(true); }
@@ -74,7 +80,11 @@ void Controller::reload_worker() {
     lock.unlock();
     std::unique_ptr<PolicyEngine> engine;
     std::string message;
-    try {
+    if (upright_) {
+      // A reload would have to swap one member and re-check the pair's gains against the other while it
+      // runs; composite runs are evaluation runs, so they are restarted with both files instead.
+      message = "reload REJECTED, old policies kept: hot reload is not supported in composite mode";
+    } else try {
       engine = std::make_unique<PolicyEngine>(load_artifact(path));
       message = "reload ok: " + path + " (" + engine->artifact().name + ", " + engine->artifact().content_hash.substr(0, 12) + ")";
     } catch (const std::exception& e) {
@@ -96,6 +106,7 @@ void Controller::adopt_ready_policy() {
   std::unique_lock<std::mutex> lock(reload_mutex_, std::try_to_lock);
   if (!lock.owns_lock()) return;  // never block the tick: try again at the next policy tick
   std::swap(engine_, ready_);
+  active_ = engine_.get();  // single-policy mode only (composite mode never has a ready policy)
   retired_ = std::move(ready_);
   ready_flag_.store(false);
   engine_->reset();
@@ -115,6 +126,10 @@ StateView Controller::state_view(double now_s) const {
   s.q = transport_.joint.msg.q;
   s.dq = transport_.joint.msg.dq;
   s.motor_status = transport_.joint.msg.motor_status;
+  s.needs_sim_status = composite();
+  s.have_sim_status = transport_.sim_status.have;
+  s.sim_status_time_s = transport_.sim_status.stamp_s;
+  s.waist_height_m = transport_.sim_status.msg.waist_height;
   return s;
 }
 
@@ -143,38 +158,45 @@ void Controller::tick(double now_s) {
   // faulting on stale state.
   if (opt_.autostart) {
     const Mode m = supervisor_.mode();
-    if (m == Mode::kPassive && s.have_imu && s.have_joint) supervisor_.request_mode(Mode::kDamping);
+    const bool streams_live = s.have_imu && s.have_joint && (!s.needs_sim_status || s.have_sim_status);
+    if (m == Mode::kPassive && streams_live) supervisor_.request_mode(Mode::kDamping);
     else if (m == Mode::kDamping) supervisor_.request_mode(Mode::kPrepare);
     else if (m == Mode::kPrepare && supervisor_.prepare_done()) supervisor_.request_mode(Mode::kPolicy);
   }
-  const bool may_run_policy = supervisor_.begin_tick(s, engine_->artifact());
+  const bool may_run_policy = supervisor_.begin_tick(s, active_->artifact());
   if (supervisor_.entered_policy()) {
     engine_->reset();
+    if (upright_) upright_->reset();
     policy_phase_ = 0;
   }
   if (may_run_policy && policy_phase_ % kPolicyDecimation == 0) {
     adopt_ready_policy();
-    const auto result = engine_->step(s.quat, s.gyro, command_vel_, s.q, s.dq);
+    if (upright_) select_member(s.waist_height_m);
+    const auto result = active_->step(s.quat, s.gyro, command_vel_, s.q, s.dq);
+    if (upright_ && result == PolicyEngine::Result::kOk) {
+      PolicyEngine& idle = active_ == upright_.get() ? *engine_ : *upright_;
+      idle.follow(active_->action(), command_vel_);
+    }
     if (result == PolicyEngine::Result::kNonFiniteObs) supervisor_.fault(fault_bit::kNonFiniteObs, "non-finite observation");
     if (result == PolicyEngine::Result::kNonFiniteAction) supervisor_.fault(fault_bit::kNonFiniteAction, "non-finite action");
     ++policy_ticks_;
     const int64_t utime = static_cast<int64_t>(now_s * kSToUs);
     obs_msg_.utime = action_msg_.utime = utime;
     obs_msg_.policy_tick = action_msg_.policy_tick = policy_ticks_;
-    const auto& raw = engine_->obs_raw();
+    const auto& raw = active_->obs_raw();
     obs_msg_.size = static_cast<int32_t>(raw.size());
     obs_msg_.raw.assign(raw.data(), raw.data() + raw.size());
-    obs_msg_.normalized.assign(engine_->obs_normalized().data(), engine_->obs_normalized().data() + raw.size());
+    obs_msg_.normalized.assign(active_->obs_normalized().data(), active_->obs_normalized().data() + raw.size());
     action_msg_.size = static_cast<int32_t>(kJoints);
-    action_msg_.action.assign(engine_->action().begin(), engine_->action().end());
-    std::copy(engine_->q_target().begin(), engine_->q_target().end(), action_msg_.q_target);
+    action_msg_.action.assign(active_->action().begin(), active_->action().end());
+    std::copy(active_->q_target().begin(), active_->q_target().end(), action_msg_.q_target);
     transport_.publish(t1::CH_OBS, obs_msg_);
     transport_.publish(t1::CH_ACTION, action_msg_);
   }
   if (may_run_policy) ++policy_phase_;
   else if (supervisor_.mode() != Mode::kPolicy) adopt_ready_policy();  // no policy running: swap at once
 
-  supervisor_.finish_tick(s, engine_->artifact(), engine_->q_target(), command_);
+  supervisor_.finish_tick(s, active_->artifact(), active_->q_target(), command_);
   command_.utime = static_cast<int64_t>(now_s * kSToUs);
   command_.seq = cmd_seq_++;
   command_.state_seq = transport_.joint.have ? transport_.joint.msg.seq : -1;
@@ -183,13 +205,34 @@ void Controller::tick(double now_s) {
   if (ticks_ % kStatusEveryTicks == 0) publish_status(now_s);
 }
 
+void Controller::select_member(float waist_height_m) {
+  const CompositeMember next = t1rt::select_member(waist_height_m);
+  if (next != member_) ++member_switches_;
+  member_ = next;
+  active_ = next == CompositeMember::kGetup ? engine_.get() : upright_.get();
+}
+
+void Controller::format_policy_identity() {
+  const PolicyArtifact& a = engine_->artifact();
+  if (!upright_) {
+    std::snprintf(policy_name_, sizeof(policy_name_), "%s", a.name.c_str());
+    std::snprintf(policy_hash_, sizeof(policy_hash_), "%s", a.content_hash.c_str());
+    return;
+  }
+  const PolicyArtifact& u = upright_->artifact();
+  std::snprintf(policy_name_, sizeof(policy_name_), "composite[getup=%s,upright=%s] active=%s", a.name.c_str(),
+                u.name.c_str(), member_name(member_));
+  std::snprintf(policy_hash_, sizeof(policy_hash_), "%.32s+%.32s", a.content_hash.c_str(), u.content_hash.c_str());
+}
+
 void Controller::publish_status(double now_s) {
   const Mode mode = supervisor_.mode();
   status_.utime = static_cast<int64_t>(now_s * kSToUs);
   status_.mode = static_cast<int8_t>(mode);
   assign_bounded(status_.mode_name, mode_name(mode));
-  assign_bounded(status_.policy_name, engine_->artifact().name.c_str());
-  assign_bounded(status_.policy_hash, engine_->artifact().content_hash.c_str());
+  format_policy_identity();
+  assign_bounded(status_.policy_name, policy_name_);
+  assign_bounded(status_.policy_hash, policy_hash_);
   assign_bounded(status_.clock, clock_name(opt_.clock));
   status_.ticks = ticks_;
   status_.policy_ticks = policy_ticks_;
@@ -219,8 +262,14 @@ void Controller::publish_status(double now_s) {
       message_changed_.store(false);
     }
   }
-  char info[kStringReserve + 200];  // supervisor info (160) + reload message
-  std::snprintf(info, sizeof(info), "%s%s%s", supervisor_.last_info(), reload_info_[0] ? " | " : "", reload_info_);
+  char composite_info[160] = {0};
+  if (upright_)
+    std::snprintf(composite_info, sizeof(composite_info), "composite: waist %.3f m from T1_SIM_STATUS (privileged sim "
+                  "signal), getup below %.2f m, active %s, switches %lld | ", transport_.sim_status.msg.waist_height,
+                  kGetupSwitchWaistHeightM, member_name(member_), static_cast<long long>(member_switches_));
+  char info[kStringReserve + 400];  // composite (160) + supervisor info (160) + reload message
+  std::snprintf(info, sizeof(info), "%s%s%s%s", composite_info, supervisor_.last_info(), reload_info_[0] ? " | " : "",
+                reload_info_);
   assign_bounded(status_.info, info);
   transport_.publish(t1::CH_CONTROLLER_STATUS, status_);
   if (!opt_.quiet) print_live_line(now_s);
@@ -230,8 +279,11 @@ void Controller::print_live_line(double) {
   const int64_t now = monotonic_ns();
   if (now - last_live_ns_ < kLiveLinePeriodNs) return;
   last_live_ns_ = now;
-  std::fprintf(stderr, "\r%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint %5.1f ms | ovr %lld | %.60s   ",
-               status_.mode_name.c_str(), static_cast<long long>(ticks_), static_cast<long long>(policy_ticks_),
+  if (upright_)  // composite mode: say it runs on a privileged sim signal, and which member acts
+    std::fprintf(stderr, "\rCOMPOSITE(sim waist %.2f m -> %-7s) ", transport_.sim_status.msg.waist_height,
+                 member_name(member_));
+  std::fprintf(stderr, "%s%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint %5.1f ms | ovr %lld | %.60s   ",
+               upright_ ? "" : "\r", status_.mode_name.c_str(), static_cast<long long>(ticks_), static_cast<long long>(policy_ticks_),
                status_.lateness_us_p99, status_.compute_us_p99, status_.imu_age_ms, status_.joint_age_ms,
                static_cast<long long>(task_.overruns()), status_.last_fault.c_str());
 }

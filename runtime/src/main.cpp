@@ -12,6 +12,7 @@
 namespace {
 enum ExitCode { kExitOk = 0, kExitUsage = 2, kExitBadArtifact = 3, kExitLcm = 4, kExitRt = 5 };
 
+constexpr double kMaxPrepareS = 10.0;  // a longer ramp is a typo, not a choice
 t1rt::Controller* g_controller = nullptr;
 
 void on_stop_signal(int) {
@@ -21,8 +22,12 @@ void on_sighup(int) { t1rt::Controller::notify_sighup(); }
 
 void usage(FILE* out) {
   std::fprintf(out,
-      "usage: t1-runtime --policy PATH [options]\n"
+      "usage: t1-runtime --policy PATH [--policy-upright PATH] [options]\n"
       "  --policy PATH          policy artifact (*.safetensors, policies/ARTIFACT.md); required\n"
+      "  --policy-upright PATH  composite mode (sim only): --policy is the getup member, run while the waist is\n"
+      "                         below 0.5 m, PATH the upright/joystick member; waist height comes from\n"
+      "                         T1_SIM_STATUS (privileged simulator signal; run the sim with --status-rate 500);\n"
+      "                         both artifacts must share one gain set; no hot reload\n"
       "  --clock realtime|lockstep  realtime: own 500 Hz clock (default); lockstep: one tick per T1_JOINT_STATE,\n"
       "                         answered by T1_JOINT_CMD with state_seq = that state's seq\n"
       "  --lcm-url URL          LCM URL (default: $T1_LCM_URL, else the contract default)\n"
@@ -30,6 +35,7 @@ void usage(FILE* out) {
       "  --rt-required          like --rt, but any failed step is fatal (exit 5)\n"
       "  --rt-cpu N             core for --rt pinning (default 1; -1 = no pinning)\n"
       "  --autostart            go PASSIVE -> DAMPING -> PREPARE -> POLICY by itself\n"
+      "  --prepare-s S          PREPARE ramp duration in seconds (default 2; 0 < S <= 10)\n"
       "  --duration S           stop after S wall-clock seconds (default: run until SIGINT/SIGTERM)\n"
       "  --quiet                no live status line\n"
       "  --help                 this text\n"
@@ -54,6 +60,7 @@ int main(int argc, char** argv) {
     };
     if (a == "--help" || a == "-h") { usage(stdout); return kExitOk; }
     else if (a == "--policy") opt.policy_path = value("--policy");
+    else if (a == "--policy-upright") opt.upright_policy_path = value("--policy-upright");
     else if (a == "--clock") {
       const std::string c = value("--clock");
       if (c == "realtime") opt.clock = t1rt::ClockMode::kRealtime;
@@ -64,6 +71,17 @@ int main(int argc, char** argv) {
     else if (a == "--rt-required") rt = rt_required = true;
     else if (a == "--rt-cpu") rt_options.cpu = std::atoi(value("--rt-cpu"));
     else if (a == "--autostart") opt.autostart = true;
+    else if (a == "--prepare-s") {
+      // Evaluations that spawn the robot standing in its default pose need no 2 s ramp: a static PD stand
+      // is not a balance controller and can tip over before the policy starts.
+      char* end = nullptr;
+      const char* v = value("--prepare-s");
+      opt.safety.prepare_duration_s = std::strtod(v, &end);
+      if (!end || *end || !(opt.safety.prepare_duration_s > 0 && opt.safety.prepare_duration_s <= kMaxPrepareS)) {
+        std::fprintf(stderr, "t1-runtime: --prepare-s needs seconds in (0, %g], not '%s'\n", kMaxPrepareS, v);
+        return kExitUsage;
+      }
+    }
     else if (a == "--quiet") opt.quiet = true;
     else if (a == "--duration") {
       char* end = nullptr;
@@ -75,19 +93,33 @@ int main(int argc, char** argv) {
   if (opt.policy_path.empty()) { std::fprintf(stderr, "t1-runtime: --policy PATH is required\n"); usage(stderr); return kExitUsage; }
   opt.lcm_url = t1rt::resolve_lcm_url(cli_url);
 
-  std::unique_ptr<t1rt::PolicyEngine> engine;
+  std::unique_ptr<t1rt::PolicyEngine> engine, upright;
+  std::string loading = opt.policy_path;
   try {
     engine = std::make_unique<t1rt::PolicyEngine>(t1rt::load_artifact(opt.policy_path));
+    if (!opt.upright_policy_path.empty()) {
+      loading = opt.upright_policy_path;
+      upright = std::make_unique<t1rt::PolicyEngine>(t1rt::load_artifact(opt.upright_policy_path));
+      loading = opt.policy_path + " + " + opt.upright_policy_path;
+      t1rt::check_composite_pair(engine->artifact(), upright->artifact());
+    }
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "t1-runtime: bad policy artifact %s: %s\n", opt.policy_path.c_str(), e.what());
+    std::fprintf(stderr, "t1-runtime: bad policy artifact %s: %s\n", loading.c_str(), e.what());
     return kExitBadArtifact;
   }
-  const auto& art = engine->artifact();
-  std::fprintf(stderr, "t1-runtime: policy '%s' hash %.12s trained=%s obs %d layers %zu; clock %s; LCM %s\n",
-               art.name.c_str(), art.content_hash.c_str(), art.trained ? "true" : "false", art.obs_size,
-               art.layers.size(), t1rt::clock_name(opt.clock), opt.lcm_url.c_str());
+  for (const t1rt::PolicyEngine* p : {engine.get(), upright.get()}) {
+    if (!p) continue;
+    const auto& art = p->artifact();
+    std::fprintf(stderr, "t1-runtime: %spolicy '%s' hash %.12s trained=%s obs %d layers %zu; clock %s; LCM %s\n",
+                 !upright ? "" : p == engine.get() ? "getup member: " : "upright member: ", art.name.c_str(),
+                 art.content_hash.c_str(), art.trained ? "true" : "false", art.obs_size, art.layers.size(),
+                 t1rt::clock_name(opt.clock), opt.lcm_url.c_str());
+  }
+  if (upright)
+    std::fprintf(stderr, "t1-runtime: COMPOSITE mode: getup below waist %.2f m, else upright; waist height from "
+                 "T1_SIM_STATUS (privileged simulator signal, not available on a robot)\n", t1rt::kGetupSwitchWaistHeightM);
 
-  t1rt::Controller controller(opt, std::move(engine));
+  t1rt::Controller controller(opt, std::move(engine), std::move(upright));
   std::string error;
   if (!controller.open(&error)) { std::fprintf(stderr, "t1-runtime: LCM init failed: %s\n", error.c_str()); return kExitLcm; }
 

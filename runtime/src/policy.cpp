@@ -109,6 +109,11 @@ void PolicyEngine::reset() {
   gait_.reset();
 }
 
+void PolicyEngine::follow(const JointArray& applied_action, const float* command) {
+  gait_.advance(artifact_.gait_frequency_hz, artifact_.control_dt_s, command, artifact_.phase_freeze_command_norm);
+  last_action_ = applied_action;
+}
+
 PolicyEngine::Result PolicyEngine::step(const float* imu_quat, const float* gyro, const float* command,
                                         const float* q, const float* dq) {
   gait_.advance(artifact_.gait_frequency_hz, artifact_.control_dt_s, command, artifact_.phase_freeze_command_norm);

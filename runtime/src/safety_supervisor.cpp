@@ -112,13 +112,18 @@ void Supervisor::enter(Mode mode, const StateView& state) {
 bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) {
   (void)artifact;
   entered_policy_ = false;
-  warning_bits_ &= ~(fault_bit::kImuHold | fault_bit::kJointHold | fault_bit::kMotorWarning | fault_bit::kMotorOverLimit |
+  warning_bits_ &= ~(fault_bit::kImuHold | fault_bit::kJointHold | fault_bit::kSimStatusHold | fault_bit::kMotorWarning | fault_bit::kMotorOverLimit |
                      fault_bit::kTargetClamped | fault_bit::kRateLimited | fault_bit::kTorqueClamped);
   const double imu_age = s.have_imu ? s.now_s - s.imu_time_s : kNever;
   const double joint_age = s.have_joint ? s.now_s - s.joint_time_s : kNever;
+  const double sim_age = !s.needs_sim_status ? 0.0 : s.have_sim_status ? s.now_s - s.sim_status_time_s : kNever;
   const bool imu_fresh = imu_age <= cfg_.hold_age_s, joint_fresh = joint_age <= cfg_.hold_age_s;
+  const bool sim_fresh = sim_age <= cfg_.hold_age_s;
   if (!imu_fresh) warning_bits_ |= fault_bit::kImuHold;
   if (!joint_fresh) warning_bits_ |= fault_bit::kJointHold;
+  if (!sim_fresh) warning_bits_ |= fault_bit::kSimStatusHold;
+  if (s.needs_sim_status && s.have_sim_status && !std::isfinite(s.waist_height_m))
+    fault(fault_bit::kNonFiniteSimStatus, "non-finite waist_height in sim_status_t (composite mode)");
 
   // Non-finite state is a sensor failure whatever the mode.
   if ((s.have_imu && (!all_finite(s.quat, 4) || !all_finite(s.gyro, 3))) ||
@@ -145,6 +150,10 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
     } else if (joint_age > cfg_.fault_age_s) {
       std::snprintf(why, sizeof(why), "joint_state_t stale: age %.1f ms > %.1f ms", joint_age * 1e3, cfg_.fault_age_s * 1e3);
       fault(fault_bit::kJointStale, why);
+    } else if (sim_age > cfg_.fault_age_s) {
+      std::snprintf(why, sizeof(why), "sim_status_t stale: age %.1f ms > %.1f ms (composite mode: sim --status-rate 500)",
+                    sim_age * 1e3, cfg_.fault_age_s * 1e3);
+      fault(fault_bit::kSimStatusStale, why);
     } else if (motor_fault) {
       std::snprintf(why, sizeof(why), "motor %d (%s) status 0x%x", motor_index, T1_MOTORS[motor_index].name,
                     static_cast<unsigned>(s.motor_status[motor_index]));
@@ -156,7 +165,7 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
 
   if (has_request_ && mode_ != Mode::kFault) {
     has_request_ = false;
-    const bool fresh = imu_fresh && joint_fresh;
+    const bool fresh = imu_fresh && joint_fresh && sim_fresh;
     switch (requested_) {
       case Mode::kPassive:
       case Mode::kDamping:
@@ -178,7 +187,7 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
         break;
     }
   }
-  holding_ = !(imu_fresh && joint_fresh);
+  holding_ = !(imu_fresh && joint_fresh && sim_fresh);
   return mode_ == Mode::kPolicy && !holding_;
 }
 

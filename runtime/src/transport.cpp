@@ -3,6 +3,7 @@
 #include <cstdlib>
 
 #include "t1_contract.hpp"
+#include "t1rt/composite.hpp"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/safety.hpp"
 
@@ -26,7 +27,8 @@ LcmTransport::~LcmTransport() {
   if (lcm_) lcm_destroy(lcm_);
 }
 
-bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error) {
+bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error,
+                        bool subscribe_sim_status) {
   clock_ = clock;
   supervisor_ = supervisor;
   buffer_.assign(kEncodeBufferBytes, 0);
@@ -39,6 +41,12 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
   lcm_subscribe(lcm_, t1::CH_JOINT_STATE, &LcmTransport::on_joint, this);
   lcm_subscribe(lcm_, t1::CH_JOYSTICK, &LcmTransport::on_joystick, this);
   lcm_subscribe(lcm_, t1::CH_RUNTIME_CMD, &LcmTransport::on_command, this);
+  if (subscribe_sim_status) {
+    // Decoding assigns the three strings; with this capacity (>= any accepted datagram) it never allocates.
+    for (std::string* s : {&sim_status.msg.scenario, &sim_status.msg.clock, &sim_status.msg.active_faults})
+      s->reserve(kSimStatusMaxBytes);
+    lcm_subscribe(lcm_, t1::CH_SIM_STATUS, &LcmTransport::on_sim_status, this);
+  }
   return true;
 }
 
@@ -88,6 +96,21 @@ void LcmTransport::on_joystick(const lcm_recv_buf_t* rbuf, const char*, void* p)
   self->joystick.have = true;
   self->joystick.stamp_s = self->stamp(self->joystick.msg.utime);
   ++self->joystick.received;
+}
+
+void LcmTransport::on_sim_status(const lcm_recv_buf_t* rbuf, const char*, void* p) {
+  auto* self = static_cast<LcmTransport*>(p);
+  if (rbuf->data_size > kSimStatusMaxBytes) {
+    ++self->sim_status_oversized;
+    return;
+  }
+  if (self->sim_status.msg.decode(rbuf->data, 0, rbuf->data_size) < 0) {
+    ++self->decode_errors;
+    return;
+  }
+  self->sim_status.have = true;
+  self->sim_status.stamp_s = self->stamp(self->sim_status.msg.utime);
+  ++self->sim_status.received;
 }
 
 void LcmTransport::on_command(const lcm_recv_buf_t* rbuf, const char*, void* p) {

@@ -7,6 +7,7 @@
 
 #include "lcm_peer.hpp"
 #include "t1rt/controller.hpp"
+#include "t1/sim_status_t.hpp"
 #include "test_artifact.hpp"
 
 extern "C" void* __libc_malloc(size_t);
@@ -83,4 +84,51 @@ TEST(NoHeap, LoopTicksAllocateNothing) {
   EXPECT_GE(ctrl.policy_ticks(), kCounted / kPolicyDecimation);
   EXPECT_EQ(counted_ticks, kCounted);
   EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in " << kCounted << " loop ticks";
+}
+
+// The same in composite mode: T1_SIM_STATUS decoded every tick (its strings into reserved capacity), the
+// member switching with the waist height, the idle member following: still zero allocations.
+TEST(NoHeap, CompositeLoopTicksAllocateNothing) {
+  LcmPeer peer;
+  ASSERT_TRUE(peer.ok()) << "run inside tools/netns";
+  ControllerOptions opt;
+  opt.policy_path = write_spec("noheap_getup", make_spec({128, 64}, "tanh_normal", "swish", 3));
+  opt.upright_policy_path = write_spec("noheap_upright", make_spec({256, 128, 128}));
+  opt.lcm_url = resolve_lcm_url("");
+  opt.clock = ClockMode::kLockstep;
+  opt.quiet = true;
+  opt.autostart = true;
+  opt.safety.prepare_duration_s = 0.02;
+  Controller ctrl(opt, std::make_unique<PolicyEngine>(load_artifact(opt.policy_path)),
+                  std::make_unique<PolicyEngine>(load_artifact(opt.upright_policy_path)));
+  std::string error;
+  ASSERT_TRUE(ctrl.open(&error)) << error;
+  const JointArray pose = ctrl.active_policy().artifact().default_pose;
+  t1::imu_t imu{};
+  imu.quat[0] = 1.0f;
+  t1::joint_state_t js{};
+  std::copy(pose.begin(), pose.end(), js.q);
+  t1::sim_status_t st{};
+  st.scenario = "flat";
+  st.clock = "lockstep";
+  st.active_faults = "push:x=30,y=0,z=0@2";
+  constexpr int kWarmup = 100, kCounted = 1000;
+  for (int k = 1; k <= kWarmup + kCounted; ++k) {
+    imu.utime = js.utime = st.utime = k * 2000;
+    imu.seq = js.seq = k;
+    st.waist_height = (k / 100) % 2 ? 0.3f : 0.6f;  // switch member every 0.2 s
+    peer.publish(t1::CH_SIM_STATUS, st);
+    peer.publish(t1::CH_IMU, imu);
+    peer.publish(t1::CH_JOINT_STATE, js);
+    t_loop_thread = true;
+    if (k > kWarmup) g_counting = true;
+    const bool ticked = ctrl.step_lockstep(500);
+    g_counting = false;
+    t_loop_thread = false;
+    ASSERT_TRUE(ticked);
+    peer.drain();
+  }
+  EXPECT_EQ(ctrl.supervisor().mode(), Mode::kPolicy) << ctrl.supervisor().last_fault();
+  EXPECT_GE(ctrl.member_switches(), 9);
+  EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in " << kCounted << " composite loop ticks";
 }

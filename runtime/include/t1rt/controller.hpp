@@ -12,6 +12,7 @@
 #include "t1/controller_status_t.hpp"
 #include "t1/joint_command_t.hpp"
 #include "t1/observation_t.hpp"
+#include "t1rt/composite.hpp"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/policy.hpp"
 #include "t1rt/safety.hpp"
@@ -20,7 +21,8 @@
 namespace t1rt {
 
 struct ControllerOptions {
-  std::string policy_path;
+  std::string policy_path;          // the single policy; in composite mode the getup member
+  std::string upright_policy_path;  // non-empty: composite mode (composite.hpp), the upright member
   std::string lcm_url;          // resolved (resolve_lcm_url)
   ClockMode clock = ClockMode::kRealtime;
   bool autostart = false;       // PASSIVE -> DAMPING -> PREPARE -> POLICY without operator commands
@@ -32,7 +34,10 @@ struct ControllerOptions {
 
 class Controller {
  public:
-  Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial_policy);
+  // upright_policy non-null: composite mode, initial_policy is the getup member. Throws ArtifactError
+  // when the pair does not share one gain set (check_composite_pair).
+  Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial_policy,
+             std::unique_ptr<PolicyEngine> upright_policy = nullptr);
   ~Controller();
 
   bool open(std::string* error);  // LCM transport; false on failure
@@ -48,7 +53,11 @@ class Controller {
   static void notify_sighup();                   // async-signal-safe
 
   Supervisor& supervisor() { return supervisor_; }
-  PolicyEngine& policy() { return *engine_; }
+  PolicyEngine& policy() { return *engine_; }            // composite mode: the getup member
+  PolicyEngine& active_policy() { return *active_; }     // the one whose targets are commanded
+  bool composite() const { return upright_ != nullptr; }
+  CompositeMember member() const { return member_; }
+  int64_t member_switches() const { return member_switches_; }
   PeriodicTask& task() { return task_; }
   LcmTransport& transport() { return transport_; }
   int64_t ticks() const { return ticks_; }
@@ -63,12 +72,19 @@ class Controller {
   void print_live_line(double now_s);
   void reload_worker();
   StateView state_view(double now_s) const;
+  void select_member(float waist_height_m);
+  void format_policy_identity();
 
   ControllerOptions opt_;
   Supervisor supervisor_;
   LcmTransport transport_;
   PeriodicTask task_;
   std::unique_ptr<PolicyEngine> engine_;
+  std::unique_ptr<PolicyEngine> upright_;    // composite mode only; never reloaded
+  PolicyEngine* active_ = nullptr;           // engine_ or upright_
+  CompositeMember member_ = CompositeMember::kUpright;
+  int64_t member_switches_ = 0;
+  char policy_name_[256] = {0}, policy_hash_[160] = {0};  // status strings, formatted off the hot path
   t1::joint_command_t command_{};
   t1::observation_t obs_msg_{};
   t1::action_t action_msg_{};

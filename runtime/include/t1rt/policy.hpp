@@ -62,6 +62,10 @@ class PolicyEngine {
   Result step(const float* imu_quat, const float* gyro, const float* command, const float* q, const float* dq);
   const Eigen::VectorXf& obs_raw() const { return obs_raw_; }
   const Eigen::VectorXf& obs_normalized() const { return obs_norm_; }
+  // Composite mode, for the member that did NOT act this policy tick: its clock and its last_action
+  // follow what was applied, as in the stitched teacher, where both experts read the env's one
+  // last_action and one gait clock. No MLP is run.
+  void follow(const JointArray& applied_action, const float* command);
   const JointArray& action() const { return last_action_; }
   const JointArray& q_target() const { return q_target_; }
   const GaitPhase& gait() const { return gait_; }

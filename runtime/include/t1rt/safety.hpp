@@ -27,6 +27,8 @@ inline constexpr int32_t kNonFiniteState = 1 << 2;
 inline constexpr int32_t kNonFiniteObs = 1 << 3;
 inline constexpr int32_t kNonFiniteAction = 1 << 4;
 inline constexpr int32_t kMotorFault = 1 << 5;
+inline constexpr int32_t kSimStatusStale = 1 << 6;     // composite mode: T1_SIM_STATUS older than fault age
+inline constexpr int32_t kNonFiniteSimStatus = 1 << 7; // composite mode: waist height not finite
 inline constexpr int32_t kImuHold = 1 << 16;
 inline constexpr int32_t kJointHold = 1 << 17;
 inline constexpr int32_t kJoystickStale = 1 << 18;
@@ -35,6 +37,7 @@ inline constexpr int32_t kRateLimited = 1 << 20;
 inline constexpr int32_t kTorqueClamped = 1 << 21;
 inline constexpr int32_t kMotorWarning = 1 << 22;    // fault bits seen in DAMPING (blocks PREPARE)
 inline constexpr int32_t kMotorOverLimit = 1 << 23;  // OVER_LIMIT: information, never a fault
+inline constexpr int32_t kSimStatusHold = 1 << 24;   // composite mode: T1_SIM_STATUS older than hold age
 }  // namespace fault_bit
 
 struct SafetyConfig {
@@ -59,6 +62,12 @@ struct StateView {
   const float* q = nullptr;              // 23 [rad]
   const float* dq = nullptr;             // 23 [rad/s]
   const int32_t* motor_status = nullptr; // 23 firmware bits
+  // Composite mode only (needs_sim_status): the privileged waist height from T1_SIM_STATUS, which picks
+  // the policy. Its age follows the same hold / FAULT rules as the IMU and the joint state.
+  bool needs_sim_status = false;
+  bool have_sim_status = false;
+  double sim_status_time_s = 0.0;
+  float waist_height_m = 0.0f;            // [m]
 };
 
 class Supervisor {

@@ -14,6 +14,7 @@
 #include "t1/joint_state_t.hpp"
 #include "t1/joystick_t.hpp"
 #include "t1/runtime_cmd_t.hpp"
+#include "t1/sim_status_t.hpp"
 
 namespace t1rt {
 
@@ -43,8 +44,10 @@ class LcmTransport {
   LcmTransport(const LcmTransport&) = delete;
   LcmTransport& operator=(const LcmTransport&) = delete;
 
-  // Creates the LCM instance and subscribes; false + *error on failure.
-  bool open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error);
+  // Creates the LCM instance and subscribes; false + *error on failure. subscribe_sim_status: composite
+  // mode only (T1_SIM_STATUS is privileged simulator truth; a single policy never listens to it).
+  bool open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error,
+            bool subscribe_sim_status = false);
   int handle(int timeout_ms);  // >0 handled a message, 0 timeout, <0 error
   void drain();                // handle everything already queued, without waiting
 
@@ -59,6 +62,8 @@ class LcmTransport {
   MessageSlot<t1::imu_t> imu;
   MessageSlot<t1::joint_state_t> joint;
   MessageSlot<t1::joystick_t> joystick;
+  MessageSlot<t1::sim_status_t> sim_status;  // composite mode only; its strings are reserved in open()
+  int64_t sim_status_oversized = 0;          // datagrams > kSimStatusMaxBytes, dropped
   bool new_joint_state = false;  // set by a joint_state_t arrival; the lockstep loop clears it
   std::array<t1::runtime_cmd_t, kCommandQueue> commands;
   std::size_t command_count = 0;
@@ -69,6 +74,7 @@ class LcmTransport {
   static void on_imu(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
   static void on_joint(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
   static void on_joystick(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
+  static void on_sim_status(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
   static void on_command(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
   double stamp(int64_t utime) const;
 

@@ -1,0 +1,108 @@
+"""`python -m sim_hil.eval <getup|push|wall|puddle> --policy STUDENT [--baseline GETUP,JOYSTICK] ...`
+
+Seeded lockstep trials of the student (one artifact) and, with --baseline, the baseline composite (getup
+expert below waist 0.5 m, joystick policy above: t1-runtime --policy-upright). Writes report.md, plots.png,
+video.mp4 and results.json under --out (default out/eval/<scenario>). Run inside tools/netns (make eval-*).
+Two trials run at once at most (--jobs), each sim+runtime pair on its own LCM port.
+"""
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import os
+import shlex
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import replace
+from pathlib import Path
+
+from sim_hil.eval.plans import PLANS
+from sim_hil.eval.trial import Controller, init_worker, run_job
+
+ROOT = Path(__file__).resolve().parents[2]
+MAX_JOBS = 2            # the machine has 2 cores: at most 2 sim+runtime pairs
+EXIT_OK, EXIT_USAGE, EXIT_FAILED = 0, 2, 1
+
+def parse_args(argv):
+    ap = argparse.ArgumentParser(prog="python -m sim_hil.eval", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scenario", choices=sorted(PLANS))
+    ap.add_argument("--policy", type=Path, required=True, help="student artifact (*.safetensors)")
+    ap.add_argument("--baseline", default="", help="GETUP,JOYSTICK artifacts of the baseline composite")
+    ap.add_argument("--trials", type=int, default=None, help="trials per policy (default: the scenario's)")
+    ap.add_argument("--seconds", type=float, default=None, help="sim seconds per trial (default: the scenario's)")
+    ap.add_argument("--seed", type=int, default=0, help="first trial seed (trial i uses seed + i)")
+    ap.add_argument("--jobs", type=int, default=MAX_JOBS, help=f"parallel trials, 1..{MAX_JOBS}")
+    ap.add_argument("--out", type=Path, default=None, help="default: out/eval/<scenario>")
+    ap.add_argument("--no-video", action="store_true", help="skip the mp4 (rendering costs ~0.1 s per frame)")
+    args = ap.parse_args(argv)
+    plan = PLANS[args.scenario]
+    args.trials = plan.default_trials if args.trials is None else args.trials
+    args.seconds = plan.default_seconds if args.seconds is None else args.seconds
+    if args.trials < 1:
+        ap.error(f"--trials {args.trials}: need at least 1")
+    if args.seconds <= 0:
+        ap.error(f"--seconds {args.seconds}: must be > 0")
+    if not 1 <= args.jobs <= MAX_JOBS:
+        ap.error(f"--jobs {args.jobs}: must be 1..{MAX_JOBS}")
+    controllers = [Controller("student", args.policy)]
+    if args.baseline:
+        parts = [p.strip() for p in args.baseline.split(",")]
+        if len(parts) != 2 or not all(parts):
+            ap.error(f"--baseline {args.baseline!r}: expected GETUP.safetensors,JOYSTICK.safetensors")
+        controllers.append(Controller("baseline", Path(parts[0]), Path(parts[1])))
+    for c in controllers:
+        for p in (c.policy, c.upright):
+            if p is not None and not p.is_file():
+                ap.error(f"policy artifact {p} does not exist")
+    args.out = args.out or ROOT / "out" / "eval" / args.scenario
+    return args, plan, controllers
+
+
+def main(argv=None) -> int:
+    args, plan, controllers = parse_args(argv)
+    if os.environ.get("T1_NETNS_INSIDE") != "1":
+        print("sim_hil.eval: run inside the project network namespace (tools/netns, or make eval-*)", file=sys.stderr)
+        return EXIT_USAGE
+    from tqdm import tqdm
+
+    from sim_hil.eval.report import trained_flags, trained_line, write_report
+    print(trained_line(trained_flags(controllers)))
+    args.out.mkdir(parents=True, exist_ok=True)
+    video = None if args.no_video else args.out / "video.mp4"
+    specs = plan.specs(args.trials, args.seconds, args.seed)
+    jobs = []
+    for i, spec in enumerate(specs):
+        for c in controllers:
+            record = str(video) if (video is not None and i == 0 and c.label == "student") else None
+            jobs.append((replace(spec, record=record), c, plan.finish_x_m, plan.segment_edges_x))
+    started = time.monotonic()
+    results, failures = [], []
+    ctx = mp.get_context("spawn")          # a fresh interpreter per worker: no forked MuJoCo/LCM state
+    slots = ctx.Manager().Queue()
+    for w in range(args.jobs):
+        slots.put(w)
+    with ProcessPoolExecutor(args.jobs, mp_context=ctx, initializer=init_worker, initargs=(slots,)) as pool:
+        futures = {pool.submit(run_job, job): job for job in jobs}
+        for fut in tqdm(as_completed(futures), total=len(futures), desc=f"eval {plan.name}", unit="trial"):
+            spec, c = futures[fut][:2]
+            try:
+                results.append(fut.result())
+            except Exception as exc:  # noqa: BLE001 - one failed trial is reported, the rest still count
+                failures.append(f"{c.label} seed {spec.seed}: {exc}")
+    results.sort(key=lambda r: (r.controller, r.spec.seed))
+    for f in failures:
+        print(f"sim_hil.eval: trial FAILED: {f}", file=sys.stderr)
+    if not results:
+        return EXIT_FAILED
+    command = "python -m sim_hil.eval " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))
+    paths = write_report(args.out, plan, controllers, results, command, args.trials, args.seconds,
+                         time.monotonic() - started, video)
+    for name, path in paths.items():
+        print(f"sim_hil.eval: {name:7s} {path}")
+    return EXIT_FAILED if failures else EXIT_OK
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

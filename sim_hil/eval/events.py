@@ -1,0 +1,183 @@
+"""THE definitions of "fall", "getup attempt", "success" and "time to stand" over a time series.
+
+One module, numpy only (no jax, no LCM), so the MJX batch evaluator (training/) and the HIL evaluation
+(sim_hil/eval) count the same events from the same kind of signals: trunk height [m] (Trunk origin = IMU
+above the floor) and up_z (world z component of the Trunk's z axis: 1 upright, 0 on its side, -1 upside
+down; `up_z_from_quat` gets it from the IMU orientation).
+
+Definitions (one sample = one control tick; the series is read causally, left to right):
+- standing: trunk_height >= standing_trunk_height_m AND up_z >= upright_up_z.
+- stood up: a run of standing samples lasting at least stand_hold_s; the robot stood up at the FIRST sample
+  of that run (so time to stand does not include the hold used to confirm it).
+- down: the robot is down from the first sample with trunk_height < fallen_trunk_height_m (or from t[0]
+  when the series starts that way) until it stands up. Kneeling, crouching or stumbling above the fallen
+  height is not down: only lying on the ground is.
+- fall: an entry into down after t[0]. A series that STARTS down (the getup scenario's fallen starts) has
+  no fall for that start; falls counts the ones that happen during the series.
+- getup attempt: while down, the trunk rises attempt_rise_m above its lowest height since the robot went
+  down or since the previous attempt failed. The attempt ends in success (stood up) or fails when the
+  trunk drops attempt_rise_m below its highest height during the attempt; the next attempt needs a fresh
+  rise of attempt_rise_m from the new low. A stand-up ends the attempt in progress; if the down phase
+  had no counted rise yet (a series too coarse to see it), the stand-up itself counts as one. Hysteresis of one attempt_rise_m both ways is what keeps
+  wobbling and settling from counting as attempts.
+- success: the series does not end down (every down phase ended with a stand-up). A series that never
+  went down is a success; one whose last stand-up has less than stand_hold_s of data after it is not.
+- time_to_stand_s: from the start of the FIRST down phase (t[0] for a fallen start, else the first fall
+  time) to its stand-up; nan if the robot never went down or never stood up from it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sim_hil.config import FALLEN_TRUNK_HEIGHT_M
+
+# Standing Trunk origin height is 0.665 m (t1_facts); 0.6 m leaves room for a bent-knee stance, yet is well
+# above kneeling, where the Trunk stays below ~0.5 m.
+STANDING_TRUNK_HEIGHT_M = 0.6
+UPRIGHT_UP_Z = 0.9          # cos(25.8 deg): trunk tilt that still counts as upright
+STAND_HOLD_S = 1.0          # a stand must last this long to count (a stumble through 0.6 m does not)
+# Lying trunk height is ~0.1-0.25 m, kneeling ~0.4-0.5 m: 0.15 m is a clear push off the ground (sitting
+# up, rolling onto the knees) but more than the bounce of a body settling after impact (a few cm).
+ATTEMPT_RISE_M = 0.15
+
+
+@dataclass(frozen=True)
+class EventThresholds:
+    fallen_trunk_height_m: float = FALLEN_TRUNK_HEIGHT_M
+    standing_trunk_height_m: float = STANDING_TRUNK_HEIGHT_M
+    upright_up_z: float = UPRIGHT_UP_Z
+    stand_hold_s: float = STAND_HOLD_S
+    attempt_rise_m: float = ATTEMPT_RISE_M
+
+    def __post_init__(self):
+        for name in ("fallen_trunk_height_m", "standing_trunk_height_m", "upright_up_z",
+                     "stand_hold_s", "attempt_rise_m"):
+            value = getattr(self, name)
+            if not math.isfinite(value):
+                raise ValueError(f"EventThresholds.{name} must be finite, got {value!r}")
+        if self.standing_trunk_height_m <= self.fallen_trunk_height_m:
+            raise ValueError(f"EventThresholds: standing_trunk_height_m ({self.standing_trunk_height_m}) "
+                             f"must be above fallen_trunk_height_m ({self.fallen_trunk_height_m})")
+        if self.stand_hold_s < 0 or self.attempt_rise_m <= 0:
+            raise ValueError("EventThresholds: stand_hold_s must be >= 0 and attempt_rise_m > 0")
+        if not -1.0 <= self.upright_up_z <= 1.0:
+            raise ValueError(f"EventThresholds.upright_up_z must lie in [-1, 1], got {self.upright_up_z}")
+
+
+@dataclass(frozen=True)
+class GetupEvents:
+    success: bool
+    time_to_stand_s: float            # nan: never down, or never stood up from the first down phase
+    attempts: int
+    falls: int
+    fall_times_s: list[float] = field(default_factory=list)
+
+
+def up_z_from_quat(quat_wxyz) -> np.ndarray:
+    """World z of the body z axis from (..., 4) quaternions (w x y z): 1 - 2(x² + y²)."""
+    q = np.asarray(quat_wxyz, dtype=np.float64)
+    if q.shape[-1] != 4:
+        raise ValueError(f"up_z_from_quat: last axis must be 4 (w x y z), got shape {q.shape}")
+    norm2 = np.sum(q * q, axis=-1)
+    if np.any(norm2 <= 0) or not np.all(np.isfinite(norm2)):
+        raise ValueError("up_z_from_quat: zero or non-finite quaternion")
+    return 1.0 - 2.0 * (q[..., 1] ** 2 + q[..., 2] ** 2) / norm2
+
+
+def _series(name: str, values, n: int | None = None) -> np.ndarray:
+    a = np.asarray(values, dtype=np.float64)
+    if a.ndim != 1:
+        raise ValueError(f"{name} must be 1-D (one value per tick), got shape {a.shape}")
+    if n is not None and a.shape[0] != n:
+        raise ValueError(f"{name} has {a.shape[0]} samples, t has {n}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} contains non-finite values (first at index {int(np.argmin(np.isfinite(a)))})")
+    return a
+
+
+def standing_mask(trunk_height, up_z, th: EventThresholds = EventThresholds()) -> np.ndarray:
+    """Per-sample standing test (no hold time): tall enough and upright enough."""
+    h = np.asarray(trunk_height, dtype=np.float64)
+    u = np.asarray(up_z, dtype=np.float64)
+    if h.shape != u.shape:
+        raise ValueError(f"standing_mask: trunk_height shape {h.shape} != up_z shape {u.shape}")
+    return (h >= th.standing_trunk_height_m) & (u >= th.upright_up_z)
+
+
+def _stand_up_onsets(t: np.ndarray, standing: np.ndarray, hold_s: float) -> np.ndarray:
+    """is_onset[i]: sample i starts a standing run that lasts >= hold_s (judged on the samples present)."""
+    n = len(t)
+    onset = np.zeros(n, dtype=bool)
+    i = 0
+    while i < n:
+        if not standing[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and standing[j + 1]:
+            j += 1
+        # Every sample of the run that still has hold_s of standing ahead of it could be where the
+        # robot stood up (a run may begin while the robot is not yet down, e.g. before a fall).
+        last_start = np.searchsorted(t[i:j + 1], t[j] - hold_s, side="right") - 1
+        if last_start >= 0:
+            onset[i:i + last_start + 1] = True
+        i = j + 1
+    return onset
+
+
+def getup_events(t, trunk_height, up_z, th: EventThresholds = EventThresholds()) -> GetupEvents:
+    """Falls, getup attempts, success and time to stand of one episode (definitions: module docstring)."""
+    t = _series("t", t)
+    n = t.shape[0]
+    if n == 0:
+        raise ValueError("getup_events: empty time series")
+    if n > 1 and not np.all(np.diff(t) > 0):
+        raise ValueError("getup_events: t must be strictly increasing")
+    h = _series("trunk_height", trunk_height, n)
+    u = _series("up_z", up_z, n)
+
+    can_stand_up = _stand_up_onsets(t, standing_mask(h, u, th), th.stand_hold_s)
+    lying = h < th.fallen_trunk_height_m
+
+    down = False
+    falls: list[float] = []
+    attempts = 0
+    first_down_t = math.nan
+    time_to_stand = math.nan
+    low = high = 0.0          # lowest height while waiting for a rise / highest during an attempt [m]
+    in_attempt = False
+    attempts_this_phase = 0
+    t_list, h, lying, can_stand_up = t.tolist(), h.tolist(), lying.tolist(), can_stand_up.tolist()
+    for k in range(n):
+        if not down:
+            if lying[k]:
+                down = True
+                if k > 0:
+                    falls.append(t_list[k])
+                if math.isnan(first_down_t):
+                    first_down_t = t_list[k]
+                low, in_attempt, attempts_this_phase = h[k], False, 0
+            continue
+        if can_stand_up[k]:
+            if attempts_this_phase == 0:
+                attempts += 1         # stood up between two samples (coarse series): still one attempt
+                attempts_this_phase = 1
+            down = False
+            if math.isnan(time_to_stand):
+                time_to_stand = t_list[k] - first_down_t
+            continue
+        if in_attempt:
+            high = max(high, h[k])
+            if h[k] <= high - th.attempt_rise_m:
+                in_attempt, low = False, h[k]
+        else:
+            low = min(low, h[k])
+            if h[k] >= low + th.attempt_rise_m:
+                in_attempt, high = True, h[k]
+                attempts += 1
+                attempts_this_phase += 1
+    return GetupEvents(success=not down, time_to_stand_s=time_to_stand, attempts=attempts,
+                       falls=len(falls), fall_times_s=falls)

@@ -1,0 +1,181 @@
+"""The four evaluation scenarios of the seed's chapter 6: which trials each runs, and how its trials are
+summarised into the rows of its tables. Numbers a scenario fixes (speeds, impulses, finish line) live here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from sim_hil import scenarios as sim_scenarios
+from sim_hil.eval.trial import TrialResult, TrialSpec
+
+# Standing spawns start in the default pose: a short PREPARE, because a 2 s static PD stand (no balance)
+# tips the T1 over forward at ~1.3 s (measured: standing spawn, autostart, trunk 0.33 m at 1.4 s).
+STANDING_PREPARE_S = 0.1
+# getup: seeded fallen starts (sim_hil.model.fallen_state drops the robot from a random pose)
+GETUP_TRIALS = 1000
+GETUP_SECONDS = 12.0            # 2 s PREPARE ramp + 10 s to get up
+# push: 20 forward and 10 backward torso impulses, standing, no command (the seed's Tables 6.5-6.8)
+PUSH_FORWARD, PUSH_BACKWARD = 20, 10
+PUSH_IMPULSE_NS = 40.0          # 1.3 m/s on 31.6 kg: enough to knock a standing T1 over (judgement)
+PUSH_AT_S = 2.0                 # 0.1 s PREPARE + ~2 s standing under the policy
+PUSH_SECONDS = 16.0
+# wall: the three low walls at 0.4 m/s (Tables 6.1-6.2)
+WALL_TRIALS = 5
+WALL_COMMAND_MPS = 0.4
+WALL_FINISH_BEHIND_LAST_M = 1.0  # finish line this far past the last wall's centre
+WALL_SECONDS = 60.0             # 15 m at 0.4 m/s is 37.5 s; the rest is time to fall and get up
+# puddle: seeded layouts (μ 0.4), constant forward command (Tables 6.3-6.4)
+PUDDLE_TRIALS = 10
+PUDDLE_COMMAND_MPS = 0.4
+PUDDLE_SECONDS = 40.0           # 16 m of path (puddles lie on x 1-15 m) at 0.4 m/s
+
+
+def wall_xs() -> list[float]:
+    return [sim_scenarios.WALL_FIRST_X_M + i * sim_scenarios.WALL_SPACING_M for i in range(sim_scenarios.WALL_COUNT)]
+
+
+def wall_finish_x() -> float:
+    return wall_xs()[-1] + WALL_FINISH_BEHIND_LAST_M
+
+
+def wall_segment_edges() -> list[float]:
+    """Segment i (wall i) spans from halfway after wall i-1 to halfway after wall i (open ends)."""
+    xs = wall_xs()
+    mids = [(a + b) / 2 for a, b in zip(xs, xs[1:])]
+    return [-math.inf, *mids, math.inf]
+
+
+@dataclass(frozen=True)
+class Plan:
+    name: str
+    sim_scenario: str
+    default_trials: int
+    default_seconds: float
+    specs: Callable[[int, float, int], list[TrialSpec]]     # (trials, seconds, seed0) -> specs
+    rows: Callable[[list[TrialResult]], dict[str, str]]     # one controller's trials -> table cells
+    finish_x_m: float | None = None
+    segment_edges_x: list[float] | None = None
+    description: str = ""
+
+
+def _fmt(values, digits=2, unit="") -> str:
+    v = np.asarray([x for x in values if x is not None and not (isinstance(x, float) and math.isnan(x))], float)
+    if v.size == 0:
+        return "n/a"
+    return f"{v.mean():.{digits}f} ± {v.std():.{digits}f}{unit}" if v.size > 1 else f"{v[0]:.{digits}f}{unit}"
+
+
+def _events(trials):
+    return [r.events for r in trials if r.events is not None]
+
+
+COMMON_ROWS = ("trials", "reached POLICY", "runtime faults")   # bookkeeping rows: no seed figure
+
+
+def _common(trials: list[TrialResult]) -> dict[str, str]:
+    ev = _events(trials)
+    faults = sorted({r.runtime_faults for r in trials if r.runtime_faults})
+    return {"trials": str(len(trials)),
+            "reached POLICY": f"{len(ev)}/{len(trials)}",
+            "runtime faults": "; ".join(faults) if faults else "none"}
+
+
+# ---- getup -----------------------------------------------------------------------------------------------
+def getup_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
+    return [TrialSpec("flat", seed0 + i, f"fallen:{seed0 + i}", seconds) for i in range(trials)]
+
+
+def getup_rows(trials: list[TrialResult]) -> dict[str, str]:
+    ev = _events(trials)
+    ok = [e for e in ev if e.success]
+    row = {"success rate": f"{len(ok)}/{len(trials)} ({100 * len(ok) / max(len(trials), 1):.0f} %)",
+           "time to stand [s]": _fmt([e.time_to_stand_s for e in ok]),
+           "getup attempts": _fmt([e.attempts for e in ev])}
+    for key, label in (("energy_J", "energy Σ|τ·q̇|·dt [J]"), ("max_energy_J", "max energy per tick [J]"),
+                       ("max_torque_Nm", "max torque [N·m]"), ("total_torque_Nms", "total torque Σ|τ|·dt [N·m·s]"),
+                       ("max_joint_acc", "max joint acc [rad/s²]"), ("total_joint_acc", "total joint acc Σ|q̈|·dt [rad/s]"),
+                       ("contact_force_mean_N", "contact force mean [N]"), ("contact_force_max_N", "contact force max [N]")):
+        row[label] = _fmt([r.effort.get(key) for r in trials if r.effort], 1)
+    return {**row, **_common(trials)}
+
+
+# ---- push ------------------------------------------------------------------------------------------------
+def push_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
+    """F F B repeated: any prefix (--trials N) has both directions in the 2:1 ratio of 20 forward, 10 back."""
+    out = []
+    for i in range(trials):
+        forward = i % 3 != 2
+        sign = 1.0 if forward else -1.0
+        out.append(TrialSpec("flat", seed0 + i, "standing", seconds, prepare_s=STANDING_PREPARE_S,
+                             faults=f"push:x={sign * PUSH_IMPULSE_NS:g},y=0,z=0@{PUSH_AT_S:g}",
+                             tag="forward" if forward else "backward"))
+    return out
+
+
+def push_rows(trials: list[TrialResult]) -> dict[str, str]:
+    row: dict[str, str] = {}
+    for direction in ("forward", "backward"):
+        sub = [r for r in trials if r.spec.tag == direction]
+        ev = _events(sub)
+        att = np.asarray([e.attempts for e in ev], float)
+        stats = (f"{att.mean():.2f} / {att.max():.0f} / {att.min():.0f} / {att.std():.2f}" if att.size else "n/a")
+        row[f"{direction}: trials"] = str(len(sub))
+        row[f"{direction}: attempts mean / max / min / std"] = stats
+        row[f"{direction}: fell"] = f"{sum(e.falls > 0 for e in ev)}/{len(sub)}"
+        row[f"{direction}: up at the end"] = f"{sum(e.success for e in ev)}/{len(sub)}"
+        row[f"{direction}: ran to stabilise"] = f"{sum(r.ran_to_stabilise for r in sub)}/{len(sub)}"
+    return {**row, **_common(trials)}
+
+
+# ---- wall ------------------------------------------------------------------------------------------------
+def wall_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
+    return [TrialSpec("walls", seed0 + i, "standing", seconds, command_vx_mps=WALL_COMMAND_MPS,
+                      prepare_s=STANDING_PREPARE_S) for i in range(trials)]
+
+
+def wall_rows(trials: list[TrialResult]) -> dict[str, str]:
+    done = [r for r in trials if not math.isnan(r.finish_time_s)]
+    row = {"completion time [s]": _fmt([r.finish_time_s - r.policy_start_s for r in done], 1),
+           "DNF": f"{len(trials) - len(done)}/{len(trials)}",
+           "distance [m]": _fmt([r.final_x_m for r in trials], 1)}
+    for i in range(len(wall_xs())):
+        row[f"wall {i + 1}: getup attempts"] = _fmt([r.segment_attempts[i] for r in trials if r.segment_attempts])
+        row[f"wall {i + 1}: falls"] = _fmt([r.segment_falls[i] for r in trials if r.segment_falls])
+    return {**row, **_common(trials)}
+
+
+# ---- puddle ----------------------------------------------------------------------------------------------
+def puddle_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
+    return [TrialSpec("puddles", seed0 + i, "standing", seconds, command_vx_mps=PUDDLE_COMMAND_MPS,
+                      prepare_s=STANDING_PREPARE_S) for i in range(trials)]
+
+
+def puddle_rows(trials: list[TrialResult]) -> dict[str, str]:
+    ev = _events(trials)
+    return {"slips per trial": _fmt([r.slips for r in trials]),
+            "trials with a slip": f"{sum(r.slips > 0 for r in trials)}/{len(trials)}",
+            "falls per trial": _fmt([e.falls for e in ev]),
+            "getup attempts per trial": _fmt([e.attempts for e in ev]),
+            "up at the end": f"{sum(e.success for e in ev)}/{len(trials)}",
+            "distance [m]": _fmt([r.final_x_m for r in trials], 1),
+            **_common(trials)}
+
+
+PLANS = {
+    "getup": Plan("getup", "flat", GETUP_TRIALS, GETUP_SECONDS, getup_specs, getup_rows,
+                  description="seeded fallen starts on flat ground, no command (Table 4.3 metrics)"),
+    "push": Plan("push", "flat", PUSH_FORWARD + PUSH_BACKWARD, PUSH_SECONDS, push_specs, push_rows,
+                 description=f"standing, no command, one torso impulse of ±{PUSH_IMPULSE_NS:g} N·s at "
+                             f"t = {PUSH_AT_S:g} s ({PUSH_FORWARD} forward, {PUSH_BACKWARD} backward)"),
+    "wall": Plan("wall", "walls", WALL_TRIALS, WALL_SECONDS, wall_specs, wall_rows, finish_x_m=wall_finish_x(),
+                 segment_edges_x=wall_segment_edges(),
+                 description=f"three 0.2 m walls at x = {', '.join(f'{x:g}' for x in wall_xs())} m, "
+                             f"{WALL_COMMAND_MPS} m/s forward; finish line x = {wall_finish_x():g} m"),
+    "puddle": Plan("puddle", "puddles", PUDDLE_TRIALS, PUDDLE_SECONDS, puddle_specs, puddle_rows,
+                   description=f"seeded puddle layouts (μ {sim_scenarios.PUDDLE_FRICTION}), "
+                               f"{PUDDLE_COMMAND_MPS} m/s forward"),
+}

@@ -1,0 +1,197 @@
+"""One evaluation trial: the simulator in THIS process (lockstep) and the C++ runtime as a child, over LCM
+on a URL of their own, so two trials can run side by side in one network namespace.
+
+The sim runs in-process so the trial can read what only physics knows, every tick (motor torques, joint
+accelerations, contact forces, foot slip), without adding fields to sim_status_t; the runtime still sees
+exactly what it sees in `make demo`: T1_IMU / T1_JOINT_STATE over LCM, and in composite mode T1_SIM_STATUS,
+published every tick (--status-rate 500). Trial time 0 is sim start; the runtime's autostart needs the
+PREPARE ramp before POLICY (2 s from a fallen start; STANDING_PREPARE_S from a standing one, where a long
+static PD stand tips over), so every metric starts at the first tick the runtime commands in POLICY.
+"""
+from __future__ import annotations
+
+import re
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from t1 import joystick_t
+
+from messages import contract
+from sim_hil import config
+from sim_hil.eval.events import GetupEvents, getup_events
+from sim_hil.eval.metrics import TickLog, effort_metrics, ran_to_stabilise, slip_events
+from sim_hil.launch import start_runtime, stop
+
+POLICY_MODE = 3                 # joint_command_t.mode of the runtime's POLICY (t1rt::Mode::kPolicy)
+JOYSTICK_EVERY_TICKS = 10       # 50 Hz joystick, as a gamepad; the runtime zeroes it only after 250 ms
+PLOT_EVERY_TICKS = 10           # plotted series at 50 Hz
+EVAL_PORT_OFFSET = 101          # trial LCM ports: contract port + this + worker index
+RUNTIME_OPEN_MARGIN_S = 0.2     # banner printed -> LCM subscribed: microseconds; this is margin
+
+
+@dataclass(frozen=True)
+class Controller:
+    """What drives the robot: one artifact (the student) or a composite pair (baseline getup + joystick)."""
+    label: str
+    policy: Path                  # single policy, or the composite's getup member
+    upright: Path | None = None   # composite: the joystick/upright member
+
+    def runtime_args(self) -> list[str]:
+        return ["--policy-upright", str(self.upright)] if self.upright else []
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    scenario: str                 # sim scenario (flat | walls | puddles | pushes)
+    seed: int
+    spawn: str                    # standing | kneeling | fallen:SEED
+    seconds: float                # sim seconds
+    command_vx_mps: float = 0.0   # constant forward command [m/s]
+    faults: str = ""              # sim --faults (pushes: push:x=±J@t)
+    record: str | None = None     # mp4 path
+    tag: str = ""                 # what the scenario wants to remember (e.g. "forward", "backward")
+    prepare_s: float = 2.0        # the runtime's PREPARE ramp (t1-runtime --prepare-s) before POLICY
+
+
+@dataclass
+class TrialResult:
+    spec: TrialSpec
+    controller: str
+    policy_start_s: float                   # nan: the runtime never reached POLICY
+    events: GetupEvents | None              # over the POLICY part of the trial
+    effort: dict[str, float]                # Table 4.3 metrics over the getup window
+    slips: int
+    ran_to_stabilise: bool
+    final_x_m: float
+    finish_time_s: float                    # walls: first time past the finish line (nan: DNF)
+    fall_x_m: list[float] = field(default_factory=list)   # base x at each fall / fallen start [m]
+    runtime_faults: str = ""                # the runtime's latched fault text, if any
+    segment_attempts: list[int] = field(default_factory=list)   # walls: getup attempts per wall segment
+    segment_falls: list[int] = field(default_factory=list)
+    plot: dict[str, list[float]] = field(default_factory=dict)
+
+
+def trial_lcm_url(worker: int, base: str | None = None) -> str:
+    """The contract URL on its own port for worker `worker` (ttl stays 0)."""
+    base = base or contract.lcm_url()
+    m = re.match(r"^(udpm://[^:/?]+):(\d+)(.*)$", base)
+    if not m:
+        raise ValueError(f"LCM URL {base!r}: expected udpm://GROUP:PORT[?options]")
+    return f"{m.group(1)}:{int(m.group(2)) + EVAL_PORT_OFFSET + worker}{m.group(3)}"
+
+
+def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m: float | None = None,
+              segment_edges_x: list[float] | None = None) -> TrialResult:
+    from sim_hil.sim import SimConfig, Simulator   # heavy (MuJoCo, CAN); only where a trial runs
+    sim = Simulator(SimConfig(scenario=spec.scenario, spawn=spec.spawn, clock="lockstep", seed=spec.seed,
+                              faults=spec.faults, lcm_url=lcm_url, record=spec.record,
+                              status_rate_hz=1.0 / config.CONTROL_DT_S))
+    runtime = start_runtime(controller.policy, "--clock", "lockstep", "--autostart", "--lcm-url", lcm_url,
+                            "--prepare-s", f"{spec.prepare_s:g}", *controller.runtime_args())
+    _wait_until_listening(runtime)
+    n = int(round(spec.seconds / config.CONTROL_DT_S))
+    log = TickLog(sim.model, n)
+    stick = joystick_t()
+    stick.vx = float(spec.command_vx_mps)
+    try:
+        for k in range(n):
+            if k % JOYSTICK_EVERY_TICKS == 0:
+                stick.utime, stick.seq = sim.now_us, k   # lockstep: ages are in sim time
+                sim.lcm.lc.publish(contract.CH_JOYSTICK, stick.encode())
+            sim.tick()
+            latest = sim.lcm.latest
+            log.record(k, sim.data, latest.mode if latest is not None else -1)
+            if runtime.poll() is not None:
+                raise RuntimeError(f"t1-runtime exited {runtime.returncode} at sim t={sim.data.time:.3f} s: "
+                                   f"{runtime.communicate()[1][-2000:]}")
+    finally:
+        sim.close()                                 # renders the video when recording
+        code, err = stop(runtime)
+    if sim.lockstep_timeouts:
+        raise RuntimeError(f"{sim.lockstep_timeouts} lockstep timeouts: the runtime did not answer every state")
+    return summarise(spec, controller.label, log, finish_x_m, _last_fault(err), segment_edges_x)
+
+
+def _wait_until_listening(runtime) -> None:
+    """The sim's first state must not go out before the runtime subscribes (lockstep would wait 30 s for an
+    answer that never comes): wait for the banner the runtime prints just before it opens LCM, plus a
+    margin. Reading a line at a time leaves the rest of stderr for stop()."""
+    lines = []
+    while True:
+        line = runtime.stderr.readline()
+        if not line:
+            raise RuntimeError(f"t1-runtime exited before listening: {''.join(lines)}")
+        lines.append(line)
+        if line.startswith("t1-runtime: policy '") or "COMPOSITE mode" in line:
+            break
+    time.sleep(RUNTIME_OPEN_MARGIN_S)
+
+
+def _last_fault(runtime_stderr: str) -> str:
+    m = re.search(r"last fault: (.*)$", runtime_stderr.strip().splitlines()[-1] if runtime_stderr.strip() else "")
+    return "" if not m or m.group(1) == "none" else m.group(1)
+
+
+def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | None,
+              runtime_faults: str = "", segment_edges_x: list[float] | None = None) -> TrialResult:
+    """Events and metrics of one logged trial (split out so scripted logs can be checked without a sim)."""
+    in_policy = np.flatnonzero(log.mode == POLICY_MODE)
+    start = int(in_policy[0]) if in_policy.size else None
+    events, effort, fall_x = None, {}, []
+    if start is not None:
+        sl = slice(start, None)
+        events = getup_events(log.t[sl], log.trunk[sl], log.up_z[sl])
+        starts_down = bool(log.trunk[start] < config.FALLEN_TRUNK_HEIGHT_M)
+        fall_ticks = [int(np.searchsorted(log.t, ft)) for ft in events.fall_times_s]
+        fall_x = [float(log.base_x[i]) for i in ([start] if starts_down else []) + fall_ticks]
+        # Table 4.3 window: the first time down, from going down (or POLICY start) to the stand-up; the
+        # rest of the POLICY part when it never stands up; the whole POLICY part when it never went down.
+        begin, end = start, log.n
+        if starts_down or events.falls:
+            first_down_t = log.t[start] if starts_down else events.fall_times_s[0]
+            begin = int(np.searchsorted(log.t, first_down_t))
+            if not np.isnan(events.time_to_stand_s):
+                end = int(np.searchsorted(log.t, first_down_t + events.time_to_stand_s))
+        effort = effort_metrics(log, begin, max(end, begin + 1))
+    finish = np.nan
+    if finish_x_m is not None:
+        past = np.flatnonzero(log.base_x >= finish_x_m)
+        finish = float(log.t[past[0]]) if past.size else np.nan
+    seg_attempts, seg_falls = [], []
+    if segment_edges_x and start is not None:
+        # each segment's ticks (POLICY part) in order; a down phase stays where the robot lies
+        x = log.base_x[start:]
+        for lo, hi in zip(segment_edges_x, segment_edges_x[1:]):
+            idx = start + np.flatnonzero((x >= lo) & (x < hi))
+            seg = getup_events(log.t[idx], log.trunk[idx], log.up_z[idx]) if idx.size else None
+            seg_attempts.append(seg.attempts if seg else 0)
+            seg_falls.append(seg.falls + int(log.trunk[idx[0]] < config.FALLEN_TRUNK_HEIGHT_M and idx[0] > start)
+                             if seg else 0)
+    sl = slice(start if start is not None else log.n, None)
+    every = slice(None, None, PLOT_EVERY_TICKS)
+    return TrialResult(
+        spec=spec, controller=label,
+        policy_start_s=float(log.t[start]) if start is not None else np.nan,
+        events=events, effort=effort, slips=slip_events(log, sl), ran_to_stabilise=ran_to_stabilise(log, sl),
+        final_x_m=float(log.base_x[-1]) if log.n else np.nan, finish_time_s=finish, fall_x_m=fall_x,
+        runtime_faults=runtime_faults, segment_attempts=seg_attempts, segment_falls=seg_falls,
+        plot={"t": log.t[every].tolist(), "trunk": log.trunk[every].tolist(), "waist": log.waist[every].tolist(),
+              "vx": log.fwd_vel[every].tolist()})
+
+
+# ---- pool workers (module level: a spawned worker imports them by name) --------------------------------
+_worker_url = ""
+
+
+def init_worker(slots) -> None:
+    """Pool initializer: take a free worker slot -> this worker's own LCM URL for all its trials."""
+    global _worker_url
+    _worker_url = trial_lcm_url(slots.get())
+
+
+def run_job(job) -> TrialResult:
+    spec, controller, finish_x_m, segment_edges_x = job
+    return run_trial(spec, controller, _worker_url, finish_x_m, segment_edges_x)

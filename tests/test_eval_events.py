@@ -1,0 +1,143 @@
+"""sim_hil.eval.events on scripted trajectories: known height sequences give known falls and attempts."""
+import math
+
+import numpy as np
+import pytest
+
+from sim_hil.eval.events import (EventThresholds, GetupEvents, getup_events, standing_mask,
+                                 up_z_from_quat)
+
+DT_S = 0.02                 # 50 Hz series: the events must not depend on the tick rate
+STAND_M, KNEEL_M, LIE_M = 0.66, 0.45, 0.15
+
+
+def script(*segments):
+    """segments: (height_from_m, height_to_m, duration_s[, up_z]) ramps, concatenated -> t, h, up_z."""
+    heights, ups = [], []
+    for seg in segments:
+        h0, h1, dur = seg[:3]
+        up = seg[3] if len(seg) > 3 else 1.0
+        n = max(1, int(round(dur / DT_S)))
+        heights.append(np.linspace(h0, h1, n, endpoint=False))
+        ups.append(np.full(n, up))
+    h = np.concatenate(heights)
+    return np.arange(len(h)) * DT_S, h, np.concatenate(ups)
+
+
+def events(*segments, th=EventThresholds()) -> GetupEvents:
+    return getup_events(*script(*segments), th=th)
+
+
+def test_standing_all_along_is_success_without_falls():
+    ev = events((STAND_M, STAND_M, 3.0))
+    assert ev == GetupEvents(success=True, time_to_stand_s=ev.time_to_stand_s, attempts=0, falls=0,
+                             fall_times_s=[])
+    assert math.isnan(ev.time_to_stand_s)
+
+
+def test_fallen_start_one_clean_getup():
+    # lie 1 s, rise through kneeling to standing in 2 s, stand 2 s
+    ev = events((LIE_M, LIE_M, 1.0), (LIE_M, KNEEL_M, 1.0), (KNEEL_M, STAND_M, 1.0), (STAND_M, STAND_M, 2.0))
+    assert ev.success and ev.attempts == 1 and ev.falls == 0 and ev.fall_times_s == []
+    # stands at the first sample >= 0.6 m: 2 s + (0.6 - 0.45) / 0.21 m/s into the last ramp
+    expected = 2.0 + (0.6 - KNEEL_M) / (STAND_M - KNEEL_M) * 1.0
+    assert ev.time_to_stand_s == pytest.approx(expected, abs=DT_S)
+
+
+def test_three_attempts_two_failed():
+    # two rises to kneeling that collapse back to the ground, then a stand-up
+    ev = events((LIE_M, LIE_M, 0.5),
+                (LIE_M, KNEEL_M, 0.5), (KNEEL_M, LIE_M, 0.5),
+                (LIE_M, KNEEL_M, 0.5), (KNEEL_M, 0.2, 0.5),
+                (0.2, STAND_M, 1.0), (STAND_M, STAND_M, 1.5))
+    assert ev.success and ev.attempts == 3 and ev.falls == 0
+
+
+def test_wobble_below_attempt_rise_is_not_an_attempt():
+    wobble = [(LIE_M, LIE_M + 0.1, 0.2), (LIE_M + 0.1, LIE_M, 0.2)] * 5
+    ev = events((LIE_M, LIE_M, 0.5), *wobble)
+    assert not ev.success and ev.attempts == 0 and ev.falls == 0
+    assert math.isnan(ev.time_to_stand_s)
+
+
+def test_fall_during_walking_then_getup_counts_fall_time():
+    ev = events((STAND_M, STAND_M, 2.0), (STAND_M, LIE_M, 0.5), (LIE_M, LIE_M, 1.0),
+                (LIE_M, STAND_M, 1.5), (STAND_M, STAND_M, 1.5))
+    assert ev.success and ev.falls == 1 and ev.attempts == 1
+    # falls when the trunk crosses 0.35 m on the way down
+    t_fall = 2.0 + (STAND_M - 0.35) / (STAND_M - LIE_M) * 0.5
+    assert ev.fall_times_s[0] == pytest.approx(t_fall, abs=DT_S)
+    t_stand = 3.5 + (0.6 - LIE_M) / (STAND_M - LIE_M) * 1.5
+    assert ev.time_to_stand_s == pytest.approx(t_stand - ev.fall_times_s[0], abs=2 * DT_S)
+
+
+def test_two_falls_two_getups_time_to_stand_is_first():
+    one = [(STAND_M, LIE_M, 0.3), (LIE_M, LIE_M, 0.5), (LIE_M, STAND_M, 1.0), (STAND_M, STAND_M, 1.5)]
+    ev = events((STAND_M, STAND_M, 1.0), *one, *one)
+    assert ev.success and ev.falls == 2 and ev.attempts == 2
+    assert ev.fall_times_s[1] > ev.fall_times_s[0] + 3.0
+    assert ev.time_to_stand_s < 2.0
+
+
+def test_ends_down_is_failure():
+    ev = events((STAND_M, STAND_M, 1.0), (STAND_M, LIE_M, 0.3), (LIE_M, LIE_M, 2.0))
+    assert not ev.success and ev.falls == 1 and ev.attempts == 0
+
+
+def test_stand_not_held_long_enough_is_not_success():
+    ev = events((LIE_M, LIE_M, 0.5), (LIE_M, STAND_M, 1.0), (STAND_M, STAND_M, 0.5))
+    assert not ev.success and ev.attempts == 1 and math.isnan(ev.time_to_stand_s)
+
+
+def test_stumble_and_kneel_above_fallen_height_is_not_a_fall():
+    ev = events((STAND_M, STAND_M, 1.0), (STAND_M, 0.4, 0.5), (0.4, 0.4, 1.0), (0.4, STAND_M, 0.5),
+                (STAND_M, STAND_M, 1.5))
+    assert ev.success and ev.falls == 0 and ev.attempts == 0
+
+
+def test_tall_but_tilted_is_not_standing():
+    # trunk high but lying over a wall at 60 deg tilt: not a stand-up
+    ev = events((LIE_M, LIE_M, 0.5), (LIE_M, STAND_M, 1.0, 0.5), (STAND_M, STAND_M, 2.0, 0.5))
+    assert not ev.success and ev.attempts == 1
+    mask = standing_mask([0.7, 0.7, 0.5], [1.0, 0.5, 1.0])
+    assert mask.tolist() == [True, False, False]
+
+
+def test_coarse_series_stand_up_between_samples_counts_one_attempt():
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    ev = getup_events(t, [LIE_M, STAND_M, STAND_M, STAND_M], [1.0, 1.0, 1.0, 1.0])
+    assert ev.success and ev.attempts == 1 and ev.time_to_stand_s == pytest.approx(1.0)
+
+
+def test_thresholds_are_parameters():
+    segs = ((LIE_M, LIE_M, 0.5), (LIE_M, LIE_M + 0.1, 0.3), (LIE_M + 0.1, LIE_M, 0.3))
+    assert events(*segs).attempts == 0
+    assert events(*segs, th=EventThresholds(attempt_rise_m=0.05)).attempts == 1
+
+
+def test_up_z_from_quat():
+    assert up_z_from_quat([1, 0, 0, 0]) == pytest.approx(1.0)
+    half = math.sqrt(0.5)
+    assert up_z_from_quat([half, half, 0, 0]) == pytest.approx(0.0, abs=1e-12)   # 90 deg roll
+    assert up_z_from_quat([0, 0, 1, 0]) == pytest.approx(-1.0)                    # upside down
+    assert up_z_from_quat(np.tile([2.0, 0, 0, 0], (3, 1))).shape == (3,)
+
+
+@pytest.mark.parametrize("bad, match", [
+    (dict(t=[0.0, 0.0]), "strictly increasing"),
+    (dict(trunk_height=[0.6]), "samples"),
+    (dict(up_z=[1.0, float("nan")]), "non-finite"),
+    (dict(t=[]), "empty|samples"),
+])
+def test_bad_input_names_the_problem(bad, match):
+    args = dict(t=[0.0, 0.1], trunk_height=[0.6, 0.6], up_z=[1.0, 1.0])
+    args.update(bad)
+    with pytest.raises(ValueError, match=match):
+        getup_events(**args)
+
+
+def test_bad_thresholds_rejected():
+    with pytest.raises(ValueError, match="standing_trunk_height_m"):
+        EventThresholds(standing_trunk_height_m=0.3)
+    with pytest.raises(ValueError, match="attempt_rise_m"):
+        EventThresholds(attempt_rise_m=0.0)
