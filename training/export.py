@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -27,11 +26,6 @@ HOME_POSE_RAD: tuple[float, ...] = (
     0.0,
     -0.2, 0.0, 0.0, 0.4, -0.2, 0.0,
     -0.2, 0.0, 0.0, 0.4, -0.2, 0.0)
-# Fallback gains if sim_hil/models/t1.xml has no pd_kp/pd_kd (head, arms, waist, hip, knee, ankle).
-_GROUP_GAINS = {"head": (20.0, 0.5), "arm": (40.0, 1.5), "waist": (100.0, 3.0), "hip": (150.0, 4.0),
-                "knee": (150.0, 4.0), "ankle": (40.0, 2.0)}
-MODEL_XML = Path(__file__).resolve().parent.parent / "sim_hil" / "models" / "t1.xml"
-
 # Defaults for manifests (the env config overrides them when exporting a trained policy).
 DEFAULT_ACTION_SCALE = 0.5          # target = home + 0.5·action [rad]: ±0.5 rad around home at |a| = 1
 DEFAULT_GAIT_FREQUENCY_HZ = 1.5     # Playground's T1 sim2sim gait frequency
@@ -52,20 +46,11 @@ GOLDEN_COMMAND = "python -m training.observation --write-golden tests/golden"
 GOLDEN_TERM_STD_SCALE = {"gyro": 2.0, "joint_vel": 5.0}
 
 
-def pd_gains_from_model(xml_path: Path = MODEL_XML) -> tuple[list[float], list[float], str]:
-    """(kp, kd, source): the model's custom numerics pd_kp / pd_kd if present, else the group table."""
-    if xml_path.exists():
-        numerics = {el.get("name"): el.get("data") for el in ElementTree.parse(xml_path).iter("numeric")}
-        if "pd_kp" in numerics and "pd_kd" in numerics:
-            kp = [float(v) for v in numerics["pd_kp"].split()]
-            kd = [float(v) for v in numerics["pd_kd"].split()]
-            if len(kp) != contract.NUM_JOINTS or len(kd) != contract.NUM_JOINTS:
-                raise ValueError(f"{xml_path}: pd_kp/pd_kd must have {contract.NUM_JOINTS} values")
-            return kp, kd, f"{xml_path.name} custom numerics pd_kp/pd_kd"
-    from training.artifact import MOTOR_CLASS_OF_JOINT
-    classes = [MOTOR_CLASS_OF_JOINT[j] for j in contract.JOINT_NAMES]
-    return ([_GROUP_GAINS[c][0] for c in classes], [_GROUP_GAINS[c][1] for c in classes],
-            "fallback group table (head 20/0.5, arms 40/1.5, waist 100/3, hip 150/4, knee 150/4, ankle 40/2)")
+def pd_gains_from_model() -> tuple[list[float], list[float], str]:
+    """(kp, kd, source): the one shared gain set, the model's custom numerics pd_kp / pd_kd."""
+    from sim_hil import model as t1model
+    kp, kd = t1model.pd_gains(t1model.load_model())
+    return kp.tolist(), kd.tolist(), "sim_hil/models/t1.xml custom numerics pd_kp/pd_kd"
 
 
 def base_manifest(**overrides) -> dict[str, Any]:
