@@ -116,7 +116,8 @@ void PolicyEngine::follow(const JointArray& applied_action, const float* command
 
 PolicyEngine::Result PolicyEngine::step(const float* imu_quat, const float* gyro, const float* command,
                                         const float* q, const float* dq) {
-  gait_.advance(artifact_.gait_frequency_hz, artifact_.control_dt_s, command, artifact_.phase_freeze_command_norm);
+  // The observation carries the clock as it stands; it advances after the step, with this tick's command,
+  // exactly as the training envs do (reset observation = initial phase).
   ObsInputs in{imu_quat, gyro, command, q, dq, last_action_.data(), gait_.phase()};
   build_observation(artifact_, in, obs_raw_);
   obs_norm_ = (obs_raw_ - artifact_.obs_mean).cwiseQuotient(artifact_.obs_std);
@@ -130,6 +131,7 @@ PolicyEngine::Result PolicyEngine::step(const float* imu_quat, const float* gyro
     last_action_[i] = action[static_cast<Eigen::Index>(i)];
     q_target_[i] = artifact_.default_pose[i] + artifact_.action_scale[i] * last_action_[i];
   }
+  gait_.advance(artifact_.gait_frequency_hz, artifact_.control_dt_s, command, artifact_.phase_freeze_command_norm);
   return Result::kOk;
 }
 

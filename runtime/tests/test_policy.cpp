@@ -147,3 +147,25 @@ TEST(Golden, ObservationAndActionMatchPython) {
   }
   EXPECT_GT(index, 0);
 }
+
+// The training envs observe the gait clock before advancing it (reset observation = initial phase), so the
+// engine's first policy tick must show the initial phase and the second one a single advance.
+TEST(PolicyEngine, ObservesThePhaseBeforeAdvancingIt) {
+  const std::filesystem::path dir = T1_GOLDEN_DIR;
+  PolicyEngine engine(load_artifact((dir / "random_policy.safetensors").string()));
+  const PolicyArtifact& a = engine.artifact();
+  std::size_t phase_at = 0;
+  for (const auto& t : a.obs_terms) {
+    if (t.name == "phase") break;
+    phase_at += static_cast<std::size_t>(t.size);
+  }
+  ASSERT_LT(phase_at, static_cast<std::size_t>(a.obs_size));
+  const float quat[4] = {1, 0, 0, 0}, gyro[3] = {0, 0, 0}, walk[3] = {0.5f, 0, 0};
+  JointArray q = a.default_pose, dq{};
+  ASSERT_EQ(engine.step(quat, gyro, walk, q.data(), dq.data()), PolicyEngine::Result::kOk);
+  EXPECT_FLOAT_EQ(engine.obs_raw()[phase_at + 0], 1.0f);                 // cos(0)
+  EXPECT_NEAR(engine.obs_raw()[phase_at + 1], -1.0f, 1e-6);              // cos(-pi)
+  ASSERT_EQ(engine.step(quat, gyro, walk, q.data(), dq.data()), PolicyEngine::Result::kOk);
+  const double advanced = 2 * M_PI * a.gait_frequency_hz * a.control_dt_s;
+  EXPECT_NEAR(engine.obs_raw()[phase_at + 0], std::cos(advanced), 1e-5);
+}
