@@ -1,0 +1,232 @@
+"""T1 base env over mujoco_playground's MjxEnv (impl='jax'), shared by joystick, getup and baseline.
+
+What every task shares (ARCHITECTURE.md, Training):
+* the ONE robot file, sim_hil/models/t1.xml, in a collision variant (training/envs/collision.py);
+* PD at the motor, recomputed EVERY physics substep (n_substeps = ctrl_dt / sim_dt = 10) with the
+  firmware's law and clamps (training/envs/motor.py), ONE gain set (the model's pd_kp / pd_kd);
+* actions: q_des = default pose (home) + action_scale · action;
+* the actor observation from training/observation.py (xp=jax.numpy) plus uniform noise U(−1, 1)·scale
+  per term; a privileged critic observation;
+* info["trunk_height"], info["waist_height"], info["up_z"] in every state.
+
+The PD gains live in the MJX model as actuator_biasprm[:, 0] (kp) and [:, 1] (kd): the actuators are
+plain motors (biastype none), so MuJoCo ignores these slots, and brax's domain-randomisation wrapper,
+which swaps in a per-world mjx.Model, can then vary kp per world like Playground's T1 (randomize.py).
+"""
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from ml_collections import config_dict
+from mujoco import mjx
+from mujoco_playground._src import mjx_env
+
+from sim_hil import model as t1model
+from training import observation as obsdef
+from training.envs import collision, motor
+
+KP_SLOT, KD_SLOT = 0, 1  # actuator_biasprm columns that carry the PD gains (see module docstring)
+NUM_JOINTS = obsdef.NUM_JOINTS
+# Privileged extras appended to the clean actor observation (see privileged_base):
+# local linvel 3, accelerometer 3, global angvel 3, trunk height, waist height, up_z, τ/τ_limit 23,
+# foot contacts 2.
+PRIVILEGED_BASE_SIZE = 3 + 3 + 3 + 3 + NUM_JOINTS + 2
+
+
+def base_config() -> config_dict.ConfigDict:
+    """Settings every task shares (tasks add their own). Times in s, action_scale in rad per unit."""
+    return config_dict.create(
+        ctrl_dt=0.02,
+        sim_dt=0.002,
+        episode_length=1000,
+        action_scale=0.5,  # training/export.py DEFAULT_ACTION_SCALE: ±0.5 rad around home at |a| = 1
+        collision="full_body",
+        max_contacts=t1model.MJX_NCONMAX,
+        max_geom_pairs=t1model.MJX_NCONMAX,
+        obs_terms=[list(t) for t in obsdef.TERMS_UNION],
+        gait=config_dict.create(frequency_hz=1.5, phase_freeze_command_norm=0.01),
+        command_ranges=config_dict.create(vx=[-1.0, 1.0], vy=[-0.8, 0.8], yaw_rate=[-1.0, 1.0]),
+        # U(−1, 1)·scale·level added per observation term (Playground T1 scales; 0 for exact terms).
+        noise=config_dict.create(level=1.0, scales=config_dict.create(
+            gyro=0.2, gravity=0.05, command=0.0, joint_pos=0.03, joint_vel=1.5, last_action=0.0, phase=0.0)),
+        impl="jax",
+    )
+
+
+def contacts_between(data: mjx.Data, geom_a, geom_b) -> jax.Array:
+    """True where geom_a (array of ids) touches geom_b (scalar id): a contact slot with penetration."""
+    con = data._impl.contact
+    g1, g2 = con.geom1[None, :], con.geom2[None, :]
+    a = jnp.asarray(geom_a)[:, None]
+    hit = ((g1 == a) & (g2 == geom_b)) | ((g2 == a) & (g1 == geom_b))
+    return jnp.any(hit & (con.dist[None, :] < 0.0), axis=-1)
+
+
+class T1Env(mjx_env.MjxEnv):
+    """Shared model, PD, observation and bookkeeping. Subclasses implement reset/step and rewards."""
+
+    def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None) -> None:
+        super().__init__(config, config_overrides)
+        cfg = self._config
+        if cfg.impl != "jax":
+            raise ValueError(f"impl {cfg.impl!r}: only 'jax' is supported (mujoco-mjx 3.17, no warp here)")
+        ratio = cfg.ctrl_dt / cfg.sim_dt
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ValueError(f"ctrl_dt {cfg.ctrl_dt} s is not a whole multiple of sim_dt {cfg.sim_dt} s")
+        obsdef.check_terms(cfg.obs_terms)
+        mj = copy.copy(collision.build_model(cfg.collision, cfg.max_contacts, cfg.max_geom_pairs))
+        mj.opt.timestep = cfg.sim_dt
+        self._kp, self._kd = t1model.pd_gains(mj)
+        mj.actuator_biasprm[:, KP_SLOT] = self._kp
+        mj.actuator_biasprm[:, KD_SLOT] = self._kd
+        self._mj_model = mj
+        self._mjx_model = mjx.put_model(mj, impl="jax")
+
+        self._default_pose_np = t1model.default_pose(mj)
+        self._default_pose = jnp.asarray(self._default_pose_np)
+        self._home_qpos = jnp.asarray(t1model.keyframe_qpos(mj, "home"))
+        self._kneel_qpos = jnp.asarray(t1model.keyframe_qpos(mj, "kneel"))
+        self._tau_limit = jnp.asarray(t1model.torque_limits(mj))
+        ranges = t1model.joint_ranges(mj)
+        self._q_min, self._q_max = jnp.asarray(ranges[:, 0]), jnp.asarray(ranges[:, 1])
+        self._d_safe = jnp.asarray(motor.D_SAFE_NMS)
+
+        self._trunk_id = mj.body("Trunk").id
+        self._waist_id = mj.body("Waist").id
+        self._imu_site = mj.site("imu").id
+        self._feet_sites = np.array([mj.site("left_foot").id, mj.site("right_foot").id])
+        self._floor_geom = mj.geom("floor").id
+        self._foot_geoms = np.array([mj.geom(g).id for g in collision.FOOT_GEOMS])
+        self._sensor = {n: (int(mj.sensor_adr[mj.sensor(n).id]), int(mj.sensor_dim[mj.sensor(n).id]))
+                        for n in ("gyro", "accelerometer", "orientation", "local_linvel")}
+        self._noise_scale = self._term_noise_vector()
+
+    # ------------------------------------------------------------------ MjxEnv accessors
+    @property
+    def xml_path(self) -> str:
+        return str(t1model.MODEL_PATH)
+
+    @property
+    def action_size(self) -> int:
+        return NUM_JOINTS
+
+    @property
+    def mj_model(self) -> mujoco.MjModel:
+        return self._mj_model
+
+    @property
+    def mjx_model(self) -> mjx.Model:
+        return self._mjx_model
+
+    @property
+    def obs_terms(self) -> list[tuple[str, int]]:
+        return [(str(n), int(s)) for n, s in self._config.obs_terms]
+
+    @property
+    def config(self) -> config_dict.ConfigDict:
+        return self._config
+
+    def manifest_fields(self) -> dict[str, Any]:
+        """Artifact manifest fields from this env's config (policies/ARTIFACT.md)."""
+        cfg = self._config
+        return {
+            "obs_terms": [list(t) for t in self.obs_terms],
+            "default_pose": [float(v) for v in self._default_pose_np],
+            "action_scale": float(cfg.action_scale),
+            "kp": [float(v) for v in self._kp], "kd": [float(v) for v in self._kd],
+            "control_dt": float(cfg.ctrl_dt),
+            "gait_frequency": float(cfg.gait.frequency_hz),
+            "phase_freeze_command_norm": float(cfg.gait.phase_freeze_command_norm),
+            "command_ranges": {k: [float(x) for x in cfg.command_ranges[k]] for k in ("vx", "vy", "yaw_rate")},
+        }
+
+    # ------------------------------------------------------------------ physics
+    def motor_targets(self, action: jax.Array) -> jax.Array:
+        """q_des [rad] = default pose + action_scale · action (training/observation.action_to_targets)."""
+        return obsdef.action_to_targets(self._default_pose, self._config.action_scale, action)
+
+    def pd_torque(self, q_des: jax.Array, q: jax.Array, dq: jax.Array) -> jax.Array:
+        """Firmware motor law with the (possibly randomised) gains of the current mjx model [N·m]."""
+        m = self._mjx_model
+        return motor.motor_torque(q_des, q, dq, m.actuator_biasprm[:, KP_SLOT], m.actuator_biasprm[:, KD_SLOT],
+                                  self._tau_limit, self._q_min, self._q_max, self._d_safe)
+
+    def physics_step(self, data: mjx.Data, q_des: jax.Array) -> mjx.Data:
+        """One control step: n_substeps × (PD torque from the current q, dq → ctrl → mjx.step)."""
+        m = self._mjx_model
+
+        def substep(d, _):
+            tau = self.pd_torque(q_des, d.qpos[7:], d.qvel[6:])
+            return mjx.step(m, d.replace(ctrl=tau)), None
+
+        return jax.lax.scan(substep, data, (), self.n_substeps)[0]
+
+    def make_data(self, qpos: jax.Array, qvel: jax.Array) -> mjx.Data:
+        data = mjx.make_data(self._mj_model, impl="jax")
+        data = data.replace(qpos=qpos, qvel=qvel, ctrl=jnp.zeros(NUM_JOINTS))
+        return mjx.forward(self._mjx_model, data)
+
+    # ------------------------------------------------------------------ readings
+    def sensor(self, data: mjx.Data, name: str) -> jax.Array:
+        adr, dim = self._sensor[name]
+        return data.sensordata[adr:adr + dim]
+
+    def trunk_height(self, data: mjx.Data) -> jax.Array:
+        return data.xpos[self._trunk_id, 2]
+
+    def waist_height(self, data: mjx.Data) -> jax.Array:
+        return data.xpos[self._waist_id, 2]
+
+    def up_vector(self, data: mjx.Data) -> jax.Array:
+        """The Trunk (IMU) z axis in world coordinates; (0, 0, 1) when upright."""
+        return data.site_xmat[self._imu_site][:, 2]
+
+    def foot_contacts(self, data: mjx.Data) -> jax.Array:
+        """(left, right) foot box touching the floor."""
+        return contacts_between(data, self._foot_geoms, self._floor_geom)
+
+    def feet_touching(self, data: mjx.Data) -> jax.Array:
+        """The two foot boxes touching each other (Playground's `collision` cost)."""
+        return contacts_between(data, self._foot_geoms[:1], self._foot_geoms[1])[0]
+
+    def body_readings(self, data: mjx.Data) -> dict[str, jax.Array]:
+        """The privileged scalars every state carries in info."""
+        return {"trunk_height": self.trunk_height(data), "waist_height": self.waist_height(data),
+                "up_z": self.up_vector(data)[2]}
+
+    # ------------------------------------------------------------------ observations
+    def observation_state(self, data: mjx.Data, command, last_action, gait_phase) -> obsdef.ObservationState:
+        """IMU terms from the model's sensors, joint terms from qpos / qvel. As in C MuJoCo (HIL), the
+        sensors after a step hold the readings of that substep's start (2 ms older than qpos)."""
+        return obsdef.ObservationState(
+            imu_quat=self.sensor(data, "orientation"), gyro=self.sensor(data, "gyro"), command=command,
+            q=data.qpos[7:], dq=data.qvel[6:], default_pose=self._default_pose, last_action=last_action,
+            gait_phase=gait_phase)
+
+    def _term_noise_vector(self) -> jax.Array:
+        scales = self._config.noise.scales
+        parts = [np.full(size, float(scales[name]) if name in scales else 0.0) for name, size in self.obs_terms]
+        return jnp.asarray(np.concatenate(parts))
+
+    def actor_observation(self, state: obsdef.ObservationState, rng: jax.Array, level) -> tuple[jax.Array, jax.Array]:
+        """(noisy, clean) actor observation: build_observation(terms) + U(−1, 1)·scale_term·level."""
+        clean = obsdef.build_observation(self.obs_terms, state, jnp)
+        noise = jax.random.uniform(rng, clean.shape, minval=-1.0, maxval=1.0) * self._noise_scale * level
+        return clean + noise, clean
+
+    def privileged_base(self, data: mjx.Data, clean_actor_obs: jax.Array) -> jax.Array:
+        """Critic input shared by all tasks: clean actor obs + PRIVILEGED_BASE_SIZE extras."""
+        r = self.body_readings(data)
+        return jnp.concatenate([
+            clean_actor_obs, self.sensor(data, "local_linvel"), self.sensor(data, "accelerometer"),
+            data.cvel[self._trunk_id, :3],  # global angular velocity of the trunk [rad/s]
+            jnp.stack([r["trunk_height"], r["waist_height"], r["up_z"]]),
+            data.actuator_force / self._tau_limit, self.foot_contacts(data).astype(jnp.float32)])
+
+    def invalid(self, data: mjx.Data) -> jax.Array:
+        return jnp.isnan(data.qpos).any() | jnp.isnan(data.qvel).any()
