@@ -1,0 +1,203 @@
+"""`python -m training`: config overrides, provenance table, and (slow, CPU toy scale) PPO runs for every
+task with a resume, a DAgger distillation, a batched getup evaluation and the runtime accepting the
+exported artifacts.
+
+The slow tests share one module-scoped set of toy runs (tiny networks, 8 envs, 0.4 s episodes): the cost
+is jit compilation of the MJX step (minutes on this CPU), which the persistent compilation cache
+(build/jax_cache, training/checkpoints.jax_setup) makes a one-time cost per machine.
+"""
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from ml_collections import config_dict
+
+from training import checkpoints, cli, curves
+from training.artifact import read_artifact
+
+ROOT = Path(__file__).resolve().parent.parent
+RUNTIME = Path(os.environ.get("T1_BUILD", ROOT / "build")) / "runtime" / "t1-runtime"
+RUNTIME_BAD_ARTIFACT_EXIT = 3
+TOY_STEPS = 80          # one toy PPO training step: 8 envs × 5 unroll × 2 minibatches
+
+
+# ---------------------------------------------------------------- fast
+def test_config_overrides_prefixed_bare_and_errors():
+    ppo = config_dict.create(learning_rate=3e-4, hidden=(8, 8))
+    env = config_dict.create(episode_length=1000, noise=config_dict.create(level=1.0))
+    cli.apply_overrides({"ppo": ppo, "env": env}, ["learning_rate=1e-4", "env.noise.level=0.5",
+                                                   "ppo.hidden=(4, 4)", "episode_length=20"])
+    assert ppo.learning_rate == 1e-4 and tuple(ppo.hidden) == (4, 4)
+    assert env.noise.level == 0.5 and env.episode_length == 20
+    with pytest.raises(ValueError, match="no config"):
+        cli.apply_overrides({"ppo": ppo, "env": env}, ["nonexistent=1"])
+    with pytest.raises(ValueError, match="key=value"):
+        cli.apply_overrides({"ppo": ppo}, ["learning_rate"])
+    with pytest.raises(ValueError, match="has no field"):
+        cli.apply_overrides({"ppo": ppo, "env": env}, ["env.missing=1"])
+
+
+def test_cli_rejects_bad_usage(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["train", "not_a_task", "--out", "/tmp/x"])
+    assert cli.main(["train", "joystick", "--out", "/nonexistent/run", "--resume", "--no-progress"]) == 2
+    assert "no run to resume" in capsys.readouterr().err
+
+
+def test_provenance_table_appends_rows(tmp_path):
+    table = tmp_path / "PROVENANCE.md"
+    row = {c: f"v{i}" for i, c in enumerate(checkpoints.PROVENANCE_COLUMNS)}
+    checkpoints.append_provenance_row(row, table)
+    checkpoints.append_provenance_row({**row, "command": "a|b"}, table)
+    lines = table.read_text().splitlines()
+    assert lines[0] == "# Policy provenance"
+    body = [ln for ln in lines if ln.startswith("| v0")]
+    assert len(body) == 2 and "a\\|b" in body[1]
+    with pytest.raises(ValueError, match="missing column"):
+        checkpoints.provenance_row({"date": "x"})
+
+
+def test_metrics_log_csv_and_plot(tmp_path):
+    log = curves.MetricsLog(tmp_path, tensorboard=False)
+    for step in (10, 20, 30):
+        log.log(step, {"eval/episode_reward": step / 10, "training/sps": 100.0, "text": "ignored",
+                       "nan": float("nan")})
+    log.close()
+    got = curves.read_curves(tmp_path / curves.CSV_NAME)
+    assert got["eval/episode_reward"] == [(10, 1.0), (20, 2.0), (30, 3.0)] and "nan" not in got
+    assert curves.plot_curves(tmp_path / curves.CSV_NAME, tmp_path / "c.png").stat().st_size > 1000
+
+
+def test_git_commit_reads_head_without_git():
+    commit = checkpoints.git_commit()
+    assert commit == "unknown" or all(c in "0123456789abcdef" for c in commit)
+
+
+# ---------------------------------------------------------------- slow: toy runs (CLI subprocesses)
+# XLA at -O0 compiles the MJX step ~2.5x faster and runs it ~3.5x slower: the right trade for runs of a
+# few hundred env steps. Set per subprocess, so no other test's process is affected.
+TOY_ENV = {**os.environ, "XLA_FLAGS": "--xla_backend_optimization_level=0",
+           "PYTHONPATH": f"{ROOT}:{ROOT / 'build' / 'gen' / 'python'}"}
+MAX_PARALLEL = 2  # the CI machine has 2 cores; XLA compilation is mostly single-threaded
+
+
+def _run_parallel(commands: dict) -> dict:
+    """Run `python -m training ...` command lists, MAX_PARALLEL at a time; name → stdout. Fails loudly."""
+    import sys
+    out, pending = {}, list(commands.items())
+    while pending:
+        batch, pending = pending[:MAX_PARALLEL], pending[MAX_PARALLEL:]
+        procs = {name: subprocess.Popen([sys.executable, "-m", "training", *args], cwd=ROOT, env=TOY_ENV,
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                 for name, args in batch}
+        for name, proc in procs.items():
+            text = proc.communicate(timeout=900)[0]
+            assert proc.returncode == 0, f"{name}: exit {proc.returncode}\n{text[-4000:]}"
+            out[name] = text
+    return out
+
+
+@pytest.fixture(scope="module")
+def toy_runs(tmp_path_factory):
+    """Toy PPO runs of every task (joystick twice: the second call resumes it), a distillation and an
+    evaluation, all through the CLI. Returns {name: run directory or output folder}."""
+    root = tmp_path_factory.mktemp("toy_runs")
+    dirs = {t: root / t for t in ("joystick", "getup", "getup_baseline")}
+    toy = ["--toy", "--no-progress", "--seed", "1"]
+    _run_parallel({
+        "joystick": ["train", "joystick", "--steps", str(TOY_STEPS), "--out", str(dirs["joystick"]), *toy],
+        "getup": ["train", "getup", "--stage", "stage2", "--steps", str(TOY_STEPS), "--out", str(dirs["getup"]),
+                  *toy]})
+    dirs["boxed"], dirs["student"], dirs["eval"] = root / "boxed", root / "student", root / "eval"
+    dirs["joystick_first"] = json.loads((dirs["joystick"] / checkpoints.RUN_STATE).read_text())["env_steps"]
+    _run_parallel({
+        "getup_baseline": ["train", "getup_baseline", "--steps", str(TOY_STEPS),
+                           "--out", str(dirs["getup_baseline"]), *toy],
+        "resume": ["train", "joystick", "--resume", "--steps", str(2 * TOY_STEPS), "--out", str(dirs["joystick"]),
+                   "--no-progress"],
+        "boxed": ["train", "joystick", "--steps", str(50 * TOY_STEPS), "--max-minutes", "0", "--out",
+                  str(dirs["boxed"]), *toy],
+        "distill": ["distill", "--getup", str(dirs["getup"] / "getup_stage2.safetensors"), "--joystick",
+                    str(dirs["joystick"]), "--out", str(dirs["student"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)",
+                    *toy]})
+    _run_parallel({"evaluate": ["evaluate", "--policy", str(dirs["getup"] / "getup_stage2.safetensors"),
+                                "--baseline", str(dirs["getup_baseline"] / "getup_baseline.safetensors"),
+                                "--seeds", "2", "--seconds", "0.2", "--out", str(dirs["eval"])]})
+    return dirs
+
+
+def _artifact(run_dir: Path) -> Path:
+    found = sorted(run_dir.glob("*.safetensors"))
+    assert len(found) == 1, f"{run_dir}: expected one exported artifact, found {found}"
+    return found[0]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("task", ["joystick", "getup", "getup_baseline"])
+def test_toy_ppo_run_exports_an_artifact(toy_runs, task):
+    run_dir = toy_runs[task]
+    state = json.loads((run_dir / checkpoints.RUN_STATE).read_text())
+    assert state["env_steps"] >= state["target_steps"] > 0
+    layers, mean, std, manifest = read_artifact(_artifact(run_dir))
+    assert manifest["trained"] is False, "toy runs must never claim to be trained"
+    assert manifest["provenance"]["steps"] == state["env_steps"]
+    assert manifest["provenance"]["device"].startswith("cpu") and manifest["provenance"]["git_commit"]
+    assert [list(t) for t in manifest["obs_terms"]] == [list(t) for t in state["env_config"]["obs_terms"]]
+    assert layers[0][0].shape == (16, mean.shape[0]) and np.all(std > 0)
+    assert (run_dir / curves.CSV_NAME).exists() and list((run_dir / "tensorboard").iterdir())
+    assert (run_dir / curves.PNG_NAME).exists()
+    assert checkpoints.list_checkpoints(run_dir)
+
+
+@pytest.mark.slow
+def test_resume_continues_step_count_and_curve(toy_runs):
+    run_dir, first = toy_runs["joystick"], toy_runs["joystick_first"]
+    state = json.loads((run_dir / checkpoints.RUN_STATE).read_text())
+    assert state["env_steps"] >= 2 * TOY_STEPS > first
+    assert [c["from_steps"] for c in state["calls"]] == [0, first]
+    steps = [s for s, _ in max(curves.read_curves(run_dir / curves.CSV_NAME).values(), key=len)]
+    assert max(steps) > first, "the resumed call's metrics continue the curve"
+    assert checkpoints.checkpoint_steps(run_dir) == state["env_steps"]
+    assert read_artifact(_artifact(run_dir))[3]["provenance"]["steps"] == state["env_steps"]
+
+
+@pytest.mark.slow
+def test_max_minutes_stops_at_a_checkpoint(toy_runs):
+    state = json.loads((toy_runs["boxed"] / checkpoints.RUN_STATE).read_text())
+    assert 0 < state["env_steps"] < state["target_steps"] and state["calls"][-1]["stopped_by_max_minutes"]
+    assert checkpoints.checkpoint_steps(toy_runs["boxed"]) == state["env_steps"]
+    assert read_artifact(_artifact(toy_runs["boxed"]))[3]["provenance"]["steps"] == state["env_steps"]
+
+
+@pytest.mark.slow
+def test_toy_distill_exports_student(toy_runs):
+    from training import observation as obsdef
+    layers, _, _, manifest = read_artifact(toy_runs["student"] / "student.safetensors")
+    assert manifest["output_rule"] == "tanh_normal" and manifest["trained"] is False
+    assert [tuple(t) for t in manifest["obs_terms"]] == list(obsdef.TERMS_UNION)
+    assert layers[-1][0].shape[0] == 2 * obsdef.NUM_JOINTS and manifest["provenance"]["steps"] > 0
+
+
+@pytest.mark.slow
+def test_evaluate_two_seeds_writes_the_table(toy_runs):
+    text = (toy_runs["eval"] / "report.md").read_text()
+    assert "| success rate |" in text and "1605.0" in text and "2279.8" in text
+    assert "NO (untrained placeholder)" in text
+    assert (toy_runs["eval"] / "heights.png").exists()
+    rows = (toy_runs["eval"] / "per_env.csv").read_text().splitlines()
+    assert len(rows) == 1 + 2 * 2
+
+
+@pytest.mark.slow
+def test_runtime_accepts_exported_artifacts(netns, toy_runs):
+    if not RUNTIME.exists():
+        pytest.skip(f"{RUNTIME} not built (make build)")
+    artifacts = [_artifact(toy_runs[t]) for t in ("joystick", "getup", "getup_baseline")]
+    for path in artifacts + [toy_runs["student"] / "student.safetensors"]:
+        proc = subprocess.run([str(RUNTIME), "--policy", str(path), "--clock", "lockstep", "--duration", "0.1",
+                               "--quiet"], capture_output=True, text=True, timeout=30)
+        assert proc.returncode != RUNTIME_BAD_ARTIFACT_EXIT, f"{path.name}: {proc.stderr}"
+        assert proc.returncode == 0, f"{path.name}: exit {proc.returncode}: {proc.stderr}"

@@ -1,0 +1,178 @@
+"""Run directories, checkpoints and provenance records.
+
+A run directory (`--out DIR`) holds:
+    run_state.json        task, configs, target and done env steps, list of checkpoints, command history
+    checkpoints/<step>/   orbax checkpoints written by brax's `training.checkpoint.save` (params tuple:
+                          normalizer, policy[, value]) with the network config beside them
+    metrics.csv, tensorboard/, learning_curve.png     (training/curves.py)
+    <name>.safetensors    the exported policy (policies/ARTIFACT.md)
+
+`--resume` reads run_state.json, restores the newest checkpoint and continues the env-step count from
+it. brax's ppo.train restores parameters and the observation normaliser but not the Adam moments, so a
+resumed run re-warms its optimiser (a few updates; documented in training/README.md).
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+RUN_STATE = "run_state.json"
+CHECKPOINT_DIR = "checkpoints"
+PROVENANCE_TABLE = REPO_ROOT / "policies" / "PROVENANCE.md"
+KEEP_CHECKPOINTS = 3  # older ones are deleted: each T1 PPO checkpoint is a few MB, GPU disks are small
+STEP_DIGITS = 12      # brax names checkpoint folders f"{step:012d}"
+
+
+# ---------------------------------------------------------------- jax
+def jax_setup() -> None:
+    """(1) A persistent compilation cache (T1_JAX_CACHE, default build/jax_cache): every ppo.train /
+    bc.train call builds fresh closures, so without it each --resume call (and each test) recompiles
+    the MJX step for minutes. (2) brax 0.14.2 calls jax.device_put_replicated, removed from jax's
+    namespace in 0.10 (the function itself is still in jax._src.api); put it back."""
+    import jax
+    cache = os.environ.get("T1_JAX_CACHE", str(REPO_ROOT / "build" / "jax_cache"))
+    if cache and jax.config.jax_compilation_cache_dir is None:
+        jax.config.update("jax_compilation_cache_dir", cache)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+    try:
+        jax.device_put_replicated  # noqa: B018 (probe)
+    except AttributeError:
+        from jax._src import api
+        jax.device_put_replicated = api.device_put_replicated
+
+
+# ---------------------------------------------------------------- run state
+def load_run_state(run_dir) -> dict[str, Any]:
+    path = Path(run_dir) / RUN_STATE
+    if not path.exists():
+        raise FileNotFoundError(f"--resume: {path} does not exist (no run to resume in {run_dir})")
+    return json.loads(path.read_text())
+
+
+def save_run_state(run_dir, state: dict[str, Any]) -> None:
+    path = Path(run_dir) / RUN_STATE
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(state, indent=1, sort_keys=True, default=str) + "\n")
+    tmp.replace(path)  # atomic: a run killed mid-write keeps the previous state
+
+
+# ---------------------------------------------------------------- checkpoints (orbax via brax)
+def save_checkpoint(run_dir, env_steps: int, params, network_config) -> Path:
+    """Write params at `env_steps` (total over all resumes) and prune to the newest KEEP_CHECKPOINTS."""
+    from brax.training import checkpoint as brax_checkpoint
+    root = Path(run_dir) / CHECKPOINT_DIR
+    brax_checkpoint.save(root, int(env_steps), tuple(params), network_config, "network_config.json")
+    for old in list_checkpoints(run_dir)[:-KEEP_CHECKPOINTS]:
+        shutil.rmtree(old, ignore_errors=True)
+    return root / f"{int(env_steps):0{STEP_DIGITS}d}"
+
+
+def list_checkpoints(run_dir) -> list[Path]:
+    root = Path(run_dir) / CHECKPOINT_DIR
+    if not root.is_dir():
+        return []
+    return sorted(p for p in root.iterdir() if p.is_dir() and p.name.isdigit())
+
+
+def resolve_checkpoint(path) -> Path:
+    """A checkpoint folder, or a run directory (→ its newest checkpoint)."""
+    path = Path(path)
+    if (path / RUN_STATE).exists() or (path / CHECKPOINT_DIR).is_dir():
+        found = list_checkpoints(path)
+        if not found:
+            raise FileNotFoundError(f"{path}: run directory without checkpoints")
+        return found[-1]
+    if path.is_dir() and path.name.isdigit():
+        return path
+    raise FileNotFoundError(f"{path}: neither a checkpoint folder (<steps>/) nor a run directory with "
+                            f"{CHECKPOINT_DIR}/")
+
+
+def load_checkpoint(path) -> list:
+    """[normalizer_state, policy_params, (value_params)] as numpy trees (brax checkpoint.load)."""
+    from brax.training import checkpoint as brax_checkpoint
+    return brax_checkpoint.load(resolve_checkpoint(path).resolve())
+
+
+def checkpoint_steps(path) -> int:
+    return int(resolve_checkpoint(path).name)
+
+
+# ---------------------------------------------------------------- provenance
+def git_commit() -> str:
+    """HEAD's commit read from .git (no git process: the checkout may be shared and busy)."""
+    git = REPO_ROOT / ".git"
+    try:
+        if git.is_file():  # worktree: "gitdir: PATH"
+            git = (REPO_ROOT / git.read_text().split(":", 1)[1].strip()).resolve()
+        head = (git / "HEAD").read_text().strip()
+        if not head.startswith("ref:"):
+            return head[:12]
+        ref = head.split(" ", 1)[1]
+        ref_file = git / ref
+        if ref_file.exists():
+            return ref_file.read_text().strip()[:12]
+        packed = git / "packed-refs"
+        for line in packed.read_text().splitlines() if packed.exists() else []:
+            if line.endswith(" " + ref):
+                return line.split()[0][:12]
+        common = git / "commondir"
+        if common.exists():
+            common_dir = (git / common.read_text().strip()).resolve()
+            if (common_dir / ref).exists():
+                return (common_dir / ref).read_text().strip()[:12]
+    except OSError:
+        pass
+    return "unknown"
+
+
+def device_description() -> str:
+    import jax
+    device = jax.devices()[0]
+    return f"{device.platform}:{getattr(device, 'device_kind', 'unknown')} x{jax.device_count()}"
+
+
+def utc_now() -> str:
+    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+# ---------------------------------------------------------------- policies/PROVENANCE.md
+PROVENANCE_COLUMNS = ("date", "artifact", "name", "task", "trained", "env steps", "minutes", "env-steps/s",
+                      "device", "git commit", "content hash", "command", "evaluation")
+PROVENANCE_HEADER = (
+    "# Policy provenance\n\n"
+    "One row per shipped artifact in `policies/`, appended by `python -m training train|distill ... --ship`\n"
+    "(training/checkpoints.py `append_provenance_row`). `trained` is the artifact's manifest flag: rows\n"
+    "with `trained = no` are smoke tests and say so in the task column. Evaluation figures come from\n"
+    "`python -m training evaluate` and are added to the row's last column by hand or by a later --ship.\n\n")
+
+
+def _cell(value) -> str:
+    return str(value).replace("|", "\\|").replace("\n", " ")
+
+
+def provenance_row(fields: dict[str, Any]) -> str:
+    missing = [c for c in PROVENANCE_COLUMNS if c not in fields]
+    if missing:
+        raise ValueError(f"provenance row: missing column(s) {missing}")
+    return "| " + " | ".join(_cell(fields[c]) for c in PROVENANCE_COLUMNS) + " |\n"
+
+
+def append_provenance_row(fields: dict[str, Any], table=PROVENANCE_TABLE) -> Path:
+    """Append one row; create the table (header, column line) when the file is new or has no table."""
+    table = Path(table)
+    text = table.read_text() if table.exists() else ""
+    head_line = "| " + " | ".join(PROVENANCE_COLUMNS) + " |\n"
+    if head_line not in text:
+        if not text:
+            text = PROVENANCE_HEADER
+        elif not text.endswith("\n"):
+            text += "\n"
+        text += head_line + "|" + "---|" * len(PROVENANCE_COLUMNS) + "\n"
+    table.write_text(text + provenance_row(fields))
+    return table

@@ -1,0 +1,181 @@
+"""`python -m training {train,teacher,distill,evaluate}`: the command line of the training side.
+
+Heavy imports (jax, brax, the MJX envs) happen inside the subcommands, so `--help` is instant.
+"""
+from __future__ import annotations
+
+import argparse
+import ast
+import shlex
+import sys
+from typing import Mapping, Sequence
+
+TASKS = ("joystick", "getup", "getup_baseline")  # = training.envs.TASKS (checked when the envs load)
+STAGES = ("stage1", "stage2", "full")
+
+
+# ---------------------------------------------------------------- --config key=value
+def _parse_value(text: str):
+    """Python literal if it is one (1e-4, (0.4, 0.4, 0.2), True), else the text itself."""
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+        return text
+
+
+def apply_overrides(configs: Mapping[str, object], pairs: Sequence[str]) -> None:
+    """Apply `key=value` overrides to named ConfigDicts, e.g. {"ppo": ..., "env": ...}.
+
+    `ppo.learning_rate=1e-4` names the config; a bare `learning_rate=1e-4` goes to the one config that
+    has the key (an error when none or several have it). Dotted keys reach nested fields
+    (`env.noise_config.level=0.5`)."""
+    for pair in pairs:
+        if "=" not in pair:
+            raise ValueError(f"--config {pair!r}: expected key=value")
+        key, text = pair.split("=", 1)
+        head = key.split(".", 1)[0]
+        if head in configs and "." in key:
+            targets = [(head, key.split(".", 1)[1])]
+        else:
+            targets = [(name, key) for name, cfg in configs.items() if _has_path(cfg, key)]
+            if len(targets) != 1:
+                where = "no config" if not targets else " and ".join(n for n, _ in targets)
+                raise ValueError(f"--config {key}: found in {where}; prefix it with one of {sorted(configs)}.")
+        name, path = targets[0]
+        cfg = configs[name]
+        if not _has_path(cfg, path):
+            raise ValueError(f"--config {key}: {name} config has no field {path!r}")
+        *parents, leaf = path.split(".")
+        for p in parents:
+            cfg = cfg[p]
+        try:
+            cfg[leaf] = _parse_value(text)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"--config {key}={text}: {e}") from e
+
+
+def _has_path(cfg, path: str) -> bool:
+    for part in path.split("."):
+        try:
+            if part not in cfg:
+                return False
+        except TypeError:
+            return False
+        cfg = cfg[part]
+    return True
+
+
+# ---------------------------------------------------------------- subcommands
+def _cmd_train(args, command: str) -> int:
+    from training import train
+    result = train.train(
+        args.task, args.out, steps=args.steps, num_envs=args.envs, seed=args.seed, resume=args.resume,
+        max_minutes=args.max_minutes, overrides=args.config, stage=args.stage, from_checkpoint=args.from_,
+        preset="toy" if args.toy else "gpu", ship=args.ship, name=args.name, command=command,
+        progress=not args.no_progress)
+    state = "complete" if result.complete else "stopped at a checkpoint (--max-minutes): run again with --resume"
+    print(f"{result.run_dir}: {result.env_steps:,}/{result.target_steps:,} env steps, {state}; "
+          f"{result.env_steps_per_s:,.0f} env-steps/s; artifact {result.artifact}")
+    return 0
+
+
+def _cmd_teacher(args, command: str) -> int:
+    from training import teacher
+    report = teacher.check_teacher(args.getup, args.joystick, num_envs=args.envs, seed=args.seed,
+                                   steps=args.check_steps)
+    print(report)
+    return 0
+
+
+def _cmd_distill(args, command: str) -> int:
+    from training import distill
+    result = distill.distill(
+        args.getup, args.joystick, args.out, task=args.task, overrides=args.config,
+        preset="toy" if args.toy else "gpu", seed=args.seed, num_envs=args.envs, ship=args.ship,
+        command=command, progress=not args.no_progress, max_minutes=args.max_minutes)
+    print(f"{result.run_dir}: {result.dagger_steps} DAgger phases, artifact {result.artifact} "
+          f"(output rule {result.output_rule})")
+    return 0
+
+
+def _cmd_evaluate(args, command: str) -> int:
+    from training import evaluate
+    report = evaluate.evaluate(
+        args.policy, args.out, baseline=args.baseline, task=args.task, seeds=args.seeds,
+        seconds=args.seconds, first_seed=args.first_seed, command=command)
+    print(report.read_text())
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="python -m training", description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+
+    def common(p, seed=True):
+        if seed:
+            p.add_argument("--seed", type=int, default=0)
+        p.add_argument("--no-progress", action="store_true", help="no tqdm bar (logs, CI)")
+
+    p = sub.add_parser("train", help="PPO run (brax ppo.train), resumable, time-boxed")
+    p.add_argument("task", choices=TASKS)
+    p.add_argument("--out", required=True, help="run directory (checkpoints, curves, artifact)")
+    p.add_argument("--steps", type=int, help="target env steps in total (default: the task config's)")
+    p.add_argument("--envs", type=int, help="parallel envs (default: the preset's, 8192 on GPU)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+    p.add_argument("--max-minutes", type=float, help="stop at the last checkpoint that fits in this wall time")
+    p.add_argument("--stage", choices=STAGES, help="getup curriculum stage")
+    p.add_argument("--from", dest="from_", metavar="CHECKPOINT",
+                   help="initialise from a checkpoint folder or run directory (fine-tunes; steps restart at 0)")
+    p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a PPO (ppo.*) or env (env.*) config field; repeatable")
+    p.add_argument("--toy", action="store_true", help="tiny CPU preset; the artifact is marked untrained")
+    p.add_argument("--name", help="policy name (default: task, or getup_<stage>)")
+    p.add_argument("--ship", action="store_true",
+                   help="when complete: copy the artifact to policies/ and append to policies/PROVENANCE.md")
+    common(p)
+    p.set_defaults(func=_cmd_train)
+
+    p = sub.add_parser("teacher", help="build the stitched teacher and roll it out briefly as a check")
+    p.add_argument("--getup", required=True, help="getup expert: artifact (.safetensors) or checkpoint/run dir")
+    p.add_argument("--joystick", required=True, help="joystick expert: artifact or checkpoint/run dir")
+    p.add_argument("--envs", type=int, default=16)
+    p.add_argument("--check-steps", type=int, default=50, help="control steps of the check rollout")
+    common(p)
+    p.set_defaults(func=_cmd_teacher)
+
+    p = sub.add_parser("distill", help="DAgger (brax bc) student from the stitched teacher")
+    p.add_argument("--getup", required=True)
+    p.add_argument("--joystick", required=True)
+    p.add_argument("--out", required=True)
+    p.add_argument("--task", choices=TASKS, default="getup",
+                   help="env the student is rolled out in (default getup: fallen/kneeling/standing starts)")
+    p.add_argument("--envs", type=int)
+    p.add_argument("--max-minutes", type=float)
+    p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a DAgger (bc.*) or env (env.*) config field; repeatable")
+    p.add_argument("--toy", action="store_true")
+    p.add_argument("--ship", action="store_true")
+    common(p)
+    p.set_defaults(func=_cmd_distill)
+
+    p = sub.add_parser("evaluate", help="batched MJX getup rollouts from seeded fallen states")
+    p.add_argument("--policy", required=True, help="policy artifact (.safetensors)")
+    p.add_argument("--baseline", help="second artifact to compare against")
+    p.add_argument("--task", choices=("getup",), default="getup")
+    p.add_argument("--seeds", type=int, default=32, help="number of seeded fallen starts")
+    p.add_argument("--first-seed", type=int, default=0)
+    p.add_argument("--seconds", type=float, default=10.0)
+    p.add_argument("--out", default="out/eval", help="folder for the report (markdown, CSV, plots)")
+    p.set_defaults(func=_cmd_evaluate)
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
+    command = "python -m training " + " ".join(shlex.quote(a) for a in argv)
+    try:
+        return args.func(args, command)
+    except (ValueError, FileNotFoundError, FileExistsError) as e:
+        print(f"python -m training {args.command}: error: {e}", file=sys.stderr)
+        return 2

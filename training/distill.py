@@ -1,0 +1,198 @@
+"""Student distillation: brax `bc` online DAgger from the stitched teacher (training/teacher.py).
+
+Defaults are the seed's Table 5.2: 1024 envs, demo length 6, β 1 → 0 (probability that the teacher's
+action is executed; linear over the first `beta_decay_fraction` of the DAgger phases, then 0), batch 256,
+lr 4e-4, 4 epochs per phase, normalised observations. The student sees the full term layout
+(training/observation.py TERMS_UNION) so one network can walk and get up; the env is built with
+obs_terms = TERMS_UNION, and the privileged waist height rides along in the observation dict for the
+teacher only.
+
+Export: brax bc's policy network is the PPO policy MLP with a NormalTanhDistribution head (2·23 outputs:
+loc, scale). With tanh_squash (brax default, kept here) the student's action is tanh(loc) — exactly the
+artifact's `tanh_normal` rule, exported unchanged. With tanh_squash=False brax acts with `loc` itself;
+that is exported as output rule `linear` with the last layer cut to its first 23 rows (the `loc` half).
+"""
+from __future__ import annotations
+
+import functools
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+from ml_collections import config_dict
+
+from training import checkpoints, curves
+from training import observation as obsdef
+from training.teacher import STUDENT_OBS_KEY, WAIST_OBS_KEY, load_expert, make_teacher
+
+
+def bc_config(preset: str = "gpu") -> config_dict.ConfigDict:
+    cfg = config_dict.create(
+        num_envs=1024, demo_length=6, batch_size=256, learning_rate=4e-4, epochs=4,
+        normalize_observations=True, dagger_steps=1000, beta_decay_fraction=0.5, num_evals=11,
+        num_eval_envs=128, eval_length=0,  # 0: the env's episode_length
+        scramble_time=0, reset=True, tanh_squash=True, policy_hidden_layer_sizes=(512, 256, 128))
+    if preset == "toy":
+        cfg.update(dict(num_envs=8, demo_length=2, batch_size=8, dagger_steps=4, num_evals=0, num_eval_envs=4,
+                        epochs=1, policy_hidden_layer_sizes=(16, 16)))
+    elif preset != "gpu":
+        raise ValueError(f"preset: {preset!r} is not one of ('gpu', 'toy')")
+    return cfg
+
+
+@dataclass
+class DistillResult:
+    run_dir: Path
+    artifact: Path
+    dagger_steps: int
+    output_rule: str
+    minutes: float
+
+
+class _Stop(Exception):
+    pass
+
+
+def beta_schedule(dagger_steps: int, decay_fraction: float):
+    """β(step): 1 at the first phase, linearly to 0 at decay_fraction·dagger_steps, 0 after."""
+    import jax.numpy as jnp
+    span = max(1.0, decay_fraction * dagger_steps)
+    return lambda step: jnp.clip(1.0 - step / span, 0.0, 1.0)
+
+
+class WaistObservation:
+    """Wraps a brax-training-wrapped (batched) env: adds obs[WAIST_OBS_KEY] = waist height (B, 1) [m],
+    read from the physics data (so it is right after an auto-reset, when info is still the old one)."""
+
+    def __init__(self, wrapped, base_env):
+        import jax
+        self._env, self._waist = wrapped, jax.vmap(base_env.waist_height)
+
+    def __getattr__(self, name):
+        return getattr(self._env, name)
+
+    def _add(self, state):
+        obs = dict(state.obs)
+        obs[WAIST_OBS_KEY] = self._waist(state.data)[..., None]
+        return state.replace(obs=obs)
+
+    def reset(self, rng):
+        return self._add(self._env.reset(rng))
+
+    def step(self, state, action):
+        inner_obs = {k: v for k, v in state.obs.items() if k != WAIST_OBS_KEY}  # the inner env's own layout
+        return self._add(self._env.step(state.replace(obs=inner_obs), action))
+
+
+def export_student(params, env, path, name: str, tanh_squash: bool, trained: bool, provenance: dict) -> str:
+    """brax bc (normalizer, policy) → artifact; returns the output rule written."""
+    from training.export import export_brax_ppo
+    from training.train import ACTIVATION
+    policy = params[1]
+    output_rule = "tanh_normal"
+    if not tanh_squash:  # act = loc: keep only the loc half of the last layer
+        inner = dict(policy["params"])
+        last = f"hidden_{len(inner) - 1}"
+        inner[last] = {"kernel": np.asarray(inner[last]["kernel"])[:, :obsdef.NUM_JOINTS],
+                       "bias": np.asarray(inner[last]["bias"])[:obsdef.NUM_JOINTS]}
+        policy, output_rule = {"params": inner}, "linear"
+    manifest = dict(env.manifest_fields())
+    manifest.update(name=name, activation=ACTIVATION, output_rule=output_rule, trained=trained,
+                    provenance=provenance)
+    export_brax_ppo((params[0], policy), manifest, path)
+    return output_rule
+
+
+def distill(getup_path, joystick_path, out, task: str = "getup", overrides: Sequence[str] = (),
+            preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
+            command: str = "", progress: bool = True, max_minutes: float | None = None,
+            name: str = "student", provenance_table=checkpoints.PROVENANCE_TABLE) -> DistillResult:
+    import jax
+    import tqdm
+    from brax.training.agents.bc import networks as bc_networks
+    from brax.training.agents.bc import train as bc
+    from mujoco_playground import wrapper
+    from training import envs
+    from training.cli import apply_overrides
+
+    checkpoints.jax_setup()
+    t_start = time.monotonic()
+    run_dir = Path(out)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    cfg, env_cfg = bc_config(preset), envs.default_config(task)
+    env_cfg.obs_terms = [list(t) for t in obsdef.TERMS_UNION]
+    if preset == "toy":
+        from training.train import TOY_ENV_OVERRIDES
+        env_cfg.update({k: v for k, v in TOY_ENV_OVERRIDES.items() if k in env_cfg})
+    apply_overrides({"bc": cfg, "env": env_cfg}, overrides)
+    if num_envs is not None:
+        cfg.num_envs = int(num_envs)
+    if (cfg.num_envs * cfg.demo_length) % cfg.batch_size:
+        raise ValueError(f"num_envs·demo_length = {cfg.num_envs}·{cfg.demo_length} must be a multiple of "
+                         f"batch_size {cfg.batch_size}")
+    evals_after_init = max(cfg.num_evals - 1, 1)
+    if cfg.dagger_steps % evals_after_init:
+        raise ValueError(f"dagger_steps {cfg.dagger_steps} must be a multiple of num_evals − 1 = {evals_after_init}")
+
+    env = envs.make(task, config=env_cfg)
+    student_terms = env.obs_terms
+    teacher = make_teacher(load_expert(getup_path, "getup"), load_expert(joystick_path, "joystick"), student_terms)
+    episode_length = int(env_cfg.episode_length)
+    wrapped = WaistObservation(wrapper.wrap_for_brax_training(env, episode_length=episode_length,
+                                                              full_reset=True), env)
+    factory = functools.partial(bc_networks.make_bc_networks,
+                                policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),
+                                policy_obs_key=STUDENT_OBS_KEY)
+    log = curves.MetricsLog(run_dir)
+    bar = tqdm.tqdm(total=cfg.dagger_steps, unit="phase", desc=name, disable=not progress, dynamic_ncols=True)
+    phase_env_steps = cfg.num_envs * cfg.demo_length
+
+    def progress_fn(step, metrics):
+        step = int(step)
+        recorded = log.log(step * phase_env_steps, {k: np.mean(np.asarray(v)) for k, v in metrics.items()})
+        bar.update(max(0, step - bar.n))
+        if "SPS" in recorded:
+            bar.set_postfix(samples_per_s=f"{recorded['SPS']:,.0f}", refresh=False)
+        if max_minutes is not None and step > 0 and time.monotonic() - t_start > 60.0 * max_minutes:
+            raise _Stop()
+
+    ckpt_root = (run_dir / checkpoints.CHECKPOINT_DIR).resolve()
+    params, stopped = None, False
+    try:
+        _, params, _ = bc.train(
+            demo_length=cfg.demo_length, teacher_inference_fn=teacher,
+            normalize_observations=cfg.normalize_observations, epochs=cfg.epochs, tanh_squash=cfg.tanh_squash,
+            env=wrapped, num_envs=cfg.num_envs, num_eval_envs=cfg.num_eval_envs,
+            eval_length=int(cfg.eval_length or episode_length), batch_size=cfg.batch_size,
+            scramble_time=cfg.scramble_time or episode_length, network_factory=factory, progress_fn=progress_fn,
+            seed=seed, learning_rate=cfg.learning_rate, dagger_steps=cfg.dagger_steps,
+            dagger_beta_fn=beta_schedule(cfg.dagger_steps, cfg.beta_decay_fraction), num_evals=cfg.num_evals,
+            reset=cfg.reset, save_checkpoint_path=str(ckpt_root))
+    except _Stop:
+        stopped = True
+    bar.close()
+    log.close()
+    curves.plot_curves(log.csv_path, run_dir / curves.PNG_NAME, title=f"{name} (DAgger)")
+    done = checkpoints.list_checkpoints(run_dir)
+    phases = int(done[-1].name) if done else 0
+    if params is None:
+        if not done:
+            raise RuntimeError(f"{run_dir}: stopped before the first checkpoint; nothing to export")
+        params = checkpoints.load_checkpoint(done[-1])
+    params = jax.tree.map(np.asarray, tuple(params))
+    minutes = (time.monotonic() - t_start) / 60.0
+    provenance = {"git_commit": checkpoints.git_commit(), "steps": int(phases * phase_env_steps),
+                  "date": checkpoints.utc_now(), "command": command or "unknown",
+                  "device": checkpoints.device_description(), "minutes": round(minutes, 2),
+                  "algorithm": "brax bc (online DAgger)", "dagger_phases": phases, "preset": preset,
+                  "teacher": {"getup": str(getup_path), "joystick": str(joystick_path)},
+                  "stopped_by_max_minutes": stopped}
+    artifact = run_dir / f"{name}.safetensors"
+    trained = phases > 0 and preset != "toy"
+    rule = export_student(params, env, artifact, name, cfg.tanh_squash, trained, provenance)
+    if ship and not stopped:
+        from training.train import ship_artifact
+        ship_artifact(artifact, {"task": f"distill ({task} env)"}, provenance_table)
+    return DistillResult(run_dir, artifact, phases, rule, minutes)

@@ -1,0 +1,262 @@
+"""Batched MJX getup evaluation of policy ARTIFACTS (the files the runtime runs), seed's chapter 6.
+
+    python -m training evaluate --policy policies/getup.safetensors --baseline policies/getup_baseline.safetensors \
+        --task getup --seeds 32 --seconds 10 --out out/eval_getup
+
+N seeded fallen starts (training.envs.fallen_states) are rolled out in parallel (jax.vmap over envs,
+lax.scan over control ticks) with the getup env's model and motor law, but the policy side is the
+artifact run through training/observation.py with xp=jax.numpy: the observation is built from the
+physics state exactly as the runtime builds it (no noise, command 0, gait clock frozen at its initial
+phase because ‖command‖ < phase_freeze_command_norm), normalised, fed through the MLP, mapped to targets.
+
+Per env and control tick the host gets trunk height, up_z, waist height, and per-substep aggregates:
+energy Σ|τ·q̇|·dt_sim [J], max |τ| [N·m], max |q̈| [rad/s²], Σ|q̈|·dt_sim [rad/s], total contact normal
+force [N]. Falls / attempts / success / time to stand come from sim_hil/eval/events.py, the definitions
+the HIL evaluation uses too. Output: report.md (table beside the seed's numbers), per_env.csv, plots.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from training import observation as obsdef
+from training.artifact import read_artifact
+
+# The seed's Table 4.3 energy sums over a getup (keyframe-curriculum policy vs reward-only baseline).
+SEED_REPORTED = {"energy_J": {"policy": 1605.0, "baseline": 2279.8}}
+MANIFEST_MUST_MATCH_ENV = ("default_pose", "action_scale", "kp", "kd", "control_dt")
+MATCH_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True)
+class ArtifactPolicy:
+    path: Path
+    layers: tuple
+    obs_mean: np.ndarray
+    obs_std: np.ndarray
+    manifest: dict
+
+    @classmethod
+    def load(cls, path) -> "ArtifactPolicy":
+        layers, mean, std, manifest = read_artifact(path)
+        return cls(Path(path), tuple(layers), mean, std, manifest)
+
+    @property
+    def trained(self) -> bool:
+        return bool(self.manifest["trained"])
+
+    def check_env(self, env) -> None:
+        """The artifact must command the motors the way the env's model does, or the rollout lies."""
+        fields = env.manifest_fields()
+        for key in MANIFEST_MUST_MATCH_ENV:
+            ours, theirs = np.asarray(self.manifest[key], float), np.asarray(fields[key], float)
+            if ours.shape != theirs.shape and ours.size != 1:
+                raise ValueError(f"{self.path}: {key} has shape {ours.shape}, the env has {theirs.shape}")
+            if np.max(np.abs(ours - theirs)) > MATCH_TOLERANCE:
+                raise ValueError(f"{self.path}: manifest {key} differs from the evaluation env's "
+                                 f"(max |Δ| = {np.max(np.abs(ours - theirs)):.3g})")
+
+    @property
+    def params(self):
+        """(layers, obs_mean, obs_std) as a pytree: passed to the jitted rollout as an ARGUMENT, so two
+        policies of one shape share one compilation."""
+        return (tuple((np.asarray(w), np.asarray(b)) for w, b in self.layers), self.obs_mean, self.obs_std)
+
+
+def policy_action(manifest: dict, params, obs_state: obsdef.ObservationState):
+    """The artifact's per-tick computation in jax (training/observation.py with xp=jax.numpy)."""
+    import jax.numpy as jnp
+    layers, mean, std = params
+    obs = obsdef.build_observation(manifest["obs_terms"], obs_state, jnp)
+    return obsdef.mlp_forward(layers, obsdef.normalize(obs, mean, std), manifest["activation"],
+                              manifest["output_rule"], xp=jnp)
+
+
+def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
+    """jitted (params, qpos [N, nq], qvel [N, nv]) → dict of (N, T + 1) / (N, T) series."""
+    import jax
+    import jax.numpy as jnp
+    from mujoco import mjx
+    from mujoco.mjx._src import support
+
+    m = env.mjx_model
+    sim_dt = float(env.mj_model.opt.timestep)
+    phase0 = jnp.asarray(obsdef.initial_gait_phase(np), jnp.float32)
+    default_pose = jnp.asarray(policy.manifest["default_pose"], jnp.float32)
+    scale = jnp.asarray(policy.manifest["action_scale"], jnp.float32)
+
+    def contact_normal_total(d):
+        """Σ normal force over active contacts [N]; contact slots and their dims are static in MJX."""
+        con = d._impl.contact
+        total = jnp.float32(0.0)
+        for dim in np.unique(np.asarray(con.dim)):
+            force, idx = support.contact_force_dim(m, d, int(dim))
+            total += jnp.sum(jnp.where(con.dist[idx] < 0.0, jnp.abs(force[:, 0]), 0.0))
+        return total
+
+    def readings(d):
+        r = env.body_readings(d)
+        return jnp.stack([r["trunk_height"], r["up_z"], r["waist_height"]])
+
+    def control_tick(carry, params):
+        d, last_action = carry
+        obs_state = env.observation_state(d, jnp.zeros(3), last_action, phase0)
+        action = policy_action(policy.manifest, params, obs_state)
+        q_des = obsdef.action_to_targets(default_pose, scale, action)
+
+        def substep(c, _):
+            d, agg = c
+            tau = env.pd_torque(q_des, d.qpos[7:], d.qvel[6:])
+            power = jnp.sum(jnp.abs(tau * d.qvel[6:]))  # [W], joint velocity at the start of the substep
+            d = mjx.step(m, d.replace(ctrl=tau))
+            qacc = jnp.abs(d.qacc[6:])
+            agg = agg + jnp.stack([power * sim_dt, 0.0, 0.0, jnp.sum(qacc) * sim_dt])
+            agg = agg.at[1].set(jnp.maximum(agg[1], jnp.max(jnp.abs(tau)))).at[2].set(
+                jnp.maximum(agg[2], jnp.max(qacc)))
+            return (d, agg), None
+
+        (d, agg), _ = jax.lax.scan(substep, (d, jnp.zeros(4)), (), env.n_substeps)
+        out = {"readings": readings(d), "energy_J": agg[0], "max_torque_Nm": agg[1], "max_qacc": agg[2],
+               "qacc_integral": agg[3], "contact_force_N": contact_normal_total(d)}
+        return (d, action), out
+
+    def rollout_one(params, qpos, qvel):
+        d0 = env.make_data(qpos, qvel)
+        tick = lambda carry, _: control_tick(carry, params)  # noqa: E731
+        (_, _), series = jax.lax.scan(tick, (d0, jnp.zeros(obsdef.NUM_JOINTS)), (), num_ticks)
+        series["readings"] = jnp.concatenate([readings(d0)[None], series["readings"]], axis=0)
+        return series
+
+    return jax.jit(jax.vmap(rollout_one, in_axes=(None, 0, 0)))
+
+
+def run_policy(env, policy: ArtifactPolicy, qpos, qvel, seconds: float) -> dict:
+    """Roll out and reduce to per-env metrics (numpy) plus the height series for plots."""
+    import jax
+    from sim_hil.eval.events import getup_events
+    ctrl_dt = float(policy.manifest["control_dt"])
+    ticks = int(round(seconds / ctrl_dt))
+    if ticks < 1:
+        raise ValueError(f"--seconds {seconds}: shorter than one control tick ({ctrl_dt} s)")
+    series = jax.tree.map(np.asarray, make_rollout(env, policy, ticks)(policy.params, qpos, qvel))
+    readings = series["readings"]                      # (N, T + 1, 3)
+    t = np.arange(ticks + 1) * ctrl_dt
+    rows = []
+    for i in range(readings.shape[0]):
+        ev = getup_events(t, readings[i, :, 0], readings[i, :, 1])
+        rows.append({
+            "success": ev.success, "time_to_stand_s": ev.time_to_stand_s, "attempts": ev.attempts,
+            "falls": ev.falls, "energy_J": float(series["energy_J"][i].sum()),
+            "max_torque_Nm": float(series["max_torque_Nm"][i].max()),
+            "max_joint_acc_radps2": float(series["max_qacc"][i].max()),
+            "total_joint_acc_radps": float(series["qacc_integral"][i].sum()),
+            "max_contact_force_N": float(series["contact_force_N"][i].max()),
+            "mean_contact_force_N": float(series["contact_force_N"][i].mean())})
+    return {"rows": rows, "t": t, "trunk_height": readings[:, :, 0], "waist_height": readings[:, :, 2],
+            "up_z": readings[:, :, 1]}
+
+
+def summarize(rows: list[dict]) -> dict:
+    def mean(key, where=None):
+        vals = [r[key] for r in rows if (where is None or where(r)) and not math.isnan(r[key])]
+        return float(np.mean(vals)) if vals else math.nan
+    # every start is a fall (fallen starts), plus falls during the episode
+    falls_total = sum(1 + r["falls"] for r in rows)
+    return {"episodes": len(rows), "success_rate": float(np.mean([r["success"] for r in rows])),
+            "attempts_per_fall": sum(r["attempts"] for r in rows) / falls_total,
+            "time_to_stand_s": mean("time_to_stand_s"), "energy_J": mean("energy_J"),
+            "max_torque_Nm": mean("max_torque_Nm"), "max_joint_acc_radps2": mean("max_joint_acc_radps2"),
+            "total_joint_acc_radps": mean("total_joint_acc_radps"),
+            "max_contact_force_N": mean("max_contact_force_N"), "mean_contact_force_N": mean("mean_contact_force_N")}
+
+
+ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attempts_per_fall", "{:.2f}"),
+        ("time to stand [s]", "time_to_stand_s", "{:.2f}"), ("energy Σ\\|τ·q̇\\|·dt [J]", "energy_J", "{:.1f}"),
+        ("max torque [N·m]", "max_torque_Nm", "{:.1f}"),
+        ("max joint acc [rad/s²]", "max_joint_acc_radps2", "{:.0f}"),
+        ("total joint acc Σ\\|q̈\\|·dt [rad/s]", "total_joint_acc_radps", "{:.0f}"),
+        ("max contact force [N]", "max_contact_force_N", "{:.0f}"),
+        ("mean contact force [N]", "mean_contact_force_N", "{:.0f}"))
+
+
+def _fmt(fmt, value):
+    return "n/a" if value is None or (isinstance(value, float) and math.isnan(value)) else fmt.format(value)
+
+
+def markdown_report(results: dict, meta: dict) -> str:
+    names = list(results)
+    lines = [f"# Getup evaluation ({meta['seeds']} seeded fallen starts from seed {meta['first_seed']}, "
+             f"{meta['seconds']} s each, MJX)", ""]
+    for role, res in results.items():
+        m = res["policy"].manifest
+        lines.append(f"- {role}: `{res['policy'].path}` name `{m['name']}`, trained: "
+                     f"**{'yes' if m['trained'] else 'NO (untrained placeholder)'}**, env steps "
+                     f"{m['provenance']['steps']}, content hash {m['content_hash'][:12]}")
+    lines += ["", "Means over episodes (time to stand: over episodes that stood up). Seed = the seed "
+              "thesis's reported figure where one exists.", ""]
+    header = ["metric"] + [f"{n}" for n in names] + [f"seed: {n}" for n in names]
+    lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for label, key, fmt in ROWS:
+        cells = [_fmt(fmt, results[n]["summary"][key]) for n in names]
+        cells += [_fmt("{:.1f}", SEED_REPORTED.get(key, {}).get(n)) for n in names]
+        lines.append("| " + " | ".join([label] + cells) + " |")
+    lines += ["", f"Command: `{meta['command']}`", ""]
+    return "\n".join(lines)
+
+
+def plot_heights(results: dict, png: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    for (role, res), color in zip(results.items(), ("tab:blue", "tab:orange")):
+        run = res["run"]
+        for ax, key, label in zip(axes, ("trunk_height", "waist_height", "up_z"),
+                                  ("trunk height [m]", "waist height [m]", "trunk up z")):
+            ax.plot(run["t"], run[key].T, color=color, alpha=0.15, linewidth=0.8)
+            ax.plot(run["t"], run[key].mean(axis=0), color=color, linewidth=2, label=role)
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+    axes[0].legend()
+    axes[-1].set_xlabel("time [s]")
+    fig.tight_layout()
+    fig.savefig(png, dpi=100)
+    plt.close(fig)
+
+
+def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 32, seconds: float = 10.0,
+             first_seed: int = 0, command: str = "") -> Path:
+    """Run the evaluation; returns the path of report.md."""
+    from training import checkpoints, envs
+    checkpoints.jax_setup()
+    if task != "getup":
+        raise ValueError(f"--task {task!r}: only the getup evaluation exists so far")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    env = envs.make(task)
+    qpos, qvel = envs.fallen_states(seeds, first_seed)
+    results = {}
+    for role, path in (("policy", policy_path), ("baseline", baseline)):
+        if path is None:
+            continue
+        policy = ArtifactPolicy.load(path)
+        policy.check_env(env)
+        print(f"{role}: {path} (trained: {policy.trained})")
+        run = run_policy(env, policy, qpos, qvel, seconds)
+        results[role] = {"policy": policy, "run": run, "summary": summarize(run["rows"])}
+    meta = {"seeds": seeds, "first_seed": first_seed, "seconds": seconds, "command": command or "evaluate()"}
+    report = out / "report.md"
+    report.write_text(markdown_report(results, meta))
+    with (out / "per_env.csv").open("w", newline="") as f:
+        fields = ["role", "seed", "trained"] + list(results["policy"]["run"]["rows"][0])
+        writer = csv.DictWriter(f, fieldnames=fields)
+        writer.writeheader()
+        for role, res in results.items():
+            for i, row in enumerate(res["run"]["rows"]):
+                writer.writerow({"role": role, "seed": first_seed + i, "trained": res["policy"].trained, **row})
+    plot_heights(results, out / "heights.png")
+    return report

@@ -1,0 +1,171 @@
+"""Experts as jax functions, the observation adapter, and the stitched teacher.
+
+An expert is loaded from a policy artifact or a PPO checkpoint (both become the artifact's numbers:
+layers, normaliser, obs terms), so the teacher runs exactly what the runtime would run. Observations are
+vectors of named terms (training/observation.py); `TermAdapter` maps one term layout onto another by
+slicing, and fills the two terms a getup env does not produce with the values they have while standing
+still: command = 0 and the gait phase frozen at its initial value (the gait clock does not advance while
+‖command‖ < phase_freeze_command_norm, policies/ARTIFACT.md).
+
+Stitched teacher (ARCHITECTURE.md, Training): the getup expert while the waist is below
+WAIST_SWITCH_HEIGHT_M, else the joystick expert. Waist height is privileged (state.info["waist_height"]);
+brax bc's teacher sees only observations, so distillation adds it to the observation dict under
+WAIST_OBS_KEY (training/distill.py); the student's network reads only "state".
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from training import observation as obsdef
+
+WAIST_SWITCH_HEIGHT_M = 0.5
+WAIST_OBS_KEY = "waist_height"
+STUDENT_OBS_KEY = "state"
+CHECK_FALLEN_STARTS = 16  # host-precomputed fallen starts for the `teacher` check rollout (seconds each)
+
+
+@dataclass(frozen=True)
+class Expert:
+    name: str
+    layers: tuple            # ((W (out, in), b), ...) float32 numpy
+    obs_mean: np.ndarray
+    obs_std: np.ndarray
+    activation: str
+    obs_terms: tuple         # ((name, size), ...)
+
+    def loc(self, obs, xp=None):
+        """The pre-tanh mean (brax tanh-normal `loc`) for raw observations in this expert's term layout."""
+        import jax.numpy as jnp
+        xp = xp or jnp
+        out = obsdef.mlp_forward(self.layers, obsdef.normalize(obs, xp.asarray(self.obs_mean), xp.asarray(self.obs_std)),
+                                 self.activation, "linear", xp=xp)
+        return out[..., :obsdef.NUM_JOINTS]
+
+
+def _terms_for_size(size: int, source) -> tuple:
+    matches = [t for t in (obsdef.TERMS_UNION, obsdef.TERMS_GETUP) if obsdef.observation_size(t) == size]
+    if not matches:
+        raise ValueError(f"{source}: policy input size {size} matches neither the joystick/student terms "
+                         f"({obsdef.observation_size(obsdef.TERMS_UNION)}) nor the getup terms "
+                         f"({obsdef.observation_size(obsdef.TERMS_GETUP)})")
+    return matches[0]
+
+
+def load_expert(path, name: str | None = None) -> Expert:
+    """A tanh_normal policy from an artifact (.safetensors) or a brax PPO checkpoint / run directory."""
+    path = Path(path)
+    if path.suffix == ".safetensors":
+        from training.artifact import read_artifact
+        layers, mean, std, manifest = read_artifact(path)
+        if manifest["output_rule"] != "tanh_normal":
+            raise ValueError(f"{path}: output_rule {manifest['output_rule']!r}; an expert must be a PPO "
+                             "tanh_normal policy (the DAgger loss compares tanh(loc))")
+        return Expert(name or manifest["name"], tuple(layers), mean, std, manifest["activation"],
+                      tuple((n, int(s)) for n, s in manifest["obs_terms"]))
+    from training import checkpoints
+    from training.export import brax_policy_layers
+    from training.train import ACTIVATION
+    params = checkpoints.load_checkpoint(path)
+    layers = brax_policy_layers(params[1])
+    if layers[-1][0].shape[0] != 2 * obsdef.NUM_JOINTS:
+        raise ValueError(f"{path}: policy outputs {layers[-1][0].shape[0]}, a tanh_normal T1 policy has "
+                         f"{2 * obsdef.NUM_JOINTS}")
+    mean, std = params[0].mean, params[0].std
+    if isinstance(mean, dict):
+        mean, std = mean[STUDENT_OBS_KEY], std[STUDENT_OBS_KEY]
+    terms = _terms_for_size(layers[0][0].shape[1], path)
+    return Expert(name or path.name, tuple(layers), np.asarray(mean, np.float32), np.asarray(std, np.float32),
+                  ACTIVATION, terms)
+
+
+class TermAdapter:
+    """Maps observations laid out as `source_terms` to `target_terms` (a jax/numpy function)."""
+
+    FILLABLE = ("command", "phase")
+
+    def __init__(self, source_terms: Sequence, target_terms: Sequence):
+        obsdef.check_terms(source_terms)
+        obsdef.check_terms(target_terms)
+        offsets, start = {}, 0
+        for name, size in source_terms:
+            offsets[name] = (start, int(size))
+            start += int(size)
+        self.source_terms, self.target_terms = tuple(map(tuple, source_terms)), tuple(map(tuple, target_terms))
+        missing = [n for n, _ in target_terms if n not in offsets and n not in self.FILLABLE]
+        if missing:
+            raise ValueError(f"obs_terms: the env does not produce {missing} (env terms: "
+                             f"{[n for n, _ in source_terms]}), and only {self.FILLABLE} can be filled in")
+        self.filled = [n for n, _ in target_terms if n not in offsets]
+        self._plan = [(name, offsets.get(name), int(size)) for name, size in target_terms]
+        self.identity = self.source_terms == self.target_terms
+
+    def __call__(self, obs, xp=None):
+        import jax.numpy as jnp
+        xp = xp or jnp
+        if self.identity:
+            return obs
+        batch = obs.shape[:-1]
+        parts = []
+        for name, where, size in self._plan:
+            if where is not None:
+                parts.append(obs[..., where[0]:where[0] + where[1]])
+            elif name == "command":
+                parts.append(xp.zeros(batch + (size,), obs.dtype))
+            else:  # phase: frozen initial gait clock, [cos φL, cos φR, sin φL, sin φR]
+                phi = obsdef.initial_gait_phase(np)
+                frozen = np.concatenate([np.cos(phi), np.sin(phi)]).astype(np.float32)
+                parts.append(xp.broadcast_to(xp.asarray(frozen, dtype=obs.dtype), batch + (size,)))
+        return xp.concatenate(parts, axis=-1)
+
+
+def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence,
+                 switch_height_m: float = WAIST_SWITCH_HEIGHT_M):
+    """brax-bc teacher: obs dict {"state": student-layout obs, "waist_height": (..., 1)} →
+    (tanh(loc), {"loc": loc}); the getup expert where waist height < switch_height_m."""
+    import jax.numpy as jnp
+    to_getup = TermAdapter(student_terms, getup.obs_terms)
+    to_joystick = TermAdapter(student_terms, joystick.obs_terms)
+
+    def teacher(obs, key=None):
+        del key  # deterministic experts
+        state = obs[STUDENT_OBS_KEY]
+        waist = obs[WAIST_OBS_KEY]
+        loc = jnp.where(waist < switch_height_m, getup.loc(to_getup(state)), joystick.loc(to_joystick(state)))
+        return jnp.tanh(loc), {"loc": loc}
+
+    return teacher
+
+
+def check_teacher(getup_path, joystick_path, num_envs: int = 16, seed: int = 0, steps: int = 50,
+                  task: str = "getup") -> str:
+    """Roll the stitched teacher out in the `task` env for `steps` control steps; a one-line summary."""
+    import jax
+    import jax.numpy as jnp
+    from training import checkpoints, envs
+    checkpoints.jax_setup()
+    getup, joystick = load_expert(getup_path, "getup"), load_expert(joystick_path, "joystick")
+    overrides = {"fallen_bank_size": CHECK_FALLEN_STARTS} if "fallen_bank_size" in envs.default_config(task) else None
+    env = envs.make(task, config_overrides=overrides)
+    student_terms = obsdef.TERMS_UNION
+    to_student = TermAdapter(env.obs_terms, student_terms)
+    teacher = make_teacher(getup, joystick, student_terms)
+
+    def act(state):
+        obs = {STUDENT_OBS_KEY: to_student(state.obs[STUDENT_OBS_KEY]),
+               WAIST_OBS_KEY: state.info["waist_height"][..., None]}
+        return teacher(obs)[0], state.info["waist_height"] < WAIST_SWITCH_HEIGHT_M
+
+    reset, step, act = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step)), jax.jit(jax.vmap(act))
+    state = reset(jax.random.split(jax.random.PRNGKey(seed), num_envs))
+    getup_share = []
+    for _ in range(steps):
+        action, used_getup = act(state)
+        getup_share.append(float(jnp.mean(used_getup)))
+        state = step(state, action)
+    return (f"teacher OK: {num_envs} envs × {steps} steps in {task!r}; getup expert active "
+            f"{100 * np.mean(getup_share):.0f}% of env-steps; final mean waist height "
+            f"{float(jnp.mean(state.info['waist_height'])):.3f} m")

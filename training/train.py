@@ -1,0 +1,303 @@
+"""PPO training runs (brax ppo.train on the MJX envs of training/envs), resumable and time-boxed.
+
+    python -m training train joystick --steps 200_000_000 --out runs/joystick --max-minutes 9 [--resume]
+
+One call trains until the target env-step count or until --max-minutes would be overrun by the next
+epoch, checkpointing after every epoch (brax's `policy_params_fn` hook: params arrive on the host there,
+between two jitted epochs, so stopping there is clean). Every call exports the newest policy to
+<out>/<name>.safetensors; --ship also copies it to policies/ and appends a row to policies/PROVENANCE.md.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+from ml_collections import config_dict
+
+from training import checkpoints, curves
+from training.checkpoints import REPO_ROOT
+from training.cli import apply_overrides
+
+PRESETS = ("gpu", "toy")
+# Env settings of the toy preset (applied where the task's config has the key): 0.4 s episodes and a
+# small bank of host-precomputed fallen starts.
+TOY_ENV_OVERRIDES = {"episode_length": 20, "fallen_bank_size": 2}
+ACTIVATION = "swish"  # brax's PPO/BC default (flax linen.swish); the artifact's activation must match
+
+
+def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
+    """Per-task PPO config. `gpu`: Playground's T1 joystick recipe (locomotion_params.py, T1Joystick*),
+    the seed's getup runs on the same settings; `toy`: tiny networks and batches for CPU smoke tests."""
+    if preset not in PRESETS:
+        raise ValueError(f"preset: {preset!r} is not one of {PRESETS}")
+    cfg = config_dict.create(
+        num_timesteps=200_000_000 if task == "joystick" else 100_000_000,
+        num_envs=8192, batch_size=256, num_minibatches=32, unroll_length=20, num_updates_per_batch=4,
+        discounting=0.97, learning_rate=3e-4, entropy_cost=0.005, clipping_epsilon=0.2, max_grad_norm=1.0,
+        reward_scaling=1.0, normalize_observations=True, num_resets_per_eval=1,
+        # getup episodes must restart from freshly sampled fallen/kneeling/standing states
+        full_reset=task != "joystick",
+        domain_randomization=task == "joystick",  # Playground T1: friction, gains, masses (envs.domain_randomize)
+        policy_hidden_layer_sizes=(512, 256, 128), value_hidden_layer_sizes=(512, 256, 128),
+        policy_obs_key="state", value_obs_key="privileged_state",
+        checkpoint_every_steps=10_000_000,  # one epoch ≈ 1 min on an H100 at ~150k env-steps/s
+        run_evals=True, num_eval_envs=128, deterministic_eval=True,
+        log_training_metrics=True, training_metrics_steps=1_000_000,
+    )
+    if preset == "toy":
+        cfg.update(dict(
+            num_timesteps=2_000, num_envs=8, batch_size=8, num_minibatches=2, unroll_length=5,
+            num_updates_per_batch=1, policy_hidden_layer_sizes=(16, 16), value_hidden_layer_sizes=(16, 16),
+            checkpoint_every_steps=80, num_eval_envs=4, training_metrics_steps=80,
+            # each of these compiles the MJX step once more: minutes on a CPU
+            run_evals=False, domain_randomization=False, num_resets_per_eval=0))
+    return cfg
+
+
+@dataclass
+class TrainResult:
+    run_dir: Path
+    artifact: Path
+    env_steps: int
+    target_steps: int
+    minutes: float
+    env_steps_per_s: float
+    complete: bool
+
+
+class _StopAtCheckpoint(Exception):
+    """Raised from brax's policy_params_fn after a checkpoint when the time box is spent."""
+
+
+def _network_factory(cfg):
+    from brax.training.agents.ppo import networks as ppo_networks
+    return functools.partial(
+        ppo_networks.make_ppo_networks,
+        policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),
+        value_hidden_layer_sizes=tuple(cfg.value_hidden_layer_sizes),
+        policy_obs_key=cfg.policy_obs_key, value_obs_key=cfg.value_obs_key)
+
+
+def _randomization(cfg):
+    if not cfg.domain_randomization:
+        return None
+    from training import envs
+    return envs.domain_randomize
+
+
+def make_env(task: str, env_cfg: config_dict.ConfigDict):
+    from training import envs
+    if task not in envs.TASKS:
+        raise ValueError(f"task: {task!r} is not one of {envs.TASKS}")
+    return envs.make(task, config=env_cfg)
+
+
+def build_configs(task: str, preset: str, stage: str | None, overrides: Sequence[str]):
+    """(ppo config, env config) with --stage and --config key=value applied."""
+    from training import envs
+    if task not in envs.TASKS:
+        raise ValueError(f"task: {task!r} is not one of {envs.TASKS}")
+    ppo_cfg, env_cfg = ppo_config(task, preset), envs.default_config(task)
+    if stage is not None:
+        if "stage" not in env_cfg:
+            raise ValueError(f"--stage: task {task!r} has no stages (only the getup task has)")
+        env_cfg.stage = stage
+    if preset == "toy":
+        env_cfg.update({k: v for k, v in TOY_ENV_OVERRIDES.items() if k in env_cfg})
+    apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)
+    return ppo_cfg, env_cfg
+
+
+def _check_batch_shape(cfg):
+    if (cfg.batch_size * cfg.num_minibatches) % cfg.num_envs:
+        raise ValueError(f"--envs {cfg.num_envs}: batch_size·num_minibatches = {cfg.batch_size}·"
+                         f"{cfg.num_minibatches} must be a multiple of the number of envs")
+
+
+def _epochs(cfg, steps: int) -> int:
+    """num_evals for ppo.train: one epoch (= one checkpoint) per checkpoint_every_steps."""
+    return max(2, math.ceil(steps / max(1, cfg.checkpoint_every_steps)) + 1)
+
+
+def run_name(task: str, env_cfg) -> str:
+    return f"{task}_{env_cfg.stage}" if task.startswith("getup") and "stage" in env_cfg else task
+
+
+def train(task: str, out, steps: int | None = None, num_envs: int | None = None, seed: int = 0,
+          resume: bool = False, max_minutes: float | None = None, overrides: Sequence[str] = (),
+          stage: str | None = None, from_checkpoint=None, preset: str = "gpu", ship: bool = False,
+          name: str | None = None, command: str = "", progress: bool = True,
+          provenance_table=checkpoints.PROVENANCE_TABLE) -> TrainResult:
+    from brax.training.agents.ppo import train as ppo
+    from mujoco_playground import wrapper
+    import tqdm
+
+    checkpoints.jax_setup()
+    t_start = time.monotonic()
+    run_dir = Path(out)
+    if resume:
+        state = checkpoints.load_run_state(run_dir)
+        if state["task"] != task:
+            raise ValueError(f"--resume: {run_dir} is a {state['task']!r} run, not {task!r}")
+        preset = state["preset"]  # a toy run stays a toy run (and its artifact untrained)
+        ppo_cfg = config_dict.ConfigDict(state["ppo_config"])
+        env_cfg = config_dict.ConfigDict(state["env_config"])
+        if steps is not None:
+            state["target_steps"] = int(steps)  # extending a finished run is allowed
+        restore = checkpoints.load_checkpoint(run_dir) if state["env_steps"] > 0 else state.get("init")
+        if isinstance(restore, str):
+            restore = checkpoints.load_checkpoint(restore)
+    else:
+        if (run_dir / checkpoints.RUN_STATE).exists():
+            raise FileExistsError(f"{run_dir} already holds a run: pass --resume to continue it or pick "
+                                  "another --out")
+        ppo_cfg, env_cfg = build_configs(task, preset, stage, overrides)
+        init = str(checkpoints.resolve_checkpoint(from_checkpoint)) if from_checkpoint else None
+        restore = checkpoints.load_checkpoint(init) if init else None
+        state = {"task": task, "name": name or run_name(task, env_cfg), "preset": preset, "seed": seed,
+                 "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
+                 "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
+                 "env_steps": 0, "minutes": 0.0, "calls": []}
+        run_dir.mkdir(parents=True, exist_ok=True)
+        checkpoints.save_run_state(run_dir, state)
+    if num_envs is not None:
+        ppo_cfg.num_envs = state["ppo_config"]["num_envs"] = int(num_envs)
+    _check_batch_shape(ppo_cfg)
+
+    env = make_env(task, env_cfg)
+    offset, target = int(state["env_steps"]), int(state["target_steps"])
+    remaining = max(0, target - offset)
+    factory = _network_factory(ppo_cfg)
+    from brax.training import checkpoint as brax_checkpoint
+    net_cfg = brax_checkpoint.network_config(
+        observation_size={k: tuple(v) for k, v in env.observation_size.items()},
+        action_size=env.action_size, normalize_observations=ppo_cfg.normalize_observations,
+        network_factory=factory)
+
+    log = curves.MetricsLog(run_dir)
+    bar = tqdm.tqdm(total=target, initial=offset, unit="step", unit_scale=True, disable=not progress,
+                    desc=state["name"], dynamic_ncols=True)
+    clock = {"last_epoch_end": time.monotonic(), "epoch_s": 0.0, "sps": []}
+    latest = {"params": restore, "steps": offset}
+
+    def progress_fn(step, metrics):
+        total = offset + int(step)
+        recorded = log.log(total, metrics)
+        for key in ("training/sps", "episode/sps"):  # per epoch / per training step
+            if key in recorded:
+                clock["sps"].append(recorded[key])
+        bar.update(max(0, total - bar.n))
+        sps = recorded.get("training/sps", recorded.get("episode/sps"))
+        if sps is not None:
+            bar.set_postfix(env_steps_per_s=f"{sps:,.0f}", refresh=False)
+
+    def policy_params_fn(step, _make_policy, params):
+        if step == 0:
+            return
+        now = time.monotonic()
+        clock["epoch_s"], clock["last_epoch_end"] = now - clock["last_epoch_end"], now
+        total = offset + int(step)
+        checkpoints.save_checkpoint(run_dir, total, params, net_cfg)
+        latest.update(params=params, steps=total)
+        state["env_steps"] = total
+        checkpoints.save_run_state(run_dir, state)
+        if max_minutes is not None and now - t_start + clock["epoch_s"] > 60.0 * max_minutes:
+            raise _StopAtCheckpoint()
+
+    stopped = False
+    if remaining > 0:
+        wrap = functools.partial(wrapper.wrap_for_brax_training, full_reset=bool(ppo_cfg.full_reset))
+        try:
+            ppo.train(
+                environment=env, num_timesteps=remaining, num_envs=ppo_cfg.num_envs,
+                episode_length=int(env_cfg.episode_length), wrap_env_fn=wrap, seed=seed + offset,
+                learning_rate=ppo_cfg.learning_rate, entropy_cost=ppo_cfg.entropy_cost,
+                discounting=ppo_cfg.discounting, unroll_length=ppo_cfg.unroll_length,
+                batch_size=ppo_cfg.batch_size, num_minibatches=ppo_cfg.num_minibatches,
+                num_updates_per_batch=ppo_cfg.num_updates_per_batch,
+                num_resets_per_eval=ppo_cfg.num_resets_per_eval,
+                normalize_observations=ppo_cfg.normalize_observations, reward_scaling=ppo_cfg.reward_scaling,
+                clipping_epsilon=ppo_cfg.clipping_epsilon, max_grad_norm=ppo_cfg.max_grad_norm,
+                network_factory=factory, num_evals=_epochs(ppo_cfg, remaining),
+                run_evals=ppo_cfg.run_evals, num_eval_envs=ppo_cfg.num_eval_envs,
+                deterministic_eval=ppo_cfg.deterministic_eval,
+                log_training_metrics=ppo_cfg.log_training_metrics,
+                training_metrics_steps=ppo_cfg.training_metrics_steps,
+                progress_fn=progress_fn, policy_params_fn=policy_params_fn,
+                randomization_fn=_randomization(ppo_cfg),
+                restore_params=None if restore is None else tuple(restore))
+        except _StopAtCheckpoint:
+            stopped = True
+    bar.close()
+    minutes = (time.monotonic() - t_start) / 60.0
+    steady = clock["sps"][1:]  # the first epoch includes jit compilation
+    done_now = latest["steps"] - offset
+    sps = sorted(steady)[len(steady) // 2] if steady else (done_now / (60 * minutes) if minutes else 0.0)
+    state["minutes"] = float(state["minutes"]) + minutes
+    state["calls"].append({"date": checkpoints.utc_now(), "command": command, "from_steps": offset,
+                           "to_steps": latest["steps"], "minutes": round(minutes, 2),
+                           "env_steps_per_s": round(sps, 1), "device": checkpoints.device_description(),
+                           "stopped_by_max_minutes": stopped})
+    state["env_steps_per_s"] = round(sps, 1)
+    checkpoints.save_run_state(run_dir, state)
+    log.close()
+    curves.plot_curves(log.csv_path, run_dir / curves.PNG_NAME, title=f"{state['name']} (PPO)")
+
+    if latest["params"] is None:
+        raise RuntimeError(f"{run_dir}: no parameters to export (zero steps trained and no --from)")
+    artifact = export_run(run_dir, env, state, latest["params"], preset)
+    if ship and latest["steps"] >= target:
+        ship_artifact(artifact, state, provenance_table)
+    return TrainResult(run_dir, artifact, latest["steps"], target, state["minutes"], sps,
+                       complete=latest["steps"] >= target)
+
+
+def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
+    """The run's newest params → <run_dir>/<name>.safetensors, manifest from the env config."""
+    from training.export import export_brax_ppo
+    steps = int(state["env_steps"])
+    trained = steps > 0 and preset != "toy"
+    last = state["calls"][-1] if state["calls"] else {}
+    manifest = dict(env.manifest_fields())
+    manifest.update(
+        name=state["name"], activation=ACTIVATION, output_rule="tanh_normal", trained=trained,
+        provenance={"git_commit": checkpoints.git_commit(), "steps": steps, "date": checkpoints.utc_now(),
+                    "command": " ; ".join(c["command"] for c in state["calls"] if c["command"]) or "unknown",
+                    "device": last.get("device", "unknown"), "minutes": round(float(state["minutes"]), 2),
+                    "env_steps_per_s": state.get("env_steps_per_s", 0.0), "algorithm": "brax ppo",
+                    "preset": preset, "init": state.get("init") or ""})
+    path = run_dir / f"{state['name']}.safetensors"
+    export_brax_ppo(tuple(params), manifest, path,
+                    observations_normalized=bool(state["ppo_config"]["normalize_observations"]))
+    return path
+
+
+def ship_artifact(artifact: Path, state: dict, provenance_table=checkpoints.PROVENANCE_TABLE,
+                  policies_dir: Path | None = None) -> Path:
+    """Copy the artifact into policies/ and append its provenance row."""
+    from training.artifact import read_artifact
+    manifest = read_artifact(artifact)[3]
+    prov = manifest["provenance"]
+    policies_dir = Path(policies_dir or Path(provenance_table).parent)
+    policies_dir.mkdir(parents=True, exist_ok=True)
+    shipped = policies_dir / artifact.name
+    if shipped.resolve() != artifact.resolve():
+        shutil.copyfile(artifact, shipped)
+    task = state["task"] + ("" if manifest["trained"] else " (SMOKE TEST, NOT TRAINED)")
+    try:
+        shown = shipped.resolve().relative_to(REPO_ROOT)
+    except ValueError:
+        shown = shipped
+    checkpoints.append_provenance_row({
+        "date": prov["date"], "artifact": f"`{shown}`", "name": manifest["name"], "task": task,
+        "trained": "yes" if manifest["trained"] else "no", "env steps": prov["steps"],
+        "minutes": prov.get("minutes", ""), "env-steps/s": prov.get("env_steps_per_s", ""),
+        "device": prov.get("device", ""), "git commit": prov["git_commit"],
+        "content hash": manifest["content_hash"][:12], "command": f"`{prov['command']}`", "evaluation": ""},
+        provenance_table)
+    return shipped
