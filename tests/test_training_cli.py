@@ -122,7 +122,7 @@ def toy_runs(tmp_path_factory):
                   str(dirs["boxed"]), *toy],
         "distill": ["distill", "--getup", str(dirs["getup"] / "getup_stage2.safetensors"), "--joystick",
                     str(dirs["joystick"]), "--out", str(dirs["student"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)",
-                    *toy]})
+                    *toy]})  # default --task: the unified env (no fallen starts: their precompute is slow)
     _run_parallel({"evaluate": ["evaluate", "--policy", str(dirs["getup"] / "getup_stage2.safetensors"),
                                 "--baseline", str(dirs["getup_baseline"] / "getup_baseline.safetensors"),
                                 "--seeds", "2", "--seconds", "0.2", "--out", str(dirs["eval"])]})
@@ -175,6 +175,8 @@ def test_max_minutes_stops_at_a_checkpoint(toy_runs):
 @pytest.mark.slow
 def test_toy_distill_exports_student(toy_runs):
     from training import observation as obsdef
+    # the toy run used distill's default env: the unified walk–fall–getup task
+    assert cli.build_parser().parse_args(["distill", "--getup", "g", "--joystick", "j", "--out", "o"]).task == "unified"
     layers, _, _, manifest = read_artifact(toy_runs["student"] / "student.safetensors")
     assert manifest["output_rule"] == "tanh_normal" and manifest["trained"] is False
     assert [tuple(t) for t in manifest["obs_terms"]] == list(obsdef.TERMS_UNION)

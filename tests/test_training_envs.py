@@ -19,13 +19,15 @@ OBS_SIZES = {  # actor size from the terms; critic = actor + base extras + task 
     "joystick": (82, 82 + 37 + 2 + 6),
     "getup": (75, 75 + 37 + 2),
     "getup_baseline": (75, 75 + 37 + 2),
+    "unified": (82, 82 + 37 + 6),
 }
 SMALL = {"episode_length": 20}
 GETUP_SMALL = {"episode_length": 20, "fallen_bank_size": 2}
 
 
 def _make(task, **extra):
-    over = dict(GETUP_SMALL if task.startswith("getup") else SMALL)
+    # tasks with fallen starts get a 2-state bank: precomputing the default 128 takes minutes
+    over = dict(GETUP_SMALL if "fallen_bank_size" in envs.default_config(task) else SMALL)
     over.update(extra)
     return envs.make(task, config_overrides=over)
 
@@ -37,7 +39,7 @@ def env_by_task():
 
 # ------------------------------------------------------------------ API / config
 def test_tasks_and_configs():
-    assert envs.TASKS == ("joystick", "getup", "getup_baseline")
+    assert envs.TASKS == ("joystick", "getup", "getup_baseline", "unified")
     for task in envs.TASKS:
         cfg = envs.default_config(task)
         assert cfg.ctrl_dt == pytest.approx(0.02) and cfg.sim_dt == pytest.approx(0.002)
@@ -46,6 +48,10 @@ def test_tasks_and_configs():
     assert envs.default_config("getup").energy_weight == 0.0
     assert envs.default_config("getup").obs_noise_scale == 0.0
     assert list(envs.default_config("getup").start_probs) == [0.4, 0.4, 0.2]
+    uni, joy = envs.default_config("unified"), envs.default_config("joystick")
+    assert list(uni.start_probs) == [0.4, 0.4, 0.2] and uni.collision == "full_body"
+    assert uni.episode_length == 1000 and uni.command_resample_steps == 500 and uni.zero_command_prob == 0.1
+    assert uni.push.to_dict() == joy.push.to_dict() and uni.command_ranges.to_dict() == joy.command_ranges.to_dict()
     with pytest.raises(ValueError, match="unknown task"):
         envs.make("dance")
     with pytest.raises((KeyError, AttributeError)):
@@ -67,7 +73,8 @@ def test_observation_sizes_and_manifest(env_by_task):
         assert set(m["command_ranges"]) == {"vx", "vy", "yaw_rate"}
     assert env_by_task["joystick"].obs_terms == list(obsdef.TERMS_UNION)
     assert env_by_task["getup"].obs_terms == list(obsdef.TERMS_GETUP)
-    # one gain set and one action map for all three policies
+    assert env_by_task["unified"].obs_terms == list(obsdef.TERMS_UNION)
+    # one gain set and one action map for all three policies (and the student's env)
     fields = [env.manifest_fields() for env in env_by_task.values()]
     for key in ("kp", "kd", "default_pose", "action_scale", "control_dt"):
         assert all(f[key] == fields[0][key] for f in fields), key

@@ -147,8 +147,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--getup", required=True)
     p.add_argument("--joystick", required=True)
     p.add_argument("--out", required=True)
-    p.add_argument("--task", choices=TASKS, default="getup",
-                   help="env the student is rolled out in (default getup: fallen/kneeling/standing starts)")
+    p.add_argument("--task", choices=(*TASKS, "unified"), default="unified",
+                   help="env the student is rolled out in (default unified: fallen/kneeling/standing starts, "
+                        "joystick commands, pushes, falls)")
     p.add_argument("--envs", type=int)
     p.add_argument("--max-minutes", type=float)
     p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",

@@ -5,7 +5,9 @@ action is executed; linear over the first `beta_decay_fraction` of the DAgger ph
 lr 4e-4, 4 epochs per phase, normalised observations. The student sees the full term layout
 (training/observation.py TERMS_UNION) so one network can walk and get up; the env is built with
 obs_terms = TERMS_UNION, and the privileged waist height rides along in the observation dict for the
-teacher only.
+teacher only. The default env is `unified` (training/envs/unified.py: fallen / kneeling / standing starts,
+joystick commands and pushes, falls not terminal), so the student sees both experts' situations and the
+hand-overs between them, as the seed's student does; `task` picks another env (e.g. getup or joystick).
 
 Export: brax bc's policy network is the PPO policy MLP with a NormalTanhDistribution head (2·23 outputs:
 loc, scale). With tanh_squash (brax default, kept here) the student's action is tanh(loc) — exactly the
@@ -26,6 +28,8 @@ from ml_collections import config_dict
 from training import checkpoints, curves
 from training import observation as obsdef
 from training.teacher import STUDENT_OBS_KEY, WAIST_OBS_KEY, load_expert, make_teacher
+
+DEFAULT_TASK = "unified"  # the whole walk–fall–getup task (training/envs/unified.py); cli.py repeats it
 
 
 def bc_config(preset: str = "gpu") -> config_dict.ConfigDict:
@@ -105,7 +109,7 @@ def export_student(params, env, path, name: str, tanh_squash: bool, trained: boo
     return output_rule
 
 
-def distill(getup_path, joystick_path, out, task: str = "getup", overrides: Sequence[str] = (),
+def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides: Sequence[str] = (),
             preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
             command: str = "", progress: bool = True, max_minutes: float | None = None,
             name: str = "student", provenance_table=checkpoints.PROVENANCE_TABLE) -> DistillResult:

@@ -1,7 +1,7 @@
 """MJX training envs for the T1 (JAX backend over mujoco_playground's MjxEnv).
 
     from training import envs
-    envs.TASKS                      # ("joystick", "getup", "getup_baseline")
+    envs.TASKS                      # ("joystick", "getup", "getup_baseline", "unified")
     cfg = envs.default_config("getup"); cfg.stage = "stage1"
     env = envs.make("getup", cfg, config_overrides={"episode_length": 20})
     env.observation_size            # {"state": (n_actor,), "privileged_state": (n_critic,)}
@@ -21,7 +21,8 @@ from ml_collections import config_dict
 from training.envs.fallen import fallen_states
 from training.envs.randomize import domain_randomize
 
-TASKS: tuple[str, ...] = ("joystick", "getup", "getup_baseline")
+# unified: the distillation env (walk, get pushed, fall, get up in one episode; envs/unified.py).
+TASKS: tuple[str, ...] = ("joystick", "getup", "getup_baseline", "unified")
 
 
 def _module(task: str):
@@ -31,6 +32,8 @@ def _module(task: str):
         from training.envs import getup as mod
     elif task == "getup_baseline":
         from training.envs import getup_baseline as mod
+    elif task == "unified":
+        from training.envs import unified as mod
     else:
         raise ValueError(f"unknown task {task!r}; valid: {', '.join(TASKS)}")
     return mod
@@ -44,7 +47,7 @@ def default_config(task: str) -> config_dict.ConfigDict:
 def env_class(task: str) -> Callable:
     mod = _module(task)
     return {"joystick": getattr(mod, "Joystick", None), "getup": getattr(mod, "Getup", None),
-            "getup_baseline": getattr(mod, "GetupBaseline", None)}[task]
+            "getup_baseline": getattr(mod, "GetupBaseline", None), "unified": getattr(mod, "Unified", None)}[task]
 
 
 def make(task: str, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):

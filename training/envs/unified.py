@@ -1,0 +1,143 @@
+"""Unified walk–fall–getup task: the env the student is distilled in (training/distill.py default).
+
+The seed's student is distilled on the whole task, so one episode mixes everything the two experts do:
+* full-body collision (collision.py "full_body"): falls and getups must be physical, not masked;
+* starts fallen / kneeling / standing with start_probs = (0.4, 0.4, 0.2), fallen starts from
+  envs.fallen_states (getup.GetupBase's sampler, reused);
+* joystick commands sampled and resampled exactly as the joystick env (Playground T1 ranges, zero with
+  zero_command_prob 0.1, resampled every command_resample_steps 500 ticks) and the same random pushes
+  (joystick.Joystick's sample_command / _apply_push, reused);
+* 1000-step episodes, no termination on falls (only on non-finite physics): the student must get up;
+* actor observation TERMS_UNION (82) with the gait clock advanced by observation.advance_gait_phase, and
+  uniform observation noise at noise.level as in the joystick env (0 for exact teacher labels);
+* privileged observation = privileged_base + foot site positions; info carries trunk_height,
+  waist_height and up_z (the teacher switch reads waist_height).
+
+Reward: brax bc ignores it (the student is trained on teacher actions only), but DAgger's evaluation
+curves (eval/episode_reward) should still mean something, so it is a small named sum per control step
+(× ctrl_dt):
+    alive + w_height·exp(−|h − h_home| / 0.1 m) + w_upright·(1 + up_z)/2
+    + standing·(w_lin·tracking_lin_vel + w_ang·tracking_ang_vel)
+with standing = waist height ≥ the teacher's switch height (0.5 m): tracking only counts while the
+joystick expert would be in charge, so a fallen robot is scored on getting up, a standing one on walking.
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from ml_collections import config_dict
+from mujoco_playground._src import mjx_env
+
+from training import observation as obsdef
+from training.envs import base
+from training.envs import getup_rewards as G
+from training.envs import joystick_rewards as R
+from training.envs.getup import GetupBase, getup_common_config
+from training.envs.joystick import Joystick
+from training.envs.joystick import default_config as joystick_config
+from training.teacher import WAIST_SWITCH_HEIGHT_M
+
+METRIC_NAMES = ("reward/alive", "reward/height", "reward/upright", "reward/tracking_lin_vel",
+                "reward/tracking_ang_vel", "standing")
+
+
+def default_config() -> config_dict.ConfigDict:
+    getup, joy = getup_common_config(), joystick_config()
+    cfg = base.base_config()
+    cfg.collision = "full_body"
+    cfg.episode_length = 1000
+    cfg.obs_terms = [list(t) for t in obsdef.TERMS_UNION]
+    # Starts: the getup expert's full-task settings; commands / pushes: the joystick expert's. Copied from
+    # their configs (not restated) so the three tasks cannot drift apart.
+    cfg.start_probs = list(getup.start_probs)
+    cfg.fallen_bank_size = getup.fallen_bank_size
+    cfg.fallen_seed = getup.fallen_seed
+    cfg.command_resample_steps = joy.command_resample_steps
+    cfg.zero_command_prob = joy.zero_command_prob
+    cfg.push = config_dict.create(**joy.push.to_dict())
+    cfg.reward = config_dict.create(
+        scales=config_dict.create(alive=0.25, height=1.0, upright=1.0, tracking_lin_vel=1.0, tracking_ang_vel=0.5),
+        tracking_sigma=joy.reward.tracking_sigma,
+        standing_waist_height_m=WAIST_SWITCH_HEIGHT_M)
+    return cfg
+
+
+class Unified(GetupBase):
+    """Getup starts + joystick commands and pushes on the full-body model; actor obs TERMS_UNION."""
+
+    # Borrowed as plain functions: they only read config fields this env also has (command_ranges,
+    # zero_command_prob, push) and info["push_step"/"push_interval_steps"], so walking episodes here
+    # draw commands and pushes from exactly the joystick env's distributions.
+    sample_command = Joystick.sample_command
+    _push_interval_steps = Joystick._push_interval_steps
+    _apply_push = Joystick._apply_push
+
+    def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
+        super().__init__(config if config is not None else default_config(), config_overrides)
+
+    def reset(self, rng: jax.Array) -> mjx_env.State:
+        rng, k_start, k_cmd, k_push, k_obs = jax.random.split(rng, 5)
+        qpos, qvel, kind = self._start_state(k_start)
+        data = self.make_data(qpos, qvel)
+        info = {
+            "rng": rng,
+            "command": self.sample_command(k_cmd),
+            "command_step": jnp.array(0, jnp.int32),
+            "last_act": jnp.zeros(base.NUM_JOINTS),
+            "phase": obsdef.initial_gait_phase(jnp).astype(jnp.float32),
+            "push": jnp.zeros(2),
+            "push_step": jnp.array(0, jnp.int32),
+            "push_interval_steps": self._push_interval_steps(k_push),
+            "start_kind": kind.astype(jnp.int32),
+            **self.body_readings(data),
+        }
+        obs = self._observe(data, info, k_obs)
+        metrics = {k: jnp.zeros(()) for k in METRIC_NAMES}
+        return mjx_env.State(data, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
+
+    def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
+        info = dict(state.info)
+        info["rng"], k_theta, k_mag, k_cmd, k_obs = jax.random.split(info["rng"], 5)
+        data = self._apply_push(state.data, info, k_theta, k_mag)
+        data = self.physics_step(data, self.motor_targets(action))
+        info.update(self.body_readings(data))
+        scaled, standing = self._reward_terms(data, info)
+        reward = sum(scaled.values()) * self.dt
+
+        # Same tick bookkeeping as the joystick env: the clock advances with the command in force during
+        # this step, then the command may be resampled; the observation sees both updates.
+        gcfg = self._config.gait
+        info["phase"] = obsdef.advance_gait_phase(info["phase"], info["command"], gcfg.frequency_hz, self.dt,
+                                                  gcfg.phase_freeze_command_norm, jnp)
+        info["last_act"] = action
+        info["command_step"] = info["command_step"] + 1
+        resample = info["command_step"] >= self._config.command_resample_steps
+        info["command"] = jnp.where(resample, self.sample_command(k_cmd), info["command"])
+        info["command_step"] = jnp.where(resample, 0, info["command_step"])
+
+        obs = self._observe(data, info, k_obs)
+        metrics = {f"reward/{k}": v.astype(jnp.float32) for k, v in scaled.items()}
+        metrics["standing"] = standing.astype(jnp.float32)
+        done = self.invalid(data).astype(jnp.float32)  # falls do not end the episode
+        return state.replace(data=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
+
+    def _reward_terms(self, data, info):
+        """(scaled terms, standing flag) for the state after the step."""
+        cfg = self._config.reward
+        w = cfg.scales
+        cmd = info["command"]
+        standing = info["waist_height"] >= cfg.standing_waist_height_m
+        lin = R.tracking_lin_vel(cmd, self.sensor(data, "local_linvel"), cfg.tracking_sigma)
+        ang = R.tracking_ang_vel(cmd, self.sensor(data, "gyro"), cfg.tracking_sigma)
+        scaled = {"alive": w.alive * R.alive(),
+                  "height": w.height * G.height_reward(info["trunk_height"], self._home_trunk_h),
+                  "upright": w.upright * G.orientation_reward(info["up_z"]),
+                  "tracking_lin_vel": w.tracking_lin_vel * lin * standing,
+                  "tracking_ang_vel": w.tracking_ang_vel * ang * standing}
+        return scaled, standing
+
+    def _observe(self, data, info, rng) -> dict[str, jax.Array]:
+        s = self.observation_state(data, info["command"], info["last_act"], info["phase"])
+        noisy, clean = self.actor_observation(s, rng, self._config.noise.level)
+        privileged = jnp.concatenate([self.privileged_base(data, clean), data.site_xpos[self._feet_sites].ravel()])
+        return {"state": noisy, "privileged_state": privileged}
