@@ -132,15 +132,7 @@ class Joystick(base.T1Env):
         scaled = {k: v * scales[k] for k, v in terms.items()}
         reward = jnp.clip(sum(scaled.values()) * self.dt, 0.0, 10000.0)
 
-        # Bookkeeping for the next tick (the observation below already sees the advanced clock).
-        gcfg = self._config.gait
-        info["phase"] = obsdef.advance_gait_phase(info["phase"], info["command"], gcfg.frequency_hz, self.dt,
-                                                  gcfg.phase_freeze_command_norm, jnp)
-        info["last_act"] = action
-        info["command_step"] = info["command_step"] + 1
-        resample = info["command_step"] >= self._config.command_resample_steps
-        info["command"] = jnp.where(resample, self.sample_command(k_cmd), info["command"])
-        info["command_step"] = jnp.where(resample, 0, info["command_step"])
+        self._advance_clock_and_command(info, action, k_cmd)
         info["feet_air_time"] = info["feet_air_time"] * ~contact
         info["last_contact"] = contact
         info["swing_peak"] = info["swing_peak"] * ~contact
@@ -152,6 +144,18 @@ class Joystick(base.T1Env):
         metrics["swing_peak"] = jnp.mean(info["swing_peak"])
         return state.replace(data=data, obs=obs, reward=reward, done=done.astype(reward.dtype),
                              metrics=metrics, info=info)
+
+    def _advance_clock_and_command(self, info: dict, action: jax.Array, k_cmd: jax.Array) -> None:
+        """Tick bookkeeping (in place): the gait clock advances with the command in force during this step,
+        then the command may be resampled; the next observation sees both (the runtime does the same)."""
+        gcfg = self._config.gait
+        info["phase"] = obsdef.advance_gait_phase(info["phase"], info["command"], gcfg.frequency_hz, self.dt,
+                                                  gcfg.phase_freeze_command_norm, jnp)
+        info["last_act"] = action
+        info["command_step"] = info["command_step"] + 1
+        resample = info["command_step"] >= self._config.command_resample_steps
+        info["command"] = jnp.where(resample, self.sample_command(k_cmd), info["command"])
+        info["command_step"] = jnp.where(resample, 0, info["command_step"])
 
     def _apply_push(self, data, info, k_theta, k_mag):
         p = self._config.push

@@ -71,6 +71,7 @@ class Unified(GetupBase):
     sample_command = Joystick.sample_command
     _push_interval_steps = Joystick._push_interval_steps
     _apply_push = Joystick._apply_push
+    _advance_clock_and_command = Joystick._advance_clock_and_command
 
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
         super().__init__(config if config is not None else default_config(), config_overrides)
@@ -104,16 +105,7 @@ class Unified(GetupBase):
         scaled, standing = self._reward_terms(data, info)
         reward = sum(scaled.values()) * self.dt
 
-        # Same tick bookkeeping as the joystick env: the clock advances with the command in force during
-        # this step, then the command may be resampled; the observation sees both updates.
-        gcfg = self._config.gait
-        info["phase"] = obsdef.advance_gait_phase(info["phase"], info["command"], gcfg.frequency_hz, self.dt,
-                                                  gcfg.phase_freeze_command_norm, jnp)
-        info["last_act"] = action
-        info["command_step"] = info["command_step"] + 1
-        resample = info["command_step"] >= self._config.command_resample_steps
-        info["command"] = jnp.where(resample, self.sample_command(k_cmd), info["command"])
-        info["command_step"] = jnp.where(resample, 0, info["command_step"])
+        self._advance_clock_and_command(info, action, k_cmd)     # same tick bookkeeping as the joystick env
 
         obs = self._observe(data, info, k_obs)
         metrics = {f"reward/{k}": v.astype(jnp.float32) for k, v in scaled.items()}
