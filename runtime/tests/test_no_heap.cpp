@@ -30,6 +30,26 @@ extern "C" void* realloc(void* p, size_t n) { note(); return __libc_realloc(p, n
 using namespace t1rt;
 using namespace t1rt::testing;
 
+// Runs kWarmup + kCounted lockstep ticks; `publish(k)` sends tick k's messages. Only the counted ticks'
+// loop-thread allocations are recorded. Returns the number of counted ticks that ran.
+constexpr int kWarmup = 100, kCounted = 1000;
+template <typename Publish>
+long run_counted_ticks(Controller& ctrl, LcmPeer& peer, Publish publish) {
+  long counted_ticks = 0;
+  for (int k = 1; k <= kWarmup + kCounted; ++k) {
+    publish(k);
+    t_loop_thread = true;
+    if (k > kWarmup) g_counting = true;
+    const bool ticked = ctrl.step_lockstep(500);
+    g_counting = false;
+    t_loop_thread = false;
+    EXPECT_TRUE(ticked) << "tick " << k;
+    if (ticked && k > kWarmup) ++counted_ticks;
+    peer.drain();
+  }
+  return counted_ticks;
+}
+
 TEST(NoHeap, CounterSeesAllocations) {
   t_loop_thread = true;
   g_allocations = 0;
@@ -63,23 +83,13 @@ TEST(NoHeap, LoopTicksAllocateNothing) {
   std::copy(pose.begin(), pose.end(), js.q);
   t1::joystick_t stick{};
   stick.vx = 0.5f;
-  constexpr int kWarmup = 100, kCounted = 1000;
-  long counted_ticks = 0;
-  for (int k = 1; k <= kWarmup + kCounted; ++k) {
+  const long counted_ticks = run_counted_ticks(ctrl, peer, [&](int k) {
     imu.utime = js.utime = stick.utime = k * 2000;
     imu.seq = js.seq = stick.seq = k;
     peer.publish(t1::CH_IMU, imu);
     peer.publish(t1::CH_JOYSTICK, stick);
     peer.publish(t1::CH_JOINT_STATE, js);
-    t_loop_thread = true;
-    if (k > kWarmup) g_counting = true;
-    const bool ticked = ctrl.step_lockstep(500);
-    g_counting = false;
-    t_loop_thread = false;
-    ASSERT_TRUE(ticked);
-    if (k > kWarmup) ++counted_ticks;
-    peer.drain();
-  }
+  });
   EXPECT_EQ(ctrl.supervisor().mode(), Mode::kPolicy) << ctrl.supervisor().last_fault();
   EXPECT_GE(ctrl.policy_ticks(), kCounted / kPolicyDecimation);
   EXPECT_EQ(counted_ticks, kCounted);
@@ -112,22 +122,15 @@ TEST(NoHeap, CompositeLoopTicksAllocateNothing) {
   st.scenario = "flat";
   st.clock = "lockstep";
   st.active_faults = "push:x=30,y=0,z=0@2";
-  constexpr int kWarmup = 100, kCounted = 1000;
-  for (int k = 1; k <= kWarmup + kCounted; ++k) {
+  const long counted_ticks = run_counted_ticks(ctrl, peer, [&](int k) {
     imu.utime = js.utime = st.utime = k * 2000;
     imu.seq = js.seq = k;
     st.waist_height = (k / 100) % 2 ? 0.3f : 0.6f;  // switch member every 0.2 s
     peer.publish(t1::CH_SIM_STATUS, st);
     peer.publish(t1::CH_IMU, imu);
     peer.publish(t1::CH_JOINT_STATE, js);
-    t_loop_thread = true;
-    if (k > kWarmup) g_counting = true;
-    const bool ticked = ctrl.step_lockstep(500);
-    g_counting = false;
-    t_loop_thread = false;
-    ASSERT_TRUE(ticked);
-    peer.drain();
-  }
+  });
+  EXPECT_EQ(counted_ticks, kCounted);
   EXPECT_EQ(ctrl.supervisor().mode(), Mode::kPolicy) << ctrl.supervisor().last_fault();
   EXPECT_GE(ctrl.member_switches(), 9);
   EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in " << kCounted << " composite loop ticks";
