@@ -9,13 +9,16 @@ Fill a value ONLY with its source.
 from __future__ import annotations
 
 UNKNOWN = (None, "seed figure not available to us")
+# Seed Table 4.3 energy sums over a getup [J]: keyframe-curriculum policy vs reward-only baseline (quoted in
+# the project's baseline issue). The MJX evaluator (training/evaluate.py) prints these too.
+SEED_ENERGY_SUM_J = {"policy": 1605.0, "baseline": 2279.8}
 _ISSUE_TARGET = "seed result, quoted as a target in the project's student issue"
 
 # scenario -> {row label as in sim_hil/eval/plans.py: (value or None, where it comes from)}
 SEED_FIGURES: dict[str, dict[str, tuple[str | None, str]]] = {
     "getup": {
         "success rate": ("100 %", _ISSUE_TARGET),
-        "energy Σ|τ·q̇|·dt [J]": ("1605.0 keyframe / 2279.8 baseline",
+        "energy Σ|τ·q̇|·dt [J]": (f"{SEED_ENERGY_SUM_J['policy']} keyframe / {SEED_ENERGY_SUM_J['baseline']} baseline",
                                    "seed Table 4.3, quoted in the project's baseline issue"),
     },
     "push": {
