@@ -123,7 +123,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
 
     checkpoints.jax_setup()
     t_start = time.monotonic()
-    run_dir = Path(out)
+    run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
     run_dir.mkdir(parents=True, exist_ok=True)
     cfg, env_cfg = bc_config(preset), envs.default_config(task)
     env_cfg.obs_terms = [list(t) for t in obsdef.TERMS_UNION]

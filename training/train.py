@@ -139,7 +139,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
 
     checkpoints.jax_setup()
     t_start = time.monotonic()
-    run_dir = Path(out)
+    run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
     if resume:
         state = checkpoints.load_run_state(run_dir)
         if state["task"] != task:
