@@ -67,7 +67,12 @@ EVAL_POLICY   ?= $(firstword $(wildcard policies/student.safetensors) policies/s
 EVAL_BASELINE ?=
 EVAL_ARGS     ?=
 EVAL_FLAGS     = --policy $(EVAL_POLICY) $(if $(EVAL_BASELINE),--baseline $(EVAL_BASELINE)) $(EVAL_ARGS)
-.PHONY: eval-getup eval-push eval-wall eval-puddle
+.PHONY: eval-getup eval-push eval-wall eval-puddle eval-walk
+# The joystick expert's walking targets (standing starts: forward, stand, turn, forward in realtime). One
+# job: the realtime trial must not share the two cores with a lockstep one.
+WALK_POLICY ?= policies/joystick.safetensors
+eval-walk: build
+	$(NETNS) $(PY) -m sim_hil.eval walk --policy $(WALK_POLICY) --label joystick --jobs 1 $(EVAL_ARGS)
 eval-getup: build
 	$(NETNS) $(PY) -m sim_hil.eval getup $(EVAL_FLAGS)
 eval-push: build

@@ -45,6 +45,8 @@ def test_cli_rejects_bad_usage(capsys):
         cli.main(["train", "not_a_task", "--out", "/tmp/x"])
     assert cli.main(["train", "joystick", "--out", "/nonexistent/run", "--resume", "--no-progress"]) == 2
     assert "no run to resume" in capsys.readouterr().err
+    assert cli.main(["evaluate", "--task", "joystick", "--policy", "a.safetensors", "--baseline", "b"]) == 2
+    assert "joystick evaluation takes one policy" in capsys.readouterr().err
 
 
 def test_provenance_table_appends_rows(tmp_path):
@@ -123,9 +125,13 @@ def toy_runs(tmp_path_factory):
         "distill": ["distill", "--getup", str(dirs["getup"] / "getup_stage2.safetensors"), "--joystick",
                     str(dirs["joystick"]), "--out", str(dirs["student"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)",
                     *toy]})  # default --task: the unified env (no fallen starts: their precompute is slow)
+    dirs["eval_joystick"] = root / "eval_joystick"
     _run_parallel({"evaluate": ["evaluate", "--policy", str(dirs["getup"] / "getup_stage2.safetensors"),
                                 "--baseline", str(dirs["getup_baseline"] / "getup_baseline.safetensors"),
-                                "--seeds", "2", "--seconds", "0.2", "--out", str(dirs["eval"])]})
+                                "--seeds", "2", "--seconds", "0.2", "--out", str(dirs["eval"])],
+                   "evaluate_joystick": ["evaluate", "--task", "joystick", "--policy",
+                                         str(dirs["joystick"] / "joystick.safetensors"), "--seeds", "2",
+                                         "--seconds", "0.2", "--out", str(dirs["eval_joystick"])]})
     return dirs
 
 
@@ -191,6 +197,14 @@ def test_evaluate_two_seeds_writes_the_table(toy_runs):
     assert (toy_runs["eval"] / "heights.png").exists()
     rows = (toy_runs["eval"] / "per_env.csv").read_text().splitlines()
     assert len(rows) == 1 + 2 * 2
+
+
+@pytest.mark.slow
+def test_evaluate_joystick_writes_the_tracking_table(toy_runs):
+    text = (toy_runs["eval_joystick"] / "report.md").read_text()
+    assert "| fall rate |" in text and "RMS yaw-rate error" in text and "trained: **NO**" in text
+    rows = (toy_runs["eval_joystick"] / "per_episode.csv").read_text().splitlines()
+    assert len(rows) == 1 + 2
 
 
 @pytest.mark.slow

@@ -98,11 +98,23 @@ def _cmd_distill(args, command: str) -> int:
     return 0
 
 
+EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
+
+
 def _cmd_evaluate(args, command: str) -> int:
-    from training import evaluate
-    report = evaluate.evaluate(
-        args.policy, args.out, baseline=args.baseline, task=args.task, seeds=args.seeds,
-        seconds=args.seconds, first_seed=args.first_seed, command=command)
+    seconds = EVAL_SECONDS[args.task] if args.seconds is None else args.seconds
+    out = args.out or f"out/eval_{args.task}"
+    if args.task == "joystick":
+        if args.baseline:
+            raise ValueError("--baseline: the joystick evaluation takes one policy")
+        from training import evaluate_joystick
+        report = evaluate_joystick.evaluate(args.policy, out, episodes=args.seeds, seconds=seconds,
+                                            first_seed=args.first_seed, command=command)
+    else:
+        from training import evaluate
+        report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
+                                   seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
+                                   command=command)
     print(report.read_text())
     return 0
 
@@ -159,14 +171,16 @@ def build_parser() -> argparse.ArgumentParser:
     common(p)
     p.set_defaults(func=_cmd_distill)
 
-    p = sub.add_parser("evaluate", help="batched MJX getup rollouts from seeded fallen states")
+    p = sub.add_parser("evaluate", help="batched MJX rollouts of an artifact: getup from seeded fallen "
+                       "starts, or joystick command tracking")
     p.add_argument("--policy", required=True, help="policy artifact (.safetensors)")
-    p.add_argument("--baseline", help="second artifact to compare against")
-    p.add_argument("--task", choices=("getup",), default="getup")
-    p.add_argument("--seeds", type=int, default=32, help="number of seeded fallen starts")
+    p.add_argument("--baseline", help="second artifact to compare against (getup)")
+    p.add_argument("--task", choices=tuple(EVAL_SECONDS), default="getup")
+    p.add_argument("--seeds", type=int, default=32,
+                   help="episodes: seeded fallen starts (getup) or seeded joystick episodes")
     p.add_argument("--first-seed", type=int, default=0)
-    p.add_argument("--seconds", type=float, default=10.0)
-    p.add_argument("--out", default="out/eval", help="folder for the report (markdown, CSV, plots)")
+    p.add_argument("--seconds", type=float, help="episode length [s] (default: getup 10, joystick 20)")
+    p.add_argument("--out", help="folder for the report (default: out/eval_<task>)")
     p.set_defaults(func=_cmd_evaluate)
     return ap
 

@@ -29,6 +29,7 @@ def parse_args(argv):
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scenario", choices=sorted(PLANS))
     ap.add_argument("--policy", type=Path, required=True, help="student artifact (*.safetensors)")
+    ap.add_argument("--label", default="student", help="name of --policy in the report (e.g. joystick)")
     ap.add_argument("--baseline", default="", help="GETUP,JOYSTICK artifacts of the baseline composite")
     ap.add_argument("--trials", type=int, default=None, help="trials per policy (default: the scenario's)")
     ap.add_argument("--seconds", type=float, default=None, help="sim seconds per trial (default: the scenario's)")
@@ -46,7 +47,7 @@ def parse_args(argv):
         ap.error(f"--seconds {args.seconds}: must be > 0")
     if not 1 <= args.jobs <= MAX_JOBS:
         ap.error(f"--jobs {args.jobs}: must be 1..{MAX_JOBS}")
-    controllers = [Controller("student", args.policy)]
+    controllers = [Controller(args.label, args.policy)]
     if args.baseline:
         parts = [p.strip() for p in args.baseline.split(",")]
         if len(parts) != 2 or not all(parts):
@@ -75,7 +76,7 @@ def main(argv=None) -> int:
     jobs = []
     for i, spec in enumerate(specs):
         for c in controllers:
-            record = str(video) if (video is not None and i == 0 and c.label == "student") else None
+            record = str(video) if (video is not None and i == 0 and c is controllers[0]) else None
             jobs.append((replace(spec, record=record), c, plan.finish_x_m, plan.segment_edges_x))
     started = time.monotonic()
     results, failures = [], []

@@ -30,7 +30,7 @@ RUN_MIN_S = 1.0
 class TickLog:
     """What physics knew at the end of each control tick k (after the step that answered state k)."""
 
-    FIELDS = ("t", "trunk", "waist", "up_z", "base_x", "fwd_vel", "speed_xy", "power", "tau_max", "tau_sum",
+    FIELDS = ("t", "trunk", "waist", "up_z", "base_x", "base_y", "yaw", "fwd_vel", "speed_xy", "power", "tau_max", "tau_sum",
               "qacc_max", "qacc_sum", "contact_n")
 
     def __init__(self, model: mujoco.MjModel, n_ticks: int):
@@ -57,9 +57,10 @@ class TickLog:
         self.trunk[k] = data.xpos[self._trunk, 2]
         self.waist[k] = data.xpos[self._waist, 2]
         self.up_z[k] = up_z_from_quat(data.xquat[self._trunk])
-        self.base_x[k] = data.qpos[0]
+        self.base_x[k], self.base_y[k] = data.qpos[0], data.qpos[1]
         w, x, y, z = data.qpos[3:7]
-        yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+        yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))   # heading [rad], wrapped
+        self.yaw[k] = yaw
         vx, vy = data.qvel[0], data.qvel[1]
         self.fwd_vel[k] = math.cos(yaw) * vx + math.sin(yaw) * vy   # as sim_status_t.forward_velocity
         self.speed_xy[k] = math.hypot(vx, vy)

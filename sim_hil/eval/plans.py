@@ -23,6 +23,11 @@ PUSH_FORWARD, PUSH_BACKWARD = 20, 10
 PUSH_IMPULSE_NS = 40.0          # 1.3 m/s on 31.6 kg: enough to knock a standing T1 over (judgement)
 PUSH_AT_S = 2.0                 # 0.1 s PREPARE + ~2 s standing under the policy
 PUSH_SECONDS = 16.0
+# walk: the joystick expert's in-the-loop targets (issue 13), standing starts on flat ground
+WALK_SECONDS = 20.0
+WALK_FORWARD_MPS = 0.4
+WALK_YAW_RPS = 0.5
+WALK_TARGETS = {"forward_m": 7.0, "stand_drift_m": 0.3, "turn_rad": 8.0}
 # wall: the three low walls at 0.4 m/s (Tables 6.1-6.2)
 WALL_TRIALS = 5
 WALL_COMMAND_MPS = 0.4
@@ -131,6 +136,30 @@ def push_rows(trials: list[TrialResult]) -> dict[str, str]:
     return {**row, **_common(trials)}
 
 
+# ---- walk -------------------------------------------------------------------------------------------------
+WALK_CONDITIONS = (   # tag, vx [m/s], yaw rate [rad/s], clock
+    ("forward", WALK_FORWARD_MPS, 0.0, "lockstep"), ("stand", 0.0, 0.0, "lockstep"),
+    ("turn", 0.0, WALK_YAW_RPS, "lockstep"), ("forward realtime", WALK_FORWARD_MPS, 0.0, "realtime"))
+
+
+def walk_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
+    """Each trial index runs every condition once (--trials N: N of each)."""
+    return [TrialSpec("flat", seed0 + i, "standing", seconds, command_vx_mps=vx, command_yaw_rps=yaw,
+                      clock=clock, prepare_s=STANDING_PREPARE_S, tag=tag)
+            for i in range(trials) for tag, vx, yaw, clock in WALK_CONDITIONS]
+
+
+def walk_rows(trials: list[TrialResult]) -> dict[str, str]:
+    row: dict[str, str] = {}
+    for tag, *_ in WALK_CONDITIONS:
+        sub = [r for r in trials if r.spec.tag == tag]
+        ev = _events(sub)
+        row[f"{tag}: fell"] = f"{sum(e.falls > 0 for e in ev)}/{len(sub)}"
+        row[f"{tag}: distance from POLICY start [m]"] = _fmt([r.drift_m for r in sub])
+        row[f"{tag}: heading turned [rad]"] = _fmt([r.yaw_turned_rad for r in sub])
+    return {**row, **_common(trials)}
+
+
 # ---- wall ------------------------------------------------------------------------------------------------
 def wall_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
     return [TrialSpec("walls", seed0 + i, "standing", seconds, command_vx_mps=WALL_COMMAND_MPS,
@@ -171,6 +200,12 @@ PLANS = {
     "push": Plan("push", "flat", PUSH_FORWARD + PUSH_BACKWARD, PUSH_SECONDS, push_specs, push_rows,
                  description=f"standing, no command, one torso impulse of ±{PUSH_IMPULSE_NS:g} N·s at "
                              f"t = {PUSH_AT_S:g} s ({PUSH_FORWARD} forward, {PUSH_BACKWARD} backward)"),
+    "walk": Plan("walk", "flat", 1, WALK_SECONDS, walk_specs, walk_rows,
+                 description=f"standing starts, {WALK_SECONDS:g} s each: {WALK_FORWARD_MPS} m/s forward, zero "
+                             f"command, {WALK_YAW_RPS} rad/s yaw (lockstep), {WALK_FORWARD_MPS} m/s in realtime; "
+                             f"targets: forward ≥ {WALK_TARGETS['forward_m']:g} m, stand drift ≤ "
+                             f"{WALK_TARGETS['stand_drift_m']:g} m, turn ≥ {WALK_TARGETS['turn_rad']:g} rad, "
+                             "no fall"),
     "wall": Plan("wall", "walls", WALL_TRIALS, WALL_SECONDS, wall_specs, wall_rows, finish_x_m=wall_finish_x(),
                  segment_edges_x=wall_segment_edges(),
                  description=f"three 0.2 m walls at x = {', '.join(f'{x:g}' for x in wall_xs())} m, "

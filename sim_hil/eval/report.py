@@ -10,7 +10,7 @@ from pathlib import Path
 
 from sim_hil.eval import events, metrics
 from sim_hil.eval.plans import COMMON_ROWS, Plan
-from sim_hil.eval.seed_figures import seed_figure
+from sim_hil.eval.seed_figures import SEED_FIGURES, seed_figure
 from sim_hil.eval.trial import Controller, TrialResult
 from sim_hil.plots import plot_heights_and_velocity
 from training.artifact import read_artifact
@@ -55,21 +55,24 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
             else f"`{c.policy}`"
         lines.append(f"- **{c.label}**: {members}")
     lines += ["", f"Command: `{command}`  ",
-              f"{trials} seeded trial(s) per policy, {seconds:g} s of sim time each, lockstep, "
+              f"{trials} seeded trial(s) per policy, {seconds:g} s of sim time each, "
+              f"{' + '.join(sorted({r.spec.clock for r in results}))}, "
               f"{datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC, {wall_s:.0f} s wall.", ""]
     if not all(flags.values()):
         lines += ["> **No result is claimed here**: at least one policy's manifest says `trained: false`.", ""]
 
     labels = list(rows)
     keys = list(dict.fromkeys(k for r in rows.values() for k in r))
+    seeded = plan.name in SEED_FIGURES        # walk (the joystick expert's targets) has no seed table
     lines += ["## Results", "", trained_line(flags), "",
-              "| metric | " + " | ".join(labels) + " | seed (student) |",
-              "|---|" + "---|" * len(labels) + "---|"]
+              "| metric | " + " | ".join(labels) + (" | seed (student) |" if seeded else " |"),
+              "|---|" + "---|" * len(labels) + ("---|" if seeded else "")]
     def cell(text: str) -> str:
         return text.replace("|", "\\|")        # Σ|τ·q̇| must not split a markdown cell
     for k in keys:
         seed = "—" if k in COMMON_ROWS else seed_figure(plan.name, k)
-        lines.append(f"| {cell(k)} | " + " | ".join(cell(rows[lb].get(k, "")) for lb in labels) + f" | {cell(seed)} |")
+        lines.append(f"| {cell(k)} | " + " | ".join(cell(rows[lb].get(k, "")) for lb in labels) + " |"
+                     + (f" {cell(seed)} |" if seeded else ""))
     lines += ["", "Values: mean ± std over trials (one value: a single trial).", ""]
 
     th = events.EventThresholds()
@@ -88,7 +91,7 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
               "## Plots and video", "", trained_line(flags), "",
               f"![trunk height, waist height, forward velocity]({plot.name})", ""]
     if video is not None and video.exists():
-        lines += [f"Video of the student's first trial: [{video.name}]({video.name})", ""]
+        lines += [f"Video of {controllers[0].label}'s first trial: [{video.name}]({video.name})", ""]
     report = out / "report.md"
     report.write_text("\n".join(lines))
 

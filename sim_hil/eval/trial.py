@@ -50,6 +50,8 @@ class TrialSpec:
     spawn: str                    # standing | kneeling | fallen:SEED
     seconds: float                # sim seconds
     command_vx_mps: float = 0.0   # constant forward command [m/s]
+    command_yaw_rps: float = 0.0  # constant yaw-rate command [rad/s], counter-clockwise positive
+    clock: str = "lockstep"       # lockstep (the runtime answers every state) | realtime (both on the wall clock)
     faults: str = ""              # sim --faults (pushes: push:x=±J@t)
     record: str | None = None     # mp4 path
     tag: str = ""                 # what the scenario wants to remember (e.g. "forward", "backward")
@@ -67,6 +69,8 @@ class TrialResult:
     ran_to_stabilise: bool
     final_x_m: float
     finish_time_s: float                    # walls: first time past the finish line (nan: DNF)
+    drift_m: float = float("nan")           # horizontal distance from POLICY start to the end [m]
+    yaw_turned_rad: float = float("nan")    # heading change from POLICY start to the end, unwrapped [rad]
     fall_x_m: list[float] = field(default_factory=list)   # base x at each fall / fallen start [m]
     runtime_faults: str = ""                # the runtime's latched fault text, if any
     segment_attempts: list[int] = field(default_factory=list)   # walls: getup attempts per wall segment
@@ -86,18 +90,24 @@ def trial_lcm_url(worker: int, base: str | None = None) -> str:
 def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m: float | None = None,
               segment_edges_x: list[float] | None = None) -> TrialResult:
     from sim_hil.sim import SimConfig, Simulator   # heavy (MuJoCo, CAN); only where a trial runs
-    sim = Simulator(SimConfig(scenario=spec.scenario, spawn=spec.spawn, clock="lockstep", seed=spec.seed,
+    lockstep = spec.clock == "lockstep"
+    sim = Simulator(SimConfig(scenario=spec.scenario, spawn=spec.spawn, clock=spec.clock, seed=spec.seed,
                               faults=spec.faults, lcm_url=lcm_url, record=spec.record,
                               status_rate_hz=1.0 / config.CONTROL_DT_S))
-    runtime = start_runtime(controller.policy, "--clock", "lockstep", "--autostart", "--lcm-url", lcm_url,
+    clock_args = ("--clock", "lockstep") if lockstep else ()     # realtime: the runtime's own clock
+    runtime = start_runtime(controller.policy, *clock_args, "--autostart", "--lcm-url", lcm_url,
                             "--prepare-s", f"{spec.prepare_s:g}", *controller.runtime_args())
     _wait_until_listening(runtime)
     n = int(round(spec.seconds / config.CONTROL_DT_S))
     log = TickLog(sim.model, n)
     stick = joystick_t()
-    stick.vx = float(spec.command_vx_mps)
+    stick.vx, stick.yaw_rate = float(spec.command_vx_mps), float(spec.command_yaw_rps)
+    wall_start = time.perf_counter()
     try:
         for k in range(n):
+            # realtime: tick k starts at wall start + k·dt, the wait spent handling LCM (as Simulator.run)
+            while not lockstep and (remaining := wall_start + k * config.CONTROL_DT_S - time.perf_counter()) > 0:
+                sim.lcm.poll(remaining)
             if k % JOYSTICK_EVERY_TICKS == 0:
                 stick.utime, stick.seq = sim.now_us, k   # lockstep: ages are in sim time
                 sim.lcm.lc.publish(contract.CH_JOYSTICK, stick.encode())
@@ -171,12 +181,17 @@ def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | Non
             seg_falls.append(seg.falls + int(log.trunk[idx[0]] < config.FALLEN_TRUNK_HEIGHT_M and idx[0] > start)
                              if seg else 0)
     sl = slice(start if start is not None else log.n, None)
+    drift, turned = np.nan, np.nan
+    if start is not None:
+        drift = float(np.hypot(log.base_x[-1] - log.base_x[start], log.base_y[-1] - log.base_y[start]))
+        turned = float(np.unwrap(log.yaw[start:])[-1] - log.yaw[start])
     every = slice(None, None, PLOT_EVERY_TICKS)
     return TrialResult(
         spec=spec, controller=label,
         policy_start_s=float(log.t[start]) if start is not None else np.nan,
         events=events, effort=effort, slips=slip_events(log, sl), ran_to_stabilise=ran_to_stabilise(log, sl),
         final_x_m=float(log.base_x[-1]) if log.n else np.nan, finish_time_s=finish, fall_x_m=fall_x,
+        drift_m=drift, yaw_turned_rad=turned,
         runtime_faults=runtime_faults, segment_attempts=seg_attempts, segment_falls=seg_falls,
         plot={"t": log.t[every].tolist(), "trunk": log.trunk[every].tolist(), "waist": log.waist[every].tolist(),
               "vx": log.fwd_vel[every].tolist()})

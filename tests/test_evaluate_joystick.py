@@ -1,0 +1,52 @@
+"""The joystick evaluation's reductions (training/evaluate_joystick.py) on synthetic series: fall cut-off,
+RMS over all ticks, and the settled window after a command change."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from training import evaluate_joystick as ej
+
+DT = 0.02            # control tick [s]
+STANDING = 0.66      # trunk height while walking [m]
+
+
+def _series(n_eps=1, ticks=200, cmd=(0.4, 0.0, 0.0), vel=(0.4, 0.0, 0.0)):
+    return {"cmd": np.tile(np.asarray(cmd, float), (n_eps, ticks, 1)),
+            "vel": np.tile(np.asarray(vel, float), (n_eps, ticks, 1)),
+            "trunk": np.full((n_eps, ticks), STANDING), "up_z": np.ones((n_eps, ticks))}
+
+
+def test_perfect_tracking_scores_zero():
+    s = ej.summarize(ej.episode_rows(_series(2), DT))
+    assert s["episodes"] == 2 and s["fall_rate"] == 0.0
+    assert s["rms_lin_vel_mps"] == 0.0 and s["rms_yaw_rate_radps"] == 0.0
+
+
+def test_constant_errors_give_their_rms():
+    # 0.3 m/s short in x, 0.4 m/s off in y -> 0.5 m/s linear error; yaw 0.2 rad/s short
+    s = ej.summarize(ej.episode_rows(_series(cmd=(0.4, 0.0, 0.5), vel=(0.1, 0.4, 0.3)), DT))
+    assert math.isclose(s["rms_lin_vel_mps"], 0.5, rel_tol=1e-9)
+    assert math.isclose(s["rms_yaw_rate_radps"], 0.2, rel_tol=1e-9)
+
+
+def test_ticks_after_a_fall_do_not_count():
+    s = _series(2)
+    s["vel"][1, 100:, 0] = 5.0           # wild readings once episode 1 lies on the ground
+    s["trunk"][1, 100:] = 0.2
+    rows = ej.episode_rows(s, DT)
+    assert [r["fell"] for r in rows] == [False, True]
+    assert rows[1]["ticks"] == 100 and rows[1]["lin2_sum"] == 0.0
+    assert ej.summarize(rows)["fall_rate"] == 0.5
+
+
+def test_settled_window_skips_one_second_after_a_command_change():
+    s = _series(ticks=200)
+    s["cmd"][0, 100:, 0] = 0.8           # step at tick 100; the robot lags for one second
+    s["vel"][0, 100:150, 0] = 0.4
+    s["vel"][0, 150:, 0] = 0.8
+    row = ej.episode_rows(s, DT)[0]
+    settle = round(ej.SETTLE_S / DT)
+    assert row["settled_ticks"] == 200 - 2 * settle            # the start counts as a change too
+    assert row["lin2_settled_sum"] == 0.0 and row["lin2_sum"] > 0.0

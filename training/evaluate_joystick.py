@@ -1,0 +1,147 @@
+"""Batched MJX evaluation of a joystick ARTIFACT: fall rate and command tracking (issue 13's targets).
+
+    python -m training evaluate --task joystick --policy policies/joystick.safetensors --episodes 256 \
+        --seconds 20 --out out/eval_joystick
+
+The episodes are the joystick env's own (training/envs/joystick.py: randomised start pose and heading,
+commands drawn from the training ranges, zero with p 0.1, resampled every command_resample_steps) on flat
+ground, with the nominal model (no domain randomisation), no pushes and no observation noise: the policy
+is judged on tracking, not on robustness. Actions come from the ARTIFACT (training/observation.py's MLP
+with xp=jax.numpy on the env's clean actor observation, deterministic tanh(mean)), so this also checks
+the export.
+
+Per episode: fell (sim_hil/eval/events.py's fall: trunk below the fallen height), and while it has not
+fallen, the tracking errors in the trunk frame: linear ‖(vx, vy)_cmd − (vx, vy)‖ and yaw-rate |ω_cmd − ω_z|
+(the quantities the tracking rewards use). RMS over every tick of every episode ("all"), and over ticks at
+least SETTLE_S after the last command change ("settled"), since a step in the command cannot be tracked
+instantly.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from training.evaluate import ArtifactPolicy, policy_action
+
+SETTLE_S = 1.0  # [s] after a command change before "settled" tracking is counted
+TARGETS = {"fall_rate": 0.05, "rms_lin_vel_mps": 0.15, "rms_yaw_rate_radps": 0.2}   # issue 13
+
+
+def eval_env():
+    """The joystick env as evaluated: no noise, no pushes, flat ground (its only terrain)."""
+    from training import envs
+    cfg = envs.default_config("joystick")
+    cfg.noise.level = 0.0
+    cfg.push.enable = False
+    return envs.make("joystick", config=cfg)
+
+
+def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
+    """jitted (params, rngs [N, 2]) → per-tick series (N, T) of the readings the metrics need."""
+    import jax
+    import jax.numpy as jnp
+
+    def tick(state, params):
+        action = policy_action(policy.manifest, params, _clean_obs_state(env, state))
+        cmd = state.info["command"]     # the command this tick's action was chosen for
+        state = env.step(state, action)
+        linvel, gyro = env.sensor(state.data, "local_linvel"), env.sensor(state.data, "gyro")
+        out = {"cmd": cmd, "vel": jnp.stack([linvel[0], linvel[1], gyro[2]]),
+               "trunk": state.info["trunk_height"], "up_z": state.info["up_z"]}
+        return state, out
+
+    def rollout_one(params, rng):
+        step = lambda s, _: tick(s, params)  # noqa: E731
+        return jax.lax.scan(step, env.reset(rng), (), num_ticks)[1]
+
+    return jax.jit(jax.vmap(rollout_one, in_axes=(None, 0)))
+
+
+def _clean_obs_state(env, state):
+    return env.observation_state(state.data, state.info["command"], state.info["last_act"], state.info["phase"])
+
+
+def episode_rows(series: dict, ctrl_dt: float) -> list[dict]:
+    """Per-episode fall flag and squared-error sums (numpy; split out for tests on synthetic series)."""
+    from sim_hil.eval.events import getup_events
+    cmd, vel = np.asarray(series["cmd"]), np.asarray(series["vel"])      # (N, T, 3)
+    n, t_len = cmd.shape[:2]
+    t = (np.arange(t_len) + 1) * ctrl_dt
+    settle = int(round(SETTLE_S / ctrl_dt))
+    rows = []
+    for i in range(n):
+        ev = getup_events(t, np.asarray(series["trunk"][i]), np.asarray(series["up_z"][i]))
+        upto = int(np.searchsorted(t, ev.fall_times_s[0])) if ev.falls else t_len
+        changed = np.flatnonzero(np.any(np.diff(cmd[i], axis=0) != 0.0, axis=1)) + 1
+        last_change = np.zeros(t_len, int)
+        last_change[changed] = changed
+        settled = np.arange(t_len) - np.maximum.accumulate(last_change) >= settle
+        err = cmd[i] - vel[i]
+        lin2, yaw2 = np.sum(err[:, :2] ** 2, axis=1)[:upto], err[:upto, 2] ** 2
+        rows.append({"fell": bool(ev.falls), "ticks": upto, "lin2_sum": float(lin2.sum()),
+                     "yaw2_sum": float(yaw2.sum()), "settled_ticks": int(settled[:upto].sum()),
+                     "lin2_settled_sum": float(lin2[settled[:upto]].sum()),
+                     "yaw2_settled_sum": float(yaw2[settled[:upto]].sum())})
+    return rows
+
+
+def summarize(rows: list[dict]) -> dict:
+    ticks = sum(r["ticks"] for r in rows)
+    settled = sum(r["settled_ticks"] for r in rows)
+    rms = lambda key, n: math.sqrt(sum(r[key] for r in rows) / n) if n else math.nan  # noqa: E731
+    return {"episodes": len(rows), "fall_rate": float(np.mean([r["fell"] for r in rows])),
+            "rms_lin_vel_mps": rms("lin2_sum", ticks), "rms_yaw_rate_radps": rms("yaw2_sum", ticks),
+            "rms_lin_vel_settled_mps": rms("lin2_settled_sum", settled),
+            "rms_yaw_rate_settled_radps": rms("yaw2_settled_sum", settled)}
+
+
+def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict) -> str:
+    m = policy.manifest
+    met = {k: summary[k] <= v for k, v in TARGETS.items()}
+    lines = [f"# Joystick evaluation ({summary['episodes']} episodes of {meta['seconds']} s, MJX, flat, "
+             "no pushes, no noise)", "",
+             f"- policy `{policy.path}` name `{m['name']}`, trained: **{'yes' if m['trained'] else 'NO'}**, "
+             f"env steps {m['provenance']['steps']}, content hash {m['content_hash'][:12]}", "",
+             "| metric | value | target | met |", "|---|---|---|---|",
+             f"| fall rate | {summary['fall_rate']:.3f} | ≤ {TARGETS['fall_rate']} | {met['fall_rate']} |",
+             f"| RMS linear-velocity error, all ticks [m/s] | {summary['rms_lin_vel_mps']:.3f} | "
+             f"≤ {TARGETS['rms_lin_vel_mps']} | {met['rms_lin_vel_mps']} |",
+             f"| RMS yaw-rate error, all ticks [rad/s] | {summary['rms_yaw_rate_radps']:.3f} | "
+             f"≤ {TARGETS['rms_yaw_rate_radps']} | {met['rms_yaw_rate_radps']} |",
+             f"| RMS linear-velocity error, ≥ {SETTLE_S} s after a command change [m/s] | "
+             f"{summary['rms_lin_vel_settled_mps']:.3f} | (information) | |",
+             f"| RMS yaw-rate error, ≥ {SETTLE_S} s after a command change [rad/s] | "
+             f"{summary['rms_yaw_rate_settled_radps']:.3f} | (information) | |",
+             "", f"Targets met: **{'all' if all(met.values()) else 'NO'}**. Command: `{meta['command']}`", ""]
+    return "\n".join(lines)
+
+
+def evaluate(policy_path, out, episodes: int = 256, seconds: float = 20.0, first_seed: int = 0,
+             command: str = "") -> Path:
+    """Run the evaluation; returns the path of report.md."""
+    import jax
+    from training import checkpoints
+    checkpoints.jax_setup()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    env = eval_env()
+    policy = ArtifactPolicy.load(policy_path)
+    policy.check_env(env)
+    ticks = int(round(seconds / env.dt))
+    if ticks < 1:
+        raise ValueError(f"--seconds {seconds}: shorter than one control tick ({env.dt} s)")
+    rngs = jax.random.split(jax.random.PRNGKey(first_seed), episodes)
+    series = jax.tree.map(np.asarray, make_rollout(env, policy, ticks)(policy.params, rngs))
+    rows = episode_rows(series, float(env.dt))
+    summary = summarize(rows)
+    report = out / "report.md"
+    report.write_text(markdown_report(policy, summary, {"seconds": seconds, "command": command or "evaluate()"}))
+    with (out / "per_episode.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=["episode", *rows[0]])
+        writer.writeheader()
+        for i, row in enumerate(rows):
+            writer.writerow({"episode": i, **row})
+    return report
