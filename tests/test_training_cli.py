@@ -47,6 +47,9 @@ def test_cli_rejects_bad_usage(capsys):
     assert "no run to resume" in capsys.readouterr().err
     assert cli.main(["evaluate", "--task", "joystick", "--policy", "a.safetensors", "--baseline", "b"]) == 2
     assert "joystick evaluation takes one policy" in capsys.readouterr().err
+    assert cli.main(["train", "joystick", "--out", "/nonexistent/run", "--resume", "--no-progress",
+                     "--config", "ppo.learning_rate=1"]) == 2
+    assert "only checkpoint_every_steps" in capsys.readouterr().err
 
 
 def test_provenance_table_appends_rows(tmp_path):
@@ -120,8 +123,9 @@ def toy_runs(tmp_path_factory):
                            "--out", str(dirs["getup_baseline"]), *toy],
         "resume": ["train", "joystick", "--resume", "--steps", str(2 * TOY_STEPS), "--out", str(dirs["joystick"]),
                    "--no-progress"],
-        "boxed": ["train", "joystick", "--steps", str(50 * TOY_STEPS), "--max-minutes", "0", "--out",
-                  str(dirs["boxed"]), *toy],
+        # the other PPO runs take the default backend (cpu here: no GPU); this one keeps MJX's PPO path tested
+        "boxed": ["train", "joystick", "--backend", "mjx", "--steps", str(50 * TOY_STEPS), "--max-minutes", "0",
+                  "--out", str(dirs["boxed"]), *toy],
         "distill": ["distill", "--getup", str(dirs["getup"] / "getup_stage2.safetensors"), "--joystick",
                     str(dirs["joystick"]), "--out", str(dirs["student"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)",
                     *toy]})  # default --task: the unified env (no fallen starts: their precompute is slow)
@@ -156,6 +160,7 @@ def test_toy_ppo_run_exports_an_artifact(toy_runs, task):
     assert (run_dir / curves.CSV_NAME).exists() and list((run_dir / "tensorboard").iterdir())
     assert (run_dir / curves.PNG_NAME).exists()
     assert checkpoints.list_checkpoints(run_dir)
+    assert state["calls"][0]["backend"] == "cpu"     # the default without a GPU: MuJoCo C
 
 
 @pytest.mark.slow

@@ -71,8 +71,8 @@ def _cmd_train(args, command: str) -> int:
     result = train.train(
         args.task, args.out, steps=args.steps, num_envs=args.envs, seed=args.seed, resume=args.resume,
         max_minutes=args.max_minutes, overrides=args.config, stage=args.stage, from_checkpoint=args.from_,
-        preset="toy" if args.toy else "gpu", ship=args.ship, name=args.name, command=command,
-        progress=not args.no_progress)
+        preset="toy" if args.toy else args.preset, ship=args.ship, name=args.name, command=command,
+        progress=not args.no_progress, backend=args.backend)
     state = "complete" if result.complete else "stopped at a checkpoint (--max-minutes): run again with --resume"
     print(f"{result.run_dir}: {result.env_steps:,}/{result.target_steps:,} env steps, {state}; "
           f"{result.env_steps_per_s:,.0f} env-steps/s; artifact {result.artifact}")
@@ -141,6 +141,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
                    help="override a PPO (ppo.*) or env (env.*) config field; repeatable")
     p.add_argument("--toy", action="store_true", help="tiny CPU preset; the artifact is marked untrained")
+    p.add_argument("--preset", choices=("gpu", "cpu"), default="gpu",
+                   help="PPO sizes: gpu (8192 envs, Playground's recipe) or cpu (256 envs, see train.py)")
+    p.add_argument("--backend", choices=("mjx", "cpu"),
+                   help="physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)")
     p.add_argument("--name", help="policy name (default: task, or getup_<stage>)")
     p.add_argument("--ship", action="store_true",
                    help="when complete: copy the artifact to policies/ and append to policies/PROVENANCE.md")

@@ -23,7 +23,7 @@ from training import checkpoints, curves
 from training.checkpoints import REPO_ROOT
 from training.cli import apply_overrides
 
-PRESETS = ("gpu", "toy")
+PRESETS = ("gpu", "cpu", "toy")
 # Env settings of the toy preset (applied where the task's config has the key): 0.4 s episodes and a
 # small bank of host-precomputed fallen starts.
 TOY_ENV_OVERRIDES = {"episode_length": 20, "fallen_bank_size": 2}
@@ -32,7 +32,8 @@ ACTIVATION = "swish"  # brax's PPO/BC default (flax linen.swish); the artifact's
 
 def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
     """Per-task PPO config. `gpu`: Playground's T1 joystick recipe (locomotion_params.py, T1Joystick*),
-    the seed's getup runs on the same settings; `toy`: tiny networks and batches for CPU smoke tests."""
+    the seed's getup runs on the same settings; `cpu`: the same recipe sized for the CPU backend
+    (a few thousand env-steps/s); `toy`: tiny networks and batches for CPU smoke tests."""
     if preset not in PRESETS:
         raise ValueError(f"preset: {preset!r} is not one of {PRESETS}")
     cfg = config_dict.create(
@@ -49,7 +50,21 @@ def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
         run_evals=True, num_eval_envs=128, deterministic_eval=True,
         log_training_metrics=True, training_metrics_steps=1_000_000,
     )
-    if preset == "toy":
+    if preset == "cpu":
+        cfg.update(dict(
+            # 256 envs: one host call steps them all on every core; more envs only lengthen the call
+            # (the physics is ~linear in envs) while fewer updates per env step waste samples.
+            num_envs=256,
+            # 256 · 4 · 20 = 20 480 env steps per update (GPU: 163 840): 8× more updates per env step,
+            # the sample-efficient end at this throughput; minibatches of 256 · 20 = 5 120 samples.
+            batch_size=256, num_minibatches=4,
+            # unroll, epochs, discount, lr, entropy, clipping: Playground's values (tuned for this task)
+            # Networks as the GPU preset: a CPU run can be resumed on the GPU and vice versa, and the
+            # runtime's MLP benchmark stays representative. Smaller nets would shave only the learner
+            # share (~30 % of a step here).
+            checkpoint_every_steps=1_000_000,   # one epoch ≈ 4–6 min at ~3–5 k env-steps/s
+            num_eval_envs=64, training_metrics_steps=200_000))
+    elif preset == "toy":
         cfg.update(dict(
             num_timesteps=2_000, num_envs=8, batch_size=8, num_minibatches=2, unroll_length=5,
             num_updates_per_batch=1, policy_hidden_layer_sizes=(16, 16), value_hidden_layer_sizes=(16, 16),
@@ -83,11 +98,24 @@ def _network_factory(cfg):
         policy_obs_key=cfg.policy_obs_key, value_obs_key=cfg.value_obs_key)
 
 
-def _randomization(cfg):
+def _randomization(cfg, env=None, seed: int = 0):
+    """brax's randomization_fn, or None. On the CPU backend the env randomises its C simulations itself
+    (the same function, applied on the host) and brax gets None."""
+    if env is not None and getattr(env, "backend", "mjx") == "cpu":
+        if cfg.domain_randomization:
+            from training import envs
+            env.randomize_on_host(envs.domain_randomize, seed)
+        return None
     if not cfg.domain_randomization:
         return None
     from training import envs
     return envs.domain_randomize
+
+
+def default_backend() -> str:
+    """mjx where JAX sees a GPU, else the CPU backend (MuJoCo C on all cores)."""
+    import jax
+    return "mjx" if any(d.platform == "gpu" for d in jax.devices()) else "cpu"
 
 
 def make_env(task: str, env_cfg: config_dict.ConfigDict):
@@ -113,6 +141,19 @@ def build_configs(task: str, preset: str, stage: str | None, overrides: Sequence
     return ppo_cfg, env_cfg
 
 
+# What --config may change on --resume: how the run is computed and logged, not what it learns (a
+# different task or learner is a new run: --from CHECKPOINT). num_envs has its own flag (--envs).
+RESUME_OVERRIDABLE = ("checkpoint_every_steps", "run_evals", "num_eval_envs", "training_metrics_steps")
+
+
+def _check_resume_overrides(overrides: Sequence[str]) -> None:
+    for item in overrides:
+        key = item.split("=", 1)[0].split(".")[-1]
+        if key not in RESUME_OVERRIDABLE:
+            raise ValueError(f"--config {item!r} with --resume: only {', '.join(RESUME_OVERRIDABLE)} may "
+                             "change in a resumed run (start a new run with --from to change the rest)")
+
+
 def _check_batch_shape(cfg):
     if (cfg.batch_size * cfg.num_minibatches) % cfg.num_envs:
         raise ValueError(f"--envs {cfg.num_envs}: batch_size·num_minibatches = {cfg.batch_size}·"
@@ -132,7 +173,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
           resume: bool = False, max_minutes: float | None = None, overrides: Sequence[str] = (),
           stage: str | None = None, from_checkpoint=None, preset: str = "gpu", ship: bool = False,
           name: str | None = None, command: str = "", progress: bool = True,
-          provenance_table=checkpoints.PROVENANCE_TABLE) -> TrainResult:
+          provenance_table=checkpoints.PROVENANCE_TABLE, backend: str | None = None) -> TrainResult:
     from brax.training.agents.ppo import train as ppo
     from mujoco_playground import wrapper
     import tqdm
@@ -141,12 +182,15 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     t_start = time.monotonic()
     run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
     if resume:
+        _check_resume_overrides(overrides)
         state = checkpoints.load_run_state(run_dir)
         if state["task"] != task:
             raise ValueError(f"--resume: {run_dir} is a {state['task']!r} run, not {task!r}")
         preset = state["preset"]  # a toy run stays a toy run (and its artifact untrained)
         ppo_cfg = config_dict.ConfigDict(state["ppo_config"])
         env_cfg = config_dict.ConfigDict(state["env_config"])
+        apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)
+        state["ppo_config"] = ppo_cfg.to_dict()
         if steps is not None:
             state["target_steps"] = int(steps)  # extending a finished run is allowed
         restore = checkpoints.load_checkpoint(run_dir) if state["env_steps"] > 0 else state.get("init")
@@ -168,6 +212,8 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     if num_envs is not None:
         ppo_cfg.num_envs = state["ppo_config"]["num_envs"] = int(num_envs)
     _check_batch_shape(ppo_cfg)
+    # the physics engine is this call's choice (a run may move between GPU and CPU sessions)
+    env_cfg.backend = backend or default_backend()
 
     env = make_env(task, env_cfg)
     offset, target = int(state["env_steps"]), int(state["target_steps"])
@@ -229,7 +275,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
                 log_training_metrics=ppo_cfg.log_training_metrics,
                 training_metrics_steps=ppo_cfg.training_metrics_steps,
                 progress_fn=progress_fn, policy_params_fn=policy_params_fn,
-                randomization_fn=_randomization(ppo_cfg),
+                randomization_fn=_randomization(ppo_cfg, env, seed + offset),
                 restore_params=None if restore is None else tuple(restore))
         except _StopAtCheckpoint:
             stopped = True
@@ -242,6 +288,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     state["calls"].append({"date": checkpoints.utc_now(), "command": command, "from_steps": offset,
                            "to_steps": latest["steps"], "minutes": round(minutes, 2),
                            "env_steps_per_s": round(sps, 1), "device": checkpoints.device_description(),
+                           "backend": env_cfg.backend,
                            "stopped_by_max_minutes": stopped})
     state["env_steps_per_s"] = round(sps, 1)
     checkpoints.save_run_state(run_dir, state)

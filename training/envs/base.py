@@ -28,8 +28,10 @@ from mujoco_playground._src import mjx_env
 
 from sim_hil import model as t1model
 from training import observation as obsdef
-from training.envs import collision, motor
+from training.envs import collision, cpu_backend, motor
 
+BACKENDS = ("mjx", "cpu")
+FLOOR_GEOM = "floor"
 KP_SLOT, KD_SLOT = 0, 1  # actuator_biasprm columns that carry the PD gains (see module docstring)
 NUM_JOINTS = obsdef.NUM_JOINTS
 # Privileged extras appended to the clean actor observation (see privileged_base):
@@ -55,6 +57,7 @@ def base_config() -> config_dict.ConfigDict:
         noise=config_dict.create(level=1.0, scales=config_dict.create(
             gyro=0.2, gravity=0.05, command=0.0, joint_pos=0.03, joint_vel=1.5, last_action=0.0, phase=0.0)),
         impl="jax",
+        backend="mjx",   # physics engine: mjx (JAX, GPU) | cpu (MuJoCo C on all cores, cpu_backend.py)
     )
 
 
@@ -79,13 +82,18 @@ class T1Env(mjx_env.MjxEnv):
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ValueError(f"ctrl_dt {cfg.ctrl_dt} s is not a whole multiple of sim_dt {cfg.sim_dt} s")
         obsdef.check_terms(cfg.obs_terms)
-        mj = copy.copy(collision.build_model(cfg.collision, cfg.max_contacts, cfg.max_geom_pairs))
-        mj.opt.timestep = cfg.sim_dt
-        self._kp, self._kd = t1model.pd_gains(mj)
-        mj.actuator_biasprm[:, KP_SLOT] = self._kp
-        mj.actuator_biasprm[:, KD_SLOT] = self._kd
+        backend = cfg.get("backend", "mjx")
+        if backend not in BACKENDS:
+            raise ValueError(f"backend {backend!r}: expected one of {BACKENDS}")
+        mj = self._compile(collision.build_model(cfg.collision, cfg.max_contacts, cfg.max_geom_pairs))
+        self._mjx_model = mjx.put_model(mj, impl="jax")   # cpu: the randomisation's template only
+        self._cpu = None
+        if backend == "cpu":
+            spec = collision.build_spec(cfg.collision, cfg.max_contacts, cfg.max_geom_pairs)
+            cpu_backend.add_backend_elements(spec, collision.FOOT_GEOMS, FLOOR_GEOM)
+            mj = self._compile(spec.compile())
+            self._cpu = cpu_backend.CpuPhysics(mj, self.n_substeps, template=self._mjx_model)
         self._mj_model = mj
-        self._mjx_model = mjx.put_model(mj, impl="jax")
 
         self._default_pose_np = t1model.default_pose(mj)
         self._default_pose = jnp.asarray(self._default_pose_np)
@@ -100,11 +108,31 @@ class T1Env(mjx_env.MjxEnv):
         self._waist_id = mj.body("Waist").id
         self._imu_site = mj.site("imu").id
         self._feet_sites = np.array([mj.site("left_foot").id, mj.site("right_foot").id])
-        self._floor_geom = mj.geom("floor").id
+        self._floor_geom = mj.geom(FLOOR_GEOM).id
         self._foot_geoms = np.array([mj.geom(g).id for g in collision.FOOT_GEOMS])
         self._sensor = {n: (int(mj.sensor_adr[mj.sensor(n).id]), int(mj.sensor_dim[mj.sensor(n).id]))
                         for n in ("gyro", "accelerometer", "orientation", "local_linvel")}
         self._noise_scale = self._term_noise_vector()
+
+    def _compile(self, model: mujoco.MjModel) -> mujoco.MjModel:
+        """The env's copy of a compiled variant: its timestep and the ONE gain set in the PD slots."""
+        mj = copy.copy(model)
+        mj.opt.timestep = self._config.sim_dt
+        self._kp, self._kd = t1model.pd_gains(mj)
+        mj.actuator_biasprm[:, KP_SLOT] = self._kp
+        mj.actuator_biasprm[:, KD_SLOT] = self._kd
+        return mj
+
+    @property
+    def backend(self) -> str:
+        return "cpu" if self._cpu is not None else "mjx"
+
+    def randomize_on_host(self, randomization_fn, seed: int) -> None:
+        """CPU backend: apply brax's randomization_fn to every batch of simulations (instead of brax's
+        MJX wrapper, which swaps mjx models the C physics never reads)."""
+        if self._cpu is None:
+            raise ValueError("randomize_on_host: only the cpu backend randomises on the host")
+        self._cpu.set_randomization(randomization_fn, seed)
 
     # ------------------------------------------------------------------ MjxEnv accessors
     @property
@@ -158,6 +186,8 @@ class T1Env(mjx_env.MjxEnv):
 
     def physics_step(self, data: mjx.Data, q_des: jax.Array) -> mjx.Data:
         """One control step: n_substeps × (PD torque from the current q, dq → ctrl → mjx.step)."""
+        if self._cpu is not None:
+            return self._cpu.step(data, q_des)
         m = self._mjx_model
 
         def substep(d, _):
@@ -167,6 +197,8 @@ class T1Env(mjx_env.MjxEnv):
         return jax.lax.scan(substep, data, (), self.n_substeps)[0]
 
     def make_data(self, qpos: jax.Array, qvel: jax.Array) -> mjx.Data:
+        if self._cpu is not None:
+            return self._cpu.make_data(qpos, qvel)
         data = mjx.make_data(self._mj_model, impl="jax")
         data = data.replace(qpos=qpos, qvel=qvel, ctrl=jnp.zeros(NUM_JOINTS))
         return mjx.forward(self._mjx_model, data)
@@ -188,10 +220,14 @@ class T1Env(mjx_env.MjxEnv):
 
     def foot_contacts(self, data: mjx.Data) -> jax.Array:
         """(left, right) foot box touching the floor."""
+        if self._cpu is not None:
+            return self._cpu.foot_contacts(data)
         return contacts_between(data, self._foot_geoms, self._floor_geom)
 
     def feet_touching(self, data: mjx.Data) -> jax.Array:
         """The two foot boxes touching each other (Playground's `collision` cost)."""
+        if self._cpu is not None:
+            return self._cpu.feet_touching(data)
         return contacts_between(data, self._foot_geoms[:1], self._foot_geoms[1])[0]
 
     def body_readings(self, data: mjx.Data) -> dict[str, jax.Array]:

@@ -112,6 +112,12 @@ def build_model(variant: str, max_contacts: int = t1model.MJX_NCONMAX,
                 max_geom_pairs: int = t1model.MJX_NCONMAX) -> mujoco.MjModel:
     """The robot file compiled as one collision variant, with MJX contact caps (cached; treat read-only:
     callers that change options must `copy.copy` it)."""
+    return build_spec(variant, max_contacts, max_geom_pairs).compile()
+
+
+def build_spec(variant: str, max_contacts: int = t1model.MJX_NCONMAX,
+               max_geom_pairs: int = t1model.MJX_NCONMAX) -> mujoco.MjSpec:
+    """The MjSpec of `build_model` (for backends that add elements before compiling)."""
     if variant not in VARIANTS:
         raise ValueError(f"collision variant {variant!r} unknown; valid: {', '.join(VARIANTS)}")
     spec = mujoco.MjSpec.from_file(str(t1model.MODEL_PATH))
@@ -125,7 +131,7 @@ def build_model(variant: str, max_contacts: int = t1model.MJX_NCONMAX,
         for b1, b2 in sorted(never):
             spec.add_exclude(bodyname1=b1, bodyname2=b2)
     _add_mjx_caps(spec, max_contacts, max_geom_pairs)
-    return spec.compile()
+    return spec
 
 
 def contact_budget(mj: mujoco.MjModel) -> dict:

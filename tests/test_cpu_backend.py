@@ -1,0 +1,109 @@
+"""The CPU physics backend (training/envs/cpu_backend.py): the firmware motor law as MuJoCo's control
+callback, and parity with the MJX backend over one control step.
+
+Parity tolerances (standing start, the same action): both engines run the same model, motor law and
+env code, but MJX computes in float32 and its solver is a port, not the C code, so velocities after ten
+2 ms substeps differ by float32 rounding amplified through contact (measured ≤ 7e-4 rad/s; bound 5e-3);
+positions, orientation and the reward terms by far less. A start that hits the floor hard (random joint
+scales) makes both engines chaotic within one step: parity is asserted where the physics is not."""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+from sim_hil import model as t1model
+from training import envs
+
+VEL_TOL = 5e-3        # [rad/s] joint velocity / gyro terms of the observation
+OBS_TOL = 1e-4        # every other observation entry (gravity, joint offsets, command, phase)
+REWARD_REL_TOL = 1e-2
+REWARD_ABS_TOL = 1e-4
+
+
+def _standing_cfg(backend):
+    cfg = envs.default_config("joystick")
+    cfg.backend = backend
+    cfg.noise.level = 0.0
+    cfg.push.enable = False
+    cfg.reset.update(xy_range_m=0.0, yaw_range_rad=0.0, joint_scale=[1.0, 1.0], root_vel_range=0.0)
+    return cfg
+
+
+@pytest.fixture(scope="module")
+def cpu_env():
+    return envs.make("joystick", config=_standing_cfg("cpu"))
+
+
+def test_motor_callback_equals_firmware_motor_step(cpu_env):
+    fw = pytest.importorskip("sim_hil.firmware")
+    mj = cpu_env.mj_model
+    d = mujoco.MjData(mj)
+    rng = np.random.default_rng(11)
+    motors = fw.MotorArray()
+    kp, kd = np.asarray(cpu_env.manifest_fields()["kp"]), np.asarray(cpu_env.manifest_fields()["kd"])
+    for case in range(20):
+        q_des = rng.uniform(fw.Q_MIN, fw.Q_MAX)
+        q = rng.uniform(fw.Q_MIN - 0.15, fw.Q_MAX + 0.15)      # soft-stop territory included
+        dq = rng.uniform(-8, 8, 23)
+        frames = fw.pack_commands(q_des, np.zeros(23), kp, kd, np.zeros(23))
+        q_des_w, dq_des_w, kp_w, kd_w, tau_ff_w = fw.unpack_command(frames)
+        assert motors.receive_all(frames, 2000 * (case + 1)) == 0
+        tau_fw = motors.step(q, dq, 2000 * (case + 1))
+        # the callback sends dq_des = tau_ff = 0 exactly; fold the wire's half-steps into q_des
+        m = mj.__copy__()
+        m.actuator_biasprm[:, 0], m.actuator_biasprm[:, 1] = kp_w, kd_w
+        d.qpos[7:], d.qvel[6:] = q, dq
+        d.userdata[:23] = q_des_w + (kd_w * dq_des_w + tau_ff_w) / kp_w
+        d.userdata[23] = cpu_env._cpu._lib.t1_mjcb_marker()
+        mujoco.mj_forward(m, d)
+        np.testing.assert_allclose(d.ctrl, tau_fw, atol=1e-3, err_msg=f"case {case}")
+        np.testing.assert_allclose(d.actuator_force, tau_fw, atol=1e-3, err_msg=f"case {case}")
+
+
+def test_motor_callback_leaves_other_models_alone(cpu_env):
+    mj = t1model.load_model()                 # the HIL simulator's model: no backend userdata
+    d = mujoco.MjData(mj)
+    d.ctrl[:] = 5.0
+    mujoco.mj_forward(mj, d)
+    assert np.all(d.ctrl == 5.0)
+
+
+def test_batch_of_envs_stands_under_the_home_targets(cpu_env):
+    n = 4
+    reset, step = jax.jit(jax.vmap(cpu_env.reset)), jax.jit(jax.vmap(cpu_env.step))
+    state = reset(jax.random.split(jax.random.PRNGKey(0), n))
+    for _ in range(25):                       # 0.5 s with action 0: q_des = home
+        state = step(state, jnp.zeros((n, 23)))
+    trunk = np.asarray(state.info["trunk_height"])
+    assert np.all(np.abs(trunk - 0.665) < 0.02), trunk
+    assert not np.any(np.asarray(state.done))
+    assert np.all(np.asarray(cpu_env.foot_contacts(jax.tree.map(lambda x: x[0], state.data))))
+
+
+@pytest.mark.slow
+def test_one_control_step_matches_the_mjx_backend(cpu_env):
+    mjx_env = envs.make("joystick", config=_standing_cfg("mjx"))
+    action = jax.random.uniform(jax.random.PRNGKey(4), (23,), minval=-0.2, maxval=0.2)
+    after = {}
+    for name, env in (("mjx", mjx_env), ("cpu", cpu_env)):
+        s0 = jax.jit(env.reset)(jax.random.PRNGKey(3))
+        after[name] = (s0, jax.jit(env.step)(s0, action))
+    terms = dict(mjx_env.obs_terms)
+    vel = np.zeros(sum(terms.values()), bool)
+    start = 0
+    for name, size in mjx_env.obs_terms:
+        vel[start:start + size] = name in ("gyro", "joint_vel")
+        start += size
+    for i in (0, 1):                          # after reset, after one control step
+        a, b = (np.asarray(after[k][i].obs["state"]) for k in ("mjx", "cpu"))
+        np.testing.assert_allclose(a[vel], b[vel], atol=VEL_TOL, err_msg=f"velocity terms, state {i}")
+        np.testing.assert_allclose(a[~vel], b[~vel], atol=OBS_TOL, err_msg=f"other terms, state {i}")
+    m, c = after["mjx"][1], after["cpu"][1]
+    for key in m.metrics:
+        np.testing.assert_allclose(float(c.metrics[key]), float(m.metrics[key]), rtol=REWARD_REL_TOL,
+                                   atol=REWARD_ABS_TOL, err_msg=key)
+    np.testing.assert_allclose(float(c.reward), float(m.reward), rtol=REWARD_REL_TOL, atol=REWARD_ABS_TOL)
+    assert float(c.done) == float(m.done) == 0.0
