@@ -16,16 +16,18 @@ namespace {
 constexpr int kKnee = 14, kHipPitch = 11;
 constexpr int64_t kTickUs = 2000;
 
-// A policy whose action is 0 everywhere but the left knee (tanh(20) = 1, scaled by 3 rad): a constant,
-// far target that exercises the clamps. Knee kp 10 so the torque clamp does not bind before the range.
+// A policy whose action is 0 everywhere but the left knee (tanh(20) = 1, scaled by the largest allowed
+// 1.5 rad from a 1.0 rad default): a constant target beyond the joint range that exercises the clamps.
+// Knee kp 10 so the torque clamp does not bind before the range.
 ArtifactSpec clamp_spec() {
   ArtifactSpec s = make_spec({8});
   for (auto& kv : s.tensors)
     if (kv.first.rfind("layers.", 0) == 0) std::fill(kv.second.data.begin(), kv.second.data.end(), 0.0f);
   s.tensors["layers.1.bias"].data[kKnee] = 20.0f;
   std::vector<float> scale(kJoints, 0.5f);
-  scale[kKnee] = 3.0f;
+  scale[kKnee] = static_cast<float>(kMaxActionScaleRad);
   s.meta["action_scale"] = scale;
+  s.meta["default_pose"][kKnee] = 1.0;
   s.meta["kp"][kKnee] = 10.0;
   return s;
 }
@@ -164,7 +166,7 @@ TEST_F(SupervisorLcm, TargetsRateLimitedAndClampedToRange) {
     EXPECT_LE(now, hi + 1e-6f);
     prev = now;
   }
-  EXPECT_NEAR(prev, hi, 1e-5);  // the raw target (0.4 + 3 rad) is beyond the range: it ends at 95 %
+  EXPECT_NEAR(prev, hi, 1e-5);  // the raw target (1.0 + 1.5 rad) is beyond the range: it ends at 95 %
   EXPECT_TRUE(ctrl_->supervisor().fault_bits() & fault_bit::kTargetClamped);
 }
 
