@@ -126,3 +126,20 @@ TEST(RuntimeCli, UsageAndHelpExitCodes) {
   EXPECT_EQ(WEXITSTATUS(std::system((bin + " --policy x --clock fast 2> /dev/null").c_str())), 2);
   EXPECT_EQ(WEXITSTATUS(std::system((bin + " --policy x --bogus 2> /dev/null").c_str())), 2);
 }
+
+// Issue 17 item 10: numbers that would run forever, exit at once with 0, or pin to a garbage core.
+// The policy path is bogus on purpose: argument errors must be found first (exit 2, not 3).
+TEST(RuntimeCli, NonsenseNumbersAreUsageErrors) {
+  const std::string bin = T1_RUNTIME_BIN;
+  for (const char* args : {"--duration nan", "--duration inf", "--duration 1e30", "--duration -1", "--duration 0",
+                           "--duration 5s", "--rt-cpu abc", "--rt-cpu 1x", "--rt-cpu -2", "--rt-cpu 99999999999"}) {
+    const std::string err = temp_path("cli_numbers") + ".stderr";
+    const int status = std::system((bin + " --policy x " + args + " 2> " + err).c_str());
+    ASSERT_TRUE(WIFEXITED(status)) << args;
+    EXPECT_EQ(WEXITSTATUS(status), 2) << args;
+    std::ifstream in(err);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string option = std::string(args).substr(0, std::string(args).find(' '));
+    EXPECT_NE(text.find(option), std::string::npos) << args << ": stderr '" << text << "'";
+  }
+}
