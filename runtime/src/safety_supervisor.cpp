@@ -66,9 +66,9 @@ bool SeqTracker::accept(int64_t seq) {  // rule R3
     newest_ = seq;
     return true;
   }
-  const int64_t behind = newest_ - seq;  // 0 = duplicate of the newest
-  const uint64_t bit = uint64_t{1} << behind;
-  if (behind < kMaskBits && !(seen_ & bit) && seq > first_) {
+  const int64_t behind = newest_ - seq;  // 0 = duplicate of the newest; at most kWindowFrames here
+  const uint64_t bit = behind < kMaskBits ? uint64_t{1} << behind : 0;
+  if (bit && !(seen_ & bit) && seq > first_) {
     seen_ |= bit;
     --gaps_;  // counted missing when the newer frame came; it was only late
   }

@@ -306,3 +306,24 @@ TEST_F(SupervisorLcm, StaleJointsFaultInRealtime) {
   EXPECT_GE(ticks, 20);  // > 50 ms at 2 ms per tick (hold first)
   EXPECT_LE(ticks, 40);
 }
+
+// Rule R3 bookkeeping on its own: late frames take their gap back, duplicates and late frames are
+// counted as reordered and rejected, a frame far behind is a publisher restart.
+TEST(SeqTracker, RejectsOlderFramesAndCountsOnlyRealGaps) {
+  SeqTracker t;
+  EXPECT_TRUE(t.accept(10));
+  EXPECT_TRUE(t.accept(12));   // 11 missing so far
+  EXPECT_FALSE(t.accept(11));  // late: rejected, and not a gap any more
+  EXPECT_FALSE(t.accept(12));  // duplicate
+  EXPECT_TRUE(t.accept(15));   // 13, 14 really lost
+  EXPECT_EQ(t.gaps(), 2);
+  EXPECT_EQ(t.reordered(), 2);
+  EXPECT_TRUE(t.accept(100));  // 16..99 lost
+  EXPECT_EQ(t.gaps(), 86);
+  EXPECT_FALSE(t.accept(100 - SeqTracker::kWindowFrames + 1));  // oldest in the window: late, its gap taken back
+  EXPECT_EQ(t.gaps(), 85);
+  EXPECT_TRUE(t.accept(20));   // further behind: the publisher restarted
+  EXPECT_TRUE(t.accept(21));
+  EXPECT_EQ(t.gaps(), 85);
+  EXPECT_EQ(t.reordered(), 3);
+}
