@@ -50,9 +50,6 @@ def main(argv: list[str] | None = None) -> int:
                     lcm_url=args.lcm_url or contract.lcm_url(), can_interface=args.can_interface,
                     can_log=args.can_log, record=args.record, lockstep_timeout_s=args.lockstep_timeout,
                     status_rate_hz=args.status_rate)
-    if args.duration is not None and args.duration <= 0:
-        print("sim_hil: --duration must be > 0", file=sys.stderr)
-        return EXIT_USAGE
     try:
         sim = Simulator(cfg)
     except (ValueError, FaultSpecError) as exc:

@@ -7,6 +7,7 @@ LOCKSTEP_TIMEOUT_S = 0.5        # wall time to wait for the command answering st
 LOCKSTEP_FIRST_COMMAND_TIMEOUT_S = 30.0   # the client may still be starting: wait longer for the first one
 FALLEN_TRUNK_HEIGHT_M = 0.35    # Trunk origin below this = lying on the ground (standing: 0.665 m)
 VIDEO_FPS = 20
+GL_PROBE_SIZE_PX = 16          # --record checks the GL backend with a renderer this small at start-up
 VIDEO_SIZE = (360, 480)         # (height, width) [px]; software GL renders ~0.1 s per frame here
 STATS_WINDOW_S = 1.0            # real-time factor averaging window [s of sim time]
 GETUP_SWITCH_WAIST_HEIGHT_M = 0.5   # the teacher's switch: getup expert below this waist height [m]

@@ -44,8 +44,20 @@ def render_video(model: mujoco.MjModel, poses: list[np.ndarray], path: Path, fps
         renderer.close()
 
 
+def check_gl_backend(model: mujoco.MjModel) -> None:
+    """--record renders when the run ends: make sure it can, before the run starts (RuntimeError if not)."""
+    try:
+        import mediapy  # noqa: F401
+        mujoco.Renderer(model, height=config.GL_PROBE_SIZE_PX, width=config.GL_PROBE_SIZE_PX).close()
+    except Exception as exc:  # mujoco raises FatalError/RuntimeError/ImportError depending on the backend
+        raise RuntimeError(f"--record: cannot render offscreen with MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} "
+                           f"({type(exc).__name__}: {str(exc).strip()[:200]}); install/choose a GL backend "
+                           "(osmesa on a headless machine, egl with a GPU) or leave out --record") from None
+
+
 class Recorder:
     def __init__(self, model: mujoco.MjModel, path: str, fps: int = config.VIDEO_FPS):
+        check_gl_backend(model)
         self.model, self.path, self.fps = model, Path(path), fps
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.poses: list[np.ndarray] = []

@@ -13,6 +13,8 @@ Realtime mode paces ticks against the wall clock; lockstep runs as fast as the c
 """
 from __future__ import annotations
 
+import math
+
 import time
 from dataclasses import dataclass
 
@@ -61,8 +63,15 @@ class Simulator:
     def __init__(self, cfg: SimConfig):
         if cfg.clock not in ("lockstep", "realtime"):
             raise ValueError(f"--clock '{cfg.clock}': expected lockstep | realtime")
-        substeps = config.CONTROL_DT_S / cfg.physics_dt_s
-        if cfg.physics_dt_s <= 0 or abs(substeps - round(substeps)) > 1e-9:
+        if cfg.duration_s is not None and not (math.isfinite(cfg.duration_s) and cfg.duration_s > 0):
+            raise ValueError(f"--duration {cfg.duration_s}: must be a finite number of seconds > 0 "
+                             "(leave it out to run until interrupted)")
+        if not (math.isfinite(cfg.lockstep_timeout_s) and cfg.lockstep_timeout_s > 0):
+            raise ValueError(f"--lockstep-timeout {cfg.lockstep_timeout_s}: must be a finite number of seconds > 0")
+        # Checked before dividing: 0, negative, nan and inf are refused with the option named.
+        valid_dt = math.isfinite(cfg.physics_dt_s) and cfg.physics_dt_s > 0
+        substeps = config.CONTROL_DT_S / cfg.physics_dt_s if valid_dt else float("nan")
+        if not valid_dt or abs(substeps - round(substeps)) > 1e-9:
             raise ValueError(f"--physics-dt {cfg.physics_dt_s}: must divide the {config.CONTROL_DT_S} s "
                              "control period (0.002, 0.001, 0.0005, ...)")
         spawn_kind, spawn_seed = parse_spawn(cfg.spawn)

@@ -140,11 +140,58 @@ def test_numpy_and_jax_agree_under_jit_and_vmap():
         jax.config.update("jax_enable_x64", False)
 
 
+# The float64 reference outputs go through BLAS matmuls and SIMD tanh/exp whose last digits differ between
+# x86-64 CPUs (issue 17: 1.3e-13 on the action between two machines). A fresh write must equal the committed
+# file up to this absolute tolerance: ~1000x that noise, 1e5x below the 1e-5 C++ parity the file exists for,
+# so no real change of the pipeline can hide in it. Everything else (keys, sizes, inputs, text fields,
+# the artifact's bytes) must be identical.
+GOLDEN_REGEN_ATOL = 1e-10
+
+
+def golden_mismatch(fresh, committed, where="") -> str | None:
+    """None when the two golden documents agree (numbers within GOLDEN_REGEN_ATOL), else where they differ."""
+    if isinstance(committed, dict):
+        if not isinstance(fresh, dict) or fresh.keys() != committed.keys():
+            return f"{where}: keys differ"
+        return next((m for k in committed if (m := golden_mismatch(fresh[k], committed[k], f"{where}.{k}"))), None)
+    if isinstance(committed, list):
+        if not isinstance(fresh, list) or len(fresh) != len(committed):
+            return f"{where}: lengths differ"
+        if committed and all(isinstance(v, float) for v in committed):
+            diff = np.max(np.abs(np.asarray(fresh, float) - np.asarray(committed, float)))
+            return None if diff <= GOLDEN_REGEN_ATOL else f"{where}: differs by {diff:.3g}"
+        return next((m for i, (a, b) in enumerate(zip(fresh, committed))
+                     if (m := golden_mismatch(a, b, f"{where}[{i}]"))), None)
+    if isinstance(committed, float) and isinstance(fresh, float):
+        return None if abs(fresh - committed) <= GOLDEN_REGEN_ATOL else f"{where}: {fresh} != {committed}"
+    return None if fresh == committed and type(fresh) is type(committed) else f"{where}: {fresh!r} != {committed!r}"
+
+
 def test_golden_regenerates_bit_identically(tmp_path):
+    """The artifact bit for bit; the vectors up to the last digits another CPU's BLAS may change."""
     export.write_golden(tmp_path)
-    for name in (export.GOLDEN_ARTIFACT, export.GOLDEN_VECTORS):
-        assert (tmp_path / name).read_bytes() == (GOLDEN_DIR / name).read_bytes(), \
-            f"{name}: committed golden differs from a fresh write; run `{export.GOLDEN_COMMAND}`"
+    fix = f"run `{export.GOLDEN_COMMAND}`"
+    assert (tmp_path / export.GOLDEN_ARTIFACT).read_bytes() == (GOLDEN_DIR / export.GOLDEN_ARTIFACT).read_bytes(), \
+        f"{export.GOLDEN_ARTIFACT}: committed golden differs from a fresh write; {fix}"
+    fresh = json.loads((tmp_path / export.GOLDEN_VECTORS).read_text())
+    committed = json.loads((GOLDEN_DIR / export.GOLDEN_VECTORS).read_text())
+    mismatch = golden_mismatch(fresh, committed)
+    assert mismatch is None, f"{export.GOLDEN_VECTORS}{mismatch}; {fix}"
+
+
+def test_golden_comparison_takes_cpu_rounding_and_rejects_real_changes():
+    committed = json.loads((GOLDEN_DIR / export.GOLDEN_VECTORS).read_text())
+    other_cpu = json.loads(json.dumps(committed))
+    for case in other_cpu["cases"]:  # a few ulp on every output, as another machine's BLAS gives
+        for key in ("action", "q_target", "obs_normalized"):
+            case[key] = [float(np.nextafter(np.nextafter(v, np.inf), np.inf)) for v in case[key]]
+    assert golden_mismatch(other_cpu, committed) is None
+    changed = json.loads(json.dumps(committed))
+    changed["cases"][3]["action"][7] += 1e-7  # far below the parity tolerance, far above CPU rounding
+    assert "cases[3].action" in golden_mismatch(changed, committed)
+    changed = json.loads(json.dumps(committed))
+    changed["cases"][0]["q"] = changed["cases"][0]["q"][:-1]
+    assert "lengths differ" in golden_mismatch(changed, committed)
 
 
 def test_golden_vectors_format_and_float32_margin():

@@ -94,6 +94,30 @@ def test_bad_cli_input_is_named(netns):
         assert needle in err, (args, err)
 
 
+def test_nonsense_numbers_and_a_missing_gl_backend_are_named_without_traceback(netns, tmp_path):
+    """Issue 17 item 10: nan/inf/0/negative numbers, and --record where no GL backend can render."""
+    import os
+    import subprocess
+    import sys
+
+    from sim_hil.launch import ROOT, _env
+    cases = [(["--duration", "nan"], "--duration"), (["--duration", "inf"], "--duration"),
+             (["--duration", "0"], "--duration"), (["--physics-dt", "0"], "--physics-dt"),
+             (["--physics-dt", "nan"], "--physics-dt"), (["--lockstep-timeout", "-1"], "--lockstep-timeout"),
+             (["--lockstep-timeout", "nan"], "--lockstep-timeout"), (["--status-rate", "nan"], "--status-rate")]
+    for args, needle in cases:
+        proc = start_sim(*args)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 2 and needle in err and "Traceback" not in err, (args, proc.returncode, err)
+    # glfw cannot make an offscreen context on a machine without a display: the --record failure case.
+    env = {**_env(), "MUJOCO_GL": "glfw", "PYOPENGL_PLATFORM": "glfw"}
+    env.pop("DISPLAY", None)
+    proc = subprocess.run([sys.executable, "-m", "sim_hil", "--quiet", "--duration", "0.1", "--record",
+                           str(tmp_path / "v.mp4")], cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode != 0 and "--record" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    assert not os.path.exists(tmp_path / "v.mp4")
+
+
 def test_udp_multicast_buses_are_visible_to_outside_python_can_tools(netns, tmp_path):
     """An outside python-can tool on one bus sees that bus's frames only, can inject a command frame that
     moves a motor, and --can-log writes every frame to a standard ASC file."""

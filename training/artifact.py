@@ -47,6 +47,22 @@ def _protocol_constant(name: str) -> float:
     return float(match.group(1))
 
 
+# Documented maxima of manifest numbers (policies/ARTIFACT.md): the C++ loader's constants, read from its
+# header (one source), so Python never writes a file the runtime would refuse.
+RUNTIME_CONSTANTS_HEADER = Path(__file__).resolve().parent.parent / "runtime" / "include" / "t1rt" / "constants.hpp"
+
+
+def _runtime_constant(name: str) -> float:
+    match = re.search(rf"constexpr\s+double\s+{name}\s*=\s*([0-9.eE+-]+)\s*;", RUNTIME_CONSTANTS_HEADER.read_text())
+    if match is None:
+        raise RuntimeError(f"{RUNTIME_CONSTANTS_HEADER}: no constexpr double {name}")
+    return float(match.group(1))
+
+
+MAX_ACTION_SCALE_RAD = _runtime_constant("kMaxActionScaleRad")
+MAX_GAIT_FREQUENCY_HZ = _runtime_constant("kMaxGaitFrequencyHz")
+MAX_COMMAND_MAGNITUDE = _runtime_constant("kMaxCommandMagnitude")
+
 # The header gives one range for all classes ("one gain set is shared by all policies").
 KP_MAX_BY_CLASS: dict[str, float] = {c: _protocol_constant("T1_KP_MAX") for c in set(MOTOR_CLASS_OF_JOINT.values())}
 KD_MAX_BY_CLASS: dict[str, float] = {c: _protocol_constant("T1_KD_MAX") for c in set(MOTOR_CLASS_OF_JOINT.values())}
@@ -226,9 +242,12 @@ def _check_manifest(manifest: dict) -> None:
     _finite_list(manifest, "default_pose", contract.NUM_JOINTS)
     scale = manifest["action_scale"]
     if isinstance(scale, list):
-        _finite_list(manifest, "action_scale", contract.NUM_JOINTS)
+        scales = _finite_list(manifest, "action_scale", contract.NUM_JOINTS)
     else:
-        _finite_number(manifest, "action_scale")
+        scales = np.array([_finite_number(manifest, "action_scale")])
+    if not np.all((scales > 0.0) & (scales <= MAX_ACTION_SCALE_RAD)):
+        _fail("action_scale", f"must be in (0, {MAX_ACTION_SCALE_RAD}] rad per unit action (the joint range "
+                              "bounds it further in the runtime)")
     for key, limits in (("kp", KP_MAX_BY_CLASS), ("kd", KD_MAX_BY_CLASS)):
         gains = _finite_list(manifest, key, contract.NUM_JOINTS)
         for joint, gain in zip(contract.JOINT_NAMES, gains):
@@ -239,17 +258,19 @@ def _check_manifest(manifest: dict) -> None:
     dt = _finite_number(manifest, "control_dt")
     if abs(dt - CONTROL_DT_S) > CONTROL_DT_TOLERANCE_S:
         _fail("control_dt", f"is {dt} s, the runtime needs {RUNTIME_LOOP_DT_S} s × {POLICY_DECIMATION} = {CONTROL_DT_S} s")
-    if _finite_number(manifest, "gait_frequency") <= 0.0:
-        _fail("gait_frequency", "must be > 0 Hz")
-    if _finite_number(manifest, "phase_freeze_command_norm") < 0.0:
-        _fail("phase_freeze_command_norm", "must be ≥ 0")
+    if not 0.0 < _finite_number(manifest, "gait_frequency") <= MAX_GAIT_FREQUENCY_HZ:
+        _fail("gait_frequency", f"must be in (0, {MAX_GAIT_FREQUENCY_HZ}] Hz")
+    if not 0.0 <= _finite_number(manifest, "phase_freeze_command_norm") <= MAX_COMMAND_MAGNITUDE:
+        _fail("phase_freeze_command_norm", f"must be in [0, {MAX_COMMAND_MAGNITUDE}]")
     ranges = manifest["command_ranges"]
     if not isinstance(ranges, dict) or sorted(ranges) != sorted(COMMAND_RANGE_KEYS):
         _fail("command_ranges", f"must be an object with exactly the keys {COMMAND_RANGE_KEYS}")
     for key, pair in ranges.items():
         if (not isinstance(pair, list) or len(pair) != 2 or not all(isinstance(v, (int, float)) and
-                not isinstance(v, bool) and math.isfinite(v) for v in pair) or pair[0] > pair[1]):
-            _fail("command_ranges", f"{key} must be [low, high] finite with low ≤ high, got {pair!r}")
+                not isinstance(v, bool) and math.isfinite(v) and abs(v) <= MAX_COMMAND_MAGNITUDE for v in pair)
+                or pair[0] > pair[1]):
+            _fail("command_ranges", f"{key} must be [low, high] finite with low ≤ high and |bound| ≤ "
+                                    f"{MAX_COMMAND_MAGNITUDE}, got {pair!r}")
     if not isinstance(manifest["trained"], bool):
         _fail("trained", "must be true or false")
     prov = manifest["provenance"]

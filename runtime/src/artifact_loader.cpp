@@ -63,6 +63,33 @@ JointArray joint_floats(const json& v, const std::string& field) {
   return out;
 }
 
+std::string joint_field(const std::string& field, std::size_t i) {
+  return field + "[" + std::to_string(i) + "] (" + t1::kJointNames[i] + ")";
+}
+
+// default_pose must lie inside the joint's range (firmware motor table); a pose outside it is a target
+// the supervisor would clamp on every tick, i.e. a broken file.
+void check_default_pose(const JointArray& pose) {
+  for (std::size_t i = 0; i < kJoints; ++i)
+    if (pose[i] < T1_MOTORS[i].q_min_rad || pose[i] > T1_MOTORS[i].q_max_rad)
+      fail(joint_field("default_pose", i), std::to_string(pose[i]) + " rad outside the joint range [" +
+                                               std::to_string(T1_MOTORS[i].q_min_rad) + ", " +
+                                               std::to_string(T1_MOTORS[i].q_max_rad) + "] rad");
+}
+
+// action_scale: strictly positive (a negative scale mirrors the policy), at most kMaxActionScaleRad and at
+// most the joint's full range (one unit of action may not sweep more than the whole joint).
+void check_action_scale(const JointArray& scale) {
+  for (std::size_t i = 0; i < kJoints; ++i) {
+    const double range = T1_MOTORS[i].q_max_rad - T1_MOTORS[i].q_min_rad;
+    const double max = std::min(kMaxActionScaleRad, range);
+    if (!(scale[i] > 0.0f) || scale[i] > max)
+      fail(joint_field("action_scale", i), std::to_string(scale[i]) + " rad per unit outside (0, " +
+                                               std::to_string(max) + "] (documented maximum " +
+                                               std::to_string(kMaxActionScaleRad) + ", joint range)");
+  }
+}
+
 void check_gains(const JointArray& gains, float max, const std::string& field) {
   for (std::size_t i = 0; i < kJoints; ++i)
     if (gains[i] < 0.0f || gains[i] > max)
@@ -70,7 +97,10 @@ void check_gains(const JointArray& gains, float max, const std::string& field) {
                       " outside [0, " + std::to_string(max) + "] (firmware limit)");
 }
 
-std::map<std::string, TensorView> parse_safetensors(const std::string& file, std::map<std::string, std::string>& meta) {
+// *unreferenced: data bytes no tensor entry covers; reported after the named tensors are checked, so a
+// missing tensor is named as such and not as a data-size mismatch.
+std::map<std::string, TensorView> parse_safetensors(const std::string& file, std::map<std::string, std::string>& meta,
+                                                    std::size_t* unreferenced) {
   if (file.size() < kHeaderLengthBytes) fail("header_length", "file shorter than the 8-byte header length (truncated)");
   uint64_t header_len = 0;
   for (std::size_t i = 0; i < kHeaderLengthBytes; ++i)
@@ -118,8 +148,9 @@ std::map<std::string, TensorView> parse_safetensors(const std::string& file, std
     covered += end - begin;
     tensors.emplace(name, std::move(view));
   }
-  if (covered != data_size) fail("data", "tensor byte ranges cover " + std::to_string(covered) + " of " +
-                                             std::to_string(data_size) + " data bytes");
+  *unreferenced = covered <= data_size ? data_size - covered : 0;
+  if (covered > data_size) fail("data", "tensor byte ranges overlap: they cover " + std::to_string(covered) + " of " +
+                                            std::to_string(data_size) + " data bytes");
   return tensors;
 }
 
@@ -164,7 +195,8 @@ PolicyArtifact load_artifact(const std::string& path) {
   a.path = path;
   const std::string file = read_file(path);
   std::map<std::string, std::string> meta;
-  const auto tensors = parse_safetensors(file, meta);
+  std::size_t unreferenced_bytes = 0;
+  const auto tensors = parse_safetensors(file, meta, &unreferenced_bytes);
 
   const json version = parse_meta_value(meta, "schema_version");
   if (!version.is_number_integer() || version.get<int>() != kSchemaVersion)
@@ -208,9 +240,11 @@ PolicyArtifact load_artifact(const std::string& path) {
                               t1::kJointNames[i] + "\"");
 
   a.default_pose = joint_floats(parse_meta_value(meta, "default_pose"), "default_pose");
+  check_default_pose(a.default_pose);
   const json scale = parse_meta_value(meta, "action_scale");
   if (scale.is_number()) a.action_scale.fill(static_cast<float>(finite_number(scale, "action_scale")));
   else a.action_scale = joint_floats(scale, "action_scale");
+  check_action_scale(a.action_scale);
   a.kp = joint_floats(parse_meta_value(meta, "kp"), "kp");
   a.kd = joint_floats(parse_meta_value(meta, "kd"), "kd");
   check_gains(a.kp, T1_KP_MAX, "kp");
@@ -220,9 +254,12 @@ PolicyArtifact load_artifact(const std::string& path) {
   if (std::fabs(a.control_dt_s - kLoopDtS * kPolicyDecimation) > kControlDtToleranceS)
     fail("control_dt", std::to_string(a.control_dt_s) + " s != loop dt 0.002 s x decimation 10 = 0.02 s");
   a.gait_frequency_hz = finite_number(parse_meta_value(meta, "gait_frequency"), "gait_frequency");
-  if (a.gait_frequency_hz < 0.0) fail("gait_frequency", "negative");
+  if (a.gait_frequency_hz < 0.0 || a.gait_frequency_hz > kMaxGaitFrequencyHz)
+    fail("gait_frequency", std::to_string(a.gait_frequency_hz) + " Hz outside [0, " + std::to_string(kMaxGaitFrequencyHz) + "]");
   a.phase_freeze_command_norm = finite_number(parse_meta_value(meta, "phase_freeze_command_norm"), "phase_freeze_command_norm");
-  if (a.phase_freeze_command_norm < 0.0) fail("phase_freeze_command_norm", "negative");
+  if (a.phase_freeze_command_norm < 0.0 || a.phase_freeze_command_norm > kMaxCommandMagnitude)
+    fail("phase_freeze_command_norm", std::to_string(a.phase_freeze_command_norm) + " outside [0, " +
+                                          std::to_string(kMaxCommandMagnitude) + "]");
 
   const json ranges = parse_meta_value(meta, "command_ranges");
   const char* kAxes[3] = {"vx", "vy", "yaw_rate"};
@@ -232,6 +269,8 @@ PolicyArtifact load_artifact(const std::string& path) {
     if (!ranges.contains(kAxes[i]) || !ranges[kAxes[i]].is_array() || ranges[kAxes[i]].size() != 2) fail(field, "expected [lo, hi]");
     const double lo = finite_number(ranges[kAxes[i]][0], field), hi = finite_number(ranges[kAxes[i]][1], field);
     if (lo > hi) fail(field, "lo > hi");
+    if (std::fabs(lo) > kMaxCommandMagnitude || std::fabs(hi) > kMaxCommandMagnitude)
+      fail(field, "|bound| above the documented maximum " + std::to_string(kMaxCommandMagnitude));
     a.command_ranges[i] = {static_cast<float>(lo), static_cast<float>(hi)};
   }
   if (meta.count("obs_scales") && !parse_meta_value(meta, "obs_scales").is_object()) fail("obs_scales", "expected an object");
@@ -278,6 +317,9 @@ PolicyArtifact load_artifact(const std::string& path) {
                        });
     if (!known) fail(n, "unexpected tensor");
   }
+
+  if (unreferenced_bytes > 0)
+    fail("data", std::to_string(unreferenced_bytes) + " data bytes belong to no tensor entry (a tensor entry removed?)");
 
   const json hash = parse_meta_value(meta, "content_hash");
   if (!hash.is_string()) fail("content_hash", "expected a sha256 hex string");

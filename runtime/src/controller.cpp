@@ -23,6 +23,7 @@ void assign_bounded(std::string& dst, const char* src) {
 Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial,
                        std::unique_ptr<PolicyEngine> upright)
     : opt_(options), supervisor_(options.safety), engine_(std::move(initial)), upright_(std::move(upright)) {
+  supervisor_.set_autostart(opt_.autostart);  // the ladder and the operator's precedence: safety rule R1
   if (upright_) check_composite_pair(engine_->artifact(), upright_->artifact());  // throws before any thread
   // Composite: PREPARE ramps to the upright member's default pose (a stand), which is also the member
   // that runs first unless the waist is low.
@@ -144,6 +145,8 @@ void Controller::handle_commands() {
     else std::fprintf(stderr, "t1-runtime: ignored runtime_cmd_t verb '%s' argument '%s'\n", c.verb.c_str(), c.argument.c_str());
   }
   transport_.command_count = 0;
+  if (transport_.estop_pending) supervisor_.estop();  // after the queue: estop wins in its tick (rule R2)
+  transport_.estop_pending = false;
 }
 
 void Controller::tick(double now_s) {
@@ -151,18 +154,7 @@ void Controller::tick(double now_s) {
   handle_commands();
   const StateView s = state_view(now_s);
   const auto& js = transport_.joystick;
-  supervisor_.gate_joystick(now_s, js.have, js.stamp_s, &js.msg.vx, command_vel_);
-
-  // Autostart walks the mode ladder as soon as each step's preconditions hold. It leaves PASSIVE only once
-  // both state streams are live, so a runtime started before the robot (or the sim) waits instead of
-  // faulting on stale state.
-  if (opt_.autostart) {
-    const Mode m = supervisor_.mode();
-    const bool streams_live = s.have_imu && s.have_joint && (!s.needs_sim_status || s.have_sim_status);
-    if (m == Mode::kPassive && streams_live) supervisor_.request_mode(Mode::kDamping);
-    else if (m == Mode::kDamping) supervisor_.request_mode(Mode::kPrepare);
-    else if (m == Mode::kPrepare && supervisor_.prepare_done()) supervisor_.request_mode(Mode::kPolicy);
-  }
+  supervisor_.gate_joystick(now_s, js.have, js.stamp_s, &js.msg.vx, active_->artifact().command_ranges, command_vel_);
   const bool may_run_policy = supervisor_.begin_tick(s, active_->artifact());
   if (supervisor_.entered_policy()) {
     engine_->reset();
@@ -237,8 +229,12 @@ void Controller::publish_status(double now_s) {
   status_.ticks = ticks_;
   status_.policy_ticks = policy_ticks_;
   status_.overruns = task_.overruns();
-  status_.seq_gaps_imu = supervisor_.imu_seq_gaps();
-  status_.seq_gaps_joint = supervisor_.joint_seq_gaps();
+  status_.seq_gaps_imu = supervisor_.imu_seq().gaps();
+  status_.seq_gaps_joint = supervisor_.joint_seq().gaps();
+  status_.seq_reordered_imu = supervisor_.imu_seq().reordered();
+  status_.seq_reordered_joint = supervisor_.joint_seq().reordered();
+  status_.decode_errors = transport_.decode_errors;
+  status_.commands_dropped = transport_.commands_dropped;
   TimingStats& late = task_.lateness();
   TimingStats& comp = task_.compute();
   status_.lateness_us_last = static_cast<float>(late.last());

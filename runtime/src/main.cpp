@@ -1,6 +1,7 @@
 // t1-runtime: the fixed-rate controller CLI. Exit codes:
 //   0 ok (duration reached or SIGINT/SIGTERM)   2 usage error        3 bad policy artifact
 //   4 LCM initialisation failure                5 --rt-required and a real-time setup step failed
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -13,6 +14,19 @@ namespace {
 enum ExitCode { kExitOk = 0, kExitUsage = 2, kExitBadArtifact = 3, kExitLcm = 4, kExitRt = 5 };
 
 constexpr double kMaxPrepareS = 10.0;  // a longer ramp is a typo, not a choice
+// --duration above this (30 days) is a typo or an overflow in waiting: run without --duration instead.
+constexpr double kMaxDurationS = 30.0 * 24 * 3600;
+constexpr long kMaxRtCpu = 1023;  // CPU_SETSIZE - 1: the highest core sched_setaffinity can name
+
+// Whole-string decimal integer in [lo, hi]; false on anything else ("abc", "1x", "", overflow).
+bool parse_long(const char* text, long lo, long hi, long* out) {
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(text, &end, 10);
+  if (end == text || *end || errno == ERANGE || v < lo || v > hi) return false;
+  *out = v;
+  return true;
+}
 t1rt::Controller* g_controller = nullptr;
 
 void on_stop_signal(int) {
@@ -36,7 +50,7 @@ void usage(FILE* out) {
       "  --rt-cpu N             core for --rt pinning (default 1; -1 = no pinning)\n"
       "  --autostart            go PASSIVE -> DAMPING -> PREPARE -> POLICY by itself\n"
       "  --prepare-s S          PREPARE ramp duration in seconds (default 2; 0 < S <= 10)\n"
-      "  --duration S           stop after S wall-clock seconds (default: run until SIGINT/SIGTERM)\n"
+      "  --duration S           stop after S wall-clock seconds, 0 < S <= 30 days (default: until SIGINT/SIGTERM)\n"
       "  --quiet                no live status line\n"
       "  --help                 this text\n"
       "signals: SIGHUP reloads the current policy file; SIGINT/SIGTERM stop.\n"
@@ -69,7 +83,15 @@ int main(int argc, char** argv) {
     } else if (a == "--lcm-url") cli_url = value("--lcm-url");
     else if (a == "--rt") rt = true;
     else if (a == "--rt-required") rt = rt_required = true;
-    else if (a == "--rt-cpu") rt_options.cpu = std::atoi(value("--rt-cpu"));
+    else if (a == "--rt-cpu") {
+      const char* v = value("--rt-cpu");
+      long cpu = 0;
+      if (!parse_long(v, -1, kMaxRtCpu, &cpu)) {
+        std::fprintf(stderr, "t1-runtime: --rt-cpu needs a core number in [-1, %ld] (-1 = no pinning), not '%s'\n", kMaxRtCpu, v);
+        return kExitUsage;
+      }
+      rt_options.cpu = static_cast<int>(cpu);
+    }
     else if (a == "--autostart") opt.autostart = true;
     else if (a == "--prepare-s") {
       // Evaluations that spawn the robot standing in its default pose need no 2 s ramp: a static PD stand
@@ -87,7 +109,11 @@ int main(int argc, char** argv) {
       char* end = nullptr;
       const char* v = value("--duration");
       opt.duration_s = std::strtod(v, &end);
-      if (!end || *end || opt.duration_s <= 0) { std::fprintf(stderr, "t1-runtime: --duration needs seconds > 0, not '%s'\n", v); return kExitUsage; }
+      // NaN compares false with everything: the test is written so that NaN (and inf) fail it.
+      if (end == v || *end || !(opt.duration_s > 0 && opt.duration_s <= kMaxDurationS)) {
+        std::fprintf(stderr, "t1-runtime: --duration needs finite seconds in (0, %g], not '%s'\n", kMaxDurationS, v);
+        return kExitUsage;
+      }
     } else { std::fprintf(stderr, "t1-runtime: unknown argument '%s'\n", a.c_str()); usage(stderr); return kExitUsage; }
   }
   if (opt.policy_path.empty()) { std::fprintf(stderr, "t1-runtime: --policy PATH is required\n"); usage(stderr); return kExitUsage; }

@@ -1,5 +1,26 @@
 // The safety supervisor: the single source of truth for every safety rule of the runtime
 // (ARCHITECTURE.md "Safety supervisor"). No heap use: fixed arrays and snprintf into fixed buffers.
+//
+// Rules added by issue 17 (each has a test named in runtime/README.md):
+//  R1 Operator precedence. estop and set_mode passive|damping set an operator hold: autostart makes no
+//     request while it is set, so the operator's DAMPING/PASSIVE stands. Only the operator releases it:
+//     reset, or set_mode prepare|policy. (Autostart lives here, not in the controller, for that reason.)
+//  R2 estop is never dropped: the transport keeps it outside the bounded command queue and the controller
+//     applies it after the queued commands of the same tick (estop wins over any request in that tick).
+//  R3 State frames: decoded into scratch and committed only when the decode succeeds (LcmTransport);
+//     a frame whose seq is not newer than the newest one is rejected and counted as reordered; gaps
+//     count seq numbers never received (a late frame that fills a counted gap takes it back).
+//     A frame more than SeqTracker::kWindowFrames older than the newest is a publisher restart: accepted.
+//  R4 Motor status: WATCHDOG, POWER_ON, DAMPING (the motor is not following: T1_STATUS_NOT_FOLLOWING),
+//     BAD_FRAME and BAD_SENSOR are a FAULT in PREPARE/POLICY; in DAMPING a warning that blocks PREPARE.
+//  R5 Joystick: non-finite or stale -> zero; else each axis clamped to the artifact's command_ranges.
+//  R6 Final q_des per joint, when the limits conflict, in this priority (clamp_targets):
+//       1. rate: |q_des - last q_des| <= max_target_step_rad, always (a command never jumps);
+//       2. torque: |kp (q_des - q) - kd dq| <= torque limit, as far as reachable under 1;
+//       3. range: inside joint_range_fraction of the joint range, as far as reachable under 1 and 2.
+//     Each step picks the point of the allowed interval nearest to the wanted target, so with q outside
+//     the range the target moves toward the range at full allowed torque and never away from it.
+//  R7 A fault also rewrites the status info ("FAULT: <reason>"), so the info never names a stale mode.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,7 +35,8 @@ namespace t1rt {
 namespace {
 // Motor status bits that mean the motor is not executing our command: FAULT. OVER_LIMIT (torque saturated
 // or beyond a soft stop) is expected during falls and getups (t1_motor_protocol.h section 7): a warning only.
-constexpr int32_t kMotorFaultMask = T1_STATUS_WATCHDOG | T1_STATUS_BAD_FRAME | T1_STATUS_BAD_SENSOR;
+// POWER_ON and DAMPING (rule R4) mean the motor has reset or damps on its own: it ignores our command.
+constexpr int32_t kMotorFaultMask = T1_STATUS_NOT_FOLLOWING | T1_STATUS_BAD_FRAME | T1_STATUS_BAD_SENSOR;
 constexpr int32_t kMotorInfoMask = T1_STATUS_OVER_LIMIT;
 constexpr double kNever = std::numeric_limits<double>::infinity();
 
@@ -24,7 +46,35 @@ bool all_finite(const float* v, std::size_t n) {
   return true;
 }
 bool commanding(Mode m) { return m == Mode::kPrepare || m == Mode::kPolicy; }
+// The point of [lo, hi] nearest to x; an empty interval (lo > hi) is never passed in.
+float nearest_in(float x, float lo, float hi) { return std::min(std::max(x, lo), hi); }
 }  // namespace
+
+bool SeqTracker::accept(int64_t seq) {  // rule R3
+  constexpr int kMaskBits = 64;
+  static_assert(kWindowFrames <= kMaskBits, "the received-frame mask holds 64 frames");
+  if (newest_ < 0 || seq < newest_ - kWindowFrames) {  // first frame, or the publisher restarted
+    newest_ = first_ = seq;
+    seen_ = 1;
+    return true;
+  }
+  if (seq > newest_) {
+    const int64_t ahead = seq - newest_;
+    gaps_ += ahead - 1;
+    seen_ = ahead >= kMaskBits ? 0 : seen_ << ahead;
+    seen_ |= 1;
+    newest_ = seq;
+    return true;
+  }
+  const int64_t behind = newest_ - seq;  // 0 = duplicate of the newest; at most kWindowFrames here
+  const uint64_t bit = behind < kMaskBits ? uint64_t{1} << behind : 0;
+  if (bit && !(seen_ & bit) && seq > first_) {
+    seen_ |= bit;
+    --gaps_;  // counted missing when the newer frame came; it was only late
+  }
+  ++reordered_;
+  return false;
+}
 
 const char* mode_name(Mode mode) {
   switch (mode) {
@@ -58,20 +108,25 @@ void Supervisor::fault(int32_t bit, const char* reason) {
   latched_bits_ |= bit;
   std::snprintf(last_fault_.data(), last_fault_.size(), "%s", reason);
   if (mode_ != Mode::kFault) mode_ = Mode::kFault;
+  std::snprintf(last_info_.data(), last_info_.size(), "FAULT: %s", reason);  // rule R7
 }
 
+// request_mode is the operator's (autostart makes its own requests in autostart_request): rule R1.
 void Supervisor::request_mode(Mode target) {
   requested_ = target;
   has_request_ = true;
+  operator_hold_ = target == Mode::kPassive || target == Mode::kDamping;
 }
 
 void Supervisor::estop() {
   has_request_ = false;
+  operator_hold_ = true;
   if (mode_ != Mode::kFault) mode_ = Mode::kDamping;
-  set_info("estop: DAMPING");
+  set_info("estop: DAMPING (autostart held until reset or set_mode)");
 }
 
 void Supervisor::reset() {
+  operator_hold_ = false;
   if (mode_ != Mode::kFault) return;
   mode_ = Mode::kDamping;
   latched_bits_ = 0;
@@ -79,20 +134,25 @@ void Supervisor::reset() {
   set_info("reset: FAULT cleared, DAMPING");
 }
 
-void Supervisor::note_imu_seq(int64_t seq) {
-  if (last_imu_seq_ >= 0 && seq > last_imu_seq_ + 1) imu_gaps_ += seq - last_imu_seq_ - 1;
-  last_imu_seq_ = seq;
-}
-
-void Supervisor::note_joint_seq(int64_t seq) {
-  if (last_joint_seq_ >= 0 && seq > last_joint_seq_ + 1) joint_gaps_ += seq - last_joint_seq_ - 1;
-  last_joint_seq_ = seq;
-}
-
-void Supervisor::gate_joystick(double now_s, bool have, double stamp_s, const float* in3, float* out3) {
+void Supervisor::gate_joystick(double now_s, bool have, double stamp_s, const float* in3,
+                               const std::array<std::array<float, 2>, 3>& ranges, float* out3) {  // rule R5
   const bool stale = !have || now_s - stamp_s > cfg_.joystick_stale_s || !all_finite(in3, 3);
-  for (int i = 0; i < 3; ++i) out3[i] = stale ? 0.0f : in3[i];
+  for (int i = 0; i < 3; ++i) out3[i] = stale ? 0.0f : nearest_in(in3[i], ranges[i][0], ranges[i][1]);
   warning_bits_ = stale ? (warning_bits_ | fault_bit::kJoystickStale) : (warning_bits_ & ~fault_bit::kJoystickStale);
+}
+
+// Autostart's request for this tick (rule R1: none while the operator holds, none out of FAULT). It leaves
+// PASSIVE only once every state stream is live, so a runtime started before the robot waits, not faults.
+void Supervisor::autostart_request(const StateView& s) {
+  if (!autostart_ || operator_hold_ || has_request_) return;
+  const bool streams_live = s.have_imu && s.have_joint && (!s.needs_sim_status || s.have_sim_status);
+  Mode next = mode_;
+  if (mode_ == Mode::kPassive && streams_live) next = Mode::kDamping;
+  else if (mode_ == Mode::kDamping) next = Mode::kPrepare;
+  else if (mode_ == Mode::kPrepare && prepare_done()) next = Mode::kPolicy;
+  if (next == mode_) return;
+  requested_ = next;
+  has_request_ = true;
 }
 
 void Supervisor::enter(Mode mode, const StateView& state) {
@@ -163,6 +223,7 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
     }
   }
 
+  autostart_request(s);
   if (has_request_ && mode_ != Mode::kFault) {
     has_request_ = false;
     const bool fresh = imu_fresh && joint_fresh && sim_fresh;
@@ -191,30 +252,40 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
   return mode_ == Mode::kPolicy && !holding_;
 }
 
+// Rule R6: rate, then torque, then range; each limit narrows the interval left by the ones before it.
 void Supervisor::clamp_targets(const StateView& s, const PolicyArtifact& a, JointArray& target) {
   for (std::size_t i = 0; i < kJoints; ++i) {
     const t1_motor_info_t& m = T1_MOTORS[i];
     const float mid = 0.5f * (m.q_min_rad + m.q_max_rad);
     const float half = 0.5f * (m.q_max_rad - m.q_min_rad) * cfg_.joint_range_fraction;
-    const float lo = mid - half, hi = mid + half;
-    float t = target[i];
-    if (t < lo || t > hi) warning_bits_ |= fault_bit::kTargetClamped;
-    t = std::clamp(t, lo, hi);
+    const float range_lo = mid - half, range_hi = mid + half;
+    const float wanted = target[i];
+    // 1. Rate: the allowed interval around the last target (without one, e.g. PREPARE's first tick
+    //    where last_target_ = q, anything).
+    float lo = -std::numeric_limits<float>::infinity(), hi = std::numeric_limits<float>::infinity();
     if (have_last_target_) {
-      const float step = cfg_.max_target_step_rad;
-      const float limited = std::clamp(t, last_target_[i] - step, last_target_[i] + step);
-      if (limited != t) warning_bits_ |= fault_bit::kRateLimited;
-      t = limited;
+      lo = last_target_[i] - cfg_.max_target_step_rad;
+      hi = last_target_[i] + cfg_.max_target_step_rad;
     }
-    // Expected motor torque kp (t - q) - kd dq must stay within the motor limit: move the target.
+    // 2. Torque: kp (t - q) - kd dq within +-limit  <=>  t in q + (kd dq +- limit) / kp.
     const float kp = a.kp[i], kd = a.kd[i];
-    const float tau = kp * (t - s.q[i]) - kd * s.dq[i];
-    if (kp > 0.0f && std::fabs(tau) > m.torque_limit_nm) {
-      const float tau_c = std::clamp(tau, -m.torque_limit_nm, m.torque_limit_nm);
-      t = s.q[i] + (tau_c + kd * s.dq[i]) / kp;
-      warning_bits_ |= fault_bit::kTorqueClamped;
+    if (kp > 0.0f) {
+      const float t_lo = s.q[i] + (kd * s.dq[i] - m.torque_limit_nm) / kp;
+      const float t_hi = s.q[i] + (kd * s.dq[i] + m.torque_limit_nm) / kp;
+      if (wanted < t_lo || wanted > t_hi || t_hi < lo || t_lo > hi) warning_bits_ |= fault_bit::kTorqueClamped;
+      if (t_hi < lo) hi = lo;             // unreachable within the rate: the nearest rate-allowed point
+      else if (t_lo > hi) lo = hi;
+      else lo = std::max(lo, t_lo), hi = std::min(hi, t_hi);
     }
-    target[i] = std::clamp(t, lo, hi);  // the range is the last word
+    // 3. Range, as far as reachable.
+    if (wanted < range_lo || wanted > range_hi) warning_bits_ |= fault_bit::kTargetClamped;
+    if (range_hi < lo) hi = lo;
+    else if (range_lo > hi) lo = hi;
+    else lo = std::max(lo, range_lo), hi = std::min(hi, range_hi);
+    const float t = nearest_in(wanted, lo, hi);
+    if (have_last_target_ && std::fabs(wanted - last_target_[i]) > cfg_.max_target_step_rad)
+      warning_bits_ |= fault_bit::kRateLimited;
+    target[i] = t;
   }
 }
 

@@ -1,6 +1,7 @@
 #include "t1rt/transport.hpp"
 
 #include <cstdlib>
+#include <utility>
 
 #include "t1_contract.hpp"
 #include "t1rt/composite.hpp"
@@ -43,8 +44,8 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
   lcm_subscribe(lcm_, t1::CH_RUNTIME_CMD, &LcmTransport::on_command, this);
   if (subscribe_sim_status) {
     // Decoding assigns the three strings; with this capacity (>= any accepted datagram) it never allocates.
-    for (std::string* s : {&sim_status.msg.scenario, &sim_status.msg.clock, &sim_status.msg.active_faults})
-      s->reserve(kSimStatusMaxBytes);
+    for (t1::sim_status_t* m : {&sim_status.msg, &sim_status.scratch})
+      for (std::string* s : {&m->scenario, &m->clock, &m->active_faults}) s->reserve(kSimStatusMaxBytes);
     lcm_subscribe(lcm_, t1::CH_SIM_STATUS, &LcmTransport::on_sim_status, this);
   }
   return true;
@@ -62,40 +63,44 @@ double LcmTransport::stamp(int64_t utime) const {
                                         : static_cast<double>(monotonic_ns()) * kNsToS;
 }
 
+// Safety rule R3 (src/safety_supervisor.cpp): decode into scratch; only a datagram that decodes exactly
+// (no error, no trailing bytes) may replace the live message.
+template <class Message>
+bool LcmTransport::decode_scratch(MessageSlot<Message>& slot, const lcm_recv_buf_t* rbuf) {
+  const int used = slot.scratch.decode(rbuf->data, 0, rbuf->data_size);
+  if (used < 0 || static_cast<uint32_t>(used) != rbuf->data_size) {
+    ++decode_errors;
+    return false;
+  }
+  return true;
+}
+
+template <class Message>
+void LcmTransport::commit(MessageSlot<Message>& slot) {
+  std::swap(slot.msg, slot.scratch);  // fixed-size messages copy; sim_status_t strings swap buffers
+  slot.have = true;
+  slot.stamp_s = stamp(slot.msg.utime);
+  ++slot.received;
+}
+
 void LcmTransport::on_imu(const lcm_recv_buf_t* rbuf, const char*, void* p) {
   auto* self = static_cast<LcmTransport*>(p);
-  if (self->imu.msg.decode(rbuf->data, 0, rbuf->data_size) < 0) {
-    ++self->decode_errors;
-    return;
-  }
-  self->imu.have = true;
-  self->imu.stamp_s = self->stamp(self->imu.msg.utime);
-  ++self->imu.received;
-  if (self->supervisor_) self->supervisor_->note_imu_seq(self->imu.msg.seq);
+  if (!self->decode_scratch(self->imu, rbuf)) return;
+  if (self->supervisor_ && !self->supervisor_->accept_imu_seq(self->imu.scratch.seq)) return;
+  self->commit(self->imu);
 }
 
 void LcmTransport::on_joint(const lcm_recv_buf_t* rbuf, const char*, void* p) {
   auto* self = static_cast<LcmTransport*>(p);
-  if (self->joint.msg.decode(rbuf->data, 0, rbuf->data_size) < 0) {
-    ++self->decode_errors;
-    return;
-  }
-  self->joint.have = true;
-  self->joint.stamp_s = self->stamp(self->joint.msg.utime);
-  ++self->joint.received;
+  if (!self->decode_scratch(self->joint, rbuf)) return;
+  if (self->supervisor_ && !self->supervisor_->accept_joint_seq(self->joint.scratch.seq)) return;
+  self->commit(self->joint);
   self->new_joint_state = true;
-  if (self->supervisor_) self->supervisor_->note_joint_seq(self->joint.msg.seq);
 }
 
 void LcmTransport::on_joystick(const lcm_recv_buf_t* rbuf, const char*, void* p) {
   auto* self = static_cast<LcmTransport*>(p);
-  if (self->joystick.msg.decode(rbuf->data, 0, rbuf->data_size) < 0) {
-    ++self->decode_errors;
-    return;
-  }
-  self->joystick.have = true;
-  self->joystick.stamp_s = self->stamp(self->joystick.msg.utime);
-  ++self->joystick.received;
+  if (self->decode_scratch(self->joystick, rbuf)) self->commit(self->joystick);
 }
 
 void LcmTransport::on_sim_status(const lcm_recv_buf_t* rbuf, const char*, void* p) {
@@ -104,26 +109,26 @@ void LcmTransport::on_sim_status(const lcm_recv_buf_t* rbuf, const char*, void* 
     ++self->sim_status_oversized;
     return;
   }
-  if (self->sim_status.msg.decode(rbuf->data, 0, rbuf->data_size) < 0) {
-    ++self->decode_errors;
-    return;
-  }
-  self->sim_status.have = true;
-  self->sim_status.stamp_s = self->stamp(self->sim_status.msg.utime);
-  ++self->sim_status.received;
+  if (self->decode_scratch(self->sim_status, rbuf)) self->commit(self->sim_status);
 }
 
 void LcmTransport::on_command(const lcm_recv_buf_t* rbuf, const char*, void* p) {
   auto* self = static_cast<LcmTransport*>(p);
+  t1::runtime_cmd_t& c = self->command_scratch_;
+  const int used = c.decode(rbuf->data, 0, rbuf->data_size);
+  if (used < 0 || static_cast<uint32_t>(used) != rbuf->data_size) {
+    ++self->decode_errors;
+    return;
+  }
+  if (c.verb == "estop") {  // safety rule R2: outside the bounded queue
+    self->estop_pending = true;
+    return;
+  }
   if (self->command_count >= kCommandQueue) {
     ++self->commands_dropped;
     return;
   }
-  if (self->commands[self->command_count].decode(rbuf->data, 0, rbuf->data_size) < 0) {
-    ++self->decode_errors;
-    return;
-  }
-  ++self->command_count;
+  std::swap(self->commands[self->command_count++], c);
 }
 
 }  // namespace t1rt

@@ -51,6 +51,26 @@ std::vector<Malformed> malformed_cases() {
       {"nan_default_pose", with([](ArtifactSpec& s) { s.meta["default_pose"][2] = "nan"; }), "default_pose[2]"},
       {"bad_command_ranges", with([](ArtifactSpec& s) { s.meta["command_ranges"]["vx"] = {1, -1}; }), "command_ranges.vx"},
       {"trained_not_bool", with([](ArtifactSpec& s) { s.meta["trained"] = "yes"; }), "trained"},
+      // Issue 17: every manifest number is checked for sign and range, and a removed tensor entry whose
+      // bytes stay in the file is named as the missing tensor.
+      {"missing_tensor_bytes_kept", [] {
+         const ArtifactSpec s = make_spec();
+         const std::string full = serialise(s);
+         uint64_t n = 0;
+         for (int i = 0; i < 8; ++i) n |= static_cast<uint64_t>(static_cast<unsigned char>(full[i])) << (8 * i);
+         nlohmann::json header = nlohmann::json::parse(full.substr(8, n));
+         header.erase("obs_std");
+         return serialise(s, header.dump());
+       }, "'obs_std': missing tensor"},
+      {"action_scale_huge", with([](ArtifactSpec& s) { s.meta["action_scale"] = 1e6; }), "action_scale[0]"},
+      {"action_scale_negative", with([](ArtifactSpec& s) { s.meta["action_scale"] = -0.5; }), "action_scale[0]"},
+      {"action_scale_zero_joint", with([](ArtifactSpec& s) {
+         std::vector<float> v(kJoints, 0.5f); v[7] = 0.0f; s.meta["action_scale"] = v; }), "action_scale[7]"},
+      {"default_pose_10_rad", with([](ArtifactSpec& s) { s.meta["default_pose"] = std::vector<float>(kJoints, 10.0f); }),
+       "default_pose[0]"},
+      {"default_pose_one_joint_out", with([](ArtifactSpec& s) { s.meta["default_pose"][14] = -0.5; }), "default_pose[14]"},
+      {"gait_frequency_huge", with([](ArtifactSpec& s) { s.meta["gait_frequency"] = 1e4; }), "gait_frequency"},
+      {"command_range_huge", with([](ArtifactSpec& s) { s.meta["command_ranges"]["vy"] = {-1e9, 1e9}; }), "command_ranges.vy"},
   };
 }
 
@@ -105,4 +125,21 @@ TEST(RuntimeCli, UsageAndHelpExitCodes) {
   EXPECT_EQ(WEXITSTATUS(std::system((bin + " 2> /dev/null").c_str())), 2);              // --policy missing
   EXPECT_EQ(WEXITSTATUS(std::system((bin + " --policy x --clock fast 2> /dev/null").c_str())), 2);
   EXPECT_EQ(WEXITSTATUS(std::system((bin + " --policy x --bogus 2> /dev/null").c_str())), 2);
+}
+
+// Issue 17 item 10: numbers that would run forever, exit at once with 0, or pin to a garbage core.
+// The policy path is bogus on purpose: argument errors must be found first (exit 2, not 3).
+TEST(RuntimeCli, NonsenseNumbersAreUsageErrors) {
+  const std::string bin = T1_RUNTIME_BIN;
+  for (const char* args : {"--duration nan", "--duration inf", "--duration 1e30", "--duration -1", "--duration 0",
+                           "--duration 5s", "--rt-cpu abc", "--rt-cpu 1x", "--rt-cpu -2", "--rt-cpu 99999999999"}) {
+    const std::string err = temp_path("cli_numbers") + ".stderr";
+    const int status = std::system((bin + " --policy x " + args + " 2> " + err).c_str());
+    ASSERT_TRUE(WIFEXITED(status)) << args;
+    EXPECT_EQ(WEXITSTATUS(status), 2) << args;
+    std::ifstream in(err);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string option = std::string(args).substr(0, std::string(args).find(' '));
+    EXPECT_NE(text.find(option), std::string::npos) << args << ": stderr '" << text << "'";
+  }
 }

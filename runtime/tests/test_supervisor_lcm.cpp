@@ -16,16 +16,18 @@ namespace {
 constexpr int kKnee = 14, kHipPitch = 11;
 constexpr int64_t kTickUs = 2000;
 
-// A policy whose action is 0 everywhere but the left knee (tanh(20) = 1, scaled by 3 rad): a constant,
-// far target that exercises the clamps. Knee kp 10 so the torque clamp does not bind before the range.
+// A policy whose action is 0 everywhere but the left knee (tanh(20) = 1, scaled by the largest allowed
+// 1.5 rad from a 1.0 rad default): a constant target beyond the joint range that exercises the clamps.
+// Knee kp 10 so the torque clamp does not bind before the range.
 ArtifactSpec clamp_spec() {
   ArtifactSpec s = make_spec({8});
   for (auto& kv : s.tensors)
     if (kv.first.rfind("layers.", 0) == 0) std::fill(kv.second.data.begin(), kv.second.data.end(), 0.0f);
   s.tensors["layers.1.bias"].data[kKnee] = 20.0f;
   std::vector<float> scale(kJoints, 0.5f);
-  scale[kKnee] = 3.0f;
+  scale[kKnee] = static_cast<float>(kMaxActionScaleRad);
   s.meta["action_scale"] = scale;
+  s.meta["default_pose"][kKnee] = 1.0;
   s.meta["kp"][kKnee] = 10.0;
   return s;
 }
@@ -131,8 +133,8 @@ TEST_F(SupervisorLcm, SequenceGapsCounted) {
   step();
   imu_seq_ += 5;  // 5 IMU samples lost
   step();
-  EXPECT_EQ(ctrl_->supervisor().joint_seq_gaps(), 3);
-  EXPECT_EQ(ctrl_->supervisor().imu_seq_gaps(), 5);
+  EXPECT_EQ(ctrl_->supervisor().joint_seq().gaps(), 3);
+  EXPECT_EQ(ctrl_->supervisor().imu_seq().gaps(), 5);
 }
 
 TEST_F(SupervisorLcm, NanInStateFaults) {
@@ -164,18 +166,31 @@ TEST_F(SupervisorLcm, TargetsRateLimitedAndClampedToRange) {
     EXPECT_LE(now, hi + 1e-6f);
     prev = now;
   }
-  EXPECT_NEAR(prev, hi, 1e-5);  // the raw target (0.4 + 3 rad) is beyond the range: it ends at 95 %
+  EXPECT_NEAR(prev, hi, 1e-5);  // the raw target (1.0 + 1.5 rad) is beyond the range: it ends at 95 %
   EXPECT_TRUE(ctrl_->supervisor().fault_bits() & fault_bit::kTargetClamped);
 }
 
+// Rule R6: the rate limit is never broken; the expected torque comes down to the motor limit as fast as
+// the rate allows and then stays within it.
 TEST_F(SupervisorLcm, ExpectedTorqueClampedByMovingTarget) {
   to_policy();
   pose_[kHipPitch] += 1.5f;  // far from the target: kp 40 * 1.5 rad = 60 N·m > 45 N·m
   dq_[kHipPitch] = 2.0f;
-  const auto& c = step();
-  const float tau = c.kp[kHipPitch] * (c.q_des[kHipPitch] - pose_[kHipPitch]) - c.kd[kHipPitch] * dq_[kHipPitch];
-  EXPECT_LE(std::fabs(tau), T1_MOTORS[kHipPitch].torque_limit_nm + 1e-3f);
-  EXPECT_NEAR(std::fabs(tau), T1_MOTORS[kHipPitch].torque_limit_nm, 1e-3f);
+  const SafetyConfig cfg;
+  const float limit = T1_MOTORS[kHipPitch].torque_limit_nm;
+  float prev = peer_.last_cmd.q_des[kHipPitch], prev_excess = INFINITY;
+  bool within = false;
+  for (int i = 0; i < 40; ++i) {
+    const auto& c = step();
+    const float tau = c.kp[kHipPitch] * (c.q_des[kHipPitch] - pose_[kHipPitch]) - c.kd[kHipPitch] * dq_[kHipPitch];
+    EXPECT_LE(std::fabs(c.q_des[kHipPitch] - prev), cfg.max_target_step_rad + 1e-5f) << "tick " << i;
+    const float excess = std::fabs(tau) - limit;
+    EXPECT_LE(excess, std::max(prev_excess, 1e-3f)) << "tick " << i;  // never moves away from the limit
+    if (within) EXPECT_LE(excess, 1e-3f) << "tick " << i;
+    within = within || excess <= 1e-3f;
+    prev = c.q_des[kHipPitch], prev_excess = excess;
+  }
+  EXPECT_TRUE(within);
   EXPECT_TRUE(ctrl_->supervisor().fault_bits() & fault_bit::kTorqueClamped);
 }
 
@@ -290,4 +305,25 @@ TEST_F(SupervisorLcm, StaleJointsFaultInRealtime) {
   EXPECT_TRUE(ctrl_->supervisor().fault_bits() & fault_bit::kJointStale) << ctrl_->supervisor().last_fault();
   EXPECT_GE(ticks, 20);  // > 50 ms at 2 ms per tick (hold first)
   EXPECT_LE(ticks, 40);
+}
+
+// Rule R3 bookkeeping on its own: late frames take their gap back, duplicates and late frames are
+// counted as reordered and rejected, a frame far behind is a publisher restart.
+TEST(SeqTracker, RejectsOlderFramesAndCountsOnlyRealGaps) {
+  SeqTracker t;
+  EXPECT_TRUE(t.accept(10));
+  EXPECT_TRUE(t.accept(12));   // 11 missing so far
+  EXPECT_FALSE(t.accept(11));  // late: rejected, and not a gap any more
+  EXPECT_FALSE(t.accept(12));  // duplicate
+  EXPECT_TRUE(t.accept(15));   // 13, 14 really lost
+  EXPECT_EQ(t.gaps(), 2);
+  EXPECT_EQ(t.reordered(), 2);
+  EXPECT_TRUE(t.accept(100));  // 16..99 lost
+  EXPECT_EQ(t.gaps(), 86);
+  EXPECT_FALSE(t.accept(100 - SeqTracker::kWindowFrames + 1));  // oldest in the window: late, its gap taken back
+  EXPECT_EQ(t.gaps(), 85);
+  EXPECT_TRUE(t.accept(20));   // further behind: the publisher restarted
+  EXPECT_TRUE(t.accept(21));
+  EXPECT_EQ(t.gaps(), 85);
+  EXPECT_EQ(t.reordered(), 3);
 }

@@ -130,9 +130,12 @@ def _ratio(a: float, b: float) -> str:
 
 
 def _bench_python() -> tuple[Path | None, str]:
-    """The bench venv's python (created on first use by tools/bench_env.sh), or None and why not."""
+    """The bench venv's python, or None and why not. This runs inside the network namespace, where no
+    registry is reachable: it only checks; `make bench-env` (run by `make bench` before it enters the
+    namespace) installs."""
     try:
-        proc = subprocess.run([str(ROOT / "tools" / "bench_env.sh")], capture_output=True, text=True, timeout=900)
+        proc = subprocess.run([str(ROOT / "tools" / "bench_env.sh"), "--check"], capture_output=True, text=True,
+                              timeout=60)
     except (OSError, subprocess.TimeoutExpired) as e:
         return None, str(e)
     if proc.returncode != 0:
@@ -167,7 +170,7 @@ def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
         ours_action = np.array(_run_json(mlp_cmd + ["--iterations", 0], 120)["action"])
         ort = None
         if bench_py is None:
-            print(f"onnxruntime reference unavailable (tools/bench_env.sh failed): {why}")
+            print(f"onnxruntime reference unavailable (.venv-bench not ready): {why}")
         else:
             ort_check = _run_json(ort_cmd + ["--iterations", 0], 300)
             err = float(np.max(np.abs(ours_action - np.array(ort_check["action"]))))

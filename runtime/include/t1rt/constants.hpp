@@ -14,5 +14,10 @@ inline constexpr double kControlDtToleranceS = 1e-9;  // artifact control_dt mus
 inline constexpr int kStatusEveryTicks = 50;         // T1_CONTROLLER_STATUS at 10 Hz
 inline constexpr std::size_t kTimingWindow = 1024;    // samples in the p99 window (about 2 s at 500 Hz)
 inline constexpr int kSchemaVersion = 1;             // policies/ARTIFACT.md schema handled here
+// Documented maxima of artifact manifest numbers (policies/ARTIFACT.md "Limits"); beyond them a value is a
+// unit error or a typo, not a policy. Sign and joint-range rules are in the loader.
+inline constexpr double kMaxActionScaleRad = 1.5;     // target = default + scale * action: 1.5 rad per unit
+inline constexpr double kMaxGaitFrequencyHz = 5.0;    // a walking gait clock; the T1 steps at about 1.5 Hz
+inline constexpr double kMaxCommandMagnitude = 5.0;   // |command_ranges| [m/s or rad/s]: far above the T1's speeds
 
 }  // namespace t1rt

@@ -6,6 +6,8 @@
 //   PREPARE  --(ramp finished) set_mode policy | autostart-->  POLICY
 //   any but FAULT --set_mode passive/damping--> that mode;  estop --> DAMPING (FAULT stays FAULT)
 //   any --fault--> FAULT (latched damping);  FAULT --reset--> DAMPING (only way out)
+// Operator precedence: estop and set_mode passive|damping suspend autostart until the operator's next
+// reset or set_mode prepare|policy (the full rule list is at the top of src/safety_supervisor.cpp).
 #pragma once
 #include <array>
 #include <cstdint>
@@ -34,8 +36,8 @@ inline constexpr int32_t kJointHold = 1 << 17;
 inline constexpr int32_t kJoystickStale = 1 << 18;
 inline constexpr int32_t kTargetClamped = 1 << 19;
 inline constexpr int32_t kRateLimited = 1 << 20;
-inline constexpr int32_t kTorqueClamped = 1 << 21;
-inline constexpr int32_t kMotorWarning = 1 << 22;    // fault bits seen in DAMPING (blocks PREPARE)
+inline constexpr int32_t kTorqueClamped = 1 << 21;   // includes "torque bound not reachable within the rate limit"
+inline constexpr int32_t kMotorWarning = 1 << 22;    // motor fault / not-following bits seen in DAMPING (blocks PREPARE)
 inline constexpr int32_t kMotorOverLimit = 1 << 23;  // OVER_LIMIT: information, never a fault
 inline constexpr int32_t kSimStatusHold = 1 << 24;   // composite mode: T1_SIM_STATUS older than hold age
 }  // namespace fault_bit
@@ -47,6 +49,19 @@ struct SafetyConfig {
   double prepare_duration_s = 2.0;   // PREPARE ramp from the current pose to the default pose
   float max_target_step_rad = 0.05f; // target rate limit per 2 ms tick (25 rad/s, above every motor's speed)
   float joint_range_fraction = 0.95f;  // targets clamped to this centred fraction of the joint range
+};
+
+// Sequence bookkeeping of one state stream (imu_t or joint_state_t); the rules are in accept().
+class SeqTracker {
+ public:
+  static constexpr int64_t kWindowFrames = 64;  // width of the received-frame mask below
+  bool accept(int64_t seq);  // false: not newer than the newest frame (reordered or duplicate): reject
+  int64_t gaps() const { return gaps_; }            // seq numbers never received
+  int64_t reordered() const { return reordered_; }  // frames rejected because a newer one came first
+ private:
+  int64_t newest_ = -1, first_ = -1;  // first_: oldest seq of the current run (no gaps before it)
+  uint64_t seen_ = 0;  // bit i: seq newest_ - i was received (i < 64)
+  int64_t gaps_ = 0, reordered_ = 0;
 };
 
 // The newest robot state as the loop sees it. Times share one clock: CLOCK_MONOTONIC receive time in
@@ -74,19 +89,24 @@ class Supervisor {
  public:
   explicit Supervisor(const SafetyConfig& config = SafetyConfig{});
   Mode mode() const { return mode_; }
+  // --autostart: walk the mode ladder as soon as each step's preconditions hold, unless the operator holds.
+  void set_autostart(bool on) { autostart_ = on; }
+  bool operator_hold() const { return operator_hold_; }
 
   // Operator inputs (runtime_cmd_t), applied before the tick they arrive in.
   void request_mode(Mode target);  // takes effect in the next begin_tick (needs the state); refusals -> last_info()
-  void estop();                    // DAMPING now (FAULT stays latched)
-  void reset();                    // FAULT -> DAMPING; ignored otherwise
+  void estop();                    // DAMPING now (FAULT stays latched); holds autostart off
+  void reset();                    // FAULT -> DAMPING; releases the operator hold
 
-  void note_imu_seq(int64_t seq);
-  void note_joint_seq(int64_t seq);
-  int64_t imu_seq_gaps() const { return imu_gaps_; }
-  int64_t joint_seq_gaps() const { return joint_gaps_; }
+  // Called by the transport for every decoded state frame: false = older than the newest, do not use it.
+  bool accept_imu_seq(int64_t seq) { return imu_seq_.accept(seq); }
+  bool accept_joint_seq(int64_t seq) { return joint_seq_.accept(seq); }
+  const SeqTracker& imu_seq() const { return imu_seq_; }
+  const SeqTracker& joint_seq() const { return joint_seq_; }
 
-  // Joystick staleness: copies the command, or zeros it when older than joystick_stale_s.
-  void gate_joystick(double now_s, bool have, double stamp_s, const float* in3, float* out3);
+  // Joystick: zeros it when stale or non-finite, else clamps each axis to the artifact's command range.
+  void gate_joystick(double now_s, bool have, double stamp_s, const float* in3,
+                     const std::array<std::array<float, 2>, 3>& ranges, float* out3);
 
   // Phase 1 of a tick: transitions and state checks. Returns true when the policy may run on this state
   // (mode POLICY, state fresh and finite). entered_policy() tells whether POLICY began in this tick.
@@ -106,6 +126,7 @@ class Supervisor {
  private:
   void set_info(const char* text);
   void enter(Mode mode, const StateView& state);
+  void autostart_request(const StateView& state);
   void clamp_targets(const StateView& state, const PolicyArtifact& a, JointArray& target);
 
   SafetyConfig cfg_;
@@ -114,8 +135,9 @@ class Supervisor {
   Mode requested_ = Mode::kPassive;
   bool entered_policy_ = false;
   bool holding_ = false;
+  bool autostart_ = false, operator_hold_ = false;
   int32_t latched_bits_ = 0, warning_bits_ = 0;
-  int64_t last_imu_seq_ = -1, last_joint_seq_ = -1, imu_gaps_ = 0, joint_gaps_ = 0;
+  SeqTracker imu_seq_, joint_seq_;
   int64_t prepare_ticks_ = 0, prepare_total_ticks_ = 1;
   JointArray prepare_start_{};
   JointArray last_target_{};  // last commanded q_des [rad]: reference of the rate limit and of "hold"

@@ -25,7 +25,8 @@ const char* clock_name(ClockMode mode);
 
 template <class Message>
 struct MessageSlot {
-  Message msg{};
+  Message msg{};      // the live message: changes only when a whole datagram decoded and was accepted
+  Message scratch{};  // every datagram decodes here first (a truncated one never touches msg)
   bool have = false;
   double stamp_s = 0.0;  // realtime: CLOCK_MONOTONIC receive time; lockstep: msg.utime (sim time) [s]
   int64_t received = 0;
@@ -64,11 +65,12 @@ class LcmTransport {
   MessageSlot<t1::joystick_t> joystick;
   MessageSlot<t1::sim_status_t> sim_status;  // composite mode only; its strings are reserved in open()
   int64_t sim_status_oversized = 0;          // datagrams > kSimStatusMaxBytes, dropped
-  bool new_joint_state = false;  // set by a joint_state_t arrival; the lockstep loop clears it
-  std::array<t1::runtime_cmd_t, kCommandQueue> commands;
+  bool new_joint_state = false;  // set by an accepted joint_state_t; the lockstep loop clears it
+  std::array<t1::runtime_cmd_t, kCommandQueue> commands;  // verbs other than estop, in arrival order
   std::size_t command_count = 0;
-  int64_t commands_dropped = 0;
-  int64_t decode_errors = 0;
+  bool estop_pending = false;    // estop never queues, so a full queue cannot drop it (safety rule R2)
+  int64_t commands_dropped = 0;  // non-estop commands that found the queue full
+  int64_t decode_errors = 0;     // datagrams that failed to decode or had trailing bytes (any channel)
 
  private:
   static void on_imu(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
@@ -77,6 +79,11 @@ class LcmTransport {
   static void on_sim_status(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
   static void on_command(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
   double stamp(int64_t utime) const;
+  template <class Message>
+  bool decode_scratch(MessageSlot<Message>& slot, const lcm_recv_buf_t* rbuf);
+  template <class Message>
+  void commit(MessageSlot<Message>& slot);
+  t1::runtime_cmd_t command_scratch_;
 
   lcm_t* lcm_ = nullptr;
   ClockMode clock_ = ClockMode::kRealtime;
