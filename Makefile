@@ -19,7 +19,7 @@ export PYOPENGL_PLATFORM ?= osmesa
 # Simulator arguments for `make sim`, e.g. make sim SIM_ARGS="--spawn fallen:3 --clock lockstep"
 SIM_ARGS ?= --scenario flat --spawn standing --clock realtime
 
-.PHONY: all setup build test test-fast sim spy demo bench bench-env clean
+.PHONY: all setup build test test-fast sim spy demo bench bench-env bench-train clean
 
 all: build
 
@@ -57,6 +57,11 @@ demo: build
 # machine's own network; the benchmark itself runs in the namespace and only checks it (tools/bench_env.sh).
 bench-env:
 	tools/bench_env.sh >/dev/null || echo "bench-env: .venv-bench not installed: the MLP row will have no onnxruntime reference" >&2
+
+# PPO env-steps/s of the CPU training backend vs MJX on this CPU (no multicast: no namespace needed).
+# make bench-train BENCH_ARGS=--quick : the CPU backend alone (MJX on a CPU compiles for minutes)
+bench-train: build
+	$(PY) -m tests.bench.train_bench $(BENCH_ARGS)
 
 # make bench BENCH_ARGS=--quick : 10 s loop runs instead of 60 s
 bench: build bench-env

@@ -92,12 +92,14 @@ def _cmd_distill(args, command: str) -> int:
     result = distill.distill(
         args.getup, args.joystick, args.out, task=args.task, overrides=args.config,
         preset="toy" if args.toy else "gpu", seed=args.seed, num_envs=args.envs, ship=args.ship,
-        command=command, progress=not args.no_progress, max_minutes=args.max_minutes)
+        command=command, progress=not args.no_progress, max_minutes=args.max_minutes, backend=args.backend)
     print(f"{result.run_dir}: {result.dagger_steps} DAgger phases, artifact {result.artifact} "
           f"(output rule {result.output_rule})")
     return 0
 
 
+BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported: parsing needs no JAX)
+BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
 
 
@@ -109,7 +111,9 @@ def _cmd_evaluate(args, command: str) -> int:
             raise ValueError("--baseline: the joystick evaluation takes one policy")
         from training import evaluate_joystick
         report = evaluate_joystick.evaluate(args.policy, out, episodes=args.seeds, seconds=seconds,
-                                            first_seed=args.first_seed, command=command)
+                                            first_seed=args.first_seed, command=command, backend=args.backend)
+    elif args.backend == "cpu":
+        raise ValueError("--backend cpu: the getup evaluation runs on MJX only (its metrics read MJX internals)")
     else:
         from training import evaluate
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
@@ -143,8 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--toy", action="store_true", help="tiny CPU preset; the artifact is marked untrained")
     p.add_argument("--preset", choices=("gpu", "cpu"), default="gpu",
                    help="PPO sizes: gpu (8192 envs, Playground's recipe) or cpu (256 envs, see train.py)")
-    p.add_argument("--backend", choices=("mjx", "cpu"),
-                   help="physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)")
+    p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     p.add_argument("--name", help="policy name (default: task, or getup_<stage>)")
     p.add_argument("--ship", action="store_true",
                    help="when complete: copy the artifact to policies/ and append to policies/PROVENANCE.md")
@@ -172,6 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a DAgger (bc.*) or env (env.*) config field; repeatable")
     p.add_argument("--toy", action="store_true")
     p.add_argument("--ship", action="store_true")
+    p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     common(p)
     p.set_defaults(func=_cmd_distill)
 
@@ -185,6 +189,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--seconds", type=float, help="episode length [s] (default: getup 10, joystick 20)")
     p.add_argument("--out", help="folder for the report (default: out/eval_<task>)")
+    p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP + " (joystick only)")
     p.set_defaults(func=_cmd_evaluate)
     return ap
 

@@ -112,7 +112,8 @@ def export_student(params, env, path, name: str, tanh_squash: bool, trained: boo
 def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides: Sequence[str] = (),
             preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
             command: str = "", progress: bool = True, max_minutes: float | None = None,
-            name: str = "student", provenance_table=checkpoints.PROVENANCE_TABLE) -> DistillResult:
+            name: str = "student", provenance_table=checkpoints.PROVENANCE_TABLE,
+            backend: str | None = None) -> DistillResult:
     import jax
     import tqdm
     from brax.training.agents.bc import networks as bc_networks
@@ -140,6 +141,8 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     if cfg.dagger_steps % evals_after_init:
         raise ValueError(f"dagger_steps {cfg.dagger_steps} must be a multiple of num_evals − 1 = {evals_after_init}")
 
+    from training.train import default_backend
+    env_cfg.backend = backend or default_backend()
     env = envs.make(task, config=env_cfg)
     student_terms = env.obs_terms
     teacher = make_teacher(load_expert(getup_path, "getup"), load_expert(joystick_path, "joystick"), student_terms)
@@ -191,6 +194,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
                   "date": checkpoints.utc_now(), "command": command or "unknown",
                   "device": checkpoints.device_description(), "minutes": round(minutes, 2),
                   "algorithm": "brax bc (online DAgger)", "dagger_phases": phases, "preset": preset,
+                  "backend": env_cfg.backend,
                   "teacher": {"getup": str(getup_path), "joystick": str(joystick_path)},
                   "stopped_by_max_minutes": stopped}
     artifact = run_dir / f"{name}.safetensors"

@@ -1,12 +1,12 @@
-"""Batched MJX evaluation of a joystick ARTIFACT: fall rate and command tracking (issue 13's targets).
+"""Batched evaluation of a joystick ARTIFACT: fall rate and command tracking (issue 13's targets).
 
-    python -m training evaluate --task joystick --policy policies/joystick.safetensors --episodes 256 \
-        --seconds 20 --out out/eval_joystick
+    python -m training evaluate --task joystick --policy policies/joystick.safetensors --seeds 256 \
+        --seconds 20 --out out/eval_joystick [--backend cpu|mjx]
 
 The episodes are the joystick env's own (training/envs/joystick.py: randomised start pose and heading,
 commands drawn from the training ranges, zero with p 0.1, resampled every command_resample_steps) on flat
 ground, with the nominal model (no domain randomisation), no pushes and no observation noise: the policy
-is judged on tracking, not on robustness. Actions come from the ARTIFACT (training/observation.py's MLP
+is judged on tracking, not on robustness. Either physics backend steps them (default as `train`). Actions come from the ARTIFACT (training/observation.py's MLP
 with xp=jax.numpy on the env's clean actor observation, deterministic tanh(mean)), so this also checks
 the export.
 
@@ -30,12 +30,13 @@ SETTLE_S = 1.0  # [s] after a command change before "settled" tracking is counte
 TARGETS = {"fall_rate": 0.05, "rms_lin_vel_mps": 0.15, "rms_yaw_rate_radps": 0.2}   # issue 13
 
 
-def eval_env():
+def eval_env(backend: str = "mjx"):
     """The joystick env as evaluated: no noise, no pushes, flat ground (its only terrain)."""
     from training import envs
     cfg = envs.default_config("joystick")
     cfg.noise.level = 0.0
     cfg.push.enable = False
+    cfg.backend = backend
     return envs.make("joystick", config=cfg)
 
 
@@ -101,8 +102,8 @@ def summarize(rows: list[dict]) -> dict:
 def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict) -> str:
     m = policy.manifest
     met = {k: summary[k] <= v for k, v in TARGETS.items()}
-    lines = [f"# Joystick evaluation ({summary['episodes']} episodes of {meta['seconds']} s, MJX, flat, "
-             "no pushes, no noise)", "",
+    lines = [f"# Joystick evaluation ({summary['episodes']} episodes of {meta['seconds']} s, "
+             f"{meta['backend']} physics, flat, no pushes, no noise)", "",
              f"- policy `{policy.path}` name `{m['name']}`, trained: **{'yes' if m['trained'] else 'NO'}**, "
              f"env steps {m['provenance']['steps']}, content hash {m['content_hash'][:12]}", "",
              "| metric | value | target | met |", "|---|---|---|---|",
@@ -120,14 +121,15 @@ def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict) -> str:
 
 
 def evaluate(policy_path, out, episodes: int = 256, seconds: float = 20.0, first_seed: int = 0,
-             command: str = "") -> Path:
+             command: str = "", backend: str | None = None) -> Path:
     """Run the evaluation; returns the path of report.md."""
     import jax
     from training import checkpoints
     checkpoints.jax_setup()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    env = eval_env()
+    from training.train import default_backend
+    env = eval_env(backend or default_backend())
     policy = ArtifactPolicy.load(policy_path)
     policy.check_env(env)
     ticks = int(round(seconds / env.dt))
@@ -138,7 +140,8 @@ def evaluate(policy_path, out, episodes: int = 256, seconds: float = 20.0, first
     rows = episode_rows(series, float(env.dt))
     summary = summarize(rows)
     report = out / "report.md"
-    report.write_text(markdown_report(policy, summary, {"seconds": seconds, "command": command or "evaluate()"}))
+    report.write_text(markdown_report(policy, summary, {"seconds": seconds, "command": command or "evaluate()",
+                                                          "backend": env.backend}))
     with (out / "per_episode.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=["episode", *rows[0]])
         writer.writeheader()
