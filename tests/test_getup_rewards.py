@@ -1,5 +1,5 @@
-"""Getup reward terms against hand computations on fixed states (training/envs/getup_rewards.py and the
-getup env's reward_terms / stage switch). No env jit here: fast."""
+"""The seed's getup rewards (thesis §4.7–4.8, training/envs/getup_rewards.py) against hand computations,
+and the getup env's per-stage reward terms on fixed states. No env jit here: fast."""
 from __future__ import annotations
 
 import math
@@ -12,15 +12,33 @@ import pytest
 from training import envs
 from training.envs import getup_rewards as G
 
-HOME_H = 0.66585   # sim_hil/models/t1.xml keyframe home, trunk z [m]
-KNEEL_H = 0.40535  # keyframe kneel, trunk z [m]
+UP = np.array([0.0, 0.0, 1.0])
 
 
-def test_height_and_orientation_formula():
-    for h, target in [(0.1, KNEEL_H), (0.4, KNEEL_H), (0.7, HOME_H), (HOME_H, HOME_H)]:
-        assert float(G.height_reward(h, target)) == pytest.approx(math.exp(-abs(h - target) / 0.1), rel=1e-6)
-    for up_z in (-1.0, 0.0, 0.5, 1.0):
-        assert float(G.orientation_reward(up_z)) == pytest.approx((1 + up_z) / 2, abs=1e-7)
+def _tilted(deg):
+    """Unit up vector tilted by deg about x."""
+    a = math.radians(deg)
+    return np.array([0.0, -math.sin(a), math.cos(a)])
+
+
+@pytest.mark.parametrize("h, h_des, r", [
+    (0.0, 0.4, 0.0), (0.1, 0.4, 0.25), (0.3, 0.4, 0.75), (0.4, 0.4, 1.0), (0.9, 0.4, 1.0), (-0.2, 0.4, 0.0)])
+def test_part_height_reward(h, h_des, r):
+    # r = 1 − clip((h_des − min(h, h_des)) / h_des, 0, 1)
+    assert float(G.part_height_reward(h, h_des)) == pytest.approx(r, abs=1e-7)
+
+
+@pytest.mark.parametrize("up_z, r", [(1.0, 0.5625), (0.0, 0.25), (-1.0, 0.0625), (0.5, 0.390625)])
+def test_orientation_reward(up_z, r):
+    assert float(G.orientation_reward(up_z)) == pytest.approx(r, abs=1e-7)    # (0.25·u_z + 0.5)²
+
+
+def test_height_orientation_reward_by_hand():
+    # torso 0.3 of 0.67, waist at 0.55 of 0.55, upright: 2·0.5625·(0.3/0.67 + 1 + 1)/3
+    expected = 2 * 0.5625 * (0.3 / 0.67 + 1.0 + 1.0) / 3
+    assert float(G.height_orientation_reward(0.3, 0.6, 1.0, 0.67, 0.55)) == pytest.approx(expected, rel=1e-6)
+    # lying upside down on the floor: 2·0.0625·(0 + 0 + 1)/3
+    assert float(G.height_orientation_reward(0.0, 0.0, -1.0, 0.67, 0.55)) == pytest.approx(0.125 / 3, rel=1e-6)
 
 
 def test_pose_reward():
@@ -39,37 +57,24 @@ def test_energy_cost():
     assert float(G.energy_cost(jnp.asarray(dq), jnp.asarray(tau), jnp.asarray(tau_max))) == pytest.approx(expected, rel=1e-6)
 
 
-@pytest.mark.parametrize("h, target, ok", [
-    (0.405, 0.405, True), (0.4099, 0.405, True), (0.4101, 0.405, False),   # within / beyond 5 mm
-    (0.399, 0.398, False),                                                  # below the 0.4 m floor
-    (HOME_H + 0.004, HOME_H, True), (HOME_H - 0.006, HOME_H, False)])
-def test_gate_height(h, target, ok):
-    assert bool(G.gate_height(h, target)) is ok
+@pytest.mark.parametrize("h, up, ok", [
+    (0.405, UP, True), (0.3951, UP, True), (0.3949, UP, False),     # 0.4 − min(h, 0.4) < 0.005
+    (0.67, UP, True), (0.9, UP, True),                              # stays on while rising (min)
+    (0.67, _tilted(0.5), True), (0.67, _tilted(0.6), False),         # ‖u − e_z‖ < 0.01: tilt < 0.573°
+    (0.1, UP, False)])
+def test_gate_exactly_as_written(h, up, ok):
+    assert bool(G.gate(h, jnp.asarray(up))) is ok
 
 
-@pytest.mark.parametrize("up_z, ok", [(1.0, True), (0.9901, True), (0.9899, False), (-1.0, False)])
-def test_gate_upright(up_z, ok):
-    assert bool(G.gate_upright(up_z)) is ok
-    assert bool(G.gate(HOME_H, HOME_H, up_z)) is ok
-    assert not bool(G.gate(0.3, HOME_H, up_z))  # both conditions are needed
+def test_gated_terms_by_hand():
+    on, off = jnp.asarray(True), jnp.asarray(False)
+    assert float(G.gated_height_reward(off, 0.7, 0.9)) == pytest.approx(0.7)
+    assert float(G.gated_height_reward(on, 0.7, 0.9)) == pytest.approx(1.83 + 0.9)
+    assert float(G.gated_pose_reward(off, 0.4, 0.5)) == pytest.approx(0.4)
+    assert float(G.gated_pose_reward(on, 0.4, 0.5)) == pytest.approx(0.6 + 100 * 0.5)
 
 
-def test_bonuses():
-    assert float(G.height_bonus(jnp.asarray(True))) == pytest.approx(1.83)
-    assert float(G.height_bonus(jnp.asarray(False))) == 0.0
-    assert float(G.pose_bonus(jnp.asarray(True), 0.5)) == pytest.approx(0.3)
-    assert float(G.pose_bonus(jnp.asarray(False), 0.5)) == 0.0
-
-
-def test_stage_switch_function():
-    kneel, home = 1.0, 2.0
-    # stage 1: always kneel
-    assert float(G.select_target(jnp.asarray(True), jnp.asarray(True), kneel, home)) == kneel
-    # full task: kneel until the kneel gate has been passed, then home
-    assert float(G.select_target(jnp.asarray(False), jnp.asarray(False), kneel, home)) == kneel
-    assert float(G.select_target(jnp.asarray(True), jnp.asarray(False), kneel, home)) == home
-
-
+# ------------------------------------------------------------------ the env's terms
 @pytest.fixture(scope="module")
 def full_env():
     return envs.make("getup", config_overrides={"fallen_bank_size": 2, "episode_length": 20})
@@ -79,47 +84,78 @@ def _fake_data(qpos, qvel, tau):
     return SimpleNamespace(qpos=jnp.asarray(qpos), qvel=jnp.asarray(qvel), actuator_force=jnp.asarray(tau))
 
 
-def test_env_targets_and_stage_switch(full_env):
-    h, q, home = full_env.targets(jnp.asarray(False))
-    assert float(h) == pytest.approx(KNEEL_H, abs=1e-6) and not bool(home)
-    np.testing.assert_allclose(np.asarray(q), np.asarray(full_env._kneel_qpos[7:]), atol=1e-7)
-    h, q, home = full_env.targets(jnp.asarray(True))
-    assert float(h) == pytest.approx(HOME_H, abs=1e-6) and bool(home)
-    np.testing.assert_allclose(np.asarray(q), np.asarray(full_env._default_pose), atol=1e-7)
-    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
-    assert float(s1.targets(jnp.asarray(True))[0]) == pytest.approx(KNEEL_H, abs=1e-6)
-
-
-def test_env_reward_terms_by_hand(full_env):
-    """A kneeling state at the kneel target: gate on, all terms by hand."""
-    qpos = np.asarray(full_env._kneel_qpos).copy()
+def _state(env, dq_joint=0.3, tau=2.0):
+    qpos = np.asarray(env._kneel_qpos).copy()
     qpos[7:] += 0.05
     qvel = np.zeros(29)
-    qvel[6:] = 0.3
-    tau = np.full(23, 2.0)
-    info = {"reached_kneel": jnp.asarray(False), "trunk_height": jnp.asarray(KNEEL_H + 0.002),
-            "up_z": jnp.asarray(0.995)}
-    terms = full_env.reward_terms(_fake_data(qpos, qvel, tau), info)
-    pose = math.exp(-0.5 * 23 * 0.05 ** 2)
+    qvel[6:] = dq_joint
+    return _fake_data(qpos, qvel, np.full(23, tau))
+
+
+def test_kneel_targets_come_from_the_keyframe(full_env):
+    torso, waist = (float(v) for v in full_env._kneel_targets)
+    assert torso == pytest.approx(float(full_env._kneel_qpos[2]), abs=1e-6)    # the root is the Trunk
+    assert 0.2 < waist < torso
+    np.testing.assert_allclose(np.asarray(full_env._standing_targets), [0.67, 0.55])
+
+
+@pytest.mark.parametrize("gate_on", [False, True])
+def test_full_task_terms_by_hand(full_env, gate_on):
+    torso_k, waist_k = (float(v) for v in full_env._kneel_targets)
+    h_torso, h_waist = 0.41, 0.3
+    up = UP if gate_on else _tilted(5.0)
+    info = {"trunk_height": jnp.asarray(h_torso), "waist_height": jnp.asarray(h_waist),
+            "up_z": jnp.asarray(up[2]), "up": jnp.asarray(up)}
+    terms = full_env.reward_terms(_state(full_env), info)
+    r_ori = (0.25 * up[2] + 0.5) ** 2
+    ho = lambda t, w: 2 * r_ori * (min(h_torso, t) / t + min(h_waist, w) / w + 1) / 3  # noqa: E731
+    q = np.asarray(full_env._kneel_qpos[7:]) + 0.05
+    pose_kneel = math.exp(-0.5 * 23 * 0.05 ** 2)
+    pose_stand = math.exp(-0.5 * float(np.sum((q - np.asarray(full_env._default_pose)) ** 2)))
+    assert bool(terms["gate"]) is gate_on
+    if gate_on:
+        assert float(terms["height"]) == pytest.approx(1.83 + ho(0.67, 0.55), rel=1e-5)
+        assert float(terms["pose"]) == pytest.approx(0.6 + 100 * pose_stand, rel=1e-4)
+    else:
+        assert float(terms["height"]) == pytest.approx(ho(torso_k, waist_k), rel=1e-5)
+        assert float(terms["pose"]) == pytest.approx(pose_kneel, rel=1e-5)
     limits = np.asarray(full_env._tau_limit)
-    assert bool(terms["gate"])
-    assert float(terms["height"]) == pytest.approx(math.exp(-0.002 / 0.1), rel=1e-4)
-    assert float(terms["orientation"]) == pytest.approx(0.9975, rel=1e-6)
-    assert float(terms["pose"]) == pytest.approx(pose, rel=1e-5)
-    assert float(terms["height_bonus"]) == pytest.approx(1.83)
-    assert float(terms["pose_bonus"]) == pytest.approx(0.6 * pose, rel=1e-5)
     assert float(terms["energy"]) == pytest.approx(float(np.sum(0.3 * 2.0 / limits)), rel=1e-5)
-    # same state once the kneel stage is done: the target is home, so the gate is off
-    info["reached_kneel"] = jnp.asarray(True)
-    terms = full_env.reward_terms(_fake_data(qpos, qvel, tau), info)
-    assert not bool(terms["gate"]) and float(terms["height_bonus"]) == 0.0
+
+
+def test_gate_does_not_latch(full_env):
+    """Passing the gate, then tilting: back on the keyframe reward (the module docstring's choice)."""
+    state = _state(full_env)
+    upright = {"trunk_height": jnp.asarray(0.6), "waist_height": jnp.asarray(0.5), "up_z": jnp.asarray(1.0),
+               "up": jnp.asarray(UP)}
+    tilted = dict(upright, up=jnp.asarray(_tilted(3.0)), up_z=jnp.asarray(_tilted(3.0)[2]))
+    assert bool(full_env.reward_terms(state, upright)["gate"])
+    after = full_env.reward_terms(state, tilted)
+    assert not bool(after["gate"]) and float(after["height"]) < 1.83
+
+
+def test_stage_rewards(full_env):
+    info = {"trunk_height": jnp.asarray(0.2), "waist_height": jnp.asarray(0.15), "up_z": jnp.asarray(0.0),
+            "up": jnp.asarray(_tilted(90.0))}
+    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
+    s2 = envs.make("getup", config_overrides={"stage": "stage2"})
+    t1, t2 = s1.reward_terms(_state(s1), info), s2.reward_terms(_state(s2), info)
+    assert float(t1["height"]) < 1.0                     # stage 1: the keyframe reward only
+    assert float(t2["height"]) > 1.83 and float(t2["pose"]) > 0.6   # stage 2: the stand-up reward only
 
 
 def test_start_probabilities_per_stage(full_env):
     assert full_env.start_probabilities() == pytest.approx([0.4, 0.4, 0.2])
     s2 = envs.make("getup", config_overrides={"stage": "stage2"})
     assert s2.start_probabilities() == [0.0, 1.0, 0.0]
+    assert envs.make("getup_baseline", config_overrides={"fallen_bank_size": 2}).start_probabilities() == [1.0, 0, 0]
     with pytest.raises(ValueError, match="stage"):
         envs.make("getup", config_overrides={"stage": "stage3", "fallen_bank_size": 2})
     with pytest.raises(ValueError, match="start_probs"):
         envs.make("getup", config_overrides={"start_probs": [0.5, 0.5, 0.5], "fallen_bank_size": 2})
+
+
+def test_robustness_noise_is_unit_uniform_on_every_entry():
+    env = envs.make("getup", config_overrides={"fallen_bank_size": 2, "obs_noise_scale": 1.0})
+    assert env._noise_level() == 1.0 and np.all(np.asarray(env._noise_scale) == 1.0)
+    assert envs.make("getup", config_overrides={"fallen_bank_size": 2})._noise_level() == 0.0

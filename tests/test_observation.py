@@ -30,12 +30,12 @@ def test_term_layout_sizes():
     assert [n for n, _ in ob.TERMS_UNION] == ["gyro", "gravity", "command", "joint_pos", "joint_vel",
                                               "last_action", "phase"]
     assert ob.observation_size(ob.TERMS_UNION) == 82
-    assert [n for n, _ in ob.TERMS_GETUP] == ["gyro", "gravity", "joint_pos", "joint_vel", "last_action"]
-    assert ob.observation_size(ob.TERMS_GETUP) == 75
+    assert [n for n, _ in ob.TERMS_GETUP] == ["gyro", "gravity", "joint_pos", "joint_vel"]   # thesis Table 4.2
+    assert ob.observation_size(ob.TERMS_GETUP) == 52
     state = _state(np.random.default_rng(0))
     for name, size in ob.TERMS_UNION:
         assert ob.TERM_FUNCTIONS[name](state).shape == (size,), name
-    assert ob.build_observation(ob.TERMS_GETUP, state).shape == (75,)
+    assert ob.build_observation(ob.TERMS_GETUP, state).shape == (52,)
 
 
 def test_term_values():

@@ -17,8 +17,8 @@ from training.envs import collision, motor
 
 OBS_SIZES = {  # actor size from the terms; critic = actor + base extras + task extras
     "joystick": (82, 82 + 37 + 2 + 6),
-    "getup": (75, 75 + 37 + 2),
-    "getup_baseline": (75, 75 + 37 + 2),
+    "getup": (52, 52 + 37 + 2),
+    "getup_baseline": (52, 52 + 37 + 2),
     "unified": (82, 82 + 37 + 6),
 }
 SMALL = {"episode_length": 20}

@@ -34,8 +34,9 @@ TERM_SIZES: dict[str, int] = {
 }
 TERMS_UNION: tuple[tuple[str, int], ...] = tuple(
     (n, TERM_SIZES[n]) for n in ("gyro", "gravity", "command", "joint_pos", "joint_vel", "last_action", "phase"))
+# The seed's getup observation (thesis Table 4.2): 52 entries, no last action.
 TERMS_GETUP: tuple[tuple[str, int], ...] = tuple(
-    (n, TERM_SIZES[n]) for n in ("gyro", "gravity", "joint_pos", "joint_vel", "last_action"))
+    (n, TERM_SIZES[n]) for n in ("gyro", "gravity", "joint_pos", "joint_vel"))
 
 # Gait clock: the two feet start half a cycle apart (left 0, right π) [rad].
 GAIT_PHASE_OFFSETS_RAD: tuple[float, float] = (0.0, math.pi)

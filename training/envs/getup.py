@@ -1,30 +1,38 @@
-"""Getup expert: the seed's keyframe curriculum on the full-body-collision model.
+"""Getup expert: the seed's keyframe curriculum (thesis §4.5–4.8) on the full-body-collision model.
 
-Stages (config.stage): "stage1" fallen → kneel keyframe (starts fallen), "stage2" kneel → stand (home)
-(starts kneeling), "full" (fine-tuned from the stage-2 checkpoint) starts fallen / kneeling / standing with
-config.start_probs = (0.4, 0.4, 0.2) and targets kneel until the kneel gate is passed, then home (see
-getup_rewards.select_target). Fallen starts come from envs.fallen_states(fallen_bank_size,
-fallen_seed), precomputed on the host. The gate, bonuses, pose and energy terms are in
-getup_rewards.py (formulas and the reading of the seed in its docstring). Fine-tunes: energy_weight > 0
-(energy), obs_noise_scale > 0 (observation noise U(−1, 1)·obs_noise_scale·term scale).
-Actor obs = TERMS_GETUP (gyro, gravity, joint_pos, joint_vel, last_action). No termination except
-non-finite physics: a getup episode runs its whole length (10 s by default).
+Stages (config.stage), rewards from getup_rewards.py (formulas there):
+* "stage1" fallen → kneel: starts fallen; Height = HO(kneel targets), Pose = pose(q, q_kneel).
+* "stage2" kneel → stand: starts kneeling; the stand-up reward alone (the gate taken as met):
+  Height = 1.83 + HO(torso 0.67, waist 0.55), Pose = 0.6 + 100·pose(q, q_init).
+* "full" (fine-tuned from the stage-2 checkpoint, §4.5): starts fallen / kneeling / standing with
+  config.start_probs = (0.4, 0.4, 0.2); Height and Pose gated per step (§4.8).
+reward per control step = Height + Pose − energy_weight·energy (then × ctrl_dt, as every task here).
+Fine-tunes: energy_weight > 0 (the energy fine-tune; 0 before it, §4.7), obs_noise_scale > 0 (the
+robustness fine-tune: U(−1, 1)·obs_noise_scale added to EVERY observation entry, §4.6; the seed's is 1).
+Kneel targets: the model's `kneel` keyframe (trunk 0.405 m, waist from its kinematics), q_kneel its joints;
+q_init = the standing default pose. Actor obs = Table 4.2, TERMS_GETUP: gyro, gravity, joint offsets,
+joint velocities (52; no last action: the seed's observation, and nothing here shows it would help).
+"success" = standing by sim_hil/eval/events.py's definition (trunk ≥ 0.6 m, up_z ≥ 0.9), the one the
+evaluations use. No termination except non-finite physics: an episode runs its whole length (10 s).
 """
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import mujoco
+import numpy as np
 from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
 from training import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
+from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import fallen_states
 
 STAGES = ("stage1", "stage2", "full")
 START_KINDS = ("fallen", "kneeling", "standing")
-PRIVILEGED_EXTRA = 2  # target trunk height [m], target-is-home flag
+PRIVILEGED_EXTRA = 2  # gate met, ‖u − e_z‖
 
 
 def getup_common_config() -> config_dict.ConfigDict:
@@ -33,11 +41,11 @@ def getup_common_config() -> config_dict.ConfigDict:
     cfg.collision = "full_body"
     cfg.episode_length = 500
     cfg.obs_terms = [list(t) for t in obsdef.TERMS_GETUP]
-    cfg.noise.level = 1.0
-    cfg.obs_noise_scale = 0.0            # multiplies noise.scales; 0 = off (robustness fine-tune sets it)
+    cfg.obs_noise_scale = 0.0            # U(−1, 1)·this per observation entry; 0 = off (seed's fine-tune: 1)
     cfg.start_probs = [0.4, 0.4, 0.2]    # (fallen, kneeling, standing) for the full task
     cfg.fallen_bank_size = 128           # distinct precomputed fallen starts
     cfg.fallen_seed = 0
+    cfg.standing_targets_m = [G.STANDING_TORSO_M, G.STANDING_WAIST_M]   # (torso, waist) after the gate
     return cfg
 
 
@@ -45,7 +53,6 @@ def default_config() -> config_dict.ConfigDict:
     cfg = getup_common_config()
     cfg.stage = "full"
     cfg.energy_weight = 0.0
-    cfg.reward = config_dict.create(height=1.0, orientation=1.0, pose=1.0)
     return cfg
 
 
@@ -65,8 +72,27 @@ class GetupBase(base.T1Env):
         else:  # no fallen starts: skip the host precomputation
             qpos, qvel = self._home_qpos[None], jnp.zeros((1, self._mj_model.nv))
         self._fallen_qpos, self._fallen_qvel = jnp.asarray(qpos), jnp.asarray(qvel)
-        self._home_trunk_h = self._home_qpos[2]    # jax float32 scalars (strong types: no jit retrace)
-        self._kneel_trunk_h = self._kneel_qpos[2]
+        # jax float32 scalars (strong types: no jit retrace)
+        self._kneel_targets = jnp.asarray(self._keyframe_heights(self._kneel_qpos), jnp.float32)
+        self._standing_targets = jnp.asarray(cfg.standing_targets_m, jnp.float32)
+        if "obs_noise_scale" in cfg:   # the getup tasks (not the unified env, which uses the joystick's noise)
+            # seed §4.6: the same U(−1, 1) range on every entry, whatever its unit (base.py scales per term)
+            self._noise_scale = jnp.ones_like(self._noise_scale)
+
+    def _keyframe_heights(self, qpos) -> tuple[float, float]:
+        """(trunk, waist) origin heights [m] of a keyframe, from the model's kinematics."""
+        data = mujoco.MjData(self._mj_model)
+        data.qpos[:] = np.asarray(qpos)
+        mujoco.mj_kinematics(self._mj_model, data)
+        return float(data.xpos[self._trunk_id, 2]), float(data.xpos[self._waist_id, 2])
+
+    def height_orientation(self, info, targets):
+        return G.height_orientation_reward(info["trunk_height"], info["waist_height"], info["up_z"],
+                                           targets[0], targets[1])
+
+    @staticmethod
+    def standing(info):
+        return (info["trunk_height"] >= STANDING_TRUNK_HEIGHT_M) & (info["up_z"] >= UPRIGHT_UP_Z)
 
     def start_probabilities(self):
         return list(self._config.start_probs)
@@ -82,7 +108,7 @@ class GetupBase(base.T1Env):
         return qpos, qvel, kind
 
     def _noise_level(self):
-        return self._config.noise.level * self._config.obs_noise_scale
+        return self._config.obs_noise_scale
 
     def _observe(self, data, info, rng, extra) -> dict[str, jax.Array]:
         s = self.observation_state(data, jnp.zeros(3), info["last_act"], obsdef.initial_gait_phase(jnp))
@@ -94,7 +120,12 @@ class GetupBase(base.T1Env):
         info["rng"], k_obs = jax.random.split(info["rng"])
         data = self.physics_step(state.data, self.motor_targets(action))
         info.update(self.body_readings(data))
+        info["up"] = self.up_vector(data)
         return data, info, k_obs
+
+    def _start_info(self, rng, data, kind) -> dict:
+        return {"rng": rng, "last_act": jnp.zeros(base.NUM_JOINTS), "start_kind": kind.astype(jnp.int32),
+                "up": self.up_vector(data), **self.body_readings(data)}
 
 
 class Getup(GetupBase):
@@ -110,60 +141,52 @@ class Getup(GetupBase):
         stage = self._config.stage
         return {"stage1": [1.0, 0.0, 0.0], "stage2": [0.0, 1.0, 0.0]}.get(stage, list(self._config.start_probs))
 
-    def targets(self, reached_kneel):
-        """(target trunk height [m], target joint angles [rad], target is home) for the current stage."""
-        kneel_stage = jnp.asarray(self._config.stage == "stage1")
-        h = G.select_target(reached_kneel, kneel_stage, self._kneel_trunk_h, self._home_trunk_h)
-        q = G.select_target(reached_kneel, kneel_stage, self._kneel_pose, self._default_pose)
-        return h, q, ~(kneel_stage | ~reached_kneel)
-
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_obs = jax.random.split(rng, 3)
         qpos, qvel, kind = self._start_state(k_start)
         data = self.make_data(qpos, qvel)
-        # Stage 2 starts past the kneel stage; in the full task a kneeling / standing start is too.
-        reached = (kind > 0) | jnp.asarray(self._config.stage == "stage2")
-        info = {"rng": rng, "last_act": jnp.zeros(base.NUM_JOINTS), "reached_kneel": reached,
-                "start_kind": kind.astype(jnp.int32), **self.body_readings(data)}
-        obs = self._observe(data, info, k_obs, self._privileged_extra(reached))
+        info = self._start_info(rng, data, kind)
+        obs = self._observe(data, info, k_obs, self._privileged_extra(info))
         metrics = {k: jnp.zeros(()) for k in self.metric_names()}
         return mjx_env.State(data, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
 
     @staticmethod
     def metric_names():
-        return ("reward/height", "reward/orientation", "reward/pose", "reward/height_bonus",
-                "reward/pose_bonus", "reward/energy", "success", "reached_kneel")
+        return ("reward/height", "reward/pose", "reward/energy", "gate", "success")
 
-    def _privileged_extra(self, reached_kneel):
-        h, _, home = self.targets(reached_kneel)
-        return jnp.stack([h, home.astype(jnp.float32)])
+    def _privileged_extra(self, info):
+        return jnp.stack([G.gate(info["trunk_height"], info["up"]).astype(jnp.float32), G.up_error(info["up"])])
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
-        """Unweighted terms for the state after the step (gate uses the target in force)."""
-        h_t, q_t, _ = self.targets(info["reached_kneel"])
-        h, up_z, q = info["trunk_height"], info["up_z"], data.qpos[7:]
-        pose_r = G.pose_reward(q, q_t)
-        ok = G.gate(h, h_t, up_z)
-        return {"height": G.height_reward(h, h_t), "orientation": G.orientation_reward(up_z), "pose": pose_r,
-                "height_bonus": G.height_bonus(ok), "pose_bonus": G.pose_bonus(ok, pose_r),
-                "energy": G.energy_cost(data.qvel[6:], data.actuator_force, self._tau_limit), "gate": ok}
+        """Height Reward, Pose Reward (the stage's form) and the energy cost of the state after the step."""
+        q = data.qpos[7:]
+        stage = self._config.stage
+        kneel_h = self.height_orientation(info, self._kneel_targets)
+        kneel_p = G.pose_reward(q, self._kneel_pose)
+        stand_h = self.height_orientation(info, self._standing_targets)
+        stand_p = G.pose_reward(q, self._default_pose)
+        ok = G.gate(info["trunk_height"], info["up"])
+        if stage == "stage1":
+            height, pose = kneel_h, kneel_p
+        elif stage == "stage2":
+            height, pose = G.gated_height_reward(jnp.bool_(True), kneel_h, stand_h), \
+                G.gated_pose_reward(jnp.bool_(True), kneel_p, stand_p)
+        else:
+            height, pose = G.gated_height_reward(ok, kneel_h, stand_h), G.gated_pose_reward(ok, kneel_p, stand_p)
+        return {"height": height, "pose": pose, "gate": ok,
+                "energy": G.energy_cost(data.qvel[6:], data.actuator_force, self._tau_limit)}
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         data, info, k_obs = self._physics(state, action)
         terms = self.reward_terms(data, info)
-        w = self._config.reward
-        scaled = {"height": w.height * terms["height"], "orientation": w.orientation * terms["orientation"],
-                  "pose": w.pose * terms["pose"], "height_bonus": terms["height_bonus"],
-                  "pose_bonus": terms["pose_bonus"], "energy": -self._config.energy_weight * terms["energy"]}
+        scaled = {"height": terms["height"], "pose": terms["pose"],
+                  "energy": -self._config.energy_weight * terms["energy"]}
         reward = sum(scaled.values()) * self.dt
-        _, _, target_home = self.targets(info["reached_kneel"])
-        success = terms["gate"] & target_home
-        # Latch the stage switch AFTER rewarding this step against the kneel target.
-        info["reached_kneel"] = info["reached_kneel"] | terms["gate"]
         info["last_act"] = action
-        obs = self._observe(data, info, k_obs, self._privileged_extra(info["reached_kneel"]))
+        obs = self._observe(data, info, k_obs, self._privileged_extra(info))
         metrics = {f"reward/{k}": v.astype(jnp.float32) for k, v in scaled.items()}
-        metrics["success"] = (terms["gate"] if self._config.stage == "stage1" else success).astype(jnp.float32)
-        metrics["reached_kneel"] = info["reached_kneel"].astype(jnp.float32)
+        metrics["gate"] = terms["gate"].astype(jnp.float32)
+        metrics["success"] = (terms["gate"] if self._config.stage == "stage1"
+                              else self.standing(info)).astype(jnp.float32)
         done = self.invalid(data).astype(jnp.float32)
         return state.replace(data=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)

@@ -1,85 +1,79 @@
-"""Getup reward terms, each a small pure function (tests compute them by hand on fixed states).
+"""The seed's getup rewards (thesis §4.7–4.8), each a small pure function (tests compute them by hand).
 
-Reading of the seed's keyframe-curriculum reward (ARCHITECTURE.md gives the gate numbers, the bonuses,
-the pose and energy formulas; the shapes of the height and orientation terms are this project's):
-* height     r_h = exp(−|h − h*| / HEIGHT_SCALE_M): h = Trunk origin height [m], h* = the stage target's
-             trunk height (kneel keyframe 0.405 m, home 0.666 m). Exponential of the absolute error, so a
-             lying robot (h ≈ 0.1 m) still sees a gradient.
-* orientation r_o = (1 + up_z) / 2 ∈ [0, 1]: up_z = z of the Trunk's up vector (1 upright, −1 inverted).
-* pose       r_p = exp(−0.5·‖q − q_ref‖²), q_ref = the stage target's 23 joint angles [rad].
-* gate       g = (h ≥ 0.4 m) ∧ (|h − h*| ≤ 5 mm) ∧ (up-vector error 1 − up_z < 0.01). 1 − up_z equals
-             ½‖u − e_z‖² for a unit up vector u. The kneel keyframe's trunk is at 0.405 m, so the same
-             0.4 m floor works for both targets.
-* bonuses    g·1.83 (height bonus) + g·0.6·r_p (pose bonus: the pose counts extra once the torso is there).
-* energy     e = Σ_i |dq_i · τ_i / τmax_i| [rad/s], weighted by −energy_weight (0 until the energy
-             fine-tune).
-reward per control step = w_h·r_h + w_o·r_o + w_p·r_p + bonuses − energy_weight·e  (then × ctrl_dt).
+Height & orientation (§4.7), per body part p ∈ {torso, waist} with desired height h_p^des [m]:
+    r_p      = 1 − clip((h_p^des − min(h_p, h_p^des)) / h_p^des, 0, 1)
+    r_height = r_torso + r_waist ∈ [0, 2]
+    r_ori    = (0.25·u_z + 0.5)²                (u_z: z of the torso's up vector, 1 upright, −1 inverted)
+    reward   = 2·r_ori·(r_height + 1) / 3
+Pose (§4.7): exp(−0.5·‖q − q_ref‖²) over the 23 joint angles [rad].
+Energy cost (§4.7): Σ_i |v_i · τ_i / τmax_i| [rad/s], used only in the energy fine-tune.
+Gate (§4.8), exactly as written: height  0.4 − min(h_torso, 0.4) < 0.005 m   (i.e. h_torso > 0.395 m)
+                                   upright ‖u − e_z‖ < 0.01              (a tilt below 0.573°)
+Gated terms (§4.8):
+    Height Reward = (1 − gate)·HO(kneel targets) + gate·(1.83 + HO(standing targets: torso 0.67, waist 0.55))
+    Pose Reward   = (1 − gate)·pose(q, q_kneel)  + gate·(0.6 + 100·pose(q, q_init))   (q_init: standing pose)
+
+Choice where the seed is silent — the gate does NOT latch: it is evaluated on every step's state, as the
+seed's formulas are written (a per-step function of h_torso and u), and §4.8 takes min(h_torso, 0.4) "to
+ensure the gate condition remains stable as the robot continues to rise", which is only needed if the
+gate is re-evaluated while rising. A robot that tilts or drops below 0.395 m after passing the gate is
+back on the keyframe reward, which is exactly the incentive to stay upright through the stand-up.
 """
 from __future__ import annotations
 
 import jax.numpy as jnp
 
-HEIGHT_SCALE_M = 0.1          # e-folding height error of r_h [m]
-GATE_MIN_HEIGHT_M = 0.4       # torso must be at least this high [m]
-GATE_HEIGHT_TOL_M = 0.005     # ... and within this of the target [m]
-GATE_UP_ERROR = 0.01          # 1 − up_z below this
-HEIGHT_BONUS = 1.83
-POSE_BONUS = 0.6
+GATE_HEIGHT_M = 0.4            # torso height the gate checks [m]
+GATE_HEIGHT_TOL_M = 0.005      # 0.4 − min(h, 0.4) below this [m]
+GATE_UP_ERROR = 0.01           # ‖u − e_z‖ below this
+STANDUP_HEIGHT_BONUS = 1.83    # gate·(1.83 + …) in the Height Reward
+STANDUP_POSE_BONUS = 0.6       # gate·(0.6 + …) in the Pose Reward
+STANDUP_POSE_WEIGHT = 100.0    # gate·(… + 100·pose(q, q_init))
+STANDING_TORSO_M = 0.67        # standing targets after the gate [m]
+STANDING_WAIST_M = 0.55
 
 
-def height_reward(trunk_height, target_height, scale=HEIGHT_SCALE_M):
-    return jnp.exp(-jnp.abs(trunk_height - target_height) / scale)
+def part_height_reward(h, h_des):
+    """1 − clip((h_des − min(h, h_des)) / h_des, 0, 1): 1 at or above the target, 0 on the floor."""
+    return 1.0 - jnp.clip((h_des - jnp.minimum(h, h_des)) / h_des, 0.0, 1.0)
 
 
 def orientation_reward(up_z):
-    return 0.5 * (1.0 + up_z)
+    """(0.25·u_z + 0.5)²: 0.5625 upright, 0.25 on its side, 0.0625 upside down."""
+    return jnp.square(0.25 * up_z + 0.5)
 
 
-def up_error(up_z):
-    """1 − up_z: 0 upright, 2 upside down (= ½‖u − e_z‖² for a unit up vector)."""
-    return 1.0 - up_z
+def height_orientation_reward(h_torso, h_waist, up_z, torso_des, waist_des):
+    """2·r_ori·(r_torso + r_waist + 1) / 3 ∈ [0.0417, 1.125]."""
+    r_height = part_height_reward(h_torso, torso_des) + part_height_reward(h_waist, waist_des)
+    return 2.0 * orientation_reward(up_z) * (r_height + 1.0) / 3.0
 
 
 def pose_reward(q, q_ref):
     return jnp.exp(-0.5 * jnp.sum(jnp.square(q - q_ref), axis=-1))
 
 
-def gate_height(trunk_height, target_height):
-    return (trunk_height >= GATE_MIN_HEIGHT_M) & (jnp.abs(trunk_height - target_height) <= GATE_HEIGHT_TOL_M)
+def up_error(up):
+    """‖u − e_z‖ of the torso's up vector u (world frame, 3-vector)."""
+    return jnp.linalg.norm(up - jnp.array([0.0, 0.0, 1.0]), axis=-1)
 
 
-def gate_upright(up_z):
-    return up_error(up_z) < GATE_UP_ERROR
+def gate(h_torso, up):
+    """(0.4 − min(h_torso, 0.4) < 0.005) ∧ (‖u − e_z‖ < 0.01), per step (see the module docstring)."""
+    high = GATE_HEIGHT_M - jnp.minimum(h_torso, GATE_HEIGHT_M) < GATE_HEIGHT_TOL_M
+    return high & (up_error(up) < GATE_UP_ERROR)
 
 
-def gate(trunk_height, target_height, up_z):
-    return gate_height(trunk_height, target_height) & gate_upright(up_z)
+def gated_height_reward(gate_ok, ho_kneel, ho_standing):
+    g = gate_ok.astype(jnp.float32)
+    return (1.0 - g) * ho_kneel + g * (STANDUP_HEIGHT_BONUS + ho_standing)
 
 
-def height_bonus(gate_ok):
-    return HEIGHT_BONUS * gate_ok.astype(jnp.float32)
-
-
-def pose_bonus(gate_ok, pose_r):
-    return POSE_BONUS * gate_ok.astype(jnp.float32) * pose_r
+def gated_pose_reward(gate_ok, pose_kneel, pose_standing):
+    g = gate_ok.astype(jnp.float32)
+    return (1.0 - g) * pose_kneel + g * (STANDUP_POSE_BONUS + STANDUP_POSE_WEIGHT * pose_standing)
 
 
 def energy_cost(dq, tau, tau_limit):
     """Σ |dq·τ/τmax| [rad/s]: mechanical power normalised per motor by its torque limit."""
     return jnp.sum(jnp.abs(dq * tau / tau_limit), axis=-1)
-
-
-def select_target(reached_kneel, stage_is_kneel, kneel_value, home_value):
-    """Stage switch: stage 1 always targets kneel, stage 2 always home; the full task targets kneel until
-    the kneel gate has been passed once in the episode (latched), then home. `stage_is_kneel` is
-    True for stage 1; for stage 2 the env sets reached_kneel True at reset."""
-    use_kneel = stage_is_kneel | ~reached_kneel
-    return jnp.where(use_kneel, kneel_value, home_value)
-
-
-def action_rate_cost(action, last_action):
-    return jnp.sum(jnp.square(action - last_action), axis=-1)
-
-
-def joint_velocity_cost(dq):
-    return jnp.sum(jnp.square(dq), axis=-1)

@@ -16,7 +16,7 @@ The seed's student is distilled on the whole task, so one episode mixes everythi
 Reward: brax bc ignores it (the student is trained on teacher actions only), but DAgger's evaluation
 curves (eval/episode_reward) should still mean something, so it is a small named sum per control step
 (× ctrl_dt):
-    alive + w_height·exp(−|h − h_home| / 0.1 m) + w_upright·(1 + up_z)/2
+    alive + w_height·HO(standing targets)   (the seed's height & orientation reward, getup_rewards.py)
     + standing·(w_lin·tracking_lin_vel + w_ang·tracking_ang_vel)
 with standing = waist height ≥ the teacher's switch height (0.5 m): tracking only counts while the
 joystick expert would be in charge, so a fallen robot is scored on getting up, a standing one on walking.
@@ -30,15 +30,14 @@ from mujoco_playground._src import mjx_env
 
 from training import observation as obsdef
 from training.envs import base
-from training.envs import getup_rewards as G
 from training.envs import joystick_rewards as R
 from training.envs.getup import GetupBase, getup_common_config
 from training.envs.joystick import Joystick
 from training.envs.joystick import default_config as joystick_config
 from training.teacher import WAIST_SWITCH_HEIGHT_M
 
-METRIC_NAMES = ("reward/alive", "reward/height", "reward/upright", "reward/tracking_lin_vel",
-                "reward/tracking_ang_vel", "standing")
+METRIC_NAMES = ("reward/alive", "reward/height", "reward/tracking_lin_vel", "reward/tracking_ang_vel",
+                "standing")
 
 
 def default_config() -> config_dict.ConfigDict:
@@ -52,11 +51,12 @@ def default_config() -> config_dict.ConfigDict:
     cfg.start_probs = list(getup.start_probs)
     cfg.fallen_bank_size = getup.fallen_bank_size
     cfg.fallen_seed = getup.fallen_seed
+    cfg.standing_targets_m = list(getup.standing_targets_m)
     cfg.command_resample_steps = joy.command_resample_steps
     cfg.zero_command_prob = joy.zero_command_prob
     cfg.push = config_dict.create(**joy.push.to_dict())
     cfg.reward = config_dict.create(
-        scales=config_dict.create(alive=0.25, height=1.0, upright=1.0, tracking_lin_vel=1.0, tracking_ang_vel=0.5),
+        scales=config_dict.create(alive=0.25, height=1.0, tracking_lin_vel=1.0, tracking_ang_vel=0.5),
         tracking_sigma=joy.reward.tracking_sigma,
         standing_waist_height_m=WAIST_SWITCH_HEIGHT_M)
     return cfg
@@ -122,8 +122,7 @@ class Unified(GetupBase):
         lin = R.tracking_lin_vel(cmd, self.sensor(data, "local_linvel"), cfg.tracking_sigma)
         ang = R.tracking_ang_vel(cmd, self.sensor(data, "gyro"), cfg.tracking_sigma)
         scaled = {"alive": w.alive * R.alive(),
-                  "height": w.height * G.height_reward(info["trunk_height"], self._home_trunk_h),
-                  "upright": w.upright * G.orientation_reward(info["up_z"]),
+                  "height": w.height * self.height_orientation(info, self._standing_targets),
                   "tracking_lin_vel": w.tracking_lin_vel * lin * standing,
                   "tracking_ang_vel": w.tracking_ang_vel * ang * standing}
         return scaled, standing
