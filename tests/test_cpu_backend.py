@@ -107,3 +107,17 @@ def test_one_control_step_matches_the_mjx_backend(cpu_env):
                                    atol=REWARD_ABS_TOL, err_msg=key)
     np.testing.assert_allclose(float(c.reward), float(m.reward), rtol=REWARD_REL_TOL, atol=REWARD_ABS_TOL)
     assert float(c.done) == float(m.done) == 0.0
+
+
+@pytest.mark.parametrize("task", envs.TASKS)
+def test_every_task_step_keeps_the_metrics_wrappers_add(task):
+    """brax's EvalWrapper puts "reward" into state.metrics and scans over step: a step that returns a
+    fresh metrics dict breaks every PPO run with evaluations (the CPU backend makes this check cheap)."""
+    over = {"backend": "cpu", "episode_length": 20}
+    if "fallen_bank_size" in envs.default_config(task):
+        over["fallen_bank_size"] = 2
+    env = envs.make(task, config_overrides=over)
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    state.metrics["reward"] = jnp.zeros(())
+    after = jax.jit(env.step)(state, jnp.zeros(23))
+    assert set(after.metrics) == set(state.metrics)

@@ -184,7 +184,8 @@ class Getup(GetupBase):
         reward = sum(scaled.values()) * self.dt
         info["last_act"] = action
         obs = self._observe(data, info, k_obs, self._privileged_extra(info))
-        metrics = {f"reward/{k}": v.astype(jnp.float32) for k, v in scaled.items()}
+        metrics = dict(state.metrics)   # keep what wrappers added (brax's EvalWrapper adds "reward")
+        metrics.update({f"reward/{k}": v.astype(jnp.float32) for k, v in scaled.items()})
         metrics["gate"] = terms["gate"].astype(jnp.float32)
         metrics["success"] = (terms["gate"] if self._config.stage == "stage1"
                               else self.standing(info)).astype(jnp.float32)

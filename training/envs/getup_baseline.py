@@ -49,7 +49,8 @@ class GetupBaseline(GetupBase):
         reward = height * self.dt
         info["last_act"] = action
         obs = self._observe(data, info, k_obs, self._extra(info))
-        metrics = {"reward/height": height.astype(jnp.float32),
-                   "success": self.standing(info).astype(jnp.float32)}
+        metrics = dict(state.metrics)   # keep what wrappers added (brax's EvalWrapper adds "reward")
+        metrics.update({"reward/height": height.astype(jnp.float32),
+                        "success": self.standing(info).astype(jnp.float32)})
         done = self.invalid(data).astype(jnp.float32)
         return state.replace(data=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)

@@ -108,7 +108,8 @@ class Unified(GetupBase):
         self._advance_clock_and_command(info, action, k_cmd)     # same tick bookkeeping as the joystick env
 
         obs = self._observe(data, info, k_obs)
-        metrics = {f"reward/{k}": v.astype(jnp.float32) for k, v in scaled.items()}
+        metrics = dict(state.metrics)   # keep what wrappers added (brax's EvalWrapper adds "reward")
+        metrics.update({f"reward/{k}": v.astype(jnp.float32) for k, v in scaled.items()})
         metrics["standing"] = standing.astype(jnp.float32)
         done = self.invalid(data).astype(jnp.float32)  # falls do not end the episode
         return state.replace(data=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
