@@ -32,7 +32,6 @@ from training.envs.fallen import fallen_states
 
 STAGES = ("stage1", "stage2", "full")
 START_KINDS = ("fallen", "kneeling", "standing")
-PRIVILEGED_EXTRA = 2  # gate met, ‖u − e_z‖
 
 
 def getup_common_config() -> config_dict.ConfigDict:
@@ -123,6 +122,10 @@ class GetupBase(base.T1Env):
         info["up"] = self.up_vector(data)
         return data, info, k_obs
 
+    def _privileged_extra(self, info):
+        """Critic extras of the getup tasks: gate met, ‖u − e_z‖."""
+        return jnp.stack([G.gate(info["trunk_height"], info["up"]).astype(jnp.float32), G.up_error(info["up"])])
+
     def _start_info(self, rng, data, kind) -> dict:
         return {"rng": rng, "last_act": jnp.zeros(base.NUM_JOINTS), "start_kind": kind.astype(jnp.int32),
                 "up": self.up_vector(data), **self.body_readings(data)}
@@ -153,9 +156,6 @@ class Getup(GetupBase):
     @staticmethod
     def metric_names():
         return ("reward/height", "reward/pose", "reward/energy", "gate", "success")
-
-    def _privileged_extra(self, info):
-        return jnp.stack([G.gate(info["trunk_height"], info["up"]).astype(jnp.float32), G.up_error(info["up"])])
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
         """Height Reward, Pose Reward (the stage's form) and the energy cost of the state after the step."""

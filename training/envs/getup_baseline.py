@@ -31,15 +31,12 @@ class GetupBaseline(GetupBase):
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
         super().__init__(config if config is not None else default_config(), config_overrides)
 
-    def _extra(self, info):
-        return jnp.stack([G.gate(info["trunk_height"], info["up"]).astype(jnp.float32), G.up_error(info["up"])])
-
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_obs = jax.random.split(rng, 3)
         qpos, qvel, kind = self._start_state(k_start)
         data = self.make_data(qpos, qvel)
         info = self._start_info(rng, data, kind)
-        obs = self._observe(data, info, k_obs, self._extra(info))
+        obs = self._observe(data, info, k_obs, self._privileged_extra(info))
         metrics = {k: jnp.zeros(()) for k in METRIC_NAMES}
         return mjx_env.State(data, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
 
@@ -48,7 +45,7 @@ class GetupBaseline(GetupBase):
         height = self.height_orientation(info, self._standing_targets)
         reward = height * self.dt
         info["last_act"] = action
-        obs = self._observe(data, info, k_obs, self._extra(info))
+        obs = self._observe(data, info, k_obs, self._privileged_extra(info))
         metrics = dict(state.metrics)   # keep what wrappers added (brax's EvalWrapper adds "reward")
         metrics.update({"reward/height": height.astype(jnp.float32),
                         "success": self.standing(info).astype(jnp.float32)})
