@@ -11,6 +11,7 @@ APT_PACKAGES=(
   iproute2 util-linux             # ip, unshare: the project network namespace (tools/netns)
   libosmesa6 libgl1 xvfb ffmpeg   # offscreen MuJoCo rendering for videos; headless lcm-spy check
   rt-tests                        # cyclictest, the loop-lateness reference in make bench
+  cyclonedds-dev cyclonedds-tools # Cyclone DDS 0.10 C API + idlc (t1-runtime --transport dds), ddsperf
   python3-venv
 )
 

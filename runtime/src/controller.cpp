@@ -50,7 +50,30 @@ Controller::~Controller() {
 }
 
 bool Controller::open(std::string* error) {
-  return transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, error, composite());
+  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, error, composite())) return false;
+  if (opt_.robot_link != RobotLink::kDds) return true;
+  dds_ = std::make_unique<DdsTransport>();
+  return dds_->open(opt_.dds_domain_id, opt_.clock, &supervisor_, &transport_.imu, &transport_.joint,
+                    &transport_.new_joint_state, error);
+}
+
+void Controller::publish_command() {
+  if (dds_) dds_->publish(command_);
+  else transport_.publish(t1::CH_JOINT_CMD, command_);
+}
+
+void Controller::send_exit_damping() {
+  if (!transport_.joint.have) return;  // never commanded anything: nothing to release
+  supervisor_.estop();                 // DAMPING (a latched FAULT is damping already)
+  const double now_s = opt_.clock == ClockMode::kLockstep ? transport_.joint.stamp_s
+                                                          : static_cast<double>(monotonic_ns()) * 1e-9;
+  const StateView s = state_view(now_s);
+  supervisor_.begin_tick(s, active_->artifact());
+  supervisor_.finish_tick(s, active_->artifact(), active_->q_target(), command_);
+  command_.utime = static_cast<int64_t>(now_s * kSToUs);
+  command_.seq = cmd_seq_++;
+  command_.state_seq = transport_.joint.msg.seq;
+  publish_command();
 }
 
 void Controller::notify_sighup() { g_sighup.store(true); }
@@ -192,7 +215,7 @@ void Controller::tick(double now_s) {
   command_.utime = static_cast<int64_t>(now_s * kSToUs);
   command_.seq = cmd_seq_++;
   command_.state_seq = transport_.joint.have ? transport_.joint.msg.seq : -1;
-  transport_.publish(t1::CH_JOINT_CMD, command_);
+  publish_command();
   ++ticks_;
   if (ticks_ % kStatusEveryTicks == 0) publish_status(now_s);
 }
@@ -233,7 +256,7 @@ void Controller::publish_status(double now_s) {
   status_.seq_gaps_joint = supervisor_.joint_seq().gaps();
   status_.seq_reordered_imu = supervisor_.imu_seq().reordered();
   status_.seq_reordered_joint = supervisor_.joint_seq().reordered();
-  status_.decode_errors = transport_.decode_errors;
+  status_.decode_errors = transport_.decode_errors + (dds_ ? dds_->rejected : 0);  // DDS: samples refused whole
   status_.commands_dropped = transport_.commands_dropped;
   TimingStats& late = task_.lateness();
   TimingStats& comp = task_.compute();
@@ -264,8 +287,9 @@ void Controller::publish_status(double now_s) {
                   "signal), getup below %.2f m, active %s, switches %lld | ", transport_.sim_status.msg.waist_height,
                   kGetupSwitchWaistHeightM, member_name(member_), static_cast<long long>(member_switches_));
   char info[kStringReserve + 400];  // composite (160) + supervisor info (160) + reload message
-  std::snprintf(info, sizeof(info), "%s%s%s%s", composite_info, supervisor_.last_info(), reload_info_[0] ? " | " : "",
-                reload_info_);
+  const char* dds_info = dds_ && dds_->rejected ? dds_->last_reject.data() : "";
+  std::snprintf(info, sizeof(info), "%s%s%s%s%s%s", composite_info, supervisor_.last_info(), reload_info_[0] ? " | " : "",
+                reload_info_, dds_info[0] ? " | " : "", dds_info);
   assign_bounded(status_.info, info);
   transport_.publish(t1::CH_CONTROLLER_STATUS, status_);
   if (!opt_.quiet) print_live_line(now_s);
@@ -288,7 +312,9 @@ bool Controller::step_lockstep(int timeout_ms) {
   const int64_t start = monotonic_ns();
   while (!transport_.new_joint_state) {
     const int64_t left_ms = timeout_ms - (monotonic_ns() - start) / 1'000'000;
-    if (left_ms <= 0 || transport_.handle(static_cast<int>(left_ms)) < 0) return false;
+    if (left_ms <= 0) return false;
+    const int got = dds_ ? dds_->wait(static_cast<int>(left_ms)) : transport_.handle(static_cast<int>(left_ms));
+    if (got < 0) return false;
   }
   transport_.drain();  // the IMU or commands sent alongside this state
   transport_.new_joint_state = false;
@@ -301,6 +327,7 @@ bool Controller::step_lockstep(int timeout_ms) {
 void Controller::step_realtime() {
   const int64_t wake_ns = task_.wait_next();
   transport_.drain();
+  if (dds_) dds_->drain();
   tick(static_cast<double>(wake_ns) * 1e-9);
   task_.end_compute();
 }
@@ -313,6 +340,7 @@ void Controller::run() {
     if (opt_.clock == ClockMode::kLockstep) step_lockstep(opt_.lockstep_wait_ms);
     else step_realtime();
   }
+  send_exit_damping();
   if (!opt_.quiet) std::fprintf(stderr, "\n");
 }
 

@@ -1,6 +1,6 @@
 // t1-runtime: the fixed-rate controller CLI. Exit codes:
 //   0 ok (duration reached or SIGINT/SIGTERM)   2 usage error        3 bad policy artifact
-//   4 LCM initialisation failure                5 --rt-required and a real-time setup step failed
+//   4 LCM / DDS initialisation failure                5 --rt-required and a real-time setup step failed
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -8,6 +8,7 @@
 #include <cstring>
 #include <string>
 
+#include "t1_contract.hpp"
 #include "t1rt/controller.hpp"
 
 namespace {
@@ -44,6 +45,9 @@ void usage(FILE* out) {
       "                         both artifacts must share one gain set; no hot reload\n"
       "  --clock realtime|lockstep  realtime: own 500 Hz clock (default); lockstep: one tick per T1_JOINT_STATE,\n"
       "                         answered by T1_JOINT_CMD with state_seq = that state's seq\n"
+      "  --transport lcm|dds    the robot link (default lcm). dds: the real T1's own topics over Cyclone DDS,\n"
+      "                         state from rt/low_state, LowCmd (SERIAL) to rt/joint_ctrl, domain from the contract;\n"
+      "                         lockstep: one tick per LowState sample. Joystick, runtime commands and status stay LCM\n"
       "  --lcm-url URL          LCM URL (default: $T1_LCM_URL, else the contract default)\n"
       "  --rt                   SCHED_FIFO, mlockall, CPU pinning, /dev/cpu_dma_latency=0 (failures reported)\n"
       "  --rt-required          like --rt, but any failed step is fatal (exit 5)\n"
@@ -54,7 +58,7 @@ void usage(FILE* out) {
       "  --quiet                no live status line\n"
       "  --help                 this text\n"
       "signals: SIGHUP reloads the current policy file; SIGINT/SIGTERM stop.\n"
-      "exit codes: 0 ok, 2 usage, 3 bad artifact, 4 LCM init failure, 5 --rt-required setup failure\n");
+      "exit codes: 0 ok, 2 usage, 3 bad artifact, 4 LCM/DDS init failure, 5 --rt-required setup failure\n");
 }
 }  // namespace
 
@@ -80,6 +84,11 @@ int main(int argc, char** argv) {
       if (c == "realtime") opt.clock = t1rt::ClockMode::kRealtime;
       else if (c == "lockstep") opt.clock = t1rt::ClockMode::kLockstep;
       else { std::fprintf(stderr, "t1-runtime: --clock must be realtime or lockstep, not '%s'\n", c.c_str()); return kExitUsage; }
+    } else if (a == "--transport") {
+      const std::string t = value("--transport");
+      if (t == "lcm") opt.robot_link = t1rt::RobotLink::kLcm;
+      else if (t == "dds") opt.robot_link = t1rt::RobotLink::kDds;
+      else { std::fprintf(stderr, "t1-runtime: --transport must be lcm or dds, not '%s'\n", t.c_str()); return kExitUsage; }
     } else if (a == "--lcm-url") cli_url = value("--lcm-url");
     else if (a == "--rt") rt = true;
     else if (a == "--rt-required") rt = rt_required = true;
@@ -118,6 +127,7 @@ int main(int argc, char** argv) {
   }
   if (opt.policy_path.empty()) { std::fprintf(stderr, "t1-runtime: --policy PATH is required\n"); usage(stderr); return kExitUsage; }
   opt.lcm_url = t1rt::resolve_lcm_url(cli_url);
+  opt.dds_domain_id = t1::kDdsDomainId;
 
   std::unique_ptr<t1rt::PolicyEngine> engine, upright;
   std::string loading = opt.policy_path;
@@ -136,10 +146,11 @@ int main(int argc, char** argv) {
   for (const t1rt::PolicyEngine* p : {engine.get(), upright.get()}) {
     if (!p) continue;
     const auto& art = p->artifact();
-    std::fprintf(stderr, "t1-runtime: %spolicy '%s' hash %.12s trained=%s obs %d layers %zu; clock %s; LCM %s\n",
+    std::fprintf(stderr, "t1-runtime: %spolicy '%s' hash %.12s trained=%s obs %d layers %zu; clock %s; LCM %s; robot link %s\n",
                  !upright ? "" : p == engine.get() ? "getup member: " : "upright member: ", art.name.c_str(),
                  art.content_hash.c_str(), art.trained ? "true" : "false", art.obs_size, art.layers.size(),
-                 t1rt::clock_name(opt.clock), opt.lcm_url.c_str());
+                 t1rt::clock_name(opt.clock), opt.lcm_url.c_str(),
+                 opt.robot_link == t1rt::RobotLink::kDds ? "DDS (rt/low_state -> rt/joint_ctrl)" : "LCM");
   }
   if (upright)
     std::fprintf(stderr, "t1-runtime: COMPOSITE mode: getup below waist %.2f m, else upright; waist height from "
@@ -147,7 +158,7 @@ int main(int argc, char** argv) {
 
   t1rt::Controller controller(opt, std::move(engine), std::move(upright));
   std::string error;
-  if (!controller.open(&error)) { std::fprintf(stderr, "t1-runtime: LCM init failed: %s\n", error.c_str()); return kExitLcm; }
+  if (!controller.open(&error)) { std::fprintf(stderr, "t1-runtime: transport init failed: %s\n", error.c_str()); return kExitLcm; }
 
   t1rt::RtSetup rt_setup;
   if (rt) {

@@ -33,6 +33,23 @@ void projected_gravity(const float* quat_wxyz, float* out3) {
   out3[2] = static_cast<float>(-(1.0 - 2.0 * (x * x + y * y)));
 }
 
+void quat_from_rpy(const float* rpy, float* q) {
+  const double cr = std::cos(0.5 * rpy[0]), sr = std::sin(0.5 * rpy[0]);
+  const double cp = std::cos(0.5 * rpy[1]), sp = std::sin(0.5 * rpy[1]);
+  const double cy = std::cos(0.5 * rpy[2]), sy = std::sin(0.5 * rpy[2]);
+  q[0] = static_cast<float>(cr * cp * cy + sr * sp * sy);
+  q[1] = static_cast<float>(sr * cp * cy - cr * sp * sy);
+  q[2] = static_cast<float>(cr * sp * cy + sr * cp * sy);
+  q[3] = static_cast<float>(cr * cp * sy - sr * sp * cy);
+}
+
+void gravity_from_rpy(const float* rpy, float* out3) {
+  const double r = rpy[0], p = rpy[1];
+  out3[0] = static_cast<float>(std::sin(p));
+  out3[1] = static_cast<float>(-std::sin(r) * std::cos(p));
+  out3[2] = static_cast<float>(-std::cos(r) * std::cos(p));
+}
+
 void build_observation(const PolicyArtifact& a, const ObsInputs& in, Eigen::Ref<Eigen::VectorXf> out) {
   Eigen::Index k = 0;
   for (const ObsTerm& term : a.obs_terms) {

@@ -13,6 +13,7 @@
 #include "t1/joint_command_t.hpp"
 #include "t1/observation_t.hpp"
 #include "t1rt/composite.hpp"
+#include "t1rt/dds_transport.hpp"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/policy.hpp"
 #include "t1rt/safety.hpp"
@@ -20,10 +21,16 @@
 
 namespace t1rt {
 
+// Which transport faces the robot: LCM (the project's own messages, default) or DDS (the real T1's own
+// rt/low_state and rt/joint_ctrl, dds_transport.hpp). Operator and telemetry channels are LCM in both.
+enum class RobotLink { kLcm, kDds };
+
 struct ControllerOptions {
   std::string policy_path;          // the single policy; in composite mode the getup member
   std::string upright_policy_path;  // non-empty: composite mode (composite.hpp), the upright member
   std::string lcm_url;          // resolved (resolve_lcm_url)
+  RobotLink robot_link = RobotLink::kLcm;
+  int dds_domain_id = 0;        // --transport dds: the robot's DDS domain (contract.json)
   ClockMode clock = ClockMode::kRealtime;
   bool autostart = false;       // PASSIVE -> DAMPING -> PREPARE -> POLICY without operator commands
   bool quiet = false;           // no live status line
@@ -40,12 +47,13 @@ class Controller {
              std::unique_ptr<PolicyEngine> upright_policy = nullptr);
   ~Controller();
 
-  bool open(std::string* error);  // LCM transport; false on failure
+  bool open(std::string* error);  // LCM transport (+ DDS with RobotLink::kDds); false on failure
   // The single code path: one control tick on the newest state at time now_s (see StateView for clocks).
   void tick(double now_s);
   bool step_lockstep(int timeout_ms);  // waits for a joint_state_t, then ticks; false on timeout
   void step_realtime();                // sleeps to the next deadline, drains LCM, ticks
-  void run();                          // until stop() or duration
+  void run();                          // until stop() or duration, then send_exit_damping()
+  void send_exit_damping();            // one DAMPING command (kp 0, kd safe) to the robot: leave it limp, not stiff
   void stop() { stop_.store(true); }
 
   // Hot reload (runtime_cmd_t load_policy, SIGHUP): validated on the worker thread, swapped at a policy tick.
@@ -60,6 +68,7 @@ class Controller {
   int64_t member_switches() const { return member_switches_; }
   PeriodicTask& task() { return task_; }
   LcmTransport& transport() { return transport_; }
+  DdsTransport* dds() { return dds_.get(); }  // null unless RobotLink::kDds
   int64_t ticks() const { return ticks_; }
   int64_t policy_ticks() const { return policy_ticks_; }
   const t1::joint_command_t& last_command() const { return command_; }
@@ -67,6 +76,7 @@ class Controller {
 
  private:
   void handle_commands();
+  void publish_command();
   void adopt_ready_policy();
   void publish_status(double now_s);
   void print_live_line(double now_s);
@@ -78,6 +88,7 @@ class Controller {
   ControllerOptions opt_;
   Supervisor supervisor_;
   LcmTransport transport_;
+  std::unique_ptr<DdsTransport> dds_;  // RobotLink::kDds: the robot's state in, joint commands out
   PeriodicTask task_;
   std::unique_ptr<PolicyEngine> engine_;
   std::unique_ptr<PolicyEngine> upright_;    // composite mode only; never reloaded

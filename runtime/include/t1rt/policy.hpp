@@ -26,6 +26,16 @@ void build_observation(const PolicyArtifact& artifact, const ObsInputs& in, Eige
 // Gravity direction in the IMU frame: R(quat)^T (0, 0, -1); the quaternion is normalised first.
 void projected_gravity(const float* quat_wxyz, float* out3);
 
+// The Booster IMU reports roll / pitch / yaw, not a quaternion. Convention (the aerospace / ROS one):
+// Z-Y-X intrinsic, R = Rz(yaw) Ry(pitch) Rx(roll) maps IMU-frame vectors to the world (x forward, y left,
+// z up): positive pitch tips the nose (x) down, positive roll lifts the left side (y) up.
+// quat_from_rpy gives that R as (w x y z); the DDS transport feeds it to the same
+// observation code as the LCM transport's quaternion.
+void quat_from_rpy(const float* rpy, float* quat_wxyz);
+// R(rpy)^T (0, 0, -1) in closed form: (sin p, -sin r cos p, -cos r cos p). Equals
+// projected_gravity(quat_from_rpy(rpy)); yaw does not enter.
+void gravity_from_rpy(const float* rpy, float* out3);
+
 // Two-foot gait clock. Offsets (0, pi); wrapped to [-pi, pi); frozen while the command is near zero.
 class GaitPhase {
  public:

@@ -1,0 +1,79 @@
+// The robot-facing transport over Cyclone DDS, in the Booster T1's own low-level topics
+// (messages/contract.json "dds"; types generated from messages/dds/booster_low.idl):
+//   rt/low_state (LowState_: IMU rpy/gyro/acc + serial motor states) in,
+//   rt/joint_ctrl (LowCmd_: SERIAL, 23 MotorCmd_) out.
+// It fills the same live slots (imu_t, joint_state_t) the LCM transport fills, so the observation,
+// supervisor and policy code do not know which transport feeds them. Operator channels (joystick,
+// runtime_cmd) and telemetry (status, obs, action) stay on LCM.
+//
+// Safety rule R3 on this transport: a sample is checked whole before it may replace the live state (23
+// serial motors, every number finite); a rejected sample is counted and the state is left unchanged.
+// LowState_ carries no sequence number: the runtime numbers accepted samples in arrival order and adds
+// the samples DDS reports lost (SAMPLE_LOST status), so the supervisor sees a loss as a sequence gap.
+#pragma once
+#include <dds/dds.h>
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "booster_low.h"
+#include "t1/imu_t.hpp"
+#include "t1/joint_command_t.hpp"
+#include "t1/joint_state_t.hpp"
+#include "t1rt/constants.hpp"
+#include "t1rt/transport.hpp"
+
+namespace t1rt {
+
+using DdsLowState = booster_interface_msg_dds__LowState_;
+using DdsLowCmd = booster_interface_msg_dds__LowCmd_;
+using DdsMotorCmd = booster_interface_msg_dds__MotorCmd_;
+
+// Why a LowState_ sample is unusable, or nullptr when it is usable.
+const char* check_low_state(const DdsLowState& sample);
+// A usable sample into the project's state messages (seq and utime are the caller's): quaternion from rpy
+// (quat_from_rpy, policy.hpp), q / dq / tau_est from the serial motor states, motor_status 0 (the robot
+// reports no firmware fault bits in LowState_).
+void low_state_to_messages(const DdsLowState& sample, t1::imu_t* imu, t1::joint_state_t* joint);
+// The supervisor's command as a LowCmd_ (SERIAL, the CUSTOM-mode mode/weight of the contract) into
+// motors[kJoints]; out->motor_cmd must point at motors.
+void joint_command_to_low_cmd(const t1::joint_command_t& cmd, DdsLowCmd* out, DdsMotorCmd* motors);
+
+class DdsTransport {
+ public:
+  static constexpr int kTakeBatch = 8;  // samples taken per dds_take call
+
+  DdsTransport() = default;
+  ~DdsTransport();
+  DdsTransport(const DdsTransport&) = delete;
+  DdsTransport& operator=(const DdsTransport&) = delete;
+
+  // Creates the participant, the two topics, the state reader and the command writer; the accepted state
+  // lands in imu / joint (seq checked by the supervisor), and *new_state is set for each accepted sample.
+  bool open(int domain_id, ClockMode clock, Supervisor* supervisor, MessageSlot<t1::imu_t>* imu,
+            MessageSlot<t1::joint_state_t>* joint, bool* new_state, std::string* error);
+  int wait(int timeout_ms);  // waits for a state sample, takes what is queued; >0 took one, 0 timeout
+  void drain();              // takes everything queued, without waiting
+  bool publish(const t1::joint_command_t& cmd);
+
+  int64_t rejected = 0;            // samples refused by check_low_state (state unchanged)
+  int64_t lost = 0;                // samples DDS reports lost before they reached the reader
+  std::array<char, 160> last_reject{};  // why the newest rejected sample was refused
+
+ private:
+  int take();
+  void accept(const DdsLowState& sample);
+
+  dds_entity_t participant_ = 0, state_reader_ = 0, cmd_writer_ = 0, waitset_ = 0;
+  ClockMode clock_ = ClockMode::kRealtime;
+  Supervisor* supervisor_ = nullptr;
+  MessageSlot<t1::imu_t>* imu_ = nullptr;
+  MessageSlot<t1::joint_state_t>* joint_ = nullptr;
+  bool* new_state_ = nullptr;
+  int64_t accepted_ = 0;  // arrival-order number of the next accepted sample
+  std::array<DdsMotorCmd, kJoints> motors_{};
+  DdsLowCmd low_cmd_{};
+};
+
+}  // namespace t1rt
