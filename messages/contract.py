@@ -12,6 +12,8 @@ NUM_JOINTS: int = _DATA["num_joints"]
 JOINT_NAMES: tuple[str, ...] = tuple(_DATA["joints"])
 CHANNELS: dict[str, str] = dict(_DATA["channels"])
 DEFAULT_LCM_URL: str = _DATA["lcm_url"]
+# The real T1's DDS interface: domain_id, state_topic, command_topic, cmd_type_serial, motor_mode, motor_weight.
+DDS: dict = {k: v for k, v in _DATA["dds"].items() if not k.startswith("_")}
 
 CH_IMU = CHANNELS["imu"]
 CH_JOINT_STATE = CHANNELS["joint_state"]

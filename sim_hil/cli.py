@@ -1,4 +1,5 @@
-"""`python -m sim_hil`: start the simulated T1 and serve it over LCM (run inside tools/netns)."""
+"""`python -m sim_hil`: start the simulated T1 and serve it over LCM, or with --dds in the real T1's own DDS
+topics (run inside tools/netns)."""
 from __future__ import annotations
 
 import argparse
@@ -30,6 +31,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lockstep-timeout", type=float, default=config.LOCKSTEP_TIMEOUT_S,
                    help="wall seconds to wait for the command answering a state")
     p.add_argument("--status-rate", type=float, default=config.STATUS_RATE_HZ, help="T1_SIM_STATUS rate [Hz]")
+    p.add_argument("--dds", action="store_true",
+                   help="be the DDS robot: LowState_ on rt/low_state, LowCmd_ from rt/joint_ctrl (Cyclone DDS, "
+                        "domain of messages/contract.json; T1_SIM_STATUS stays on LCM)")
     p.add_argument("--quiet", action="store_true", help="no status line")
     return p
 
@@ -49,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
                     duration_s=args.duration, physics_dt_s=args.physics_dt, faults=args.faults,
                     lcm_url=args.lcm_url or contract.lcm_url(), can_interface=args.can_interface,
                     can_log=args.can_log, record=args.record, lockstep_timeout_s=args.lockstep_timeout,
-                    status_rate_hz=args.status_rate)
+                    status_rate_hz=args.status_rate, dds=args.dds)
     try:
         sim = Simulator(cfg)
     except (ValueError, FaultSpecError) as exc:
@@ -59,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"sim_hil: {exc}", file=sys.stderr)
         return EXIT_RUNTIME
     print(f"sim_hil: {cfg.scenario} spawn={cfg.spawn} clock={cfg.clock} physics_dt={cfg.physics_dt_s}s "
-          f"lcm={cfg.lcm_url}", file=sys.stderr)
+          f"link={sim.lcm.url}", file=sys.stderr)
     try:
         sim.run(None if args.quiet else _status_line)
     except KeyboardInterrupt:

@@ -1,4 +1,5 @@
-"""The simulated T1: MuJoCo physics behind the emulated motor bus, driven over LCM.
+"""The simulated T1: MuJoCo physics behind the emulated motor bus, driven over LCM (or, with --dds, over
+the real T1's own DDS topics: sim_hil/dds_bridge.py).
 
 One control tick k (2 ms of sim time):
   1. publish state k: T1_IMU and T1_JOINT_STATE (decoded from the motors' reply frames), stamped with
@@ -44,6 +45,7 @@ class SimConfig:
     record: str | None = None
     lockstep_timeout_s: float = config.LOCKSTEP_TIMEOUT_S
     status_rate_hz: float = config.STATUS_RATE_HZ
+    dds: bool = False                # serve rt/low_state + rt/joint_ctrl (DDS) instead of the LCM state/command
 
 
 def parse_spawn(spawn: str) -> tuple[str, int]:
@@ -91,7 +93,12 @@ class Simulator:
         self.rng = np.random.default_rng(cfg.seed)
         self.imu = Imu(self.model, self.rng)
         self.bus = MotorBus(cfg.can_interface, cfg.can_log, self.rng)
-        self.lcm = LcmBridge(cfg.lcm_url)
+        # The robot link (named lcm for its callers; a DdsBridge has the same interface).
+        if cfg.dds:
+            from sim_hil.dds_bridge import DdsBridge
+            self.lcm = DdsBridge(cfg.lcm_url)
+        else:
+            self.lcm = LcmBridge(cfg.lcm_url)
         self.trunk_id = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "Trunk")
         self.seq = 0
         self.lockstep_timeouts = 0
