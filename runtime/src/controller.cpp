@@ -50,8 +50,9 @@ Controller::~Controller() {
 }
 
 bool Controller::open(std::string* error) {
-  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, error, composite())) return false;
-  if (opt_.robot_link != RobotLink::kDds) return true;
+  const bool dds = opt_.robot_link == RobotLink::kDds;
+  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, error, composite(), !dds)) return false;
+  if (!dds) return true;
   dds_ = std::make_unique<DdsTransport>();
   return dds_->open(opt_.dds_domain_id, opt_.clock, &supervisor_, &transport_.imu, &transport_.joint,
                     &transport_.new_joint_state, error);

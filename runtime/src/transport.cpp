@@ -29,7 +29,7 @@ LcmTransport::~LcmTransport() {
 }
 
 bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error,
-                        bool subscribe_sim_status) {
+                        bool subscribe_sim_status, bool subscribe_robot_state) {
   clock_ = clock;
   supervisor_ = supervisor;
   buffer_.assign(kEncodeBufferBytes, 0);
@@ -38,8 +38,10 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
     *error = "lcm_create failed for URL '" + url + "' (multicast route missing? run inside tools/netns)";
     return false;
   }
-  lcm_subscribe(lcm_, t1::CH_IMU, &LcmTransport::on_imu, this);
-  lcm_subscribe(lcm_, t1::CH_JOINT_STATE, &LcmTransport::on_joint, this);
+  if (subscribe_robot_state) {
+    lcm_subscribe(lcm_, t1::CH_IMU, &LcmTransport::on_imu, this);
+    lcm_subscribe(lcm_, t1::CH_JOINT_STATE, &LcmTransport::on_joint, this);
+  }
   lcm_subscribe(lcm_, t1::CH_JOYSTICK, &LcmTransport::on_joystick, this);
   lcm_subscribe(lcm_, t1::CH_RUNTIME_CMD, &LcmTransport::on_command, this);
   if (subscribe_sim_status) {

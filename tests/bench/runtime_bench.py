@@ -6,8 +6,9 @@
    memory-bandwidth bounds of its weights (DRAM streaming, L2-resident, weights-sized buffer).
 2. 500 Hz loop lateness of the runtime's PeriodicTask, default and --rt, against cyclictest.
 3. State -> command latency over LCM: t1-runtime --clock lockstep against a raw LCM echo.
+4. The same over DDS (t1-runtime --transport dds, Cyclone, the T1's own topics), next to the LCM row.
 
-    python -m tests.bench.runtime_bench [--quick] [--seconds S] [--only mlp,loop,lcm] [--policy PATH]
+    python -m tests.bench.runtime_bench [--quick] [--seconds S] [--only mlp,loop,lcm,dds] [--policy PATH]
     (inside tools/netns; `make bench` runs it after sim_rtf with the same command-line arguments)
 
 This file is also the onnxruntime worker: `.venv-bench/bin/python tests/bench/runtime_bench.py --ort-worker DIR`
@@ -283,7 +284,7 @@ def _echo_url(url: str) -> str:
     return f"{m.group(1)}:{int(m.group(2)) + 1}{m.group(3)}"
 
 
-def bench_lcm(policy: Path, count: int) -> None:
+def bench_lcm(policy: Path, count: int) -> dict:
     print(f"\n== State -> command latency over LCM, lockstep, {count} exchanges each, runtime and echo alternating "
           f"(µs; ratio = runtime / echo) ==")
     url = os.environ.get("T1_LCM_URL")
@@ -312,6 +313,39 @@ def bench_lcm(policy: Path, count: int) -> None:
               f"{_ratio(r[key + '_p99'], r['echo_us_p99'])}")
     print("(peer publishes T1_IMU + T1_JOINT_STATE k, times until the T1_JOINT_CMD with state_seq k arrives; runtime "
           f"in POLICY mode after --autostart on {url}, echo on {echo_url}; the two exchanges alternate)")
+    return r
+
+
+# ------------------------------------------------------------------------------------ 4. DDS latency
+def bench_dds(policy: Path, count: int, lcm: dict | None) -> None:
+    """The same runtime with --transport dds against a DDS robot peer, in the same run as the LCM rows."""
+    print(f"\n== State -> command latency over DDS (Cyclone, rt/low_state -> rt/joint_ctrl) vs LCM, lockstep, "
+          f"{count} exchanges (µs; ratio = DDS / LCM runtime) ==")
+    if not os.environ.get("CYCLONEDDS_URI"):
+        raise RuntimeError("CYCLONEDDS_URI unset: run inside tools/netns (make bench does), loopback-only DDS")
+    budget_s = 300.0
+    # Its own LCM port for status/telemetry, so it cannot meet the LCM section's peers.
+    status_url = _echo_url(_echo_url(os.environ["T1_LCM_URL"]))
+    server = subprocess.Popen([str(c) for c in (RUNTIME_BIN, "--transport", "dds", "--clock", "lockstep", "--policy",
+                                                policy, "--autostart", "--quiet", "--duration", budget_s,
+                                                "--lcm-url", status_url)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        r = _run_json([_bench_binary("t1rt_bench_dds_peer"), "--count", count], budget_s)
+    finally:
+        server.terminate()
+        _, err = server.communicate(timeout=10)
+        if server.returncode not in (0, -15):
+            raise RuntimeError(f"t1-runtime --transport dds exited {server.returncode}: {err.strip()[-400:]}")
+    print(f"{'':<40}{'n':>7}{'median':>9}{'p99':>9}{'max':>9}   ratio median / p99")
+    rows = [("t1-runtime lockstep over DDS", r)] + ([("t1-runtime lockstep over LCM (above)", lcm)] if lcm else [])
+    for label, x in rows:
+        ratio = (f"{_ratio(x['latency_us_median'], lcm['latency_us_median'])} / "
+                 f"{_ratio(x['latency_us_p99'], lcm['latency_us_p99'])}") if lcm else "-"
+        print(f"{label:<40}{int(x['latency_us_count']):>7}{x['latency_us_median']:>9.1f}{x['latency_us_p99']:>9.1f}"
+              f"{x['latency_us_max']:>9.1f}   {ratio}")
+    print("(peer writes LowState_ and times until the next LowCmd_ arrives; runtime in POLICY mode after --autostart "
+          "and 2000 warm-up exchanges; all ticks, policy ticks included)")
 
 
 # ------------------------------------------------------------------------------------ entry points
@@ -319,7 +353,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m tests.bench.runtime_bench", description=__doc__.split("\n\n")[0])
     p.add_argument("--quick", action="store_true", help=f"{QUICK_SECONDS:g} s loop runs, fewer exchanges")
     p.add_argument("--seconds", type=float, default=None, help=f"loop-lateness run time each (default {DEFAULT_SECONDS:g})")
-    p.add_argument("--only", default="mlp,loop,lcm", help="comma-separated sections: mlp, loop, lcm")
+    p.add_argument("--only", default="mlp,loop,lcm,dds", help="comma-separated sections: mlp, loop, lcm, dds")
     p.add_argument("--policy", type=Path, default=STUDENT_POLICY, help="artifact for the MLP and LCM sections")
     p.add_argument("--mlp-iterations", type=int, default=MLP_ITERATIONS)
     p.add_argument("--lcm-count", type=int, default=None)
@@ -327,8 +361,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--iterations", type=int, default=0, help=argparse.SUPPRESS)
     args, _ = p.parse_known_args(argv)  # `make bench` passes the same argv to every bench
     sections = set(args.only.split(","))
-    if not sections <= {"mlp", "loop", "lcm"}:
-        p.error(f"--only: unknown section(s) {sorted(sections - {'mlp', 'loop', 'lcm'})}")
+    if not sections <= {"mlp", "loop", "lcm", "dds"}:
+        p.error(f"--only: unknown section(s) {sorted(sections - {'mlp', 'loop', 'lcm', 'dds'})}")
     if args.seconds is not None and args.seconds <= 0:
         p.error(f"--seconds must be > 0, not {args.seconds}")
     if not args.ort_worker and not args.policy.is_file():
@@ -347,8 +381,9 @@ def main(argv: list[str] | None = None) -> None:
     cold = MLP_COLD_ITERATIONS // (4 if args.quick else 1)
     if "mlp" in args.sections:
         bench_mlp(args.policy.resolve(), args.mlp_iterations, cold)
-    if "lcm" in args.sections:
-        bench_lcm(args.policy.resolve(), args.lcm_count)
+    lcm = bench_lcm(args.policy.resolve(), args.lcm_count) if "lcm" in args.sections else None
+    if "dds" in args.sections:
+        bench_dds(args.policy.resolve(), args.lcm_count, lcm)
     if "loop" in args.sections:
         bench_loop(args.seconds)
 

@@ -47,8 +47,10 @@ class LcmTransport {
 
   // Creates the LCM instance and subscribes; false + *error on failure. subscribe_sim_status: composite
   // mode only (T1_SIM_STATUS is privileged simulator truth; a single policy never listens to it).
+  // subscribe_robot_state false: the robot's state comes from another transport (DDS), so T1_IMU and
+  // T1_JOINT_STATE on LCM are ignored (one source for the live state, never two).
   bool open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error,
-            bool subscribe_sim_status = false);
+            bool subscribe_sim_status = false, bool subscribe_robot_state = true);
   int handle(int timeout_ms);  // >0 handled a message, 0 timeout, <0 error
   void drain();                // handle everything already queued, without waiting
 
