@@ -34,6 +34,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dds", action="store_true",
                    help="be the DDS robot: LowState_ on rt/low_state, LowCmd_ from rt/joint_ctrl (Cyclone DDS, "
                         "domain of messages/contract.json; T1_SIM_STATUS stays on LCM)")
+    p.add_argument("--fastdds-compat", action="store_true",
+                   help="with --dds: let the robot maker's SDK (Fast DDS) discover this Cyclone participant "
+                        "(sim_hil/fastdds_shim.py says why it cannot by itself)")
     p.add_argument("--quiet", action="store_true", help="no status line")
     return p
 
@@ -54,6 +57,14 @@ def main(argv: list[str] | None = None) -> int:
                     lcm_url=args.lcm_url or contract.lcm_url(), can_interface=args.can_interface,
                     can_log=args.can_log, record=args.record, lockstep_timeout_s=args.lockstep_timeout,
                     status_rate_hz=args.status_rate, dds=args.dds)
+    shim = None
+    if args.fastdds_compat:
+        if not args.dds:
+            print("sim_hil: --fastdds-compat needs --dds", file=sys.stderr)
+            return EXIT_USAGE
+        # Before the participant exists: the shim must hear its first announcement (the next is ~30 s later).
+        from sim_hil.fastdds_shim import FastDdsShim
+        shim = FastDdsShim()
     try:
         sim = Simulator(cfg)
     except (ValueError, FaultSpecError) as exc:
@@ -68,6 +79,9 @@ def main(argv: list[str] | None = None) -> int:
         sim.run(None if args.quiet else _status_line)
     except KeyboardInterrupt:
         pass
+    finally:
+        if shim is not None:
+            shim.stop()
     if not args.quiet:
         print(file=sys.stderr)
     return EXIT_OK

@@ -24,7 +24,7 @@ import numpy as np
 from cyclonedds.core import Qos, Policy, ReadCondition, ViewState, InstanceState, SampleState, WaitSet
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
-from cyclonedds.sub import DataReader
+from cyclonedds.sub import DataReader, InvalidSample
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 from t1 import sim_status_t
@@ -98,6 +98,8 @@ class DdsBridge:
     def _take(self) -> int:
         n = 0
         for msg in self.reader.take(N=64):
+            if isinstance(msg, InvalidSample):   # a writer went away (unregister / dispose): no command in it
+                continue
             n += 1
             reason = validate_low_cmd(msg)
             if reason is not None:
