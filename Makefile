@@ -19,7 +19,7 @@ export PYOPENGL_PLATFORM ?= osmesa
 # Simulator arguments for `make sim`, e.g. make sim SIM_ARGS="--spawn fallen:3 --clock lockstep"
 SIM_ARGS ?= --scenario flat --spawn standing --clock realtime
 
-.PHONY: all setup build test test-fast sim spy demo bench bench-env bench-train clean
+.PHONY: all setup build test test-fast sim spy spy-dds demo bench bench-env bench-train clean
 
 all: build
 
@@ -49,6 +49,12 @@ sim: build
 spy: build
 	$(NETNS) bash -c '$(PY) -m sim_hil --quiet --scenario flat --spawn standing --clock realtime --duration 600 & \
 	  CLASSPATH=$(BUILD)/gen/java/t1_lcmtypes.jar lcm-spy --lcm-url="$$T1_LCM_URL"; kill %1'
+
+# The DDS robot link as Cyclone's own CLI sees it: a sim_hil --dds robot, then `cyclonedds ls` and a few
+# seconds of decoded rt/low_state samples (README: The DDS robot link).
+spy-dds: build
+	$(NETNS) bash -c '$(PY) -m sim_hil --dds --quiet --spawn standing --clock realtime --duration 600 & sleep 2; \
+	  $(VENV)/bin/cyclonedds ls; timeout 3 $(VENV)/bin/cyclonedds subscribe rt/low_state; kill %1'
 
 demo: build
 	$(NETNS) $(PY) -m sim_hil.demo
