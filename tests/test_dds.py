@@ -201,3 +201,29 @@ def test_fault_and_exit_both_leave_the_robot_damped(dds_runtime, netns):
     peer.take()
     last = peer.cmds[-1]
     assert all(m.kp == 0.0 and m.kd > 0.0 for m in last.motor_cmd), "exit did not send a damping LowCmd_"
+
+
+def test_estop_over_lcm_damps_the_dds_robot_within_a_tick(dds_runtime, netns):
+    """The operator channels stay on LCM: an e-stop there turns the very next LowCmd_ into damping."""
+    from t1 import runtime_cmd_t
+    peer, proc = dds_runtime("--autostart", "--prepare-s", "0.02")
+    watch = LcmWatch()
+    q0 = np.asarray(read_artifact(UNTRAINED_STUDENT)[3]["default_pose"], np.float64)
+    deadline = time.monotonic() + LIVENESS_S
+    while time.monotonic() < deadline and not any(c.motor_cmd[0].kp > 0 for c in peer.take()):
+        peer.write(low_state(q0))          # live robot: the ladder reaches PREPARE (kp > 0)
+        time.sleep(0.002)
+    estop = runtime_cmd_t()
+    estop.verb = "estop"
+    watch.lc.publish(contract.CH_RUNTIME_CMD, estop.encode())
+    damped = False
+    while time.monotonic() < deadline and not damped:
+        peer.write(low_state(q0))
+        damped = any(all(m.kp == 0.0 and m.kd > 0.0 for m in c.motor_cmd) for c in peer.take())
+        time.sleep(0.002)
+    assert damped, "no damping LowCmd_ after the e-stop"
+    n = len(watch.status)
+    while time.monotonic() < deadline and len(watch.status) < n + 2:   # the robot stays live meanwhile
+        peer.write(low_state(q0))
+        watch.lc.handle_timeout(2)
+    assert watch.status[-1].mode_name == "DAMPING", (watch.status[-1].mode_name, watch.status[-1].last_fault)
