@@ -287,7 +287,7 @@ void Controller::publish_status(double now_s) {
     std::snprintf(composite_info, sizeof(composite_info), "composite: waist %.3f m from T1_SIM_STATUS (privileged sim "
                   "signal), getup below %.2f m, active %s, switches %lld | ", transport_.sim_status.msg.waist_height,
                   kGetupSwitchWaistHeightM, member_name(member_), static_cast<long long>(member_switches_));
-  char info[kStringReserve + 400];  // composite (160) + supervisor info (160) + reload message
+  char info[kStringReserve + 600];  // composite (160) + supervisor info (160) + reload message + DDS reject (160)
   const char* dds_info = dds_ && dds_->rejected ? dds_->last_reject.data() : "";
   std::snprintf(info, sizeof(info), "%s%s%s%s%s%s", composite_info, supervisor_.last_info(), reload_info_[0] ? " | " : "",
                 reload_info_, dds_info[0] ? " | " : "", dds_info);
