@@ -150,3 +150,15 @@ def test_lockstep_log_replays_exactly_and_another_policy_diverges(tmp_path, netn
     # PREPARE does not use the policy: the commands agree until the first POLICY tick, then differ
     assert logged[first].mode == joint_command_t.MODE_POLICY and logged[first - 1].mode != joint_command_t.MODE_POLICY
     assert max(report["max_abs_dq_des_rad"].values()) > 0
+
+
+def test_spy_plays_a_damaged_log_headless_and_cleans_up(tmp_path, netns):
+    path = write_events(tmp_path / "s.lcmlog", _events(100))
+    path.write_bytes(path.read_bytes()[:-10])            # lcm-logplayer alone would stop at the damage
+    env = {k: v for k, v in _env().items() if k != "DISPLAY"}
+    run = subprocess.run([sys.executable, "-m", "sim_hil.lcmlog", "spy", str(path), "--speed", "4"], cwd=ROOT,
+                         env=env, capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "headless, xvfb" in run.stdout and "truncated" in run.stderr
+    left = subprocess.run(["pgrep", "-f", "lcm.spy.Spy"], capture_output=True, text=True).stdout.split()
+    assert not left, f"lcm-spy left running: {left}"
