@@ -43,58 +43,48 @@ def series(log: ProjectLog, channel: str, *fields: str):
     return (t, *(np.array([getattr(m, f) for _, m in entries], float) for f in fields))
 
 
+def _panel(ax, ylabel: str, needs: str, lines) -> None:
+    """Plot (t, y, label) lines ("(step)" in a label: a held command, drawn as steps); say so when none is
+    in the log."""
+    drawn = [(t, y, label) for t, y, label in lines if t.size]
+    for t, y, label in drawn:
+        if label.endswith("(step)"):
+            ax.step(t, y, where="post", label=label.removesuffix(" (step)"), lw=0.8)
+        else:
+            ax.plot(t, y, label=label)
+    if drawn:
+        ax.legend(loc="upper right", fontsize=7)
+    else:
+        ax.text(0.5, 0.5, f"{needs} not in this log", ha="center", va="center", transform=ax.transAxes)
+    ax.set_ylabel(ylabel, fontsize=8)
+
+
 def plot_log(log: ProjectLog, out: Path, joints: list[str] | tuple[str, ...] = DEFAULT_JOINTS) -> Path:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(4 + len(joints), 1, figsize=(10, 2.0 * (4 + len(joints))), sharex=True)
     info = log.first(contract.CH_RUN_INFO)
-    about = [] if info is None else [info.producer, info.clock] + ([Path(info.policy_path).name] if info.policy_path else [])
-    fig.suptitle(" — ".join([log.path.name, ", ".join(about)]) if about else log.path.name)
-
-    def missing(ax, what):
-        ax.text(0.5, 0.5, f"{what} not in this log", ha="center", va="center", transform=ax.transAxes)
+    about = [] if info is None else [info.producer, info.clock, Path(info.policy_path).name if info.policy_path else ""]
+    fig.suptitle(" — ".join([log.path.name, ", ".join(a for a in about if a)]) if about else log.path.name)
 
     t, trunk, waist, vx = series(log, contract.CH_SIM_STATUS, "trunk_height", "waist_height", "forward_velocity")
-    ax = axes[0]
-    if t.size:
-        ax.plot(t, trunk, label="trunk"), ax.plot(t, waist, label="waist"), ax.legend(loc="upper right")
-    else:
-        missing(ax, "T1_SIM_STATUS")
-    ax.set_ylabel("height [m]")
-    ax = axes[1]
-    if t.size:
-        ax.plot(t, vx, label="forward velocity")
+    _panel(axes[0], "height [m]", "T1_SIM_STATUS", [(t, trunk, "trunk"), (t, waist, "waist")])
     tj, cmd_vx = series(log, contract.CH_JOYSTICK, "vx")
-    if tj.size:
-        ax.step(tj, cmd_vx, where="post", label="joystick vx", color="k", lw=0.8)
-    ax.legend(loc="upper right") if (t.size or tj.size) else missing(ax, "T1_SIM_STATUS and T1_JOYSTICK")
-    ax.set_ylabel("v [m/s]")
+    _panel(axes[1], "v [m/s]", "T1_SIM_STATUS and T1_JOYSTICK",
+           [(t, vx, "forward velocity"), (tj, cmd_vx, "joystick vx (step)")])
     tc, mode = series(log, contract.CH_JOINT_CMD, "mode")
-    ax = axes[2]
+    _panel(axes[2], "mode", "T1_JOINT_CMD", [(tc, mode, "mode (step)")])
     if tc.size:
-        ax.step(tc, mode, where="post")
-        ax.set_yticks(range(len(MODE_NAMES)), MODE_NAMES, fontsize=7)
-    else:
-        missing(ax, "T1_JOINT_CMD")
-    ax.set_ylabel("mode")
+        axes[2].set_yticks(range(len(MODE_NAMES)), MODE_NAMES, fontsize=7)
     ts, late_last, late_p99 = series(log, contract.CH_CONTROLLER_STATUS, "lateness_us_last", "lateness_us_p99")
-    ax = axes[3]
-    if ts.size:
-        ax.plot(ts, late_last, label="last"), ax.plot(ts, late_p99, label="p99"), ax.legend(loc="upper right")
-    else:
-        missing(ax, "T1_CONTROLLER_STATUS")
-    ax.set_ylabel("lateness [us]")
+    _panel(axes[3], "lateness [us]", "T1_CONTROLLER_STATUS", [(ts, late_last, "last"), (ts, late_p99, "p99")])
     tq, q = series(log, contract.CH_JOINT_STATE, "q")
     _, q_des = series(log, contract.CH_JOINT_CMD, "q_des")
     for ax, name in zip(axes[4:], joints):
         j = contract.joint_index(name)
-        if tq.size:
-            ax.plot(tq, q[:, j], label="q")
-        if tc.size:
-            ax.step(tc, q_des[:, j], where="post", label="q_des", lw=0.8)
-        ax.set_ylabel(f"{name}\n[rad]", fontsize=8)
-        ax.legend(loc="upper right") if (tq.size or tc.size) else missing(ax, "joint state and command")
+        _panel(ax, f"{name}\n[rad]", "T1_JOINT_STATE and T1_JOINT_CMD",
+               [(tq, q[:, j] if tq.size else q, "q"), (tc, q_des[:, j] if tc.size else q_des, "q_des (step)")])
     axes[-1].set_xlabel("sim time [s]")
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
