@@ -19,7 +19,7 @@ export PYOPENGL_PLATFORM ?= osmesa
 # Simulator arguments for `make sim`, e.g. make sim SIM_ARGS="--spawn fallen:3 --clock lockstep"
 SIM_ARGS ?= --scenario flat --spawn standing --clock realtime
 
-.PHONY: all setup build test test-fast sim spy spy-dds demo bench bench-env bench-train clean
+.PHONY: all setup build test test-fast sim spy spy-dds demo bench bench-env bench-train clean replay plot-log
 
 all: build
 
@@ -41,23 +41,36 @@ test-fast: build
 	$(NETNS) bash -c 'set -e; ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS); \
 	  $(PY) -m pytest -q -m "not slow" tests'
 
+# Writes an LCM log of the run to out/sim/ (SIM_ARGS="--no-log" to skip, "--log PATH" to name it).
 sim: build
 	$(NETNS) $(PY) -m sim_hil $(SIM_ARGS)
 
 # lcm-spy decoding every project type, in the same kind of namespace (start the sim inside it too:
 # `make spy` launches a sim in the background so there is traffic to look at).
 spy: build
-	$(NETNS) bash -c '$(PY) -m sim_hil --quiet --scenario flat --spawn standing --clock realtime --duration 600 & \
+	$(NETNS) bash -c '$(PY) -m sim_hil --quiet --no-log --scenario flat --spawn standing --clock realtime --duration 600 & \
 	  CLASSPATH=$(BUILD)/gen/java/t1_lcmtypes.jar lcm-spy --lcm-url="$$T1_LCM_URL"; kill %1'
 
 # The DDS robot link as Cyclone's own CLI sees it: a sim_hil --dds robot, then `cyclonedds ls` and a few
 # seconds of decoded rt/low_state samples (README: The DDS robot link).
 spy-dds: build
-	$(NETNS) bash -c '$(PY) -m sim_hil --dds --quiet --spawn standing --clock realtime --duration 600 & sleep 2; \
+	$(NETNS) bash -c '$(PY) -m sim_hil --dds --quiet --no-log --spawn standing --clock realtime --duration 600 & sleep 2; \
 	  $(VENV)/bin/cyclonedds ls; timeout 3 $(VENV)/bin/cyclonedds subscribe rt/low_state; kill %1'
 
 demo: build
-	$(NETNS) $(PY) -m sim_hil.demo
+	$(NETNS) $(PY) -m sim_hil.demo $(DEMO_ARGS)
+
+# LCM logs (every demo, sim and eval trial writes one; sim_hil/lcmlog):
+#   make replay LOG=out/demo/demo.lcmlog                  play it into lcm-spy (xvfb-run without a display)
+#   make replay LOG=… POLICY=policies/x.safetensors       re-run t1-runtime on the logged states, lockstep,
+#                                                          and compare its commands (POLICY=logged: the log's own)
+#   make plot-log LOG=… [JOINTS=Left_Knee_Pitch,Waist]    PNG next to the log
+replay: build
+	@test -n "$(LOG)" || { echo "usage: make replay LOG=path.lcmlog [POLICY=artifact|logged]" >&2; exit 2; }
+	$(NETNS) $(PY) -m sim_hil.lcmlog $(if $(POLICY),replay --policy $(POLICY),spy) $(LOG)
+plot-log: build
+	@test -n "$(LOG)" || { echo "usage: make plot-log LOG=path.lcmlog [JOINTS=a,b]" >&2; exit 2; }
+	$(PY) -m sim_hil.lcmlog plot $(LOG) $(if $(JOINTS),--joints $(JOINTS))
 
 # The onnxruntime reference venv (.venv-bench) needs the package registry, so it is installed here, in the
 # machine's own network; the benchmark itself runs in the namespace and only checks it (tools/bench_env.sh).

@@ -11,6 +11,8 @@ _DATA = json.loads((Path(__file__).with_name("contract.json")).read_text())
 NUM_JOINTS: int = _DATA["num_joints"]
 JOINT_NAMES: tuple[str, ...] = tuple(_DATA["joints"])
 CHANNELS: dict[str, str] = dict(_DATA["channels"])
+# channel name -> LCM type name (messages/t1/<type>.lcm), e.g. "T1_IMU" -> "imu_t"
+CHANNEL_TYPES: dict[str, str] = {CHANNELS[key]: type_name for key, type_name in _DATA["channel_types"].items()}
 DEFAULT_LCM_URL: str = _DATA["lcm_url"]
 # The real T1's DDS interface: domain_id, state_topic, command_topic, cmd_type_serial, motor_mode, motor_weight.
 DDS: dict = {k: v for k, v in _DATA["dds"].items() if not k.startswith("_")}
@@ -24,8 +26,10 @@ CH_CONTROLLER_STATUS = CHANNELS["controller_status"]
 CH_OBS = CHANNELS["obs"]
 CH_ACTION = CHANNELS["action"]
 CH_SIM_STATUS = CHANNELS["sim_status"]
+CH_RUN_INFO = CHANNELS["run_info"]
 
 assert len(JOINT_NAMES) == NUM_JOINTS, "contract.json: joints list length differs from num_joints"
+assert set(_DATA["channel_types"]) == set(CHANNELS), "contract.json: channel_types must name every channel"
 
 
 def lcm_url() -> str:

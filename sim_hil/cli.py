@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
+from pathlib import Path
 
 from messages import contract
 from sim_hil import config
@@ -37,6 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fastdds-compat", action="store_true",
                    help="with --dds: let the robot maker's SDK (Fast DDS) discover this Cyclone participant "
                         "(sim_hil/fastdds_shim.py says why it cannot by itself)")
+    p.add_argument("--log", metavar="OUT.lcmlog", default=None,
+                   help="LCM log of every project channel (default: out/sim/<scenario>_<spawn>_<clock>_<time>.lcmlog)")
+    p.add_argument("--no-log", action="store_true", help="do not write an LCM log")
     p.add_argument("--quiet", action="store_true", help="no status line")
     return p
 
@@ -47,6 +52,15 @@ def _status_line(sim) -> None:
           f"waist={s.waist_height:.3f}m cmds={sim.lcm.cmds_received} dropped={s.cmds_dropped} "
           f"timeouts={s.lockstep_timeouts} late_frames={s.frames_late} faults=[{s.active_faults}]   ",
           end="", file=sys.stderr, flush=True)
+
+
+def _start_log(args, cfg, argv: list[str]):
+    """lcm-logger on the sim's URL: everything the sim and whoever talks to it publish (sim_hil/lcmlog)."""
+    from sim_hil.lcmlog.capture import LogCapture, RunInfo
+    path = Path(args.log) if args.log else config.SIM_LOG_DIR / (
+        f"{cfg.scenario}_{cfg.spawn.replace(':', '-')}_{cfg.clock}_{time.strftime('%Y%m%d-%H%M%S')}.lcmlog")
+    return LogCapture(path, cfg.lcm_url, RunInfo(run_name=path.stem, producer="sim", clock=cfg.clock,
+                                                 sim_args=list(argv)))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -73,8 +87,9 @@ def main(argv: list[str] | None = None) -> int:
     except RuntimeError as exc:
         print(f"sim_hil: {exc}", file=sys.stderr)
         return EXIT_RUNTIME
+    capture = None if args.no_log else _start_log(args, cfg, argv if argv is not None else sys.argv[1:])
     print(f"sim_hil: {cfg.scenario} spawn={cfg.spawn} clock={cfg.clock} physics_dt={cfg.physics_dt_s}s "
-          f"link={sim.lcm.url}", file=sys.stderr)
+          f"link={sim.lcm.url}" + (f" log={capture.path}" if capture else ""), file=sys.stderr)
     try:
         sim.run(None if args.quiet else _status_line)
     except KeyboardInterrupt:
@@ -82,6 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if shim is not None:
             shim.stop()
+        if capture is not None:
+            capture.stop()
     if not args.quiet:
         print(file=sys.stderr)
     return EXIT_OK

@@ -1,4 +1,5 @@
 """Simulator constants (one place; the CLI overrides some)."""
+from pathlib import Path
 
 CONTROL_DT_S = 0.002            # bus cycle = state/command period: the runtime's 500 Hz tick
 DEFAULT_PHYSICS_DT_S = 0.002    # MuJoCo step; must divide CONTROL_DT_S
@@ -11,3 +12,4 @@ GL_PROBE_SIZE_PX = 16          # --record checks the GL backend with a renderer 
 VIDEO_SIZE = (360, 480)         # (height, width) [px]; software GL renders ~0.1 s per frame here
 STATS_WINDOW_S = 1.0            # real-time factor averaging window [s of sim time]
 GETUP_SWITCH_WAIST_HEIGHT_M = 0.5   # the teacher's switch: getup expert below this waist height [m]
+SIM_LOG_DIR = Path(__file__).resolve().parents[1] / "out" / "sim"   # `python -m sim_hil`'s default LCM logs

@@ -15,6 +15,7 @@ from t1 import controller_status_t, joystick_t, sim_status_t
 
 from messages import contract
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop
+from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.plots import plot_heights_and_velocity
 from training.artifact import read_artifact
 
@@ -38,6 +39,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=18.0, help="sim seconds (realtime)")
     ap.add_argument("--spawn", default="fallen:62")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "demo")
+    ap.add_argument("--no-log", action="store_true", help="do not write OUT/demo.lcmlog")
     args = ap.parse_args(argv)
     policy = args.policy or next(p for p in POLICIES if p.exists())
     manifest = read_artifact(policy)[3]
@@ -60,9 +62,15 @@ def main(argv=None) -> int:
 
     lc.subscribe(contract.CH_SIM_STATUS, on_sim)
     lc.subscribe(contract.CH_CONTROLLER_STATUS, lambda _c, d: last.__setitem__("rt", controller_status_t.decode(d)))
-    sim = start_sim("--clock", "realtime", "--spawn", args.spawn, "--duration", str(args.seconds),
-                    "--status-rate", "50", "--record", str(video))
-    runtime = start_runtime(policy, "--clock", "realtime", "--autostart")
+    sim_args = ["--clock", "realtime", "--spawn", args.spawn, "--duration", str(args.seconds),
+                "--status-rate", "50", "--record", str(video)]
+    runtime_args = ["--clock", "realtime", "--autostart"]
+    capture = None if args.no_log else LogCapture(
+        args.out / "demo.lcmlog", contract.lcm_url(),
+        RunInfo(run_name="demo", producer="demo", clock="realtime", policy_path=str(policy),
+                policy_hash=manifest["content_hash"], runtime_args=runtime_args, sim_args=sim_args))
+    sim = start_sim(*sim_args)
+    runtime = start_runtime(policy, *runtime_args)
     js, seq, next_print, final = joystick_t(), 0, 0.0, None
     try:
         while sim.poll() is None:
@@ -93,6 +101,8 @@ def main(argv=None) -> int:
         if final is None:
             final = last.get("rt")
             code, err = stop(runtime)
+        if capture is not None:
+            capture.stop()
         print()
     if sim.returncode != 0:
         print(f"demo: the simulator failed:\n{sim.communicate()[1]}", file=sys.stderr)
@@ -107,6 +117,8 @@ def main(argv=None) -> int:
         command_vx=[(t, vx) for t, vx, _, _ in JOYSTICK_SCRIPT])
     print(f"demo: runtime ended in {rt.mode_name if rt else '?'}; faults: {rt.last_fault if rt and rt.last_fault else 'none'}")
     print(f"demo: video {video}\ndemo: plot  {plot}")
+    if capture is not None:
+        print(f"demo: log   {capture.path} (make replay LOG={capture.path}; make plot-log LOG={capture.path})")
     if not trained:
         print("demo: NOTE the policy is untrained — this run shows the plumbing (sim, bus, runtime, safety), "
               "not a skill. Train and ship policies/student.safetensors (training/README.md).")

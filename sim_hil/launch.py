@@ -6,11 +6,13 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 BUILD = Path(os.environ.get("T1_BUILD", ROOT / "build"))
 RUNTIME = BUILD / "runtime" / "t1-runtime"
+RUNTIME_OPEN_MARGIN_S = 0.2     # banner printed -> LCM subscribed: microseconds; this is margin
 
 
 def _env() -> dict:
@@ -18,8 +20,10 @@ def _env() -> dict:
 
 
 def start_sim(*args: str) -> subprocess.Popen:
-    """`python -m sim_hil --quiet ARGS`; stderr is kept for the caller to report."""
-    return subprocess.Popen([sys.executable, "-m", "sim_hil", "--quiet", *args], cwd=ROOT, env=_env(),
+    """`python -m sim_hil --quiet ARGS`; stderr is kept for the caller to report. No LCM log unless ARGS name
+    one with --log (callers that log, like the demo, capture the run themselves)."""
+    log_args = () if "--log" in args else ("--no-log",)
+    return subprocess.Popen([sys.executable, "-m", "sim_hil", "--quiet", *log_args, *args], cwd=ROOT, env=_env(),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -28,6 +32,21 @@ def start_runtime(policy: Path, *args: str) -> subprocess.Popen:
         raise FileNotFoundError(f"{RUNTIME} is not built: run `make build`")
     return subprocess.Popen([str(RUNTIME), "--policy", str(policy), "--quiet", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def wait_until_listening(runtime: subprocess.Popen) -> None:
+    """A lockstep peer's first state must not go out before the runtime subscribes (it would wait for an
+    answer that never comes): wait for the banner the runtime prints just before it opens LCM, plus a
+    margin. Reading a line at a time leaves the rest of stderr for stop()."""
+    lines = []
+    while True:
+        line = runtime.stderr.readline()
+        if not line:
+            raise RuntimeError(f"t1-runtime exited before listening: {''.join(lines)}")
+        lines.append(line)
+        if line.startswith("t1-runtime: policy '") or "COMPOSITE mode" in line:
+            break
+    time.sleep(RUNTIME_OPEN_MARGIN_S)
 
 
 def stop(proc: subprocess.Popen, timeout_s: float = 10.0) -> tuple[int, str]:

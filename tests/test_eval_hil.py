@@ -50,6 +50,8 @@ def test_scenario_one_trial_writes_report(scenario, baseline, tmp_path, netns):
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     for part in ("report.md", "plots.png", "video.mp4", "results.json"):
         assert (out / part).is_file() and (out / part).stat().st_size > 0, f"{part} missing"
+    logs = sorted((out / "logs").glob("*.lcmlog"))      # one LCM log per trial (sim_hil/lcmlog)
+    assert [p.name.split("_")[0] for p in logs] == ["baseline", "student"], logs
     report = (out / "report.md").read_text()
     # the trained flags are printed at the top and next to every table; no result is claimed
     assert report.count("UNTRAINED") >= 3 and "No result is claimed" in report

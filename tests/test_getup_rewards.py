@@ -141,7 +141,10 @@ def test_stage_rewards(full_env):
     s2 = envs.make("getup", config_overrides={"stage": "stage2"})
     t1, t2 = s1.reward_terms(_state(s1), info), s2.reward_terms(_state(s2), info)
     assert float(t1["height"]) < 1.0                     # stage 1: the keyframe reward only
-    assert float(t2["height"]) > 1.83 and float(t2["pose"]) > 0.6   # stage 2: the stand-up reward only
+    # stage 2: §4.7's rewards toward standing, no gate bonuses: HO(torso 0.67, waist 0.55) and pose(q, q_init)
+    r_height = (0.2 / 0.67) + (0.15 / 0.55)
+    assert float(t2["height"]) == pytest.approx(2.0 * 0.25 * (r_height + 1.0) / 3.0, rel=1e-5)
+    assert float(t2["pose"]) == pytest.approx(float(G.pose_reward(_state(s2).qpos[7:], s2._default_pose)), rel=1e-5)
 
 
 def test_start_probabilities_per_stage(full_env):

@@ -112,7 +112,7 @@ def test_nonsense_numbers_and_a_missing_gl_backend_are_named_without_traceback(n
     # glfw cannot make an offscreen context on a machine without a display: the --record failure case.
     env = {**_env(), "MUJOCO_GL": "glfw", "PYOPENGL_PLATFORM": "glfw"}
     env.pop("DISPLAY", None)
-    proc = subprocess.run([sys.executable, "-m", "sim_hil", "--quiet", "--duration", "0.1", "--record",
+    proc = subprocess.run([sys.executable, "-m", "sim_hil", "--quiet", "--no-log", "--duration", "0.1", "--record",
                            str(tmp_path / "v.mp4")], cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
     assert proc.returncode != 0 and "--record" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr[-2000:]
     assert not os.path.exists(tmp_path / "v.mp4")

@@ -18,7 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from sim_hil.eval.plans import PLANS
-from sim_hil.eval.trial import Controller, init_worker, run_job
+from sim_hil.eval.trial import Controller, init_worker, run_job, trial_log_name
 
 ROOT = Path(__file__).resolve().parents[2]
 MAX_JOBS = 2            # the machine has 2 cores: at most 2 sim+runtime pairs
@@ -37,6 +37,7 @@ def parse_args(argv):
     ap.add_argument("--jobs", type=int, default=MAX_JOBS, help=f"parallel trials, 1..{MAX_JOBS}")
     ap.add_argument("--out", type=Path, default=None, help="default: out/eval/<scenario>")
     ap.add_argument("--no-video", action="store_true", help="skip the mp4 (rendering costs ~0.1 s per frame)")
+    ap.add_argument("--no-log", action="store_true", help="no LCM log per trial (default: OUT/logs/*.lcmlog)")
     args = ap.parse_args(argv)
     plan = PLANS[args.scenario]
     args.trials = plan.default_trials if args.trials is None else args.trials
@@ -77,7 +78,8 @@ def main(argv=None) -> int:
     for i, spec in enumerate(specs):
         for c in controllers:
             record = str(video) if (video is not None and i == 0 and c is controllers[0]) else None
-            jobs.append((replace(spec, record=record), c, plan.finish_x_m, plan.segment_edges_x))
+            log = None if args.no_log else str(args.out / "logs" / trial_log_name(spec, c.label))
+            jobs.append((replace(spec, record=record, log=log), c, plan.finish_x_m, plan.segment_edges_x))
     started = time.monotonic()
     results, failures = [], []
     ctx = mp.get_context("spawn")          # a fresh interpreter per worker: no forked MuJoCo/LCM state

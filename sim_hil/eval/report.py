@@ -92,6 +92,11 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
               f"![trunk height, waist height, forward velocity]({plot.name})", ""]
     if video is not None and video.exists():
         lines += [f"Video of {controllers[0].label}'s first trial: [{video.name}]({video.name})", ""]
+    logs = [Path(r.spec.log) for r in results if r.spec.log]
+    if logs:
+        lines += [f"LCM log of every trial: `{logs[0].parent.name}/` (e.g. `{logs[0].name}`): replay one with "
+                  f"`make replay LOG=…` (lcm-spy) or `make replay LOG=… POLICY=…` (runtime re-run), plot it with "
+                  "`make plot-log LOG=…`.", ""]
     report = out / "report.md"
     report.write_text("\n".join(lines))
 
@@ -103,4 +108,6 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
     paths = {"report": report, "plot": plot, "results": out / "results.json"}
     if video is not None:
         paths["video"] = video
+    if logs:
+        paths["logs"] = logs[0].parent
     return paths

@@ -23,13 +23,12 @@ from messages import contract
 from sim_hil import config
 from sim_hil.eval.events import GetupEvents, getup_events
 from sim_hil.eval.metrics import TickLog, effort_metrics, ran_to_stabilise, slip_events
-from sim_hil.launch import start_runtime, stop
+from sim_hil.launch import start_runtime, stop, wait_until_listening
 
 POLICY_MODE = 3                 # joint_command_t.mode of the runtime's POLICY (t1rt::Mode::kPolicy)
 JOYSTICK_EVERY_TICKS = 10       # 50 Hz joystick, as a gamepad; the runtime zeroes it only after 250 ms
 PLOT_EVERY_TICKS = 10           # plotted series at 50 Hz
 EVAL_PORT_OFFSET = 101          # trial LCM ports: contract port + this + worker index
-RUNTIME_OPEN_MARGIN_S = 0.2     # banner printed -> LCM subscribed: microseconds; this is margin
 
 
 @dataclass(frozen=True)
@@ -54,6 +53,7 @@ class TrialSpec:
     clock: str = "lockstep"       # lockstep (the runtime answers every state) | realtime (both on the wall clock)
     faults: str = ""              # sim --faults (pushes: push:x=±J@t)
     record: str | None = None     # mp4 path
+    log: str | None = None        # .lcmlog path (sim_hil/lcmlog): every LCM message of the trial
     tag: str = ""                 # what the scenario wants to remember (e.g. "forward", "backward")
     prepare_s: float = 2.0        # the runtime's PREPARE ramp (t1-runtime --prepare-s) before POLICY
 
@@ -78,6 +78,12 @@ class TrialResult:
     plot: dict[str, list[float]] = field(default_factory=dict)
 
 
+def trial_log_name(spec: TrialSpec, label: str) -> str:
+    """e.g. student_pushes_forward_seed3.lcmlog: the controller, the scenario, what it tests and the seed."""
+    parts = [label, spec.scenario, spec.tag, f"seed{spec.seed}"]
+    return "_".join(p for p in parts if p) + ".lcmlog"
+
+
 def trial_lcm_url(worker: int, base: str | None = None) -> str:
     """The contract URL on its own port for worker `worker` (ttl stays 0)."""
     base = base or contract.lcm_url()
@@ -95,9 +101,10 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
                               faults=spec.faults, lcm_url=lcm_url, record=spec.record,
                               status_rate_hz=1.0 / config.CONTROL_DT_S))
     clock_args = ("--clock", "lockstep") if lockstep else ()     # realtime: the runtime's own clock
-    runtime = start_runtime(controller.policy, *clock_args, "--autostart", "--lcm-url", lcm_url,
-                            "--prepare-s", f"{spec.prepare_s:g}", *controller.runtime_args())
-    _wait_until_listening(runtime)
+    runtime_args = [*clock_args, "--autostart", "--prepare-s", f"{spec.prepare_s:g}", *controller.runtime_args()]
+    capture = _start_log(spec, controller, runtime_args, lcm_url) if spec.log else None
+    runtime = start_runtime(controller.policy, *runtime_args, "--lcm-url", lcm_url)
+    wait_until_listening(runtime)
     n = int(round(spec.seconds / config.CONTROL_DT_S))
     log = TickLog(sim.model, n)
     stick = joystick_t()
@@ -120,24 +127,22 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
     finally:
         sim.close()                                 # renders the video when recording
         code, err = stop(runtime)
+        if capture is not None:
+            capture.stop()
     if sim.lockstep_timeouts:
         raise RuntimeError(f"{sim.lockstep_timeouts} lockstep timeouts: the runtime did not answer every state")
     return summarise(spec, controller.label, log, finish_x_m, _last_fault(err), segment_edges_x)
 
 
-def _wait_until_listening(runtime) -> None:
-    """The sim's first state must not go out before the runtime subscribes (lockstep would wait 30 s for an
-    answer that never comes): wait for the banner the runtime prints just before it opens LCM, plus a
-    margin. Reading a line at a time leaves the rest of stderr for stop()."""
-    lines = []
-    while True:
-        line = runtime.stderr.readline()
-        if not line:
-            raise RuntimeError(f"t1-runtime exited before listening: {''.join(lines)}")
-        lines.append(line)
-        if line.startswith("t1-runtime: policy '") or "COMPOSITE mode" in line:
-            break
-    time.sleep(RUNTIME_OPEN_MARGIN_S)
+def _start_log(spec: TrialSpec, controller: Controller, runtime_args: list[str], lcm_url: str):
+    from sim_hil.lcmlog.capture import LogCapture, RunInfo
+    from training.artifact import read_artifact
+    info = RunInfo(run_name=Path(spec.log).stem, producer=f"eval:{spec.scenario}", clock=spec.clock,
+                   policy_path=str(controller.policy), policy_hash=read_artifact(controller.policy)[3]["content_hash"],
+                   runtime_args=runtime_args,
+                   sim_args=["--scenario", spec.scenario, "--spawn", spec.spawn, "--seed", str(spec.seed),
+                             "--clock", spec.clock, "--faults", spec.faults])
+    return LogCapture(spec.log, lcm_url, info)
 
 
 def _last_fault(runtime_stderr: str) -> str:

@@ -2,8 +2,12 @@
 
 Stages (config.stage), rewards from getup_rewards.py (formulas there):
 * "stage1" fallen → kneel: starts fallen; Height = HO(kneel targets), Pose = pose(q, q_kneel).
-* "stage2" kneel → stand: starts kneeling; the stand-up reward alone (the gate taken as met):
-  Height = 1.83 + HO(torso 0.67, waist 0.55), Pose = 0.6 + 100·pose(q, q_init).
+* "stage2" kneel → stand: starts kneeling; Height = HO(torso 0.67, waist 0.55), Pose = pose(q, q_init): the
+  same two §4.7 rewards as stage 1, toward the standing reference. The 1.83 / 0.6 bonuses and the 100·
+  weight belong to the gate, which §4.8 introduces "to train the full getup controller"; without a gate
+  they are wrong here: taking the gate as always met (this project's first stage-2 runs) pays
+  0.6 + 100·pose for standing-like joint angles in ANY posture, and PPO learned to lie on the floor with
+  straight legs (5 M steps: pose term 97 per step, height term flat, success 0; runs/getup_stage2).
 * "full" (fine-tuned from the stage-2 checkpoint, §4.5): starts fallen / kneeling / standing with
   config.start_probs = (0.4, 0.4, 0.2); Height and Pose gated per step (§4.8).
 reward per control step = Height + Pose − energy_weight·energy (then × ctrl_dt, as every task here).
@@ -169,8 +173,7 @@ class Getup(GetupBase):
         if stage == "stage1":
             height, pose = kneel_h, kneel_p
         elif stage == "stage2":
-            height, pose = G.gated_height_reward(jnp.bool_(True), kneel_h, stand_h), \
-                G.gated_pose_reward(jnp.bool_(True), kneel_p, stand_p)
+            height, pose = stand_h, stand_p
         else:
             height, pose = G.gated_height_reward(ok, kneel_h, stand_h), G.gated_pose_reward(ok, kneel_p, stand_p)
         return {"height": height, "pose": pose, "gate": ok,

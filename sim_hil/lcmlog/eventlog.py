@@ -1,0 +1,140 @@
+"""Read LCM event logs (the format lcm-logger writes) without trusting them.
+
+Format of one event, big-endian: sync word 0xEDA1DA01 (u32), event number (i64), timestamp [us] (i64),
+channel length (i32), data length (i32), channel bytes, data bytes. lcm's own reader stops or raises at
+the first damaged byte; this one reports what is wrong (truncated tail, corrupt span skipped by scanning
+for the next sync word, unknown channel, another type version) and keeps every event it can read.
+"""
+from __future__ import annotations
+
+import importlib
+import struct
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from messages import contract
+
+SYNC = 0xEDA1DA01
+HEADER = struct.Struct(">IqqII")
+MAX_CHANNEL_LEN = 256                 # LCM's own limit on channel names [bytes]
+MAX_DATA_LEN = 64 * 1024 * 1024       # far above any project message; larger means a corrupt length field
+
+
+@dataclass(frozen=True)
+class Event:
+    offset: int         # byte offset of the event in the file
+    timestamp_us: int   # receive time (lcm-logger's clock)
+    channel: str
+    data: bytes
+
+
+@dataclass
+class LogProblems:
+    corrupt_spans: list[tuple[int, int]] = field(default_factory=list)   # [start, end) bytes skipped
+    truncated_at: int | None = None       # offset of an incomplete last event
+    unknown_channels: Counter = field(default_factory=Counter)           # channel -> events skipped
+    wrong_version: Counter = field(default_factory=Counter)              # channel -> events skipped
+    undecodable: Counter = field(default_factory=Counter)                # channel -> events skipped
+    wrong_version_fingerprint: dict = field(default_factory=dict)        # channel -> (found, expected)
+
+    def messages(self, path: Path) -> list[str]:
+        """One clear sentence per problem (empty when the log is clean)."""
+        out = [f"{path}: corrupt bytes {a}..{b} ({b - a} bytes) skipped, reading resumed at the next event"
+               for a, b in self.corrupt_spans]
+        if self.truncated_at is not None:
+            out.append(f"{path}: truncated: the event at byte {self.truncated_at} is incomplete (kept every "
+                       "event before it)")
+        for ch, n in sorted(self.unknown_channels.items()):
+            out.append(f"{path}: channel {ch!r} is not in messages/contract.json: {n} events skipped")
+        for ch, n in sorted(self.wrong_version.items()):
+            found, expected = self.wrong_version_fingerprint[ch]
+            out.append(f"{path}: channel {ch}: {n} events of another {contract.CHANNEL_TYPES[ch]} version "
+                       f"(fingerprint {found:#018x}, this build expects {expected:#018x}) skipped")
+        for ch, n in sorted(self.undecodable.items()):
+            out.append(f"{path}: channel {ch}: {n} events do not decode as {contract.CHANNEL_TYPES[ch]} "
+                       "(truncated or malformed payload) skipped")
+        return out
+
+
+def read_events(path: Path, problems: LogProblems) -> list[Event]:
+    """Every readable event, in file order; damage is recorded in `problems`, never raised."""
+    blob = Path(path).read_bytes()
+    events, pos, n = [], 0, len(blob)
+    while pos < n:
+        if n - pos < HEADER.size:
+            problems.truncated_at = pos
+            break
+        sync, _num, stamp, ch_len, data_len = HEADER.unpack_from(blob, pos)
+        if sync != SYNC or ch_len == 0 or ch_len > MAX_CHANNEL_LEN or data_len > MAX_DATA_LEN:
+            nxt = blob.find(SYNC.to_bytes(4, "big"), pos + 1)
+            end = n if nxt < 0 else nxt
+            problems.corrupt_spans.append((pos, end))
+            pos = end
+            continue
+        body = pos + HEADER.size
+        if body + ch_len + data_len > n:
+            problems.truncated_at = pos
+            break
+        channel = blob[body:body + ch_len].decode("utf-8", errors="replace")
+        events.append(Event(pos, stamp, channel, blob[body + ch_len:body + ch_len + data_len]))
+        pos = body + ch_len + data_len
+    return events
+
+
+def lcm_type(channel: str):
+    """The generated Python class of a contract channel (None when the channel is not a project one)."""
+    name = contract.CHANNEL_TYPES.get(channel)
+    return None if name is None else getattr(importlib.import_module(f"t1.{name}"), name)
+
+
+@dataclass
+class ProjectLog:
+    """A log decoded on the project's channels: channel -> [(event, message)] in file order."""
+    path: Path
+    events: list[Event]
+    messages: dict[str, list[tuple[Event, object]]]
+    problems: LogProblems
+
+    def first(self, channel: str):
+        entries = self.messages.get(channel, [])
+        return entries[0][1] if entries else None
+
+
+def open_log(path: Path | str) -> ProjectLog:
+    """Read and decode a log; raises only when the file cannot be read at all or holds no event."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such log file")
+    problems = LogProblems()
+    events = read_events(path, problems)
+    if not events:
+        raise ValueError(f"{path}: no readable LCM event ({'; '.join(problems.messages(path)) or 'empty file'})")
+    decoded: dict[str, list[tuple[Event, object]]] = defaultdict(list)
+    for ev in events:
+        cls = lcm_type(ev.channel)
+        if cls is None:
+            problems.unknown_channels[ev.channel] += 1
+            continue
+        expected = struct.unpack(">Q", cls._get_packed_fingerprint())[0]
+        found = struct.unpack(">Q", ev.data[:8])[0] if len(ev.data) >= 8 else None
+        if found is not None and found != expected:
+            problems.wrong_version[ev.channel] += 1
+            problems.wrong_version_fingerprint[ev.channel] = (found, expected)
+            continue
+        try:
+            decoded[ev.channel].append((ev, cls.decode(ev.data)))
+        except Exception:          # lcm-gen's decoders raise ValueError or struct.error on short data
+            problems.undecodable[ev.channel] += 1
+    return ProjectLog(path, events, dict(decoded), problems)
+
+
+def write_events(path: Path, events: list[Event]) -> Path:
+    """A well-formed log of `events` (how a damaged log is made playable by lcm-logplayer)."""
+    with open(path, "wb") as f:
+        for number, ev in enumerate(events):
+            channel = ev.channel.encode()
+            f.write(HEADER.pack(SYNC, number, ev.timestamp_us, len(channel), len(ev.data)))
+            f.write(channel)
+            f.write(ev.data)
+    return Path(path)

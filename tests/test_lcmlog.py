@@ -1,0 +1,164 @@
+"""LCM logs (sim_hil/lcmlog): the reader survives damaged logs and says what is wrong; the plot; and, in
+the namespace, a lockstep trial's log replayed through the C++ runtime reproduces the logged command
+stream exactly with the logged policy and shows where another policy diverges."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from t1 import imu_t, joint_command_t, joint_state_t
+
+from messages import contract
+from sim_hil.launch import ROOT, _env
+from sim_hil.lcmlog.eventlog import Event, LogProblems, open_log, read_events, write_events
+from sim_hil.lcmlog.plot import parse_joints, plot_log
+from training.artifact import read_artifact, write_artifact
+
+STUDENT = ROOT / "policies" / "student_untrained.safetensors"
+N = contract.NUM_JOINTS
+TICK_US = 2000
+
+
+def _state(seq: int) -> bytes:
+    m = joint_state_t()
+    m.utime, m.seq = seq * TICK_US, seq
+    m.q, m.dq, m.tau_est = [0.1 * seq] * N, [0.0] * N, [0.0] * N
+    m.motor_status = [0] * N
+    return m.encode()
+
+
+def _command(seq: int) -> bytes:
+    m = joint_command_t()
+    m.utime, m.seq, m.state_seq, m.mode = seq * TICK_US, seq, seq, 3
+    m.q_des, m.dq_des, m.kp, m.kd, m.tau_ff = [0.1 * seq] * N, [0.0] * N, [50.0] * N, [1.0] * N, [0.0] * N
+    return m.encode()
+
+
+def _events(ticks: int = 10) -> list[Event]:
+    out = []
+    for k in range(ticks):
+        out.append(Event(0, k * TICK_US, contract.CH_JOINT_STATE, _state(k)))
+        out.append(Event(0, k * TICK_US + 100, contract.CH_JOINT_CMD, _command(k)))
+    return out
+
+
+def test_clean_log_round_trip(tmp_path):
+    path = write_events(tmp_path / "clean.lcmlog", _events())
+    log = open_log(path)
+    assert log.problems.messages(path) == []
+    assert len(log.messages[contract.CH_JOINT_STATE]) == 10 and len(log.messages[contract.CH_JOINT_CMD]) == 10
+    assert log.messages[contract.CH_JOINT_STATE][3][1].seq == 3
+
+
+def test_truncated_log_keeps_every_whole_event(tmp_path):
+    path = write_events(tmp_path / "t.lcmlog", _events())
+    path.write_bytes(path.read_bytes()[:-50])            # the last command loses its tail
+    log = open_log(path)
+    assert len(log.messages[contract.CH_JOINT_STATE]) == 10 and len(log.messages[contract.CH_JOINT_CMD]) == 9
+    assert any("truncated" in m for m in log.problems.messages(path))
+
+
+def test_corrupt_bytes_are_skipped_and_reading_resumes(tmp_path):
+    blob = write_events(tmp_path / "c.lcmlog", _events()).read_bytes()
+    events = read_events(tmp_path / "c.lcmlog", LogProblems())
+    hit = events[5].offset                               # overwrite event 5's header and part of its body
+    damaged = blob[:hit] + b"\x00" * 40 + blob[hit + 40:]
+    (tmp_path / "c.lcmlog").write_bytes(damaged)
+    log = open_log(tmp_path / "c.lcmlog")
+    assert len(log.events) == 19
+    msgs = log.problems.messages(log.path)
+    assert len(msgs) == 1 and f"corrupt bytes {hit}.." in msgs[0]
+
+
+def test_unknown_channel_and_other_type_version_are_named(tmp_path):
+    events = _events(3)
+    wrong = bytearray(_state(7))
+    wrong[:8] = (0x1234).to_bytes(8, "big")             # a joint_state_t of another version
+    events += [Event(0, 9_000, "SOMEONE_ELSES", b"\x01\x02"), Event(0, 9_100, contract.CH_JOINT_STATE, bytes(wrong)),
+               Event(0, 9_200, contract.CH_IMU, imu_t().encode()[:12])]      # cut short
+    log = open_log(write_events(tmp_path / "u.lcmlog", events))
+    text = "\n".join(log.problems.messages(log.path))
+    assert "'SOMEONE_ELSES' is not in messages/contract.json: 1 events skipped" in text
+    assert "T1_JOINT_STATE: 1 events of another joint_state_t version (fingerprint 0x0000000000001234" in text
+    assert "T1_IMU: 1 events do not decode as imu_t" in text
+    assert len(log.messages[contract.CH_JOINT_STATE]) == 3        # what could be read still is
+
+
+def test_not_a_log_is_refused_clearly(tmp_path):
+    (tmp_path / "x.lcmlog").write_bytes(b"this is not an lcm log at all")
+    with pytest.raises(ValueError, match="no readable LCM event"):
+        open_log(tmp_path / "x.lcmlog")
+    run = subprocess.run([sys.executable, "-m", "sim_hil.lcmlog", "info", str(tmp_path / "x.lcmlog")],
+                         cwd=ROOT, env=_env(), capture_output=True, text=True)
+    assert run.returncode == 2 and "no readable LCM event" in run.stderr
+
+
+def test_plot_of_a_damaged_log(tmp_path):
+    path = write_events(tmp_path / "p.lcmlog", _events(50))
+    path.write_bytes(path.read_bytes()[:-10])
+    run = subprocess.run([sys.executable, "-m", "sim_hil.lcmlog", "plot", str(path), "--joints", "Waist"],
+                         cwd=ROOT, env=_env(), capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert "truncated" in run.stderr and path.with_suffix(".png").stat().st_size > 0
+    assert plot_log(open_log(path), tmp_path / "q.png").is_file()
+    with pytest.raises(ValueError, match="not in messages/contract.json"):
+        parse_joints("Left_Knee,Waist")
+
+
+def _other_student(path):
+    """The untrained student with its output bias shifted: a different policy on the same inputs."""
+    layers, mean, std, manifest = read_artifact(STUDENT)
+    layers = [(np.asarray(w), np.asarray(b)) for w, b in layers]
+    layers[-1] = (layers[-1][0], layers[-1][1] + 0.2)
+    write_artifact(path, layers, mean, std, {k: v for k, v in manifest.items() if k != "content_hash"})
+    return path
+
+
+@pytest.mark.slow
+def test_lockstep_log_replays_exactly_and_another_policy_diverges(tmp_path, netns):
+    out = tmp_path / "eval"
+    run = subprocess.run([sys.executable, "-m", "sim_hil.eval", "getup", "--policy", str(STUDENT), "--trials", "1",
+                          "--seconds", "2.6", "--jobs", "1", "--no-video", "--out", str(out)],
+                         cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=150)
+    assert run.returncode == 0, run.stderr[-3000:]
+    (log_path,) = sorted((out / "logs").glob("*.lcmlog"))
+    log = open_log(log_path)
+    assert log.problems.messages(log_path) == []                  # lcm-logger left a whole file
+    info = log.first(contract.CH_RUN_INFO)
+    assert info.policy_path == str(STUDENT) and "--autostart" in info.runtime_args
+    states = log.messages[contract.CH_JOINT_STATE]
+    assert [m.seq for _, m in states] == list(range(1300))        # 2.6 s at 500 Hz, not one missed
+
+    def replay(*policy):
+        return subprocess.run([sys.executable, "-m", "sim_hil.lcmlog", "replay", str(log_path), *policy,
+                               "--out", str(tmp_path / "r")], cwd=ROOT, env=_env(), capture_output=True,
+                              text=True, timeout=120)
+
+    same = replay()
+    assert same.returncode == 0, same.stdout + same.stderr
+    report = json.loads((tmp_path / "r.replay.json").read_text())
+    assert report["identical"] and report["compared_ticks"] == 1300 and report["unanswered_states"] == 0
+
+    other = replay("--policy", str(_other_student(tmp_path / "other.safetensors")))
+    assert other.returncode == 1, other.stdout + other.stderr
+    report = json.loads((tmp_path / "r.replay.json").read_text())
+    logged = {m.state_seq: m for _, m in log.messages[contract.CH_JOINT_CMD]}
+    first = report["first_diverging_state_seq"]
+    # PREPARE does not use the policy: the commands agree until the first POLICY tick, then differ
+    assert logged[first].mode == joint_command_t.MODE_POLICY and logged[first - 1].mode != joint_command_t.MODE_POLICY
+    assert max(report["max_abs_dq_des_rad"].values()) > 0
+
+
+def test_spy_plays_a_damaged_log_headless_and_cleans_up(tmp_path, netns):
+    path = write_events(tmp_path / "s.lcmlog", _events(100))
+    path.write_bytes(path.read_bytes()[:-10])            # lcm-logplayer alone would stop at the damage
+    env = {k: v for k, v in _env().items() if k != "DISPLAY"}
+    run = subprocess.run([sys.executable, "-m", "sim_hil.lcmlog", "spy", str(path), "--speed", "4"], cwd=ROOT,
+                         env=env, capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "headless, xvfb" in run.stdout and "truncated" in run.stderr
+    left = subprocess.run(["pgrep", "-f", "lcm.spy.Spy"], capture_output=True, text=True).stdout.split()
+    assert not left, f"lcm-spy left running: {left}"
