@@ -227,3 +227,21 @@ def test_estop_over_lcm_damps_the_dds_robot_within_a_tick(dds_runtime, netns):
         peer.write(low_state(q0))
         watch.lc.handle_timeout(2)
     assert watch.status[-1].mode_name == "DAMPING", (watch.status[-1].mode_name, watch.status[-1].last_fault)
+
+
+def test_the_sim_refuses_unusable_low_cmds_naming_the_problem():
+    from messages import dds_types
+    from sim_hil.dds_bridge import validate_low_cmd
+
+    def cmd(n=N, cmd_type=dds_types.CmdType.SERIAL, **field):
+        m = dict(mode=0, q=0.0, dq=0.0, tau=0.0, kp=10.0, kd=1.0, weight=0.0)
+        motors = [dds_types.MotorCmd(**m) for _ in range(n)]
+        for name, value in field.items():
+            setattr(motors[3], name, value)
+        return dds_types.LowCmd(cmd_type=cmd_type, motor_cmd=motors)
+
+    assert validate_low_cmd(cmd()) is None
+    assert "not SERIAL" in validate_low_cmd(cmd(cmd_type=dds_types.CmdType.PARALLEL))
+    assert "24 entries" in validate_low_cmd(cmd(n=N + 1))
+    assert "q contains NaN" in validate_low_cmd(cmd(q=float("nan")))
+    assert "kp outside" in validate_low_cmd(cmd(kp=-1.0))
