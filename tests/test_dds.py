@@ -101,6 +101,32 @@ def test_lockstep_over_dds_runs_prepare_then_the_policy_without_fault_as_over_lc
     np.testing.assert_allclose([d for _, d in pairs], [lc for lc, _ in pairs], atol=TRUNK_MATCH_M)
 
 
+JOYSTICK_RUN_POLICY = ROOT / "training" / "runs" / "joystick" / "joystick.safetensors"   # campaign, not shipped
+STAND_S = 5.0                   # the joystick policy holds the robot up this long, zero command
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not JOYSTICK_RUN_POLICY.is_file(), reason="no joystick campaign export in training/runs")
+def test_over_dds_a_walking_policy_keeps_the_robot_standing(netns):
+    """What a static PREPARE hold cannot do in this model (it tips over at ~1.3 s), the joystick campaign's
+    policy does over DDS: standing start, the short PREPARE of the walk evaluation, then STAND_S with a zero
+    command (no joystick is sent: the runtime zeroes a stale one), trunk up all the way, no fault."""
+    from sim_hil.eval.plans import STANDING_PREPARE_S
+    watch = LcmWatch()
+    runtime = start_runtime(JOYSTICK_RUN_POLICY, "--transport", "dds", "--clock", "lockstep", "--autostart",
+                            "--prepare-s", str(STANDING_PREPARE_S))
+    sim = start_sim("--dds", "--clock", "lockstep", "--spawn", "standing", "--status-rate", "50",
+                    "--duration", str(STANDING_PREPARE_S + STAND_S))
+    watch.pump_while(lambda: sim.poll() is None, 300)
+    assert sim.poll() == 0, f"sim failed: {sim.communicate()[1][-2000:] if sim.poll() is not None else 'timeout'}"
+    code, err = stop(runtime)
+    assert code == 0, f"runtime exit {code}: {err}"
+    assert watch.status[-1].mode_name == "POLICY" and watch.status[-1].policy_ticks > 0
+    assert all(s.fault_bits & LATCHED_FAULT_BITS == 0 for s in watch.status), watch.status[-1].last_fault
+    assert watch.sim[-1].utime * 1e-6 >= STANDING_PREPARE_S + STAND_S - 0.1, "the run ended early"
+    assert min(s.trunk_height for s in watch.sim) > STANDING_TRUNK_MIN_M, "the robot went down"
+
+
 @pytest.mark.slow
 def test_realtime_over_dds_the_runtime_sees_the_robot_and_commands_it(netns):
     watch = LcmWatch()
