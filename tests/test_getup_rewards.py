@@ -162,3 +162,15 @@ def test_robustness_noise_is_unit_uniform_on_every_entry():
     env = envs.make("getup", config_overrides={"fallen_bank_size": 2, "obs_noise_scale": 1.0})
     assert env._noise_level() == 1.0 and np.all(np.asarray(env._noise_scale) == 1.0)
     assert envs.make("getup", config_overrides={"fallen_bank_size": 2})._noise_level() == 0.0
+
+
+def test_getup_actions_reach_the_kneel_keyframe_within_each_joint_range():
+    """±0.5 rad around home cannot reach the kneel (knee 1.9 vs 0.4 rad): the getup tasks use 2 rad per unit,
+    capped per joint at the joint's range (what the runtime accepts), the kneel well inside tanh's ±1."""
+    env = envs.make("getup", config_overrides={"stage": "stage2"})
+    scale = np.asarray(env.manifest_fields()["action_scale"])
+    ranges = np.asarray(env._q_max - env._q_min)
+    assert scale.shape == (23,) and np.all(scale <= ranges + 1e-6) and scale.max() == pytest.approx(2.0)
+    needed = (np.asarray(env._kneel_pose) - np.asarray(env._default_pose)) / scale
+    assert np.max(np.abs(needed)) < 0.8
+    assert envs.make("joystick").manifest_fields()["action_scale"] == 0.5   # unchanged: one number

@@ -74,10 +74,14 @@ def test_observation_sizes_and_manifest(env_by_task):
     assert env_by_task["joystick"].obs_terms == list(obsdef.TERMS_UNION)
     assert env_by_task["getup"].obs_terms == list(obsdef.TERMS_GETUP)
     assert env_by_task["unified"].obs_terms == list(obsdef.TERMS_UNION)
-    # one gain set and one action map for all three policies (and the student's env)
-    fields = [env.manifest_fields() for env in env_by_task.values()]
-    for key in ("kp", "kd", "default_pose", "action_scale", "control_dt"):
-        assert all(f[key] == fields[0][key] for f in fields), key
+    # one gain set and one default pose for all three policies (and the student's env); two action maps:
+    # the joystick's ±0.5 rad, and the getup expert's wider one, which the student shares (teacher.py
+    # converts the joystick expert's actions into it)
+    fields = {task: env.manifest_fields() for task, env in env_by_task.items()}
+    for key in ("kp", "kd", "default_pose", "control_dt"):
+        assert all(f[key] == fields["joystick"][key] for f in fields.values()), key
+    assert fields["joystick"]["action_scale"] == 0.5
+    assert fields["unified"]["action_scale"] == fields["getup"]["action_scale"]
 
 
 def test_step_pytree_is_stable(env_by_task):

@@ -36,6 +36,7 @@ class Expert:
     obs_std: np.ndarray
     activation: str
     obs_terms: tuple         # ((name, size), ...)
+    action_scale: np.ndarray  # (23,) rad per unit action: target = default pose + action_scale · tanh(loc)
 
     def loc(self, obs, xp=None):
         """The pre-tanh mean (brax tanh-normal `loc`) for raw observations in this expert's term layout."""
@@ -65,7 +66,7 @@ def load_expert(path, name: str | None = None) -> Expert:
             raise ValueError(f"{path}: output_rule {manifest['output_rule']!r}; an expert must be a PPO "
                              "tanh_normal policy (the DAgger loss compares tanh(loc))")
         return Expert(name or manifest["name"], tuple(layers), mean, std, manifest["activation"],
-                      tuple((n, int(s)) for n, s in manifest["obs_terms"]))
+                      tuple((n, int(s)) for n, s in manifest["obs_terms"]), _per_joint(manifest["action_scale"]))
     from training import checkpoints
     from training.export import brax_policy_layers
     from training.train import ACTIVATION
@@ -78,8 +79,16 @@ def load_expert(path, name: str | None = None) -> Expert:
     if isinstance(mean, dict):
         mean, std = mean[STUDENT_OBS_KEY], std[STUDENT_OBS_KEY]
     terms = _terms_for_size(layers[0][0].shape[1], path)
+    from training import envs      # a checkpoint has no manifest: its task's action map, from the terms
+    task = "getup" if terms == obsdef.TERMS_GETUP else "joystick"
+    scale = envs.make(task, config_overrides={"fallen_bank_size": 1} if task == "getup" else None
+                      ).manifest_fields()["action_scale"]
     return Expert(name or path.name, tuple(layers), np.asarray(mean, np.float32), np.asarray(std, np.float32),
-                  ACTIVATION, terms)
+                  ACTIVATION, terms, _per_joint(scale))
+
+
+def _per_joint(scale) -> np.ndarray:
+    return np.broadcast_to(np.asarray(scale, np.float32), (obsdef.NUM_JOINTS,)).copy()
 
 
 class TermAdapter:
@@ -122,20 +131,36 @@ class TermAdapter:
         return xp.concatenate(parts, axis=-1)
 
 
-def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence,
+def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, student_action_scale,
                  switch_height_m: float = WAIST_SWITCH_HEIGHT_M):
     """brax-bc teacher: obs dict {"state": student-layout obs, "waist_height": (..., 1)} →
-    (tanh(loc), {"loc": loc}); the getup expert where waist height < switch_height_m."""
+    (action, {"loc": atanh(action)}) in the STUDENT's action map; the getup expert where waist height <
+    switch_height_m. The experts' maps differ (joystick ±0.5 rad around home, getup up to 2 rad): each
+    expert's action is turned into the same joint targets in the student's map, a_s = a_e · s_e / s_s
+    (the student's scale is at least each expert's, so |a_s| ≤ 1)."""
     import jax.numpy as jnp
     to_getup = TermAdapter(student_terms, getup.obs_terms)
     to_joystick = TermAdapter(student_terms, joystick.obs_terms)
+    s_student = _per_joint(student_action_scale)
+    ratios = {e.name: e.action_scale / s_student for e in (getup, joystick)}
+    for e in (getup, joystick):
+        if np.any(ratios[e.name] > 1.0 + 1e-6):
+            raise ValueError(f"{e.name} expert's action scale exceeds the student's on some joint: the student "
+                             "could not reach its targets (give the student env the larger scale)")
+
+    def in_student_map(expert, loc):
+        ratio = jnp.asarray(ratios[expert.name])
+        action = jnp.tanh(loc) * ratio
+        # where the maps agree keep loc exactly (no atanh round trip at saturation)
+        return action, jnp.where(ratio == 1.0, loc, jnp.arctanh(jnp.clip(action, -1 + 1e-6, 1 - 1e-6)))
 
     def teacher(obs, key=None):
         del key  # deterministic experts
         state = obs[STUDENT_OBS_KEY]
-        waist = obs[WAIST_OBS_KEY]
-        loc = jnp.where(waist < switch_height_m, getup.loc(to_getup(state)), joystick.loc(to_joystick(state)))
-        return jnp.tanh(loc), {"loc": loc}
+        use_getup = obs[WAIST_OBS_KEY] < switch_height_m
+        a_g, loc_g = in_student_map(getup, getup.loc(to_getup(state)))
+        a_j, loc_j = in_student_map(joystick, joystick.loc(to_joystick(state)))
+        return jnp.where(use_getup, a_g, a_j), {"loc": jnp.where(use_getup, loc_g, loc_j)}
 
     return teacher
 
@@ -152,7 +177,7 @@ def check_teacher(getup_path, joystick_path, num_envs: int = 16, seed: int = 0, 
     env = envs.make(task, config_overrides=overrides)
     student_terms = obsdef.TERMS_UNION
     to_student = TermAdapter(env.obs_terms, student_terms)
-    teacher = make_teacher(getup, joystick, student_terms)
+    teacher = make_teacher(getup, joystick, student_terms, env.manifest_fields()["action_scale"])
 
     def act(state):
         obs = {STUDENT_OBS_KEY: to_student(state.obs[STUDENT_OBS_KEY]),

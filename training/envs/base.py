@@ -102,6 +102,11 @@ class T1Env(mjx_env.MjxEnv):
         self._tau_limit = jnp.asarray(t1model.torque_limits(mj))
         ranges = t1model.joint_ranges(mj)
         self._q_min, self._q_max = jnp.asarray(ranges[:, 0]), jnp.asarray(ranges[:, 1])
+        # rad per unit action, per joint: the config's scale, but never more than the joint's whole range (the
+        # runtime's artifact rule); one number when that leaves every joint the same (the joystick's 0.5)
+        scale = np.minimum(float(cfg.action_scale), ranges[:, 1] - ranges[:, 0])
+        self._action_scale_np = float(scale[0]) if np.all(scale == scale[0]) else scale
+        self._action_scale = jnp.asarray(self._action_scale_np, jnp.float32)
         self._d_safe = jnp.asarray(motor.D_SAFE_NMS)
 
         self._trunk_id = mj.body("Trunk").id
@@ -165,7 +170,8 @@ class T1Env(mjx_env.MjxEnv):
         return {
             "obs_terms": [list(t) for t in self.obs_terms],
             "default_pose": [float(v) for v in self._default_pose_np],
-            "action_scale": float(cfg.action_scale),
+            "action_scale": (self._action_scale_np if isinstance(self._action_scale_np, float)
+                             else [float(v) for v in self._action_scale_np]),
             "kp": [float(v) for v in self._kp], "kd": [float(v) for v in self._kd],
             "control_dt": float(cfg.ctrl_dt),
             "gait_frequency": float(cfg.gait.frequency_hz),
@@ -176,7 +182,7 @@ class T1Env(mjx_env.MjxEnv):
     # ------------------------------------------------------------------ physics
     def motor_targets(self, action: jax.Array) -> jax.Array:
         """q_des [rad] = default pose + action_scale · action (training/observation.action_to_targets)."""
-        return obsdef.action_to_targets(self._default_pose, self._config.action_scale, action)
+        return obsdef.action_to_targets(self._default_pose, self._action_scale, action)
 
     def pd_torque(self, q_des: jax.Array, q: jax.Array, dq: jax.Array) -> jax.Array:
         """Firmware motor law with the (possibly randomised) gains of the current mjx model [N·m]."""

@@ -35,6 +35,7 @@ from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import fallen_states
 
 STAGES = ("stage1", "stage2", "full")
+GETUP_ACTION_SCALE_RAD = 2.0    # rad per unit action (see getup_common_config)
 START_KINDS = ("fallen", "kneeling", "standing")
 
 
@@ -42,6 +43,10 @@ def getup_common_config() -> config_dict.ConfigDict:
     """Settings the getup expert and the baseline share (starts, model, observation)."""
     cfg = base.base_config()
     cfg.collision = "full_body"
+    # ±0.5 rad around home (the joystick's scale) cannot even reach the kneel keyframe (knee 1.9 rad vs
+    # home 0.4): with it both stage-2 runs learned to lie flat with straight legs. 2 rad per unit puts the
+    # kneel at |a| ≈ 0.75, off tanh saturation; base.py caps it per joint at the joint's range.
+    cfg.action_scale = GETUP_ACTION_SCALE_RAD
     cfg.episode_length = 500
     cfg.obs_terms = [list(t) for t in obsdef.TERMS_GETUP]
     cfg.obs_noise_scale = 0.0            # U(−1, 1)·this per observation entry; 0 = off (seed's fine-tune: 1)

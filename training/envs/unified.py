@@ -46,6 +46,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.collision = "full_body"
     cfg.episode_length = 1000
     cfg.obs_terms = [list(t) for t in obsdef.TERMS_UNION]
+    cfg.action_scale = getup.action_scale   # the wider map: the student must reach both experts' targets
     # Starts: the getup expert's full-task settings; commands / pushes: the joystick expert's. Copied from
     # their configs (not restated) so the three tasks cannot drift apart.
     cfg.start_probs = list(getup.start_probs)

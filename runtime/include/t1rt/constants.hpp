@@ -16,7 +16,8 @@ inline constexpr std::size_t kTimingWindow = 1024;    // samples in the p99 wind
 inline constexpr int kSchemaVersion = 1;             // policies/ARTIFACT.md schema handled here
 // Documented maxima of artifact manifest numbers (policies/ARTIFACT.md "Limits"); beyond them a value is a
 // unit error or a typo, not a policy. Sign and joint-range rules are in the loader.
-inline constexpr double kMaxActionScaleRad = 1.5;     // target = default + scale * action: 1.5 rad per unit
+inline constexpr double kMaxActionScaleRad = 2.0;     // target = default + scale * action [rad per unit]: the
+                                                      // getup experts need 2 (kneel knee 1.5 rad from home)
 inline constexpr double kMaxGaitFrequencyHz = 5.0;    // a walking gait clock; the T1 steps at about 1.5 Hz
 inline constexpr double kMaxCommandMagnitude = 5.0;   // |command_ranges| [m/s or rad/s]: far above the T1's speeds
 
