@@ -174,3 +174,16 @@ def test_getup_actions_reach_the_kneel_keyframe_within_each_joint_range():
     needed = (np.asarray(env._kneel_pose) - np.asarray(env._default_pose)) / scale
     assert np.max(np.abs(needed)) < 0.8
     assert envs.make("joystick").manifest_fields()["action_scale"] == 0.5   # unchanged: one number
+
+
+def test_only_stage2_ends_when_the_trunk_falls_below_the_fall_height(full_env):
+    """Stage 2 starts kneeling (trunk 0.405 m): dropping below 0.30 m ends it, so lying cannot pay. Stage 1
+    and the full task start on the floor and never end on height."""
+    s2 = envs.make("getup", config_overrides={"stage": "stage2"})
+    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
+    fall_m = s2._config.stage2_fall_trunk_height_m
+    assert fall_m < s2._kneel_targets[0]          # the kneel start itself is not a fall
+    for h, ends in ((fall_m - 0.01, True), (fall_m + 0.01, False), (0.405, False), (0.67, False)):
+        assert bool(s2.fell_from_kneel({"trunk_height": jnp.float32(h)})) is ends
+        assert not bool(s1.fell_from_kneel({"trunk_height": jnp.float32(h)}))
+        assert not bool(full_env.fell_from_kneel({"trunk_height": jnp.float32(h)}))

@@ -17,7 +17,13 @@ Kneel targets: the model's `kneel` keyframe (trunk 0.405 m, waist from its kinem
 q_init = the standing default pose. Actor obs = Table 4.2, TERMS_GETUP: gyro, gravity, joint offsets,
 joint velocities (52; no last action: the seed's observation, and nothing here shows it would help).
 "success" = standing by sim_hil/eval/events.py's definition (trunk ≥ 0.6 m, up_z ≥ 0.9), the one the
-evaluations use. No termination except non-finite physics: an episode runs its whole length (10 s).
+evaluations use. Episodes run their whole length (10 s) and end early only on non-finite physics, and —
+in stage 2 alone — when the trunk drops below config.stage2_fall_trunk_height_m (0.30 m; the kneel start
+is at 0.405 m). The seed says nothing of terminations; this one is ours, and why: stage 2's rewards pay
+a robot lying with straight legs HO ≈ 0.22 + pose(q, q_init) ≈ 0.9 per step, more than holding the kneel
+(≈ 0.74 + 0.05), so without it PPO learned to fall and lie (runs/getup_stage2, v3: 5 M steps, height
+0.22 and pose 0.79 per step, success 0). Stage 1 and the full task start on the floor and pay
+pose(q, q_kneel) before the gate, where lying straight earns nothing, so they keep the seed's episodes.
 """
 from __future__ import annotations
 
@@ -61,6 +67,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg = getup_common_config()
     cfg.stage = "full"
     cfg.energy_weight = 0.0
+    cfg.stage2_fall_trunk_height_m = 0.30   # stage 2 ends when the trunk drops below this [m] (docstring)
     return cfg
 
 
@@ -197,5 +204,12 @@ class Getup(GetupBase):
         metrics["gate"] = terms["gate"].astype(jnp.float32)
         metrics["success"] = (terms["gate"] if self._config.stage == "stage1"
                               else self.standing(info)).astype(jnp.float32)
-        done = self.invalid(data).astype(jnp.float32)
-        return state.replace(data=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
+        done = self.invalid(data) | self.fell_from_kneel(info)
+        return state.replace(data=data, obs=obs, reward=reward, done=done.astype(jnp.float32), metrics=metrics,
+                             info=info)
+
+    def fell_from_kneel(self, info) -> jax.Array:
+        """Stage 2's only termination besides non-finite physics: the trunk dropped below the fall height."""
+        if self._config.stage != "stage2":
+            return jnp.zeros((), dtype=bool)
+        return info["trunk_height"] < self._config.stage2_fall_trunk_height_m
