@@ -78,6 +78,16 @@ def closed_loop(link: str) -> tuple[LcmWatch, str]:
     return watch, err
 
 
+def assert_stood_through_prepare(watch: LcmWatch) -> None:
+    """Standing start, and the trunk stayed up for all PREPARE_S of PREPARE: the runtime holds the pose with
+    the T1's stand-up gains (runtime/include/t1rt/prepare_gains.hpp; with the policy's soft gains a PD hold
+    tips this model over after ~1.3 s). The untrained policy that runs afterwards may let it fall."""
+    prepare = [s.trunk_height for s in watch.sim if s.utime * 1e-6 <= PREPARE_S]
+    assert prepare and prepare[0] > STANDING_TRUNK_MIN_M, "standing start"
+    assert watch.sim[-1].utime * 1e-6 >= PREPARE_S, "the run ended before PREPARE did"
+    assert min(prepare) > STANDING_TRUNK_MIN_M, f"the robot went down under PREPARE: trunk {min(prepare):.3f} m"
+
+
 @pytest.mark.slow
 def test_lockstep_over_dds_runs_prepare_then_the_policy_without_fault_as_over_lcm(netns):
     watch, err = closed_loop("dds")
@@ -90,11 +100,10 @@ def test_lockstep_over_dds_runs_prepare_then_the_policy_without_fault_as_over_lc
     last = watch.sim[-1]
     assert last.cmds_dropped == 0
     assert last.lockstep_timeouts == 0, "a state went unanswered over DDS"
-    assert watch.sim[0].trunk_height > STANDING_TRUNK_MIN_M, "standing start"
-    # The same robot over LCM: the transport changes nothing the robot does. (A PD hold of the PREPARE pose is
-    # no balance controller: in this model the robot tips over after about 1.3 s on either link,
-    # ../shared/t1_facts.md section 6; the untrained policy does not get it up.)
+    assert_stood_through_prepare(watch)
+    # The same robot over LCM: the transport changes nothing the robot does.
     lcm_watch, _ = closed_loop("lcm")
+    assert_stood_through_prepare(lcm_watch)
     by_time = {s.utime: s.trunk_height for s in lcm_watch.sim}
     pairs = [(by_time[s.utime], s.trunk_height) for s in watch.sim if s.utime in by_time]
     assert len(pairs) > 0.9 * len(watch.sim)
@@ -108,9 +117,10 @@ STAND_S = 5.0                   # the joystick policy holds the robot up this lo
 @pytest.mark.slow
 @pytest.mark.skipif(not JOYSTICK_RUN_POLICY.is_file(), reason="no joystick campaign export in training/runs")
 def test_over_dds_a_walking_policy_keeps_the_robot_standing(netns):
-    """What a static PREPARE hold cannot do in this model (it tips over at ~1.3 s), the joystick campaign's
-    policy does over DDS: standing start, the short PREPARE of the walk evaluation, then STAND_S with a zero
-    command (no joystick is sent: the runtime zeroes a stale one), trunk up all the way, no fault."""
+    """What a PD hold with the policy's own soft gains cannot do in this model (it tips over at ~1.3 s), the
+    joystick campaign's policy does over DDS: standing start, the short PREPARE of the walk evaluation, then
+    STAND_S with a zero command (no joystick is sent: the runtime zeroes a stale one), trunk up all the way,
+    no fault."""
     from sim_hil.eval.plans import STANDING_PREPARE_S
     watch = LcmWatch()
     runtime = start_runtime(JOYSTICK_RUN_POLICY, "--transport", "dds", "--clock", "lockstep", "--autostart",

@@ -28,6 +28,7 @@
 #include <limits>
 
 #include "t1_motor_protocol.h"
+#include "t1rt/prepare_gains.hpp"
 #include "t1rt/safety.hpp"
 
 namespace t1rt {
@@ -45,6 +46,13 @@ bool all_finite(const float* v, std::size_t n) {
     if (!std::isfinite(v[i])) return false;
   return true;
 }
+constexpr bool gains_within(const JointArray& gains, float max) {
+  for (float g : gains)
+    if (!(g >= 0.0f && g <= max)) return false;
+  return true;
+}
+static_assert(gains_within(kPrepareKp, T1_KP_MAX) && gains_within(kPrepareKd, T1_KD_MAX),
+              "PREPARE gains must fit the motor command frame's kp/kd range");
 bool commanding(Mode m) { return m == Mode::kPrepare || m == Mode::kPolicy; }
 // The point of [lo, hi] nearest to x; an empty interval (lo > hi) is never passed in.
 float nearest_in(float x, float lo, float hi) { return std::min(std::max(x, lo), hi); }
@@ -253,7 +261,7 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
 }
 
 // Rule R6: rate, then torque, then range; each limit narrows the interval left by the ones before it.
-void Supervisor::clamp_targets(const StateView& s, const PolicyArtifact& a, JointArray& target) {
+void Supervisor::clamp_targets(const StateView& s, const JointArray& kps, const JointArray& kds, JointArray& target) {
   for (std::size_t i = 0; i < kJoints; ++i) {
     const t1_motor_info_t& m = T1_MOTORS[i];
     const float mid = 0.5f * (m.q_min_rad + m.q_max_rad);
@@ -268,7 +276,7 @@ void Supervisor::clamp_targets(const StateView& s, const PolicyArtifact& a, Join
       hi = last_target_[i] + cfg_.max_target_step_rad;
     }
     // 2. Torque: kp (t - q) - kd dq within +-limit  <=>  t in q + (kd dq +- limit) / kp.
-    const float kp = a.kp[i], kd = a.kd[i];
+    const float kp = kps[i], kd = kds[i];
     if (kp > 0.0f) {
       const float t_lo = s.q[i] + (kd * s.dq[i] - m.torque_limit_nm) / kp;
       const float t_hi = s.q[i] + (kd * s.dq[i] + m.torque_limit_nm) / kp;
@@ -321,13 +329,16 @@ void Supervisor::finish_tick(const StateView& s, const PolicyArtifact& a, const 
       target = policy_target;
     }
   }
-  clamp_targets(s, a, target);
+  // PREPARE holds with the robot's stand-up gains (prepare_gains.hpp), POLICY with the policy's own.
+  const JointArray& kp = mode_ == Mode::kPrepare ? kPrepareKp : a.kp;
+  const JointArray& kd = mode_ == Mode::kPrepare ? kPrepareKd : a.kd;
+  clamp_targets(s, kp, kd, target);
   last_target_ = target;
   have_last_target_ = true;
   for (std::size_t i = 0; i < kJoints; ++i) {
     out.q_des[i] = target[i];
-    out.kp[i] = a.kp[i];
-    out.kd[i] = a.kd[i];
+    out.kp[i] = kp[i];
+    out.kd[i] = kd[i];
   }
 }
 

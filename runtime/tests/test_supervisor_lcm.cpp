@@ -7,6 +7,7 @@
 #include "lcm_peer.hpp"
 #include "t1_motor_protocol.h"
 #include "t1rt/controller.hpp"
+#include "t1rt/prepare_gains.hpp"
 #include "test_artifact.hpp"
 
 using namespace t1rt;
@@ -100,8 +101,21 @@ TEST_F(SupervisorLcm, StartsPassiveWithZeroTorqueAndAnswersStateSeq) {
   for (std::size_t i = 0; i < kJoints; ++i) EXPECT_EQ(c.kp[i] + c.kd[i] + c.tau_ff[i], 0.0f);
 }
 
-TEST_F(SupervisorLcm, ModeLadderWithArtifactGains) {
-  to_policy();
+TEST_F(SupervisorLcm, PrepareHoldsWithStandUpGainsPolicyWithArtifactGains) {
+  peer_.command("set_mode", "damping");
+  step();
+  peer_.command("set_mode", "prepare");
+  step();
+  const auto& p = step();
+  ASSERT_EQ(p.mode, t1::joint_command_t::MODE_PREPARE);
+  for (std::size_t i = 0; i < kJoints; ++i) {  // the robot's prepare gains, not the artifact's (40 / 10 / 2)
+    EXPECT_FLOAT_EQ(p.kp[i], kPrepareKp[i]) << i;
+    EXPECT_FLOAT_EQ(p.kd[i], kPrepareKd[i]) << i;
+  }
+  for (int i = 0; i < 12; ++i) step();
+  peer_.command("set_mode", "policy");
+  step();
+  ASSERT_EQ(mode(), Mode::kPolicy);
   const auto& c = step();
   EXPECT_EQ(c.mode, t1::joint_command_t::MODE_POLICY);
   EXPECT_FLOAT_EQ(c.kp[0], 40.0f);

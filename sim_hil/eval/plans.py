@@ -12,8 +12,9 @@ import numpy as np
 from sim_hil import scenarios as sim_scenarios
 from sim_hil.eval.trial import TrialResult, TrialSpec
 
-# Standing spawns start in the default pose: a short PREPARE, because a 2 s static PD stand (no balance)
-# tips the T1 over forward at ~1.3 s (measured: standing spawn, autostart, trunk 0.33 m at 1.4 s).
+# Standing spawns start in the default pose already: a short PREPARE hands the robot to the policy at once
+# (the trial measures the policy; PREPARE itself holds the pose with the T1's stand-up gains, see
+# runtime/include/t1rt/prepare_gains.hpp and tests/test_dds.py).
 STANDING_PREPARE_S = 0.1
 # getup: seeded fallen starts (sim_hil.model.fallen_state drops the robot from a random pose)
 GETUP_TRIALS = 1000

@@ -5,8 +5,8 @@ The sim runs in-process so the trial can read what only physics knows, every tic
 accelerations, contact forces, foot slip), without adding fields to sim_status_t; the runtime still sees
 exactly what it sees in `make demo`: T1_IMU / T1_JOINT_STATE over LCM, and in composite mode T1_SIM_STATUS,
 published every tick (--status-rate 500). Trial time 0 is sim start; the runtime's autostart needs the
-PREPARE ramp before POLICY (2 s from a fallen start; STANDING_PREPARE_S from a standing one, where a long
-static PD stand tips over), so every metric starts at the first tick the runtime commands in POLICY.
+PREPARE ramp before POLICY (2 s from a fallen start; STANDING_PREPARE_S from a standing one, already in
+the default pose), so every metric starts at the first tick the runtime commands in POLICY.
 """
 from __future__ import annotations
 

@@ -127,7 +127,7 @@ class Supervisor {
   void set_info(const char* text);
   void enter(Mode mode, const StateView& state);
   void autostart_request(const StateView& state);
-  void clamp_targets(const StateView& state, const PolicyArtifact& a, JointArray& target);
+  void clamp_targets(const StateView& state, const JointArray& kp, const JointArray& kd, JointArray& target);
 
   SafetyConfig cfg_;
   Mode mode_ = Mode::kPassive;
