@@ -53,6 +53,20 @@ def test_clean_log_round_trip(tmp_path):
     assert log.messages[contract.CH_JOINT_STATE][3][1].seq == 3
 
 
+def test_comparison_is_identical_only_when_no_command_is_missing(tmp_path):
+    """Equal commands where both streams have one are not enough: a state the replay left unanswered, or a
+    logged command the replay lacks, makes the streams different (and the report says so)."""
+    from sim_hil.lcmlog.replay import compare
+    log = open_log(write_events(tmp_path / "l.lcmlog", _events()))
+    replayed = {cmd.state_seq: cmd for _ev, cmd in log.messages[contract.CH_JOINT_CMD]}
+    whole = compare(log, replayed, "p", "p", "lockstep")
+    assert whole.identical and whole.compared_ticks == 10
+    del replayed[7]
+    partial = compare(log, replayed, "p", "p", "lockstep")
+    assert not partial.identical and partial.only_in_log == 1 and partial.first_diverging_state_seq is None
+    assert "DIFFERENT" in partial.text()
+
+
 def test_truncated_log_keeps_every_whole_event(tmp_path):
     path = write_events(tmp_path / "t.lcmlog", _events())
     path.write_bytes(path.read_bytes()[:-50])            # the last command loses its tail

@@ -52,7 +52,8 @@ class Comparison:
     compared_ticks: int = 0              # states with a command in both streams
     only_in_log: int = 0
     only_in_replay: int = 0
-    identical: bool = False              # every compared command equal in every field, bit for bit
+    identical: bool = False              # the same stream: every state answered in both, every command equal
+                                         # in every field, bit for bit
     first_diverging_state_seq: int | None = None
     first_diverging_time_s: float | None = None   # the state's utime (sim time in lockstep) [s]
     first_diverging_field: str = ""
@@ -70,6 +71,9 @@ class Comparison:
         elif self.first_diverging_state_seq is not None:
             lines.append(f"first divergence: state_seq {self.first_diverging_state_seq} "
                          f"(t = {self.first_diverging_time_s:.3f} s), field {self.first_diverging_field}")
+        else:
+            lines.append("DIFFERENT: the compared commands are equal, but the streams are not the same "
+                         "(see unanswered / only in log / only in replay above)")
         lines.append("per joint max |Δq_des| [rad]:")
         lines += [f"  {name:<20} {value:.6f}" for name, value in self.max_abs_dq_des_rad.items()]
         return "\n".join(lines)
@@ -128,6 +132,7 @@ def replay(log: ProjectLog, policy: Path | None = None, url: str | None = None) 
     comparison = compare(log, answers, str(chosen), info.policy_path if info else "",
                          info.clock if info else "unknown")
     comparison.states_replayed, comparison.unanswered_states = len(states), unanswered
+    comparison.identical = comparison.identical and unanswered == 0
     return comparison, answers
 
 
@@ -157,7 +162,9 @@ def compare(log: ProjectLog, replayed: dict[int, joint_command_t], policy: str, 
                 c.first_diverging_state_seq = seq
                 c.first_diverging_time_s = state_time.get(seq, math.nan)
                 c.first_diverging_field = ", ".join(differing)
-    c.identical = bool(common) and c.first_diverging_state_seq is None
+    # a command missing from either stream is a difference too, not only a differing one
+    c.identical = (bool(common) and c.first_diverging_state_seq is None
+                   and c.only_in_log == 0 and c.only_in_replay == 0)
     c.max_abs_dq_des_rad = {name: float(v) for name, v in zip(contract.JOINT_NAMES, max_dq)}
     return c
 
