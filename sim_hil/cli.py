@@ -10,6 +10,7 @@ from pathlib import Path
 from messages import contract
 from sim_hil import config
 from sim_hil.faults import FaultSpecError
+from sim_hil.launch import stop_cleanly_on_sigterm
 
 EXIT_OK, EXIT_USAGE, EXIT_RUNTIME = 0, 2, 3
 
@@ -90,6 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     capture = None if args.no_log else _start_log(args, cfg, argv if argv is not None else sys.argv[1:])
     print(f"sim_hil: {cfg.scenario} spawn={cfg.spawn} clock={cfg.clock} physics_dt={cfg.physics_dt_s}s "
           f"link={sim.lcm.url}" + (f" log={capture.path}" if capture else ""), file=sys.stderr)
+    stop_cleanly_on_sigterm()
     try:
         sim.run(None if args.quiet else _status_line)
     except KeyboardInterrupt:

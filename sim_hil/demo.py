@@ -14,7 +14,7 @@ import lcm
 from t1 import controller_status_t, joystick_t, sim_status_t
 
 from messages import contract
-from sim_hil.launch import ROOT, start_runtime, start_sim, stop
+from sim_hil.launch import ROOT, start_runtime, start_sim, stop, stop_cleanly_on_sigterm
 from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.plots import plot_heights_and_velocity
 from training.artifact import read_artifact
@@ -72,6 +72,7 @@ def main(argv=None) -> int:
     sim = start_sim(*sim_args)
     runtime = start_runtime(policy, *runtime_args)
     js, seq, next_print, final = joystick_t(), 0, 0.0, None
+    stop_cleanly_on_sigterm()
     try:
         while sim.poll() is None:
             lc.handle_timeout(int(1000 / JOYSTICK_RATE_HZ))

@@ -49,6 +49,15 @@ def wait_until_listening(runtime: subprocess.Popen) -> None:
     time.sleep(RUNTIME_OPEN_MARGIN_S)
 
 
+def stop_cleanly_on_sigterm() -> None:
+    """In the programs stop() ends (the sim, the demo): SIGTERM raises KeyboardInterrupt in the main thread,
+    so their `finally` blocks run. Killed outright, they would leave lcm-logger running with a log that
+    lacks its end marker, and the Fast DDS relay's socket open."""
+    def interrupt(_signum, _frame):
+        raise KeyboardInterrupt
+    signal.signal(signal.SIGTERM, interrupt)
+
+
 def stop(proc: subprocess.Popen, timeout_s: float = 10.0) -> tuple[int, str]:
     """SIGTERM (a clean stop for both programs), then collect the exit code and stderr."""
     if proc.poll() is None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -176,3 +177,23 @@ def test_spy_plays_a_damaged_log_headless_and_cleans_up(tmp_path, netns):
     assert "headless, xvfb" in run.stdout and "truncated" in run.stderr
     left = subprocess.run(["pgrep", "-f", "lcm.spy.Spy"], capture_output=True, text=True).stdout.split()
     assert not left, f"lcm-spy left running: {left}"
+
+
+def test_a_logging_sim_stopped_by_sigterm_ends_its_log_and_its_logger(tmp_path, netns):
+    """launch.stop() ends the sim with SIGTERM: the sim stops its lcm-logger and the log is whole, with the
+    run_info_t end marker after the run's states."""
+    from sim_hil.launch import start_sim, stop
+    path = tmp_path / "term.lcmlog"
+    sim = start_sim("--clock", "realtime", "--spawn", "standing", "--log", str(path))
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and sim.poll() is None and not (path.exists() and path.stat().st_size > 50_000):
+        time.sleep(0.2)                                  # the logger is up and the sim is publishing
+    code, err = stop(sim)
+    assert code == 0, err[-2000:]
+    left = subprocess.run(["pgrep", "-f", f"lcm-logger.*{path}"], capture_output=True, text=True).stdout.split()
+    assert not left, f"lcm-logger left running: {left}"
+    log = open_log(path)
+    assert log.problems.messages(path) == []
+    states = log.messages[contract.CH_JOINT_STATE]
+    markers = [ev.offset for ev, _ in log.messages[contract.CH_RUN_INFO]]
+    assert states and len(markers) >= 2 and markers[-1] > states[-1][0].offset

@@ -62,19 +62,6 @@ class RunInfo:
         return m
 
 
-def runtime_args_for_log(args: list[str] | tuple[str, ...]) -> list[str]:
-    """The runtime arguments a replay must repeat: everything but the policy, the URL and --quiet."""
-    out, skip = [], False
-    for a in args:
-        if skip:
-            skip = False
-        elif a in ("--policy", "--lcm-url"):
-            skip = True
-        elif a != "--quiet":
-            out.append(a)
-    return out
-
-
 class LogCapture:
     """lcm-logger on `url` writing `path` (overwritten), started and stamped; stop() ends it cleanly."""
 
@@ -101,9 +88,15 @@ class LogCapture:
                 raise RuntimeError(f"lcm-logger exited {self.proc.returncode}: {self.proc.stderr.read().strip()}")
             self._lc.publish(contract.CH_RUN_INFO, stamp)
             time.sleep(MARK_POLL_S)
-            if self.path.exists() and contract.CH_RUN_INFO.encode() in self.path.read_bytes()[since_byte:]:
+            if self.path.exists() and contract.CH_RUN_INFO.encode() in self._bytes_from(since_byte):
                 return True
         return False
+
+    def _bytes_from(self, offset: int) -> bytes:
+        """The log from `offset` on (the end marker is looked for only in what the run wrote last)."""
+        with open(self.path, "rb") as f:
+            f.seek(offset)
+            return f.read()
 
     def stop(self) -> Path:
         """End marker, SIGINT, then cut a partly written last event (lcm-logger can leave one on exit)."""
