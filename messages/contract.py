@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from pathlib import Path
 
 _DATA = json.loads((Path(__file__).with_name("contract.json")).read_text())
@@ -35,6 +36,16 @@ assert set(_DATA["channel_types"]) == set(CHANNELS), "contract.json: channel_typ
 def lcm_url() -> str:
     """The LCM URL to use: $T1_LCM_URL (set by tools/netns) or the contract default (ttl=0)."""
     return os.environ.get("T1_LCM_URL", DEFAULT_LCM_URL)
+
+
+def lcm_url_on_port(offset: int, base: str | None = None) -> str:
+    """`base` (default: lcm_url()) with its port moved by `offset`, options (ttl) kept: a private bus for a
+    parallel evaluation worker, a replay or an echo next to the contract's one."""
+    base = base or lcm_url()
+    m = re.match(r"^(udpm://[^:/?]+):(\d+)(.*)$", base)
+    if not m:
+        raise ValueError(f"LCM URL {base!r}: expected udpm://GROUP:PORT[?options]")
+    return f"{m.group(1)}:{int(m.group(2)) + offset}{m.group(3)}"
 
 
 def joint_index(name: str) -> int:

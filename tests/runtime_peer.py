@@ -15,7 +15,8 @@ from training.artifact import read_artifact
 
 TICK_US = 2000                 # runtime loop period [us]
 ANSWER_TIMEOUT_S = 5.0         # liveness bound for one answer (not a timing check)
-MODE = {"PASSIVE": 0, "DAMPING": 1, "PREPARE": 2, "POLICY": 3, "FAULT": 4}
+MODE = {name: getattr(joint_command_t, f"MODE_{name}") for name in ("PASSIVE", "DAMPING", "PREPARE", "POLICY", "FAULT")}
+LATCHED_FAULT_MASK = controller_status_t.LATCHED_FAULT_MASK   # fault_bits & this: latched FAULT causes
 
 
 class RuntimePeer:

@@ -16,6 +16,7 @@ from messages import contract
 from sim_hil.dds_bridge import rpy_from_quat
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop
 from tests.dds_peer import DdsRobotPeer, low_state
+from tests.runtime_peer import LATCHED_FAULT_MASK, MODE
 from training.artifact import read_artifact
 
 UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained.safetensors"
@@ -26,8 +27,6 @@ STANDING_TRUNK_MIN_M = 0.55     # Trunk origin above this = still standing (stan
 TRUNK_MATCH_M = 0.05            # DDS and LCM runs: same trunk height within this (the DDS start-up handshake
                                 # may give the runtime's clock a few extra ticks)
 LIVENESS_S = 30.0               # bound on waiting for a process (not a timing check)
-LATCHED_FAULT_BITS = 0xFFFF     # safety.hpp: the low 16 bits are latched FAULT causes
-MODE = {"PASSIVE": 0, "DAMPING": 1, "PREPARE": 2, "POLICY": 3, "FAULT": 4}
 
 
 class LcmWatch:
@@ -94,7 +93,7 @@ def test_lockstep_over_dds_runs_prepare_then_the_policy_without_fault_as_over_lc
     assert "robot link DDS" in err
     modes = [s.mode_name for s in watch.status]
     assert "PREPARE" in modes and modes[-1] == "POLICY", modes[-20:]
-    assert all(s.fault_bits & LATCHED_FAULT_BITS == 0 for s in watch.status), watch.status[-1].last_fault
+    assert all(s.fault_bits & LATCHED_FAULT_MASK == 0 for s in watch.status), watch.status[-1].last_fault
     assert watch.status[-1].policy_ticks > 0
     assert watch.status[-1].decode_errors == 0
     last = watch.sim[-1]
@@ -132,7 +131,7 @@ def test_over_dds_a_walking_policy_keeps_the_robot_standing(netns):
     code, err = stop(runtime)
     assert code == 0, f"runtime exit {code}: {err}"
     assert watch.status[-1].mode_name == "POLICY" and watch.status[-1].policy_ticks > 0
-    assert all(s.fault_bits & LATCHED_FAULT_BITS == 0 for s in watch.status), watch.status[-1].last_fault
+    assert all(s.fault_bits & LATCHED_FAULT_MASK == 0 for s in watch.status), watch.status[-1].last_fault
     assert watch.sim[-1].utime * 1e-6 >= STANDING_PREPARE_S + STAND_S - 0.1, "the run ended early"
     assert min(s.trunk_height for s in watch.sim) > STANDING_TRUNK_MIN_M, "the robot went down"
 

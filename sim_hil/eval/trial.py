@@ -86,11 +86,7 @@ def trial_log_name(spec: TrialSpec, label: str) -> str:
 
 def trial_lcm_url(worker: int, base: str | None = None) -> str:
     """The contract URL on its own port for worker `worker` (ttl stays 0)."""
-    base = base or contract.lcm_url()
-    m = re.match(r"^(udpm://[^:/?]+):(\d+)(.*)$", base)
-    if not m:
-        raise ValueError(f"LCM URL {base!r}: expected udpm://GROUP:PORT[?options]")
-    return f"{m.group(1)}:{int(m.group(2)) + EVAL_PORT_OFFSET + worker}{m.group(3)}"
+    return contract.lcm_url_on_port(EVAL_PORT_OFFSET + worker, base)
 
 
 def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m: float | None = None,

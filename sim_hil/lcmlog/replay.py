@@ -11,7 +11,6 @@ clock from whichever state was newest, so small differences there are timing, no
 from __future__ import annotations
 
 import math
-import re
 import shlex
 import time
 from dataclasses import asdict, dataclass, field
@@ -34,11 +33,7 @@ DEFAULT_RUNTIME_ARGS = ("--autostart",)   # for logs without a run_info_t runtim
 
 
 def replay_lcm_url(base: str | None = None) -> str:
-    base = base or contract.lcm_url()
-    m = re.match(r"^(udpm://[^:/?]+):(\d+)(.*)$", base)
-    if not m:
-        raise ValueError(f"LCM URL {base!r}: expected udpm://GROUP:PORT[?options]")
-    return f"{m.group(1)}:{int(m.group(2)) + REPLAY_PORT_OFFSET}{m.group(3)}"
+    return contract.lcm_url_on_port(REPLAY_PORT_OFFSET, base)
 
 
 @dataclass

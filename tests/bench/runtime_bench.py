@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from messages import contract
+
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = Path(os.environ.get("T1_BUILD", ROOT / "build"))
 BENCH_BIN = BUILD / "runtime" / "bench"
@@ -278,10 +280,7 @@ def bench_loop(seconds: float) -> None:
 # ------------------------------------------------------------------------------------ 3. LCM latency
 def _echo_url(url: str) -> str:
     """The echo's own LCM URL: the runtime's with the port + 1, so both run at once and the peer alternates."""
-    m = re.match(r"^(udpm://[^:/?]+):(\d+)(.*)$", url)
-    if not m:
-        raise RuntimeError(f"cannot derive an echo URL from LCM URL '{url}' (expected udpm://GROUP:PORT...)")
-    return f"{m.group(1)}:{int(m.group(2)) + 1}{m.group(3)}"
+    return contract.lcm_url_on_port(1, url)
 
 
 def bench_lcm(policy: Path, count: int) -> dict:

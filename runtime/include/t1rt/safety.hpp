@@ -12,6 +12,7 @@
 #include <array>
 #include <cstdint>
 
+#include "t1/controller_status_t.hpp"
 #include "t1/joint_command_t.hpp"
 #include "t1rt/artifact.hpp"
 
@@ -31,6 +32,7 @@ inline constexpr int32_t kNonFiniteAction = 1 << 4;
 inline constexpr int32_t kMotorFault = 1 << 5;
 inline constexpr int32_t kSimStatusStale = 1 << 6;     // composite mode: T1_SIM_STATUS older than fault age
 inline constexpr int32_t kNonFiniteSimStatus = 1 << 7; // composite mode: waist height not finite
+inline constexpr int32_t kLatchedMask = t1::controller_status_t::LATCHED_FAULT_MASK;  // the bits above: warnings
 inline constexpr int32_t kImuHold = 1 << 16;
 inline constexpr int32_t kJointHold = 1 << 17;
 inline constexpr int32_t kJoystickStale = 1 << 18;
@@ -40,6 +42,8 @@ inline constexpr int32_t kTorqueClamped = 1 << 21;   // includes "torque bound n
 inline constexpr int32_t kMotorWarning = 1 << 22;    // motor fault / not-following bits seen in DAMPING (blocks PREPARE)
 inline constexpr int32_t kMotorOverLimit = 1 << 23;  // OVER_LIMIT: information, never a fault
 inline constexpr int32_t kSimStatusHold = 1 << 24;   // composite mode: T1_SIM_STATUS older than hold age
+static_assert(kSimStatusHold > kLatchedMask && kNonFiniteSimStatus <= kLatchedMask,
+              "fault causes in the latched low bits, warnings above them");
 }  // namespace fault_bit
 
 struct SafetyConfig {
