@@ -52,7 +52,10 @@ def _submessages(msg: bytes):
 
 
 def _spdp_params(body: bytes):
-    """(data offset, [(pid, value)]) of an SPDP DATA submessage body in PL_CDR_LE, else (None, [])."""
+    """(data offset, [(pid, value)]) of an SPDP DATA submessage body in PL_CDR_LE, else (None, []) — also for
+    a body too short to be one (a malformed datagram must not end the relay's thread)."""
+    if len(body) < 12:
+        return None, []
     start = 4 + struct.unpack("<H", body[2:4])[0]     # extraFlags, octetsToInlineQos; little endian (E flag)
     data = body[start:]
     if body[8:12] != SPDP_WRITER_ID or data[:2] != PL_CDR_LE:

@@ -9,11 +9,12 @@ import sys
 
 import numpy as np
 import pytest
+from t1 import joint_command_t
 
 from sim_hil import model as t1model
 from sim_hil.eval import plans
 from sim_hil.eval.metrics import TickLog
-from sim_hil.eval.trial import POLICY_MODE, TrialSpec, summarise
+from sim_hil.eval.trial import TrialSpec, summarise
 from sim_hil.launch import ROOT, _env
 
 PLACEHOLDER = ROOT / "policies" / "student_untrained.safetensors"
@@ -34,7 +35,7 @@ def test_summarise_measures_distance_and_unwrapped_heading():
     log = TickLog(t1model.load_model(), n)
     log.t[:] = np.arange(n) * 0.002
     log.trunk[:], log.up_z[:] = 0.66, 1.0
-    log.mode[start:] = POLICY_MODE
+    log.mode[start:] = joint_command_t.MODE_POLICY
     heading = np.linspace(0.0, 3 * math.pi, n)            # one and a half turns: wraps twice
     log.yaw[:] = np.angle(np.exp(1j * heading))
     log.base_x[:], log.base_y[:] = np.linspace(1.0, 4.0, n), 2.0

@@ -44,3 +44,13 @@ def test_only_cyclone_announcements_are_rewritten_and_fastdds_locators_are_read(
     assert shim.strip_cyclone_version_info(b"not rtps") is None
     assert shim.fastdds_metatraffic(fast) == [("127.0.0.1", 7410)]
     assert shim.fastdds_metatraffic(spdp(shim.VENDOR_CYCLONE, [meta])) == []
+
+
+def test_short_or_cut_datagrams_are_left_alone_without_an_exception():
+    meta = (shim.PID_METATRAFFIC_UNICAST, locator("127.0.0.1", 7412))
+    whole = spdp(shim.VENDOR_CYCLONE, [meta])
+    short_data = whole[:20] + bytes([shim.SUBMSG_DATA, 0x05]) + struct.pack("<H", 2) + b"\x00\x00"
+    for msg in (short_data, whole[:-3]):
+        shim.strip_cyclone_version_info(msg)          # no struct.error
+        shim.fastdds_metatraffic(msg)
+    assert shim.strip_cyclone_version_info(short_data) is None

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from t1 import joystick_t
+from t1 import joint_command_t, joystick_t
 
 from messages import contract
 from sim_hil import config
@@ -25,7 +25,6 @@ from sim_hil.eval.events import GetupEvents, getup_events
 from sim_hil.eval.metrics import TickLog, effort_metrics, ran_to_stabilise, slip_events
 from sim_hil.launch import start_runtime, stop, wait_until_listening
 
-POLICY_MODE = 3                 # joint_command_t.mode of the runtime's POLICY (t1rt::Mode::kPolicy)
 JOYSTICK_EVERY_TICKS = 10       # 50 Hz joystick, as a gamepad; the runtime zeroes it only after 250 ms
 PLOT_EVERY_TICKS = 10           # plotted series at 50 Hz
 EVAL_PORT_OFFSET = 101          # trial LCM ports: contract port + this + worker index
@@ -149,7 +148,7 @@ def _last_fault(runtime_stderr: str) -> str:
 def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | None,
               runtime_faults: str = "", segment_edges_x: list[float] | None = None) -> TrialResult:
     """Events and metrics of one logged trial (split out so scripted logs can be checked without a sim)."""
-    in_policy = np.flatnonzero(log.mode == POLICY_MODE)
+    in_policy = np.flatnonzero(log.mode == joint_command_t.MODE_POLICY)
     start = int(in_policy[0]) if in_policy.size else None
     events, effort, fall_x = None, {}, []
     if start is not None:

@@ -9,12 +9,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from t1 import joint_command_t
 
 from messages import contract
 from sim_hil.lcmlog.eventlog import ProjectLog
 
 DEFAULT_JOINTS = ("Left_Hip_Pitch", "Left_Knee_Pitch", "Left_Ankle_Pitch")
-MODE_NAMES = ("PASSIVE", "DAMPING", "PREPARE", "POLICY", "FAULT")   # joint_command_t.MODE_* in order
+MODE_NAMES = sorted(("PASSIVE", "DAMPING", "PREPARE", "POLICY", "FAULT"),
+                    key=lambda name: getattr(joint_command_t, f"MODE_{name}"))   # y tick k = mode number k
 
 
 def parse_joints(text: str) -> list[str]:
