@@ -112,13 +112,11 @@ def _cmd_evaluate(args, command: str) -> int:
         from training import evaluate_joystick
         report = evaluate_joystick.evaluate(args.policy, out, episodes=args.seeds, seconds=seconds,
                                             first_seed=args.first_seed, command=command, backend=args.backend)
-    elif args.backend == "cpu":
-        raise ValueError("--backend cpu: the getup evaluation runs on MJX only (its metrics read MJX internals)")
     else:
         from training import evaluate
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
-                                   command=command)
+                                   command=command, backend=args.backend)
     print(report.read_text())
     return 0
 
@@ -179,7 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
     common(p)
     p.set_defaults(func=_cmd_distill)
 
-    p = sub.add_parser("evaluate", help="batched MJX rollouts of an artifact: getup from seeded fallen "
+    p = sub.add_parser("evaluate", help="batched rollouts of an artifact: getup from seeded fallen "
                        "starts, or joystick command tracking")
     p.add_argument("--policy", required=True, help="policy artifact (.safetensors)")
     p.add_argument("--baseline", help="second artifact to compare against (getup)")
@@ -189,7 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--seconds", type=float, help="episode length [s] (default: getup 10, joystick 20)")
     p.add_argument("--out", help="folder for the report (default: out/eval_<task>)")
-    p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP + " (joystick only)")
+    p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     p.set_defaults(func=_cmd_evaluate)
     return ap
 

@@ -1,10 +1,11 @@
-"""Batched MJX getup evaluation of policy ARTIFACTS (the files the runtime runs), seed's chapter 6.
+"""Batched getup evaluation of policy ARTIFACTS (the files the runtime runs), seed's chapter 6.
 
     python -m training evaluate --policy policies/getup.safetensors --baseline policies/getup_baseline.safetensors \
-        --task getup --seeds 32 --seconds 10 --out out/eval_getup
+        --task getup --seeds 32 --seconds 10 --out out/eval_getup [--backend cpu|mjx]
 
-N seeded fallen starts (training.envs.fallen_states) are rolled out in parallel (jax.vmap over envs,
-lax.scan over control ticks) with the getup env's model and motor law, but the policy side is the
+N seeded fallen starts (training.envs.fallen_states) are rolled out in parallel with the getup env's model
+and motor law, on either physics backend (default as `train`): MJX (jax.vmap over envs, lax.scan over
+control ticks, make_rollout below) or MuJoCo C (training/evaluate_cpu.py, the same series). The policy side is the
 artifact run through training/observation.py with xp=jax.numpy: the observation is built from the
 physics state exactly as the runtime builds it (no noise, command 0, gait clock frozen at its initial
 phase because ‖command‖ < phase_freeze_command_norm), normalised, fed through the MLP, mapped to targets.
@@ -147,7 +148,11 @@ def run_policy(env, policy: ArtifactPolicy, qpos, qvel, seconds: float) -> dict:
     ticks = int(round(seconds / ctrl_dt))
     if ticks < 1:
         raise ValueError(f"--seconds {seconds}: shorter than one control tick ({ctrl_dt} s)")
-    series = jax.tree.map(np.asarray, make_rollout(env, policy, ticks)(policy.params, qpos, qvel))
+    if env.backend == "cpu":
+        from training.evaluate_cpu import cpu_rollout
+        series = cpu_rollout(env, policy, np.asarray(qpos), np.asarray(qvel), ticks)
+    else:
+        series = jax.tree.map(np.asarray, make_rollout(env, policy, ticks)(policy.params, qpos, qvel))
     readings = series["readings"]                      # (N, T + 1, 3)
     t = np.arange(ticks + 1) * ctrl_dt
     rows = []
@@ -195,7 +200,7 @@ def _fmt(fmt, value):
 def markdown_report(results: dict, meta: dict) -> str:
     names = list(results)
     lines = [f"# Getup evaluation ({meta['seeds']} seeded fallen starts from seed {meta['first_seed']}, "
-             f"{meta['seconds']} s each, MJX)", ""]
+             f"{meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]
     for role, res in results.items():
         m = res["policy"].manifest
         lines.append(f"- {role}: `{res['policy'].path}` name `{m['name']}`, trained: "
@@ -234,15 +239,16 @@ def plot_heights(results: dict, png: Path) -> None:
 
 
 def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 32, seconds: float = 10.0,
-             first_seed: int = 0, command: str = "") -> Path:
+             first_seed: int = 0, command: str = "", backend: str | None = None) -> Path:
     """Run the evaluation; returns the path of report.md."""
     from training import checkpoints, envs
+    from training.train import default_backend
     checkpoints.jax_setup()
     if task != "getup":
         raise ValueError(f"--task {task!r}: only the getup evaluation exists so far")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    env = envs.make(task)
+    env = envs.make(task, config_overrides={"backend": backend or default_backend()})
     qpos, qvel = envs.fallen_states(seeds, first_seed)
     results = {}
     for role, path in (("policy", policy_path), ("baseline", baseline)):
@@ -253,7 +259,8 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         print(f"{role}: {path} (trained: {policy.trained})")
         run = run_policy(env, policy, qpos, qvel, seconds)
         results[role] = {"policy": policy, "run": run, "summary": summarize(run["rows"])}
-    meta = {"seeds": seeds, "first_seed": first_seed, "seconds": seconds, "command": command or "evaluate()"}
+    meta = {"seeds": seeds, "first_seed": first_seed, "seconds": seconds, "command": command or "evaluate()",
+            "backend": env.backend}
     report = out / "report.md"
     report.write_text(markdown_report(results, meta))
     with (out / "per_env.csv").open("w", newline="") as f:

@@ -132,6 +132,12 @@ class T1Env(mjx_env.MjxEnv):
     def backend(self) -> str:
         return "cpu" if self._cpu is not None else "mjx"
 
+    @property
+    def cpu_physics(self) -> cpu_backend.CpuPhysics:
+        if self._cpu is None:
+            raise ValueError("cpu_physics: this env steps MJX (make it with backend='cpu')")
+        return self._cpu
+
     def randomize_on_host(self, randomization_fn, seed: int) -> None:
         """CPU backend: apply brax's randomization_fn to every batch of simulations (instead of brax's
         MJX wrapper, which swaps mjx models the C physics never reads)."""

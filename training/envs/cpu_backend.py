@@ -150,7 +150,8 @@ class CpuPhysics:
         b.time[:], b.qpos[:], b.qvel[:], b.qacc_warmstart[:] = time, qpos, qvel, warm
         b.userdata[:, :self._njoint] = q_des
 
-    def _read(self, b, lead) -> tuple:
+    def read(self, b, lead) -> tuple:
+        """HostData's fields of batch b (float32), shaped (*lead, ...)."""
         out = []
         for f in (*STATE_FIELDS, *READING_FIELDS):
             out.append(np.asarray(getattr(b, f), np.float32).reshape((*lead, *self._shapes[f])))
@@ -164,7 +165,7 @@ class CpuPhysics:
             self._write(b, time.reshape(n), qpos.reshape(n, -1), qvel.reshape(n, -1), warm.reshape(n, -1),
                         q_des.reshape(n, -1))
             b.step(nstep=self.n_substeps)
-            return self._read(b, lead)
+            return self.read(b, lead)
 
     def host_reset(self, qpos, qvel):
         lead = qpos.shape[:-1]
@@ -175,7 +176,16 @@ class CpuPhysics:
             # hold the start pose: targets = the joints' own positions
             self._write(b, 0.0, q, qvel.reshape(n, -1), 0.0, q[:, 7:7 + self._njoint])
             b.forward()
-            return self._read(b, lead)
+            return self.read(b, lead)
+
+    def evaluation_batch(self, n: int) -> mj_batch.Batch:
+        """A persistent batch of n simulations, the motor callback on, HostData's readings bound: its
+        whole MjData per simulation stays readable after each step (training/evaluate_cpu.py)."""
+        b = mj_batch.Batch(self.model, n, self.nthread, persistent=True)
+        for f in READING_FIELDS:
+            b.bind(f)
+        b.userdata[:, self._njoint] = self._lib.t1_mjcb_marker()
+        return b
 
     # ---------------------------------------------------------------- JAX side
     def _result_shapes(self, lead) -> tuple:

@@ -1,0 +1,81 @@
+"""The getup evaluation's rollout on the CPU backend (MuJoCo C), the same series as evaluate.make_rollout.
+
+evaluate.py's MJX rollout aggregates per physics substep inside one jitted scan. Here the C batch steps one
+substep per call (firmware_like's motor step as MuJoCo's control callback, as in training), the policy runs
+jitted once per control tick, and the host aggregates exactly what the MJX rollout does:
+  energy Σ|τ·q̇₀|·dt_sim [J] (q̇₀: joint velocity at the substep's start, τ: the torque applied over it),
+  max |τ| [N·m], max |q̈| [rad/s²], Σ|q̈|·dt_sim [rad/s] per tick, and after the tick's last substep the
+  total normal force of the penetrating contacts [N] (MuJoCo's mj_contactForce; MJX: contact_force_dim).
+A persistent batch keeps each simulation's whole MjData, so the contacts and constraint forces read after
+a tick are those of its last substep's start, as mjx.Data's are after mjx.step.
+"""
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from training import observation as obsdef
+
+
+def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int) -> dict:
+    """(N,) fallen starts → dict of numpy series: readings (N, T + 1, 3) [trunk, up_z, waist], and per tick
+    (N, T): energy_J, max_torque_Nm, max_qacc, qacc_integral, contact_force_N."""
+    import jax
+    import jax.numpy as jnp
+    from training.envs.cpu_backend import HostData
+
+    physics = env.cpu_physics
+    m = physics.model
+    n, nu = qpos.shape[0], m.nu
+    sim_dt = float(m.opt.timestep)
+    b = physics.evaluation_batch(n)
+    b.qpos[:], b.qvel[:], b.qacc_warmstart[:], b.time[:] = qpos, qvel, 0.0, 0.0
+    b.userdata[:, :nu] = qpos[:, 7:7 + nu]           # hold the start pose until the first action
+    b.forward()
+
+    phase0 = jnp.asarray(obsdef.initial_gait_phase(np), jnp.float32)
+    default_pose = jnp.asarray(policy.manifest["default_pose"], jnp.float32)
+    scale = jnp.asarray(policy.manifest["action_scale"], jnp.float32)
+    from training.evaluate import policy_action
+
+    def act_one(params, data, last_action):
+        obs_state = env.observation_state(data, jnp.zeros(3), last_action, phase0)
+        action = policy_action(policy.manifest, params, obs_state)
+        r = env.body_readings(data)
+        return action, obsdef.action_to_targets(default_pose, scale, action), \
+            jnp.stack([r["trunk_height"], r["up_z"], r["waist_height"]])
+
+    act = jax.jit(jax.vmap(act_one, in_axes=(None, 0, 0)))
+    scratch = mujoco.MjData(m)
+    force6 = np.zeros(6)
+
+    def host_data():
+        return HostData(*(jnp.asarray(a) for a in physics.read(b, (n,))))
+
+    readings = np.zeros((n, num_ticks + 1, 3), np.float32)
+    series = {k: np.zeros((n, num_ticks), np.float32)
+              for k in ("energy_J", "max_torque_Nm", "max_qacc", "qacc_integral", "contact_force_N")}
+    last_action = jnp.zeros((n, obsdef.NUM_JOINTS), jnp.float32)
+    for tick in range(num_ticks):
+        last_action, q_des, r = act(policy.params, host_data(), last_action)
+        readings[:, tick] = np.asarray(r)
+        b.userdata[:, :nu] = np.asarray(q_des)
+        for _ in range(env.n_substeps):
+            dq0 = b.qvel[:, 6:].copy()
+            b.step(nstep=1)
+            tau, qacc = b.actuator_force, np.abs(b.qacc[:, 6:])
+            series["energy_J"][:, tick] += np.sum(np.abs(tau * dq0), axis=1) * sim_dt
+            series["max_torque_Nm"][:, tick] = np.maximum(series["max_torque_Nm"][:, tick], np.abs(tau).max(axis=1))
+            series["max_qacc"][:, tick] = np.maximum(series["max_qacc"][:, tick], qacc.max(axis=1))
+            series["qacc_integral"][:, tick] += qacc.sum(axis=1) * sim_dt
+        for i in range(n):
+            b.get_data(i, scratch)
+            total = 0.0
+            for j in range(scratch.ncon):
+                if scratch.contact[j].dist < 0.0 and scratch.contact[j].efc_address >= 0:
+                    mujoco.mj_contactForce(m, scratch, j, force6)
+                    total += abs(force6[0])
+            series["contact_force_N"][i, tick] = total
+    readings[:, num_ticks] = np.asarray(act(policy.params, host_data(), last_action)[2])
+    return {"readings": readings, **series}
+
