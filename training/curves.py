@@ -69,23 +69,26 @@ class MetricsLog:
             self._writer.close()
 
 
-def read_curves(csv_path) -> dict[str, list[tuple[int, float]]]:
-    """metric → [(env_steps, value)] sorted by step, from a run's CSV."""
+def read_curves(csv_path, until_wall_s: float | None = None) -> dict[str, list[tuple[int, float]]]:
+    """metric → [(env_steps, value)] sorted by step, from a run's CSV; until_wall_s keeps the rows logged
+    within that many seconds of their call's start (one call: the first minutes of a run)."""
     curves: dict[str, list[tuple[int, float]]] = {}
     with Path(csv_path).open(newline="") as f:
         reader = csv.DictReader(f)
         if reader.fieldnames is None or tuple(reader.fieldnames) != CSV_FIELDS:
             raise ValueError(f"{csv_path}: header must be {','.join(CSV_FIELDS)}, got {reader.fieldnames}")
         for row in reader:
+            if until_wall_s is not None and float(row["wall_time_s"]) > until_wall_s:
+                continue
             curves.setdefault(row["metric"], []).append((int(row["env_steps"]), float(row["value"])))
     for points in curves.values():
         points.sort(key=lambda p: p[0])
     return curves
 
 
-def plot_curves(csv_path, png_path, title: str = "") -> Path | None:
+def plot_curves(csv_path, png_path, title: str = "", until_wall_s: float | None = None) -> Path | None:
     """Redraw the learning-curve PNG from the CSV; None when the CSV holds none of the plotted metrics."""
-    curves = read_curves(csv_path)
+    curves = read_curves(csv_path, until_wall_s)
     panels = []
     for label, candidates in PLOT_PANELS:
         name = next((c for c in candidates if c in curves), None)
