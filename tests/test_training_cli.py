@@ -230,3 +230,20 @@ def test_runtime_accepts_exported_artifacts(netns, toy_runs):
                                "--quiet"], capture_output=True, text=True, timeout=30)
         assert proc.returncode != RUNTIME_BAD_ARTIFACT_EXIT, f"{path.name}: {proc.stderr}"
         assert proc.returncode == 0, f"{path.name}: exit {proc.returncode}: {proc.stderr}"
+
+
+def test_policy_std_scale_scales_only_the_sampling_std():
+    import jax
+    import jax.numpy as jnp
+    from training.train import _network_factory, ppo_config
+    cfg = ppo_config("getup", "toy")
+    params = jnp.linspace(-1.0, 1.0, 2 * 23)
+    stds = []
+    for scale in (1.0, 0.25):
+        cfg.policy_std_scale = scale
+        nets = _network_factory(cfg)({"state": (52,), "privileged_state": (60,)}, 23)
+        dist = nets.parametric_action_distribution.create_dist(params)
+        stds.append(np.asarray(dist.scale))
+        assert np.allclose(np.asarray(dist.loc), np.asarray(params[:23]))
+    np.testing.assert_allclose(stds[1], 0.25 * stds[0], rtol=1e-6)
+    assert ppo_config("joystick").policy_std_scale == 1.0      # brax's std unless a run asks otherwise

@@ -46,6 +46,9 @@ def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
         domain_randomization=task == "joystick",  # Playground T1: friction, gains, masses (envs.domain_randomize)
         policy_hidden_layer_sizes=(512, 256, 128), value_hidden_layer_sizes=(512, 256, 128),
         policy_obs_key="state", value_obs_key="privileged_state",
+        # exploration: the sampling std × this (1 = brax's tanh-normal, std ≈ 0.69 at init). The same
+        # pre-tanh noise moves a getup target 4× as far as a joystick one (action scale 2 vs 0.5 rad)
+        policy_std_scale=1.0,
         checkpoint_every_steps=10_000_000,  # one epoch ≈ 1 min on an H100 at ~150k env-steps/s
         run_evals=True, num_eval_envs=128, deterministic_eval=True,
         log_training_metrics=True, training_metrics_steps=1_000_000,
@@ -89,13 +92,35 @@ class _StopAtCheckpoint(Exception):
     """Raised from brax's policy_params_fn after a checkpoint when the time box is spent."""
 
 
-def _network_factory(cfg):
+def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observations_fn=None,
+                                policy_hidden_layer_sizes=(512, 256, 128), value_hidden_layer_sizes=(512, 256, 128),
+                                policy_obs_key="state", value_obs_key="state", policy_std_scale: float = 1.0):
+    """brax's make_ppo_networks, its tanh-normal policy's std multiplied by policy_std_scale (brax's own
+    NormalTanhDistribution var_scale; make_ppo_networks does not pass it on). Only sampling and the PPO
+    log-probabilities change: the parameters, checkpoints and exported means are brax's. Every keyword is
+    named here so that brax's checkpoint network_config records it."""
+    from brax.training import distribution
     from brax.training.agents.ppo import networks as ppo_networks
+    from brax.training.types import identity_observation_preprocessor
+    nets = ppo_networks.make_ppo_networks(
+        observation_size, action_size,
+        preprocess_observations_fn=preprocess_observations_fn or identity_observation_preprocessor,
+        policy_hidden_layer_sizes=policy_hidden_layer_sizes, value_hidden_layer_sizes=value_hidden_layer_sizes,
+        policy_obs_key=policy_obs_key, value_obs_key=value_obs_key)
+    if policy_std_scale == 1.0:
+        return nets
+    return nets.replace(parametric_action_distribution=distribution.NormalTanhDistribution(
+        event_size=action_size, var_scale=policy_std_scale))
+
+
+def _network_factory(cfg):
     return functools.partial(
-        ppo_networks.make_ppo_networks,
+        ppo_networks_with_std_scale,
         policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),
         value_hidden_layer_sizes=tuple(cfg.value_hidden_layer_sizes),
-        policy_obs_key=cfg.policy_obs_key, value_obs_key=cfg.value_obs_key)
+        policy_obs_key=cfg.policy_obs_key, value_obs_key=cfg.value_obs_key,
+        # runs recorded before the knob existed sampled with brax's std
+        policy_std_scale=float(cfg.get("policy_std_scale", 1.0)))
 
 
 def _randomization(cfg, env=None, seed: int = 0):
