@@ -177,13 +177,16 @@ def test_getup_actions_reach_the_kneel_keyframe_within_each_joint_range():
 
 
 def test_only_stage2_ends_when_the_trunk_falls_below_the_fall_height(full_env):
-    """Stage 2 starts kneeling (trunk 0.405 m): dropping below 0.30 m ends it, so lying cannot pay. Stage 1
-    and the full task start on the floor and never end on height."""
+    """Stage 2 starts kneeling (trunk 0.405 m, upright): dropping below 0.35 m or tilting past up_z 0.7 ends
+    it, so lying or leaning back with straight legs cannot pay. Stage 1 and the full task never end so."""
     s2 = envs.make("getup", config_overrides={"stage": "stage2"})
     s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
     fall_m = s2._config.stage2_fall_trunk_height_m
     assert fall_m < s2._kneel_targets[0]          # the kneel start itself is not a fall
-    for h, ends in ((fall_m - 0.01, True), (fall_m + 0.01, False), (0.405, False), (0.67, False)):
-        assert bool(s2.fell_from_kneel({"trunk_height": jnp.float32(h)})) is ends
-        assert not bool(s1.fell_from_kneel({"trunk_height": jnp.float32(h)}))
-        assert not bool(full_env.fell_from_kneel({"trunk_height": jnp.float32(h)}))
+    up_z = s2._config.stage2_fall_up_z
+    cases = ((fall_m - 0.01, 1.0, True), (fall_m + 0.01, 1.0, False), (0.405, 1.0, False), (0.67, 1.0, False),
+             (0.405, up_z - 0.02, True), (0.405, up_z + 0.02, False), (0.32, 0.72, True))   # v5's leaning back
+    for h, u, ends in cases:
+        info = {"trunk_height": jnp.float32(h), "up_z": jnp.float32(u)}
+        assert bool(s2.fell_from_kneel(info)) is ends, (h, u)
+        assert not bool(s1.fell_from_kneel(info)) and not bool(full_env.fell_from_kneel(info))

@@ -18,12 +18,14 @@ q_init = the standing default pose. Actor obs = Table 4.2, TERMS_GETUP: gyro, gr
 joint velocities (52; no last action: the seed's observation, and nothing here shows it would help).
 "success" = standing by sim_hil/eval/events.py's definition (trunk ≥ 0.6 m, up_z ≥ 0.9), the one the
 evaluations use. Episodes run their whole length (10 s) and end early only on non-finite physics, and —
-in stage 2 alone — when the trunk drops below config.stage2_fall_trunk_height_m (0.30 m; the kneel start
-is at 0.405 m). The seed says nothing of terminations; this one is ours, and why: stage 2's rewards pay
-a robot lying with straight legs HO ≈ 0.22 + pose(q, q_init) ≈ 0.9 per step, more than holding the kneel
-(≈ 0.74 + 0.05), so without it PPO learned to fall and lie (runs/getup_stage2, v3: 5 M steps, height
-0.22 and pose 0.79 per step, success 0). Stage 1 and the full task start on the floor and pay
-pose(q, q_kneel) before the gate, where lying straight earns nothing, so they keep the seed's episodes.
+in stage 2 alone — when the robot leaves the kneel downward: trunk below config.stage2_fall_trunk_height_m
+(0.35 m; the kneel start is at 0.405 m) or tilted past config.stage2_fall_up_z (up_z 0.7, 46°). The seed
+says nothing of terminations; this one is ours, and why: stage 2's rewards pay straight legs in any
+posture (pose(q, q_init)) about as much as height, so without it PPO learned to fall and lie with straight
+legs (v3: 1.23 per step lying against 0.90 holding the kneel), and with a trunk-height bound of 0.30 m
+alone it learned to lean back to trunk 0.32 m, up_z 0.72, straightening its legs (v5: 1.0 per step).
+Stage 1 and the full task start on the floor and pay pose(q, q_kneel) before the gate, where lying
+straight earns nothing, so they keep the seed's episodes.
 """
 from __future__ import annotations
 
@@ -67,7 +69,8 @@ def default_config() -> config_dict.ConfigDict:
     cfg = getup_common_config()
     cfg.stage = "full"
     cfg.energy_weight = 0.0
-    cfg.stage2_fall_trunk_height_m = 0.30   # stage 2 ends when the trunk drops below this [m] (docstring)
+    cfg.stage2_fall_trunk_height_m = 0.35   # stage 2 ends when the trunk drops below this [m] (docstring)
+    cfg.stage2_fall_up_z = 0.7              # ... or when the trunk's up_z falls below this (46° of tilt)
     return cfg
 
 
@@ -209,7 +212,9 @@ class Getup(GetupBase):
                              info=info)
 
     def fell_from_kneel(self, info) -> jax.Array:
-        """Stage 2's only termination besides non-finite physics: the trunk dropped below the fall height."""
+        """Stage 2's only termination besides non-finite physics: the trunk dropped below the fall height or
+        tilted past the fall tilt."""
         if self._config.stage != "stage2":
             return jnp.zeros((), dtype=bool)
-        return info["trunk_height"] < self._config.stage2_fall_trunk_height_m
+        cfg = self._config
+        return (info["trunk_height"] < cfg.stage2_fall_trunk_height_m) | (info["up_z"] < cfg.stage2_fall_up_z)
