@@ -23,6 +23,7 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
     import jax
     import jax.numpy as jnp
     from training.envs.cpu_backend import HostData
+    from training.evaluate import policy_action
 
     physics = env.cpu_physics
     m = physics.model
@@ -36,7 +37,6 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
     phase0 = jnp.asarray(obsdef.initial_gait_phase(np), jnp.float32)
     default_pose = jnp.asarray(policy.manifest["default_pose"], jnp.float32)
     scale = jnp.asarray(policy.manifest["action_scale"], jnp.float32)
-    from training.evaluate import policy_action
 
     def act_one(params, data, last_action):
         obs_state = env.observation_state(data, jnp.zeros(3), last_action, phase0)
@@ -78,4 +78,3 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
             series["contact_force_N"][i, tick] = total
     readings[:, num_ticks] = np.asarray(act(policy.params, host_data(), last_action)[2])
     return {"readings": readings, **series}
-
