@@ -50,3 +50,13 @@ def test_settled_window_skips_one_second_after_a_command_change():
     settle = round(ej.SETTLE_S / DT)
     assert row["settled_ticks"] == 200 - 2 * settle            # the start counts as a change too
     assert row["lin2_settled_sum"] == 0.0 and row["lin2_sum"] > 0.0
+
+
+def test_yaw_breakdown_bins_commands_and_measures_the_turn_gain():
+    s = _series(n_eps=2, ticks=100, cmd=(0.0, 0.0, 0.9), vel=(0.0, 0.0, 0.45))   # turns at half the rate
+    s["cmd"][1, :, 2], s["vel"][1, :, 2] = -0.1, -0.1                            # small command, tracked
+    bins = ej.yaw_by_command(s, ej.episode_rows(s, DT))
+    assert [b["ticks"] for b in bins] == [100, 0, 0, 100]
+    assert math.isclose(bins[0]["rms_radps"], 0.0, abs_tol=1e-12) and math.isclose(bins[0]["gain"], 1.0)
+    assert math.isclose(bins[3]["rms_radps"], 0.45, rel_tol=1e-9) and math.isclose(bins[3]["gain"], 0.5)
+    assert math.isnan(bins[1]["rms_radps"])

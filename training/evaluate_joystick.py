@@ -27,6 +27,7 @@ import numpy as np
 from training.evaluate import ArtifactPolicy, policy_action
 
 SETTLE_S = 1.0  # [s] after a command change before "settled" tracking is counted
+YAW_BINS_RADPS = (0.0, 0.25, 0.5, 0.75, 1.0)   # |commanded yaw rate| bins of the yaw breakdown [rad/s]
 TARGETS = {"fall_rate": 0.05, "rms_lin_vel_mps": 0.15, "rms_yaw_rate_radps": 0.2}   # issue 13
 
 
@@ -89,6 +90,22 @@ def episode_rows(series: dict, ctrl_dt: float) -> list[dict]:
     return rows
 
 
+def yaw_by_command(series: dict, rows: list[dict]) -> list[dict]:
+    """Yaw tracking per |commanded yaw rate| bin, over the ticks before each episode's fall: RMS error
+    [rad/s] and gain Σ ω_z·sign(ω_cmd) / Σ |ω_cmd| (1: turns as fast as told, 0: does not turn)."""
+    cmd = np.concatenate([np.asarray(series["cmd"])[i, :r["ticks"], 2] for i, r in enumerate(rows)])
+    yaw = np.concatenate([np.asarray(series["vel"])[i, :r["ticks"], 2] for i, r in enumerate(rows)])
+    out = []
+    for lo, hi in zip(YAW_BINS_RADPS[:-1], YAW_BINS_RADPS[1:]):
+        last = hi == YAW_BINS_RADPS[-1]
+        sel = (np.abs(cmd) >= lo) & ((np.abs(cmd) <= hi) if last else (np.abs(cmd) < hi))
+        c, w = cmd[sel], yaw[sel]
+        out.append({"lo": lo, "hi": hi, "ticks": int(sel.sum()),
+                    "rms_radps": float(np.sqrt(np.mean((c - w) ** 2))) if sel.any() else math.nan,
+                    "gain": float(np.sum(w * np.sign(c)) / np.sum(np.abs(c))) if np.any(c) else math.nan})
+    return out
+
+
 def summarize(rows: list[dict]) -> dict:
     ticks = sum(r["ticks"] for r in rows)
     settled = sum(r["settled_ticks"] for r in rows)
@@ -99,7 +116,7 @@ def summarize(rows: list[dict]) -> dict:
             "rms_yaw_rate_settled_radps": rms("yaw2_settled_sum", settled)}
 
 
-def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict) -> str:
+def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict, yaw_bins: list[dict] = ()) -> str:
     m = policy.manifest
     met = {k: summary[k] <= v for k, v in TARGETS.items()}
     lines = [f"# Joystick evaluation ({summary['episodes']} episodes of {meta['seconds']} s, "
@@ -117,6 +134,12 @@ def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict) -> str:
              f"| RMS yaw-rate error, ≥ {SETTLE_S} s after a command change [rad/s] | "
              f"{summary['rms_yaw_rate_settled_radps']:.3f} | (information) | |",
              "", f"Targets met: **{'all' if all(met.values()) else 'NO'}**. Command: `{meta['command']}`", ""]
+    if yaw_bins:
+        lines += ["Yaw tracking by commanded yaw rate (gain: achieved / commanded, 1 = turns as told):", "",
+                  "| \\|ω_cmd\\| [rad/s] | ticks | RMS error [rad/s] | gain |", "|---|---|---|---|"]
+        lines += [f"| {b['lo']:.2f}–{b['hi']:.2f} | {b['ticks']} | {b['rms_radps']:.3f} | {b['gain']:.2f} |"
+                  for b in yaw_bins]
+        lines.append("")
     return "\n".join(lines)
 
 
@@ -141,7 +164,7 @@ def evaluate(policy_path, out, episodes: int = 256, seconds: float = 20.0, first
     summary = summarize(rows)
     report = out / "report.md"
     report.write_text(markdown_report(policy, summary, {"seconds": seconds, "command": command or "evaluate()",
-                                                          "backend": env.backend}))
+                                                          "backend": env.backend}, yaw_by_command(series, rows)))
     with (out / "per_episode.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=["episode", *rows[0]])
         writer.writeheader()
