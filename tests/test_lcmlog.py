@@ -197,3 +197,25 @@ def test_a_logging_sim_stopped_by_sigterm_ends_its_log_and_its_logger(tmp_path, 
     states = log.messages[contract.CH_JOINT_STATE]
     markers = [ev.offset for ev, _ in log.messages[contract.CH_RUN_INFO]]
     assert states and len(markers) >= 2 and markers[-1] > states[-1][0].offset
+
+
+def test_make_sim_logs_by_default_under_out_sim_and_not_with_no_log(netns):
+    """`python -m sim_hil` (make sim) names its log after the run in out/sim; --no-log writes none."""
+    from sim_hil import config
+    before = set(config.SIM_LOG_DIR.glob("*.lcmlog")) if config.SIM_LOG_DIR.exists() else set()
+    for extra in (["--no-log"], []):
+        run = subprocess.run([sys.executable, "-m", "sim_hil", "--quiet", "--scenario", "flat", "--spawn", "standing",
+                              "--duration", "0.3", *extra], cwd=ROOT, env=_env(), capture_output=True, text=True,
+                             timeout=120)
+        assert run.returncode == 0, run.stderr[-2000:]
+        new = set(config.SIM_LOG_DIR.glob("*.lcmlog")) - before if config.SIM_LOG_DIR.exists() else set()
+        if extra:
+            assert not new, f"--no-log wrote {new}"
+    (path,) = new
+    try:
+        assert path.name.startswith("flat_standing_realtime_")
+        log = open_log(path)
+        assert log.problems.messages(path) == [] and log.messages[contract.CH_JOINT_STATE]
+        assert log.first(contract.CH_RUN_INFO).producer == "sim"
+    finally:
+        path.unlink()
