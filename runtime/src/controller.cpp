@@ -67,7 +67,7 @@ void Controller::send_exit_damping() {
   if (!transport_.joint.have) return;  // never commanded anything: nothing to release
   supervisor_.estop();                 // DAMPING (a latched FAULT is damping already)
   const double now_s = opt_.clock == ClockMode::kLockstep ? transport_.joint.stamp_s
-                                                          : static_cast<double>(monotonic_ns()) * 1e-9;
+                                                          : monotonic_s();
   const StateView s = state_view(now_s);
   supervisor_.begin_tick(s, active_->artifact());
   supervisor_.finish_tick(s, active_->artifact(), active_->q_target(), command_);
@@ -329,7 +329,7 @@ void Controller::step_realtime() {
   const int64_t wake_ns = task_.wait_next();
   transport_.drain();
   if (dds_) dds_->drain();
-  tick(static_cast<double>(wake_ns) * 1e-9);
+  tick(ns_to_s(wake_ns));
   task_.end_compute();
 }
 

@@ -12,7 +12,6 @@
 namespace t1rt {
 
 namespace {
-constexpr double kNsToS = 1e-9;
 constexpr double kSToUs = 1e6;
 constexpr int64_t kMsToNs = 1'000'000;
 static_assert(t1::kNumJoints == kJoints, "contract joint count differs from the runtime's");
@@ -126,7 +125,7 @@ void DdsTransport::accept(const DdsLowState& sample) {
   low_state_to_messages(sample, &imu_->scratch, &joint_->scratch);
   // Lockstep: one state per control period, so the state's own time is its number times the loop dt.
   const double stamp_s = clock_ == ClockMode::kLockstep ? static_cast<double>(accepted_) * kLoopDtS
-                                                        : static_cast<double>(monotonic_ns()) * kNsToS;
+                                                        : monotonic_s();
   imu_->scratch.seq = joint_->scratch.seq = seq;
   imu_->scratch.utime = joint_->scratch.utime = static_cast<int64_t>(stamp_s * kSToUs);
   std::swap(imu_->msg, imu_->scratch);

@@ -12,7 +12,6 @@ namespace t1rt {
 
 namespace {
 constexpr double kUsToS = 1e-6;
-constexpr double kNsToS = 1e-9;
 }  // namespace
 
 const char* clock_name(ClockMode mode) { return mode == ClockMode::kLockstep ? "lockstep" : "realtime"; }
@@ -62,7 +61,7 @@ void LcmTransport::drain() {
 
 double LcmTransport::stamp(int64_t utime) const {
   return clock_ == ClockMode::kLockstep ? static_cast<double>(utime) * kUsToS
-                                        : static_cast<double>(monotonic_ns()) * kNsToS;
+                                        : monotonic_s();
 }
 
 // Safety rule R3 (src/safety_supervisor.cpp): decode into scratch; only a datagram that decodes exactly

@@ -11,6 +11,8 @@
 namespace t1rt {
 
 int64_t monotonic_ns();
+inline double ns_to_s(int64_t ns) { return static_cast<double>(ns) * 1e-9; }
+inline double monotonic_s() { return ns_to_s(monotonic_ns()); }  // CLOCK_MONOTONIC [s]
 
 // Running statistics of one timing quantity [us]: last, mean and max since start, p99 over the last
 // kTimingWindow samples (fixed ring buffer + fixed scratch array: no allocation after construction).
