@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _status_line(sim) -> None:
     s = sim.status_message()
     print(f"\rt={sim.data.time:7.2f}s rtf={s.real_time_factor:5.2f} trunk={s.trunk_height:.3f}m "
-          f"waist={s.waist_height:.3f}m cmds={sim.lcm.cmds_received} dropped={s.cmds_dropped} "
+          f"waist={s.waist_height:.3f}m cmds={sim.link.cmds_received} dropped={s.cmds_dropped} "
           f"timeouts={s.lockstep_timeouts} late_frames={s.frames_late} faults=[{s.active_faults}]   ",
           end="", file=sys.stderr, flush=True)
 
@@ -90,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_RUNTIME
     capture = None if args.no_log else _start_log(args, cfg, argv if argv is not None else sys.argv[1:])
     print(f"sim_hil: {cfg.scenario} spawn={cfg.spawn} clock={cfg.clock} physics_dt={cfg.physics_dt_s}s "
-          f"link={sim.lcm.url}" + (f" log={capture.path}" if capture else ""), file=sys.stderr)
+          f"link={sim.link.url}" + (f" log={capture.path}" if capture else ""), file=sys.stderr)
     stop_cleanly_on_sigterm()
     try:
         sim.run(None if args.quiet else _status_line)

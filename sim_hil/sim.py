@@ -93,12 +93,12 @@ class Simulator:
         self.rng = np.random.default_rng(cfg.seed)
         self.imu = Imu(self.model, self.rng)
         self.bus = MotorBus(cfg.can_interface, cfg.can_log, self.rng)
-        # The robot link (named lcm for its callers; a DdsBridge has the same interface).
+        # The robot link: LCM, or the real T1's DDS topics (a DdsBridge has the LcmBridge's interface).
         if cfg.dds:
             from sim_hil.dds_bridge import DdsBridge
-            self.lcm = DdsBridge(cfg.lcm_url)
+            self.link = DdsBridge(cfg.lcm_url)
         else:
-            self.lcm = LcmBridge(cfg.lcm_url)
+            self.link = LcmBridge(cfg.lcm_url)
         self.trunk_id = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "Trunk")
         self.seq = 0
         self.lockstep_timeouts = 0
@@ -137,7 +137,7 @@ class Simulator:
         t = self.data.time
         quat, gyro, accel = self.imu.read(self.data, self.faults.imu_noise(t), self.faults.imu_bias(t))
         b = self.bus
-        self.lcm.publish_state(self.now_us, self.seq, quat, gyro, accel, b.q, b.dq, b.tau, b.status)
+        self.link.publish_state(self.now_us, self.seq, quat, gyro, accel, b.q, b.dq, b.tau, b.status)
 
     def _apply_pushes(self) -> None:
         self.data.xfrc_applied[self.trunk_id, :3] = 0.0
@@ -159,7 +159,7 @@ class Simulator:
         w, x, y, z = self.data.qpos[3:7]
         yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
         s.forward_velocity = float(np.cos(yaw) * self.data.qvel[0] + np.sin(yaw) * self.data.qvel[1])
-        s.lockstep_timeouts, s.cmds_dropped = self.lockstep_timeouts, self.lcm.cmds_dropped
+        s.lockstep_timeouts, s.cmds_dropped = self.lockstep_timeouts, self.link.cmds_dropped
         s.frames_late = self.bus.frames_late
         s.bus_utilisation = [float(u) for u in self.bus.utilisation()]
         return s
@@ -168,18 +168,18 @@ class Simulator:
     def tick(self) -> None:
         self._publish_state()
         if self.cfg.clock == "lockstep":
-            first = self.lcm.latest is None
+            first = self.link.latest is None
             wait = config.LOCKSTEP_FIRST_COMMAND_TIMEOUT_S if first else self.cfg.lockstep_timeout_s
-            if not self.lcm.wait_for_answer(self.seq, wait, time.perf_counter):
+            if not self.link.wait_for_answer(self.seq, wait, time.perf_counter):
                 self.lockstep_timeouts += 1
         else:
-            self.lcm.poll(0.0)
+            self.link.poll(0.0)
 
         t = self.data.time
         dead = self.faults.dead_joints(t)
         drop = self.faults.drop_rate(t)
-        fresh = self.lcm.latest_frames
-        self.lcm.latest_frames = None          # a command is sent on the bus once, as on the robot
+        fresh = self.link.latest_frames
+        self.link.latest_frames = None          # a command is sent on the bus once, as on the robot
         self.bus.send_commands(fresh, self.now_us, drop, self.faults.delay_ticks(t), dead)
         for _ in range(self.substeps):
             q_enc, dq_enc = self._encoders()
@@ -197,7 +197,7 @@ class Simulator:
             wall, sim_t = time.perf_counter(), self.data.time
             self._rtf = (sim_t - self._rtf_mark[1]) / max(wall - self._rtf_mark[0], 1e-9)
             self._rtf_mark = (wall, sim_t)
-            self.lcm.publish_status(self.status_message())
+            self.link.publish_status(self.status_message())
 
     def run(self, on_status=None) -> None:
         """Tick until duration (or forever). Realtime: tick k starts at wall start + k·dt."""
@@ -208,7 +208,7 @@ class Simulator:
                 if self.cfg.clock == "realtime":
                     # Spend the time until this tick's deadline handling LCM, not sleeping blindly.
                     while (remaining := start + self.seq * config.CONTROL_DT_S - time.perf_counter()) > 0:
-                        self.lcm.poll(remaining)
+                        self.link.poll(remaining)
                 self.tick()
                 if on_status is not None and self.seq % self._status_every == 0:
                     on_status(self)

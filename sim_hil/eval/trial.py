@@ -109,12 +109,12 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
         for k in range(n):
             # realtime: tick k starts at wall start + k·dt, the wait spent handling LCM (as Simulator.run)
             while not lockstep and (remaining := wall_start + k * config.CONTROL_DT_S - time.perf_counter()) > 0:
-                sim.lcm.poll(remaining)
+                sim.link.poll(remaining)
             if k % JOYSTICK_EVERY_TICKS == 0:
                 stick.utime, stick.seq = sim.now_us, k   # lockstep: ages are in sim time
-                sim.lcm.lc.publish(contract.CH_JOYSTICK, stick.encode())
+                sim.link.lc.publish(contract.CH_JOYSTICK, stick.encode())
             sim.tick()
-            latest = sim.lcm.latest
+            latest = sim.link.latest
             log.record(k, sim.data, latest.mode if latest is not None else -1)
             if runtime.poll() is not None:
                 raise RuntimeError(f"t1-runtime exited {runtime.returncode} at sim t={sim.data.time:.3f} s: "
