@@ -127,10 +127,7 @@ class CpuPhysics:
     # ---------------------------------------------------------------- host side
     def _batch(self, n: int) -> mj_batch.Batch:
         if n not in self._batches:
-            b = mj_batch.Batch(self.model, n, self.nthread)
-            for f in READING_FIELDS:     # a derived field is copied out only once bound, before the call
-                b.bind(f)
-            b.userdata[:, self._njoint] = self._lib.t1_mjcb_marker()
+            b = self._new_batch(n, persistent=False)
             if self._randomize is not None:
                 self._apply_randomization(b, n)
             self._batches[n] = b
@@ -178,14 +175,18 @@ class CpuPhysics:
             b.forward()
             return self.read(b, lead)
 
-    def evaluation_batch(self, n: int) -> mj_batch.Batch:
-        """A persistent batch of n simulations, the motor callback on, HostData's readings bound: its
-        whole MjData per simulation stays readable after each step (training/evaluate_cpu.py)."""
-        b = mj_batch.Batch(self.model, n, self.nthread, persistent=True)
-        for f in READING_FIELDS:
+    def _new_batch(self, n: int, persistent: bool) -> mj_batch.Batch:
+        """n simulations, HostData's readings bound, the motor callback switched on for each."""
+        b = mj_batch.Batch(self.model, n, self.nthread, persistent=persistent)
+        for f in READING_FIELDS:     # a derived field is copied out only once bound, before the call
             b.bind(f)
         b.userdata[:, self._njoint] = self._lib.t1_mjcb_marker()
         return b
+
+    def evaluation_batch(self, n: int) -> mj_batch.Batch:
+        """A persistent batch (training/evaluate_cpu.py): each simulation's whole MjData, contacts
+        included, stays readable after every step."""
+        return self._new_batch(n, persistent=True)
 
     # ---------------------------------------------------------------- JAX side
     def _result_shapes(self, lead) -> tuple:
