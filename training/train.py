@@ -329,11 +329,18 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
                        complete=latest["steps"] >= target)
 
 
+def exported_as_trained(steps: int, preset: str, env_config) -> bool:
+    """Whether a run's export may say `trained: true`: real steps, a real preset, and the robot's gravity
+    (a policy from a reduced-gravity assist stage is only a starting point for the next stage)."""
+    from training.envs.base import gravity_scale
+    return steps > 0 and preset != "toy" and gravity_scale(env_config) == 1.0
+
+
 def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     """The run's newest params → <run_dir>/<name>.safetensors, manifest from the env config."""
     from training.export import export_brax_ppo
     steps = int(state["env_steps"])
-    trained = steps > 0 and preset != "toy"
+    trained = exported_as_trained(steps, preset, state["env_config"])
     last = state["calls"][-1] if state["calls"] else {}
     manifest = dict(env.manifest_fields())
     manifest.update(

@@ -70,6 +70,15 @@ def contacts_between(data: mjx.Data, geom_a, geom_b) -> jax.Array:
     return jnp.any(hit & (con.dist[None, :] < 0.0), axis=-1)
 
 
+def gravity_scale(cfg) -> float:
+    """The config's gravity_scale (1 where a task has none), checked: a training aid lowers gravity, never
+    removes or raises it."""
+    scale = float(cfg.get("gravity_scale", 1.0))
+    if not 0.0 < scale <= 1.0:
+        raise ValueError(f"gravity_scale {scale}: expected 0 < scale <= 1 (a fraction of the model's 9.81 m/s²)")
+    return scale
+
+
 class T1Env(mjx_env.MjxEnv):
     """Shared model, PD, observation and bookkeeping. Subclasses implement reset/step and rewards."""
 
@@ -123,6 +132,7 @@ class T1Env(mjx_env.MjxEnv):
         """The env's copy of a compiled variant: its timestep and the ONE gain set in the PD slots."""
         mj = copy.copy(model)
         mj.opt.timestep = self._config.sim_dt
+        mj.opt.gravity[:] = model.opt.gravity * gravity_scale(self._config)
         self._kp, self._kd = t1model.pd_gains(mj)
         mj.actuator_biasprm[:, KP_SLOT] = self._kp
         mj.actuator_biasprm[:, KD_SLOT] = self._kd

@@ -62,6 +62,9 @@ def getup_common_config() -> config_dict.ConfigDict:
     cfg.fallen_bank_size = 128           # distinct precomputed fallen starts
     cfg.fallen_seed = 0
     cfg.standing_targets_m = [G.STANDING_TORSO_M, G.STANDING_WAIST_M]   # (torso, waist) after the gate
+    # × the model's gravity: < 1 only in an assist stage (ours, not the seed's; runs/getup_stage2 PROGRESS),
+    # whose policy is a starting point for the next stage, never exported as trained (train.export_run)
+    cfg.gravity_scale = 1.0
     return cfg
 
 
