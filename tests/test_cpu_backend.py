@@ -148,20 +148,3 @@ def test_getup_evaluation_rollout_matches_mjx_on_the_first_tick():
         np.testing.assert_allclose(on_cpu[key], np.asarray(on_mjx[key]), rtol=rtol, atol=atol, err_msg=key)
     assert np.any(on_cpu["contact_force_N"] > 0.0), "no contact compared"
 
-
-def test_gravity_scale_lowers_gravity_in_both_backends_and_is_never_exported_as_trained():
-    from training.train import exported_as_trained
-    cfg = envs.default_config("getup")
-    cfg.stage, cfg.gravity_scale = "stage2", 0.5
-    for backend in ("cpu", "mjx"):
-        cfg.backend = backend
-        env = envs.make("getup", config=cfg)
-        physics_model = env.cpu_physics.model if backend == "cpu" else env.mj_model
-        np.testing.assert_allclose(physics_model.opt.gravity, [0.0, 0.0, -0.5 * 9.81], rtol=1e-6)
-    assert not exported_as_trained(10_000_000, "cpu", cfg.to_dict())
-    cfg.gravity_scale = 1.0
-    assert exported_as_trained(10_000_000, "cpu", cfg.to_dict())
-    for bad in (0.0, -1.0, 1.5):
-        cfg.gravity_scale = bad
-        with pytest.raises(ValueError, match="gravity_scale"):
-            envs.make("getup", config=cfg)

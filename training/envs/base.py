@@ -28,7 +28,7 @@ from mujoco_playground._src import mjx_env
 
 from sim_hil import model as t1model
 from training import observation as obsdef
-from training.envs import collision, cpu_backend, motor
+from training.envs import collision, cpu_backend, harness, motor
 
 BACKENDS = ("mjx", "cpu")
 FLOOR_GEOM = "floor"
@@ -94,11 +94,11 @@ class T1Env(mjx_env.MjxEnv):
         backend = cfg.get("backend", "mjx")
         if backend not in BACKENDS:
             raise ValueError(f"backend {backend!r}: expected one of {BACKENDS}")
-        mj = self._compile(collision.build_model(cfg.collision, cfg.max_contacts, cfg.max_geom_pairs))
+        mj = self._compile(self._robot_spec().compile())
         self._mjx_model = mjx.put_model(mj, impl="jax")   # cpu: the randomisation's template only
         self._cpu = None
         if backend == "cpu":
-            spec = collision.build_spec(cfg.collision, cfg.max_contacts, cfg.max_geom_pairs)
+            spec = self._robot_spec()
             cpu_backend.add_backend_elements(spec, collision.FOOT_GEOMS, FLOOR_GEOM)
             mj = self._compile(spec.compile())
             self._cpu = cpu_backend.CpuPhysics(mj, self.n_substeps, template=self._mjx_model)
@@ -127,6 +127,13 @@ class T1Env(mjx_env.MjxEnv):
         self._sensor = {n: (int(mj.sensor_adr[mj.sensor(n).id]), int(mj.sensor_dim[mj.sensor(n).id]))
                         for n in ("gyro", "accelerometer", "orientation", "local_linvel")}
         self._noise_scale = self._term_noise_vector()
+
+    def _robot_spec(self) -> mujoco.MjSpec:
+        """The robot in the config's collision variant, with the training harness where configured."""
+        cfg = self._config
+        spec = collision.build_spec(cfg.collision, cfg.max_contacts, cfg.max_geom_pairs)
+        harness.add_harness(spec, cfg)
+        return spec
 
     def _compile(self, model: mujoco.MjModel) -> mujoco.MjModel:
         """The env's copy of a compiled variant: its timestep and the ONE gain set in the PD slots."""

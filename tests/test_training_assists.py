@@ -1,0 +1,69 @@
+"""Training aids of the getup tasks (ours, not the seed's): reduced gravity (base.gravity_scale) and the
+elastic harness (training/envs/harness.py). Both change the model, so both backends get them; a policy
+trained with either is never exported as trained."""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from training import envs
+
+
+def test_gravity_scale_lowers_gravity_in_both_backends_and_is_never_exported_as_trained():
+    from training.train import exported_as_trained
+    cfg = envs.default_config("getup")
+    cfg.stage, cfg.gravity_scale = "stage2", 0.5
+    for backend in ("cpu", "mjx"):
+        cfg.backend = backend
+        env = envs.make("getup", config=cfg)
+        physics_model = env.cpu_physics.model if backend == "cpu" else env.mj_model
+        np.testing.assert_allclose(physics_model.opt.gravity, [0.0, 0.0, -0.5 * 9.81], rtol=1e-6)
+    assert not exported_as_trained(10_000_000, "cpu", cfg.to_dict())
+    cfg.gravity_scale = 1.0
+    assert exported_as_trained(10_000_000, "cpu", cfg.to_dict())
+    for bad in (0.0, -1.0, 1.5):
+        cfg.gravity_scale = bad
+        with pytest.raises(ValueError, match="gravity_scale"):
+            envs.make("getup", config=cfg)
+
+
+def _kneel_rise(stiffness_n_per_m: float) -> np.ndarray:
+    """Trunk heights [m] over 3 s from the kneel, the targets at home (straight legs) from the first step."""
+    cfg = envs.default_config("getup")
+    cfg.stage, cfg.backend, cfg.harness.stiffness_n_per_m = "stage2", "cpu", stiffness_n_per_m
+    env = envs.make("getup", config=cfg)
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    step = jax.jit(env.step)
+    heights = []
+    for _ in range(150):
+        state = step(state, jnp.zeros(23))
+        heights.append(float(state.info["trunk_height"]))
+    return np.array(heights)
+
+
+def test_harness_lets_straightening_legs_rise_from_the_kneel_and_is_off_by_default():
+    from training.envs import harness
+    from training.train import exported_as_trained
+    # no harness: straight legs from the kneel throw the robot down (the stage-2 fall height is 0.35 m)
+    assert _kneel_rise(0.0).min() < 0.35
+    # the harness carries ~0.9 of the weight at the kneel (1100 N/m × 0.26 m): the same legs now rise
+    assert _kneel_rise(1100.0)[-50:].min() > 0.55
+    cfg = envs.default_config("getup")
+    assert harness.stiffness(cfg) == 0.0 and envs.make("getup", config=cfg).mj_model.ntendon == 0
+    cfg.harness.stiffness_n_per_m = 500.0
+    for backend in ("cpu", "mjx"):
+        cfg.backend = backend
+        env = envs.make("getup", config=cfg)
+        m = env.cpu_physics.model if backend == "cpu" else env.mj_model
+        t = m.tendon(harness.TENDON).id
+        assert m.tendon_stiffness[t] == 500.0
+        np.testing.assert_allclose(m.tendon_lengthspring[t], [0.0, 3.0 - 0.67 - 0.3], atol=1e-6)
+    assert not exported_as_trained(10_000_000, "cpu", cfg.to_dict())
+    cfg.harness.stiffness_n_per_m = -1.0
+    with pytest.raises(ValueError, match="stiffness"):
+        envs.make("getup", config=cfg)
+    cfg.harness.update(stiffness_n_per_m=500.0, slack_trunk_height_m=3.5)
+    with pytest.raises(ValueError, match="anchor_height_m"):
+        envs.make("getup", config=cfg)
