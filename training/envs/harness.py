@@ -40,12 +40,12 @@ def add_harness(spec: mujoco.MjSpec, cfg) -> None:
     if k == 0.0:
         return
     h = cfg.harness
-    if not 0.0 < h.slack_trunk_height_m < h.anchor_height_m:
-        raise ValueError(f"harness: need 0 < slack_trunk_height_m ({h.slack_trunk_height_m}) < "
-                         f"anchor_height_m ({h.anchor_height_m})")
+    slack_length = h.anchor_height_m - h.slack_trunk_height_m - h.attach_above_trunk_m   # [m]
+    if h.slack_trunk_height_m <= 0.0 or slack_length <= 0.0:
+        raise ValueError(f"harness: need 0 < slack_trunk_height_m ({h.slack_trunk_height_m}) and its attachment "
+                         f"(+{h.attach_above_trunk_m}) below anchor_height_m ({h.anchor_height_m})")
     spec.worldbody.add_site(name=ANCHOR_SITE, pos=[0.0, 0.0, h.anchor_height_m])
     spec.body(TRUNK_BODY).add_site(name=TRUNK_SITE, pos=[0.0, 0.0, h.attach_above_trunk_m])
-    slack_length = h.anchor_height_m - h.slack_trunk_height_m - h.attach_above_trunk_m
     # springlength (low, high): no force while low ≤ length ≤ high, so the rope pulls and never pushes
     tendon = spec.add_tendon(name=TENDON, stiffness=k, springlength=[0.0, slack_length])
     tendon.wrap_site(ANCHOR_SITE)
