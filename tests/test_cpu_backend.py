@@ -147,4 +147,3 @@ def test_getup_evaluation_rollout_matches_mjx_on_the_first_tick():
     for key, (rtol, atol) in EVAL_TOL.items():
         np.testing.assert_allclose(on_cpu[key], np.asarray(on_mjx[key]), rtol=rtol, atol=atol, err_msg=key)
     assert np.any(on_cpu["contact_force_N"] > 0.0), "no contact compared"
-

@@ -1,5 +1,5 @@
-"""Training aids of the getup tasks (ours, not the seed's): reduced gravity (base.gravity_scale) and the
-elastic harness (training/envs/harness.py). Both change the model, so both backends get them; a policy
+"""Training aids of the getup tasks (ours, not the seed's): reduced gravity and the elastic harness
+(training/envs/assists.py). Both change the model, so both backends get them; a policy
 trained with either is never exported as trained."""
 from __future__ import annotations
 
@@ -44,20 +44,20 @@ def _kneel_rise(stiffness_n_per_m: float) -> np.ndarray:
 
 
 def test_harness_lets_straightening_legs_rise_from_the_kneel_and_is_off_by_default():
-    from training.envs import harness
+    from training.envs import assists
     from training.train import exported_as_trained
     # no harness: straight legs from the kneel throw the robot down (the stage-2 fall height is 0.35 m)
     assert _kneel_rise(0.0).min() < 0.35
     # the harness carries ~0.9 of the weight at the kneel (1100 N/m × 0.26 m): the same legs now rise
     assert _kneel_rise(1100.0)[-50:].min() > 0.55
     cfg = envs.default_config("getup")
-    assert harness.stiffness(cfg) == 0.0 and envs.make("getup", config=cfg).mj_model.ntendon == 0
+    assert assists.stiffness(cfg) == 0.0 and envs.make("getup", config=cfg).mj_model.ntendon == 0
     cfg.harness.stiffness_n_per_m = 500.0
     for backend in ("cpu", "mjx"):
         cfg.backend = backend
         env = envs.make("getup", config=cfg)
         m = env.cpu_physics.model if backend == "cpu" else env.mj_model
-        t = m.tendon(harness.TENDON).id
+        t = m.tendon(assists.TENDON).id
         assert m.tendon_stiffness[t] == 500.0
         np.testing.assert_allclose(m.tendon_lengthspring[t], [0.0, 3.0 - 0.67 - 0.3], atol=1e-6)
     assert not exported_as_trained(10_000_000, "cpu", cfg.to_dict())

@@ -330,11 +330,9 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
 
 
 def exported_as_trained(steps: int, preset: str, env_config) -> bool:
-    """Whether a run's export may say `trained: true`: real steps, a real preset, the robot's gravity and
-    no harness (a policy from an assist stage is only a starting point for the next stage)."""
-    from training.envs import harness
-    from training.envs.base import gravity_scale
-    return steps > 0 and preset != "toy" and gravity_scale(env_config) == 1.0 and harness.stiffness(env_config) == 0.0
+    """Whether a run's export may say `trained: true`: real steps, a real preset and no assist stage."""
+    from training.envs import assists
+    return steps > 0 and preset != "toy" and not assists.assisted(env_config)
 
 
 def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:

@@ -28,7 +28,7 @@ from mujoco_playground._src import mjx_env
 
 from sim_hil import model as t1model
 from training import observation as obsdef
-from training.envs import collision, cpu_backend, harness, motor
+from training.envs import assists, collision, cpu_backend, motor
 
 BACKENDS = ("mjx", "cpu")
 FLOOR_GEOM = "floor"
@@ -68,15 +68,6 @@ def contacts_between(data: mjx.Data, geom_a, geom_b) -> jax.Array:
     a = jnp.asarray(geom_a)[:, None]
     hit = ((g1 == a) & (g2 == geom_b)) | ((g2 == a) & (g1 == geom_b))
     return jnp.any(hit & (con.dist[None, :] < 0.0), axis=-1)
-
-
-def gravity_scale(cfg) -> float:
-    """The config's gravity_scale (1 where a task has none), checked: a training aid lowers gravity, never
-    removes or raises it."""
-    scale = float(cfg.get("gravity_scale", 1.0))
-    if not 0.0 < scale <= 1.0:
-        raise ValueError(f"gravity_scale {scale}: expected 0 < scale <= 1 (a fraction of the model's 9.81 m/s²)")
-    return scale
 
 
 class T1Env(mjx_env.MjxEnv):
@@ -132,14 +123,14 @@ class T1Env(mjx_env.MjxEnv):
         """The robot in the config's collision variant, with the training harness where configured."""
         cfg = self._config
         spec = collision.build_spec(cfg.collision, cfg.max_contacts, cfg.max_geom_pairs)
-        harness.add_harness(spec, cfg)
+        assists.add_harness(spec, cfg)
         return spec
 
     def _compile(self, model: mujoco.MjModel) -> mujoco.MjModel:
         """The env's copy of a compiled variant: its timestep and the ONE gain set in the PD slots."""
         mj = copy.copy(model)
         mj.opt.timestep = self._config.sim_dt
-        mj.opt.gravity[:] = model.opt.gravity * gravity_scale(self._config)
+        mj.opt.gravity[:] = model.opt.gravity * assists.gravity_scale(self._config)
         self._kp, self._kd = t1model.pd_gains(mj)
         mj.actuator_biasprm[:, KP_SLOT] = self._kp
         mj.actuator_biasprm[:, KD_SLOT] = self._kd

@@ -24,8 +24,8 @@ says nothing of terminations; this one is ours, and why: stage 2's rewards pay s
 posture (pose(q, q_init)) about as much as height, so without it PPO learned to fall and lie with straight
 legs (v3: 1.23 per step lying against 0.90 holding the kneel), and with a trunk-height bound of 0.30 m
 alone it learned to lean back to trunk 0.32 m, up_z 0.72, straightening its legs (v5: 1.0 per step).
-Assist stages (ours, for stage 2; never exported as trained): config.harness (an elastic rope from above,
-training/envs/harness.py) and config.gravity_scale, both off by default.
+Assist stages (ours, for stage 2; never exported as trained): config.harness (an elastic rope from above)
+and config.gravity_scale (training/envs/assists.py), both off by default.
 Stage 1 and the full task start on the floor and pay pose(q, q_kneel) before the gate, where lying
 straight earns nothing, so they keep the seed's episodes.
 """
@@ -64,10 +64,9 @@ def getup_common_config() -> config_dict.ConfigDict:
     cfg.fallen_bank_size = 128           # distinct precomputed fallen starts
     cfg.fallen_seed = 0
     cfg.standing_targets_m = [G.STANDING_TORSO_M, G.STANDING_WAIST_M]   # (torso, waist) after the gate
-    # × the model's gravity: < 1 only in an assist stage (ours, not the seed's; runs/getup_stage2 PROGRESS),
-    # whose policy is a starting point for the next stage, never exported as trained (train.export_run)
+    # assist stages (training/envs/assists.py; ours, not the seed's): × the model's gravity, and the
+    # elastic harness (stiffness 0 = none)
     cfg.gravity_scale = 1.0
-    # the elastic harness of training/envs/harness.py (stiffness 0 = none): the same kind of aid
     cfg.harness = config_dict.create(stiffness_n_per_m=0.0, anchor_height_m=3.0, attach_above_trunk_m=0.3,
                                      slack_trunk_height_m=G.STANDING_TORSO_M)
     return cfg

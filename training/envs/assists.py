@@ -1,9 +1,13 @@
-"""An elastic harness for the getup tasks: a training aid of ours, not the seed's.
+"""Assist stages of the getup tasks: training aids of ours, not the seed's, both changes of the model (so
+both physics backends get them with no code of their own), both off by default, and a policy trained with
+either is never exported as trained (`assisted`, used by train.exported_as_trained).
 
-A spatial tendon runs from a world site above the start (x = y = 0, where stage 2's kneel starts;
-`anchor_height_m`) to a trunk site `attach_above_trunk_m` above the trunk origin. Its spring is slack
-while the trunk is at or above `slack_trunk_height_m` (the standing torso height) and pulls with
-stiffness × (how far below) [N] when the trunk is lower: stiffness × 0.26 m at the kneel.
+* gravity_scale: gravity × a fraction in (0, 1] (T1Env._compile).
+* the elastic harness (config.harness): a spatial tendon from a world site above the start (x = y = 0,
+  where stage 2's kneel starts; `anchor_height_m`) to a trunk site `attach_above_trunk_m` above the trunk
+  origin. Its spring is slack while the trunk is at or above `slack_trunk_height_m` (the standing torso
+  height) and pulls with stiffness × (how far below) [N] when the trunk is lower: × 0.26 m at the kneel.
+  At stiffness 0 the model has no harness at all.
 
 Why: at full gravity, and at half (gravity_scale 0.5, 6 M steps), PPO from the kneel never found a way
 up: every exploratory move that tips the robot ends a stage-2 episode, so the policy learned to hold the
@@ -13,9 +17,6 @@ measured), so leg motions that rise are tried without falling. Measured on the C
 home from the kneel for 3 s: no harness, the robot falls; 1100 N/m, it rises to trunk 0.63 m. Later
 stages lower the stiffness to 0 by fine-tuning `--from` the previous one (HoST, Huang et al. 2025, also
 pulls the base up early in training).
-
-It is a model element, so both physics backends simulate it with no code of their own; at stiffness 0
-the model has no harness at all. A policy trained with it is never exported as trained (train.py).
 """
 from __future__ import annotations
 
@@ -26,12 +27,26 @@ ANCHOR_SITE, TRUNK_SITE = "harness_anchor", "harness_trunk"
 TRUNK_BODY = "Trunk"
 
 
+def gravity_scale(cfg) -> float:
+    """The config's gravity_scale (1 where a task has none), checked: an assist lowers gravity, never
+    removes or raises it."""
+    scale = float(cfg.get("gravity_scale", 1.0))
+    if not 0.0 < scale <= 1.0:
+        raise ValueError(f"gravity_scale {scale}: expected 0 < scale <= 1 (a fraction of the model's 9.81 m/s²)")
+    return scale
+
+
 def stiffness(cfg) -> float:
     """The config's harness stiffness [N/m] (0 where a task has no harness), checked."""
     k = float(cfg.get("harness", {}).get("stiffness_n_per_m", 0.0))
     if k < 0.0:
         raise ValueError(f"harness.stiffness_n_per_m {k}: must be >= 0 (0 = no harness)")
     return k
+
+
+def assisted(cfg) -> bool:
+    """Whether an env config trains with an assist (a policy from it is only a start for the next stage)."""
+    return gravity_scale(cfg) != 1.0 or stiffness(cfg) != 0.0
 
 
 def add_harness(spec: mujoco.MjSpec, cfg) -> None:
