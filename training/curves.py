@@ -23,6 +23,7 @@ PLOT_PANELS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("episode length [control steps]", ("eval/avg_episode_length", "episode/length")),
     ("env-steps/s", ("training/sps", "episode/sps", "SPS")),
     ("success", ("eval/episode_success", "episode/success")),
+    ("success from the kneel", ("eval/episode_success_from_kneel",)),
     ("loss", ("training/policy_loss", "training/total_loss", "actor_loss")),
 )
 

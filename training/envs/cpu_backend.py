@@ -168,6 +168,8 @@ class CpuPhysics:
         lead = qpos.shape[:-1]
         n = int(np.prod(lead))
         q = qpos.reshape(n, -1)
+        # vmap's expand_dims passes an unbatched argument (e.g. a constant zero qvel) with lead 1
+        qvel = np.broadcast_to(qvel, (*lead, qvel.shape[-1]))
         with self._lock:
             b = self._batch(n)
             # hold the start pose: targets = the joints' own positions

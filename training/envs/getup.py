@@ -25,7 +25,9 @@ posture (pose(q, q_init)) about as much as height, so without it PPO learned to 
 legs (v3: 1.23 per step lying against 0.90 holding the kneel), and with a trunk-height bound of 0.30 m
 alone it learned to lean back to trunk 0.32 m, up_z 0.72, straightening its legs (v5: 1.0 per step).
 Assist stages (ours, for stage 2; never exported as trained): config.harness (an elastic rope from above)
-and config.gravity_scale (training/envs/assists.py), both off by default.
+and config.gravity_scale (training/envs/assists.py), both off by default. Stage 2's reverse curriculum
+(config.reverse_curriculum, training/envs/start_path.py; ours, off by default) changes only where episodes
+start — part of the way up a lunge from the kneel — not the physics, so it is not an assist.
 Stage 1 and the full task start on the floor and pay pose(q, q_kneel) before the gate, where lying
 straight earns nothing, so they keep the seed's episodes.
 """
@@ -41,6 +43,7 @@ from mujoco_playground._src import mjx_env
 from training import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
+from training.envs import start_path
 from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import fallen_states
 
@@ -78,6 +81,11 @@ def default_config() -> config_dict.ConfigDict:
     cfg.energy_weight = 0.0
     cfg.stage2_fall_trunk_height_m = 0.35   # stage 2 ends when the trunk drops below this [m] (docstring)
     cfg.stage2_fall_up_z = 0.7              # ... or when the trunk's up_z falls below this (46° of tilt)
+    # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
+    # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
+    # U{0 … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with kneel_prob.
+    cfg.reverse_curriculum = config_dict.create(max_progress=0.0, kneel_prob=0.25, bank_size=41,
+                                                half_kneel_left_leg_rad=[-1.5, 2.2, -0.7])
     return cfg
 
 
@@ -165,6 +173,26 @@ class Getup(GetupBase):
         if self._config.stage not in STAGES:
             raise ValueError(f"getup stage {self._config.stage!r} unknown; valid: {', '.join(STAGES)}")
         self._kneel_pose = self._kneel_qpos[7:]
+        rc = self._config.reverse_curriculum
+        self._path_bank = None
+        if not (0.0 <= rc.max_progress <= start_path.PATH_END and 0.0 <= rc.kneel_prob <= 1.0):
+            raise ValueError(f"reverse_curriculum: max_progress must be in [0, {start_path.PATH_END}] and "
+                             f"kneel_prob in [0, 1], got {rc.max_progress} and {rc.kneel_prob}")
+        if self._config.stage == "stage2" and rc.max_progress > 0:
+            bank = start_path.path_bank(self._mj_model, np.asarray(self._home_qpos), np.asarray(self._kneel_qpos),
+                                        rc.half_kneel_left_leg_rad, int(rc.bank_size))
+            self._path_bank = jnp.asarray(bank[:start_path.bank_limit(rc.max_progress, len(bank))], jnp.float32)
+
+    def _start_state(self, rng):
+        """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path."""
+        if self._path_bank is None:
+            return super()._start_state(rng)
+        k_kneel, k_idx = jax.random.split(rng)
+        at_kneel = jax.random.uniform(k_kneel) < self._config.reverse_curriculum.kneel_prob
+        idx = jax.random.randint(k_idx, (), 0, self._path_bank.shape[0])
+        qpos = jnp.where(at_kneel, self._kneel_qpos, self._path_bank[idx])
+        # start_kind: the kneel is "kneeling"; a path start is counted with "standing" (it is on the way up)
+        return qpos, jnp.zeros(self._mj_model.nv), jnp.where(at_kneel, 1, 2).astype(jnp.int32)
 
     def start_probabilities(self):
         stage = self._config.stage
@@ -181,7 +209,7 @@ class Getup(GetupBase):
 
     @staticmethod
     def metric_names():
-        return ("reward/height", "reward/pose", "reward/energy", "gate", "success")
+        return ("reward/height", "reward/pose", "reward/energy", "gate", "success", "success_from_kneel")
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
         """Height Reward, Pose Reward (the stage's form) and the energy cost of the state after the step."""
@@ -214,6 +242,8 @@ class Getup(GetupBase):
         metrics["gate"] = terms["gate"].astype(jnp.float32)
         metrics["success"] = (terms["gate"] if self._config.stage == "stage1"
                               else self.standing(info)).astype(jnp.float32)
+        # standing in an episode that started at the kneel (with the reverse curriculum, the share that counts)
+        metrics["success_from_kneel"] = metrics["success"] * (info["start_kind"] == 1)
         done = self.invalid(data) | self.fell_from_kneel(info)
         return state.replace(data=data, obs=obs, reward=reward, done=done.astype(jnp.float32), metrics=metrics,
                              info=info)

@@ -1,0 +1,116 @@
+"""Stage 2's reverse curriculum (training/envs/start_path.py): the path's poses and the env's starts."""
+import mujoco
+import numpy as np
+import pytest
+
+from sim_hil import model as t1
+from training.envs import start_path
+
+LEFT_LEG_RAD = (-1.5, 2.2, -0.7)
+HALF_KNEEL_HOLD_S = 3.0
+HALF_KNEEL_MAX_SINK_M = 0.05     # measured 0.03 m
+HALF_KNEEL_MIN_UP_Z = 0.95       # measured ≥ 0.97
+
+
+@pytest.fixture(scope="module")
+def model():
+    return t1.load_model()
+
+
+@pytest.fixture(scope="module")
+def bank(model):
+    return start_path.path_bank(model, t1.keyframe_qpos(model, "home"), t1.keyframe_qpos(model, "kneel"),
+                                LEFT_LEG_RAD, 9)
+
+
+def test_path_runs_from_standing_to_the_kneel(model, bank):
+    home, kneel = t1.keyframe_qpos(model, "home"), t1.keyframe_qpos(model, "kneel")
+    assert np.allclose(bank[-1], kneel, atol=1e-4)
+    assert np.allclose(bank[0][7:], home[7:]) and bank[0][2] == pytest.approx(home[2], abs=0.005)
+    # the midpoint is the half kneel: left leg as given, right leg as the kneel
+    half = bank[4]
+    for name, angle in zip(start_path.LEFT_LEG, LEFT_LEG_RAD):
+        assert half[model.joint(name).qposadr[0]] == pytest.approx(angle)
+    right = [model.joint(n).qposadr[0] for n in ("Right_Hip_Pitch", "Right_Knee_Pitch", "Right_Ankle_Pitch")]
+    assert np.allclose(half[right], kneel[right])
+
+
+def test_every_start_rests_on_the_floor_upright_without_self_contact(model, bank):
+    data = mujoco.MjData(model)
+    for q in bank:
+        data.qpos[:] = q
+        mujoco.mj_forward(model, data)
+        assert t1.lowest_robot_point(model, data) == pytest.approx(0.0, abs=1e-6)
+        assert np.allclose(q[3:7], (1, 0, 0, 0)) and np.allclose(q[0:2], 0)
+        assert t1.self_contacts(model, data) == []
+
+
+def test_half_kneel_holds_under_shared_pd_on_its_left_foot(model, bank):
+    data = mujoco.MjData(model)
+    data.qpos[:] = bank[4]
+    kp, kd = t1.pd_gains(model)
+    lim = t1.torque_limits(model)
+    target = bank[4][7:].copy()
+    touched = set()
+    for _ in range(int(HALF_KNEEL_HOLD_S / model.opt.timestep)):
+        data.ctrl[:] = t1.pd_torque(target, data.qpos[7:], data.qvel[6:], kp, kd, lim)
+        mujoco.mj_step(model, data)
+        touched |= {model.geom(g).name for g in t1.ground_contacts(model, data)}
+    assert bank[4][2] - data.qpos[2] < HALF_KNEEL_MAX_SINK_M
+    assert data.xmat[model.body("Trunk").id].reshape(3, 3)[2, 2] >= HALF_KNEEL_MIN_UP_Z
+    assert "left_foot" in touched
+
+
+def test_progress_and_bank_limits():
+    assert start_path.bank_limit(2.0, 41) == 41
+    assert start_path.bank_limit(1.0, 41) == 21
+    assert start_path.bank_limit(0.05, 41) == 2
+    for bad in (0.0, -1.0, 2.5):
+        with pytest.raises(ValueError, match="max_progress"):
+            start_path.bank_limit(bad, 41)
+    with pytest.raises(ValueError, match="progress"):
+        start_path.pose_at(np.zeros(3), np.zeros(3), np.zeros(3), 2.1)
+    with pytest.raises(ValueError, match="bank_size"):
+        start_path.path_bank(None, None, None, LEFT_LEG_RAD, 1)
+
+
+def test_stage2_env_draws_starts_up_to_max_progress_and_at_the_kneel():
+    import jax
+    from training import envs
+    cfg = envs.default_config("getup")
+    cfg.stage, cfg.backend = "stage2", "cpu"
+    cfg.reverse_curriculum.max_progress = 1.0
+    env = envs.make("getup", config=cfg)
+    qpos, _, kind = jax.vmap(env._start_state)(jax.random.split(jax.random.PRNGKey(0), 2000))
+    qpos, kind = np.asarray(qpos), np.asarray(kind)
+    at_kneel = kind == 1
+    assert abs(at_kneel.mean() - cfg.reverse_curriculum.kneel_prob) < 0.04
+    assert np.allclose(qpos[at_kneel], np.asarray(env._kneel_qpos), atol=1e-5)
+    # progress ≤ 1: standing … half kneel, never the leg swing of p ∈ (1, 2) (left knee 2.2 rad at most)
+    left_knee = qpos[~at_kneel, env.mj_model.joint("Left_Knee_Pitch").qposadr[0]]
+    assert left_knee.max() <= 2.2 + 1e-5 and len(np.unique(np.round(left_knee, 4))) == 21
+    cfg.reverse_curriculum.max_progress = 0.0      # off: the seed's start, every episode at the kneel
+    _, _, kind = jax.vmap(envs.make("getup", config=cfg)._start_state)(jax.random.split(jax.random.PRNGKey(0), 64))
+    assert np.all(np.asarray(kind) == 1)
+
+
+def test_bad_curriculum_config_is_refused():
+    from training import envs
+    cfg = envs.default_config("getup")
+    cfg.stage, cfg.backend = "stage2", "cpu"
+    cfg.reverse_curriculum.kneel_prob = 1.5
+    with pytest.raises(ValueError, match="kneel_prob"):
+        envs.make("getup", config=cfg)
+
+
+def test_cpu_backend_resets_a_batch_whose_start_velocity_is_shared():
+    """The path starts share one zero qvel; the CPU backend's reset callback must broadcast it (vmap)."""
+    import jax
+    from training import envs
+    cfg = envs.default_config("getup")
+    cfg.stage, cfg.backend = "stage2", "cpu"
+    cfg.reverse_curriculum.max_progress = 2.0
+    env = envs.make("getup", config=cfg)
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
+    assert state.data.qpos.shape == (8, env.mj_model.nq)
+    assert np.all(np.asarray(state.info["trunk_height"]) > 0.35)

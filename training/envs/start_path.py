@@ -1,0 +1,72 @@
+"""Reverse curriculum for getup stage 2 (ours, not the seed's): starts along a path from standing to the kneel.
+
+Why: stage 2 from the kneel alone (the seed's start) held the kneel for 25 M steps here (v4–v8, see
+training/runs/getup_stage2/PROGRESS.md). Standing up from this model's kneel (both knees and both toe tips
+on the floor, feet behind) needs a lunge — one foot brought forward flat, then a push up over it — and
+every exploratory move toward it that tips the robot ends the episode. Starting some episodes part of the
+way up lets PPO learn the end of the motion first and extend it backward (Florensa et al. 2017, "Reverse
+curriculum generation"); the full task (§4.5) later starts at the seed's fallen / kneeling / standing.
+
+The path, by "progress" p in [0, 2] (joint angles blended linearly, trunk upright, lowest point on the floor):
+  p = 0  standing (the `home` keyframe)
+  p = 1  half kneel: right leg as the kneel, left foot forward flat on the floor (left hip pitch −1.5,
+         knee 2.2, ankle −0.7 rad; foot pitch hip + knee + ankle = 0). Designed numerically (MuJoCo
+         4.0.0): the flat-footed left legs whose sole is level with the right knee; held by the shared
+         PD gains for 3 s it sinks 3 cm and stays at up_z ≥ 0.97 (tests/test_training_start_path.py).
+  p = 2  the `kneel` keyframe.
+p ∈ (0, 1) is a rising lunge (left foot flat throughout, right foot onto its toes); p ∈ (1, 2) swings the
+left leg back under the body.
+"""
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from sim_hil import model as t1model
+
+PATH_END = 2.0   # progress of the kneel
+LEFT_LEG = ("Left_Hip_Pitch", "Left_Knee_Pitch", "Left_Ankle_Pitch")
+
+
+def half_kneel_qpos(model: mujoco.MjModel, kneel_qpos: np.ndarray, left_leg_rad) -> np.ndarray:
+    """The kneel with the left leg's (hip pitch, knee, ankle pitch) [rad] replaced, before floor placement."""
+    q = np.array(kneel_qpos, dtype=np.float64)
+    for name, angle in zip(LEFT_LEG, left_leg_rad, strict=True):
+        q[model.joint(name).qposadr[0]] = angle
+    return q
+
+
+def pose_at(home: np.ndarray, half: np.ndarray, kneel: np.ndarray, progress: float) -> np.ndarray:
+    """Blended qpos at `progress` (root pose not yet placed)."""
+    if not 0.0 <= progress <= PATH_END:
+        raise ValueError(f"start-path progress must be in [0, {PATH_END}], got {progress}")
+    a, b, t = (home, half, progress) if progress <= 1.0 else (half, kneel, progress - 1.0)
+    return (1.0 - t) * a + t * b
+
+
+def place_on_floor(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """qpos at the origin, trunk upright, root height such that the lowest robot primitive touches z = 0."""
+    q = np.array(qpos, dtype=np.float64)
+    q[0:3], q[3:7] = 0.0, (1.0, 0.0, 0.0, 0.0)
+    data = mujoco.MjData(model)
+    data.qpos[:] = q
+    mujoco.mj_kinematics(model, data)
+    q[2] = -t1model.lowest_robot_point(model, data)
+    return q
+
+
+def path_bank(model: mujoco.MjModel, home: np.ndarray, kneel: np.ndarray, left_leg_rad,
+              size: int) -> np.ndarray:
+    """(size, nq) placed starts at evenly spaced progress 0 … 2; the last one is the kneel."""
+    if size < 2:
+        raise ValueError(f"start-path bank_size must be ≥ 2, got {size}")
+    half = half_kneel_qpos(model, kneel, left_leg_rad)
+    return np.stack([place_on_floor(model, pose_at(home, half, kneel, p))
+                     for p in np.linspace(0.0, PATH_END, size)])
+
+
+def bank_limit(max_progress: float, size: int) -> int:
+    """Number of bank entries at progress ≤ max_progress (the ones a start is drawn from)."""
+    if not 0.0 < max_progress <= PATH_END:
+        raise ValueError(f"reverse_curriculum.max_progress must be in (0, {PATH_END}], got {max_progress}")
+    return int(np.floor(max_progress / PATH_END * (size - 1) + 1e-9)) + 1
