@@ -70,3 +70,33 @@ def bank_limit(max_progress: float, size: int) -> int:
     if not 0.0 < max_progress <= PATH_END:
         raise ValueError(f"reverse_curriculum.max_progress must be in (0, {PATH_END}], got {max_progress}")
     return int(np.floor(max_progress / PATH_END * (size - 1) + 1e-9)) + 1
+
+
+def render_strip(out_png: str, size: int = 11, left_leg_rad=(-1.5, 2.2, -0.7), px: int = 240) -> None:
+    """Side view of `size` placed starts along the path, left to right standing → kneel, as one PNG."""
+    import PIL.Image
+    model = t1model.load_model()
+    bank = path_bank(model, t1model.keyframe_qpos(model, "home"), t1model.keyframe_qpos(model, "kneel"),
+                     left_leg_rad, size)
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, px)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, px)
+    data, camera = mujoco.MjData(model), mujoco.MjvCamera()
+    camera.lookat[:], camera.distance, camera.elevation, camera.azimuth = (0, 0, 0.35), 2.0, -5.0, 90.0
+    renderer = mujoco.Renderer(model, height=px, width=px)
+    try:
+        frames = []
+        for qpos in bank:
+            data.qpos[:] = qpos
+            mujoco.mj_forward(model, data)
+            renderer.update_scene(data, camera)
+            frames.append(renderer.render())
+    finally:
+        renderer.close()
+    PIL.Image.fromarray(np.concatenate(frames, axis=1)).save(out_png, optimize=True)
+
+
+if __name__ == "__main__":   # MUJOCO_GL=osmesa python -m training.envs.start_path OUT.png
+    import sys
+    if len(sys.argv) != 2:
+        sys.exit("usage: python -m training.envs.start_path OUT.png  (a strip of starts along the path)")
+    render_strip(sys.argv[1])
