@@ -60,3 +60,20 @@ def test_yaw_breakdown_bins_commands_and_measures_the_turn_gain():
     assert math.isclose(bins[0]["rms_radps"], 0.0, abs_tol=1e-12) and math.isclose(bins[0]["gain"], 1.0)
     assert math.isclose(bins[3]["rms_radps"], 0.45, rel_tol=1e-9) and math.isclose(bins[3]["gain"], 0.5)
     assert math.isnan(bins[1]["rms_radps"])
+
+
+def test_step_response_follows_the_error_after_a_change_until_the_next_one():
+    s = _series(n_eps=2, ticks=300)
+    s["cmd"][:, 100:, 0] = 1.0                         # a 0.6 m/s step at tick 100 (2 s)
+    lag = np.exp(-np.arange(200) * DT / 0.5)           # first-order response, time constant 0.5 s
+    s["vel"][:, 100:, 0] = 1.0 - 0.6 * lag
+    s["cmd"][1, 200:, 1] = 0.3                         # episode 1 changes again 2 s later
+    s["vel"][1, 200:, 1] = 0.3
+    r = ej.step_response(s, ej.episode_rows(s, DT), DT)
+    assert r["changes"] == 3 and math.isclose(r["mean_step_mps"], (0.6 + 0.6 + 0.3) / 3)
+    errs = dict(zip(ej.STEP_RESPONSE_S, r["mean_err_mps"]))
+    assert math.isclose(errs[0.0], (0.6 + 0.6 + 0.6 * math.exp(-4)) / 3, rel_tol=1e-9)   # 2nd change: lag left
+    # at 1 s: both first changes, and episode 1's second one (its x lag 3 s after the first)
+    assert math.isclose(errs[1.0], (2 * 0.6 * math.exp(-2) + 0.6 * math.exp(-6)) / 3, rel_tol=1e-9)
+    # at 2 s only episode 0's change counts: episode 1 changed again, and its second change has no 2 s left
+    assert math.isclose(errs[2.0], 0.6 * math.exp(-4), rel_tol=1e-9)

@@ -27,6 +27,7 @@ import numpy as np
 from training.evaluate import ArtifactPolicy, policy_action
 
 SETTLE_S = 1.0  # [s] after a command change before "settled" tracking is counted
+STEP_RESPONSE_S = (0.0, 0.2, 0.4, 0.6, 1.0, 2.0)   # times after a mid-episode command change [s]
 YAW_BINS_RADPS = (0.0, 0.25, 0.5, 0.75, 1.0)   # |commanded yaw rate| bins of the yaw breakdown [rad/s]
 TARGETS = {"fall_rate": 0.05, "rms_lin_vel_mps": 0.15, "rms_yaw_rate_radps": 0.2}   # issue 13
 
@@ -106,6 +107,28 @@ def yaw_by_command(series: dict, rows: list[dict]) -> list[dict]:
     return out
 
 
+def step_response(series: dict, rows: list[dict], ctrl_dt: float) -> dict:
+    """How fast the linear velocity follows a mid-episode command change: the mean linear error [m/s] at each
+    STEP_RESPONSE_S after the change, over the changes still standing and not yet changed again by then,
+    and the mean size of the commanded step ‖Δ(vx, vy)‖ [m/s]."""
+    cmd, vel = np.asarray(series["cmd"]), np.asarray(series["vel"])
+    offsets = [int(round(t / ctrl_dt)) for t in STEP_RESPONSE_S]
+    errs, steps = [[] for _ in offsets], []
+    for i, row in enumerate(rows):
+        err = np.linalg.norm(cmd[i, :, :2] - vel[i, :, :2], axis=1)
+        changes = np.flatnonzero(np.any(np.diff(cmd[i], axis=0) != 0.0, axis=1)) + 1
+        ends = np.append(changes[1:], row["ticks"])
+        for c, end in zip(changes, np.minimum(ends, row["ticks"])):
+            if c >= row["ticks"]:
+                continue
+            steps.append(float(np.linalg.norm(cmd[i, c, :2] - cmd[i, c - 1, :2])))
+            for k, off in enumerate(offsets):
+                if c + off < end:
+                    errs[k].append(err[c + off])
+    return {"changes": len(steps), "mean_step_mps": float(np.mean(steps)) if steps else math.nan,
+            "mean_err_mps": [float(np.mean(e)) if e else math.nan for e in errs]}
+
+
 def summarize(rows: list[dict]) -> dict:
     ticks = sum(r["ticks"] for r in rows)
     settled = sum(r["settled_ticks"] for r in rows)
@@ -116,7 +139,8 @@ def summarize(rows: list[dict]) -> dict:
             "rms_yaw_rate_settled_radps": rms("yaw2_settled_sum", settled)}
 
 
-def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict, yaw_bins: list[dict] = ()) -> str:
+def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict, yaw_bins: list[dict] = (),
+                    response: dict | None = None) -> str:
     m = policy.manifest
     met = {k: summary[k] <= v for k, v in TARGETS.items()}
     lines = [f"# Joystick evaluation ({summary['episodes']} episodes of {meta['seconds']} s, "
@@ -140,6 +164,12 @@ def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict, yaw_bins:
         lines += [f"| {b['lo']:.2f}–{b['hi']:.2f} | {b['ticks']} | {b['rms_radps']:.3f} | {b['gain']:.2f} |"
                   for b in yaw_bins]
         lines.append("")
+    if response and response["changes"]:
+        lines += [f"Linear-velocity error after a command change ({response['changes']} mid-episode changes, "
+                  f"mean step ‖Δ(vx, vy)‖ {response['mean_step_mps']:.2f} m/s):", "",
+                  "| " + " | ".join(f"{t:.1f} s" for t in STEP_RESPONSE_S) + " |",
+                  "|" + "---|" * len(STEP_RESPONSE_S),
+                  "| " + " | ".join(f"{e:.2f}" for e in response["mean_err_mps"]) + " |", ""]
     return "\n".join(lines)
 
 
@@ -164,7 +194,8 @@ def evaluate(policy_path, out, episodes: int = 256, seconds: float = 20.0, first
     summary = summarize(rows)
     report = out / "report.md"
     report.write_text(markdown_report(policy, summary, {"seconds": seconds, "command": command or "evaluate()",
-                                                          "backend": env.backend}, yaw_by_command(series, rows)))
+                                                          "backend": env.backend}, yaw_by_command(series, rows),
+                                          step_response(series, rows, float(env.dt))))
     with (out / "per_episode.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=["episode", *rows[0]])
         writer.writeheader()
