@@ -6,7 +6,7 @@ import pytest
 from sim_hil import model as t1
 from training.envs import start_path
 
-LEFT_LEG_RAD = (-1.5, 2.2, -0.7)
+HALF_KNEEL_RAD = (-1.5, 2.2, -0.7)      # left hip pitch, knee, ankle pitch at progress 1
 HALF_KNEEL_HOLD_S = 3.0
 HALF_KNEEL_MAX_SINK_M = 0.05     # measured 0.03 m
 HALF_KNEEL_MIN_UP_Z = 0.95       # measured ≥ 0.97
@@ -17,10 +17,20 @@ def model():
     return t1.load_model()
 
 
+KNEEL_SWING_MAX_LIFT_M = 0.01           # the right knee stays on the floor while the left leg swings
+
+
 @pytest.fixture(scope="module")
-def bank(model):
+def waypoints():
+    from training.envs.getup import default_config
+    return default_config().reverse_curriculum.left_leg_waypoints
+
+
+@pytest.fixture(scope="module")
+def bank(model, waypoints):
+    """41 starts: index 20 is progress 1 (the half kneel), 40 the kneel."""
     return start_path.path_bank(model, t1.keyframe_qpos(model, "home"), t1.keyframe_qpos(model, "kneel"),
-                                LEFT_LEG_RAD, 9)
+                                waypoints, 41)
 
 
 def test_path_runs_from_standing_to_the_kneel(model, bank):
@@ -28,11 +38,16 @@ def test_path_runs_from_standing_to_the_kneel(model, bank):
     assert np.allclose(bank[-1], kneel, atol=1e-4)
     assert np.allclose(bank[0][7:], home[7:]) and bank[0][2] == pytest.approx(home[2], abs=0.005)
     # the midpoint is the half kneel: left leg as given, right leg as the kneel
-    half = bank[4]
-    for name, angle in zip(start_path.LEFT_LEG, LEFT_LEG_RAD):
+    half = bank[20]
+    for name, angle in zip(start_path.LEFT_LEG, HALF_KNEEL_RAD):
         assert half[model.joint(name).qposadr[0]] == pytest.approx(angle)
     right = [model.joint(n).qposadr[0] for n in ("Right_Hip_Pitch", "Right_Knee_Pitch", "Right_Ankle_Pitch")]
     assert np.allclose(half[right], kneel[right])
+
+
+def test_the_left_leg_swings_back_with_the_right_knee_on_the_floor(model, bank):
+    kneel_z = t1.keyframe_qpos(model, "kneel")[2]
+    assert np.all(bank[20:, 2] - kneel_z < KNEEL_SWING_MAX_LIFT_M)
 
 
 def test_every_start_rests_on_the_floor_upright_without_self_contact(model, bank):
@@ -47,16 +62,16 @@ def test_every_start_rests_on_the_floor_upright_without_self_contact(model, bank
 
 def test_half_kneel_holds_under_shared_pd_on_its_left_foot(model, bank):
     data = mujoco.MjData(model)
-    data.qpos[:] = bank[4]
+    data.qpos[:] = bank[20]
     kp, kd = t1.pd_gains(model)
     lim = t1.torque_limits(model)
-    target = bank[4][7:].copy()
+    target = bank[20][7:].copy()
     touched = set()
     for _ in range(int(HALF_KNEEL_HOLD_S / model.opt.timestep)):
         data.ctrl[:] = t1.pd_torque(target, data.qpos[7:], data.qvel[6:], kp, kd, lim)
         mujoco.mj_step(model, data)
         touched |= {model.geom(g).name for g in t1.ground_contacts(model, data)}
-    assert bank[4][2] - data.qpos[2] < HALF_KNEEL_MAX_SINK_M
+    assert bank[20][2] - data.qpos[2] < HALF_KNEEL_MAX_SINK_M
     assert data.xmat[model.body("Trunk").id].reshape(3, 3)[2, 2] >= HALF_KNEEL_MIN_UP_Z
     assert "left_foot" in touched
 
@@ -69,9 +84,17 @@ def test_progress_and_bank_limits():
         with pytest.raises(ValueError, match="max_progress"):
             start_path.bank_limit(bad, 41)
     with pytest.raises(ValueError, match="progress"):
-        start_path.pose_at(np.zeros(3), np.zeros(3), np.zeros(3), 2.1)
+        start_path.pose_at([(0.0, np.zeros(3)), (2.0, np.ones(3))], 2.1)
+    assert np.allclose(start_path.pose_at([(0.0, np.zeros(3)), (0.5, np.ones(3)), (2.0, np.zeros(3))], 1.25), 0.5)
     with pytest.raises(ValueError, match="bank_size"):
-        start_path.path_bank(None, None, None, LEFT_LEG_RAD, 1)
+        start_path.path_bank(None, None, None, [], 1)
+
+
+def test_bad_waypoints_are_refused(model):
+    home, kneel = t1.keyframe_qpos(model, "home"), t1.keyframe_qpos(model, "kneel")
+    for bad in ([[1.0, -1.5, 2.2]], [[1.2, -1.5, 2.2, -0.7], [1.1, -1.4, 2.3, -0.8]], [[2.0, 0.0, 1.9, 0.0]]):
+        with pytest.raises(ValueError, match="left_leg_waypoints"):
+            start_path.path_points(model, home, kneel, bad)
 
 
 def test_stage2_env_draws_starts_up_to_max_progress_and_at_the_kneel():
@@ -88,7 +111,7 @@ def test_stage2_env_draws_starts_up_to_max_progress_and_at_the_kneel():
     assert np.allclose(qpos[at_kneel], np.asarray(env._kneel_qpos), atol=1e-5)
     # progress ≤ 1: standing … half kneel, never the leg swing of p ∈ (1, 2) (left knee 2.2 rad at most)
     left_knee = qpos[~at_kneel, env.mj_model.joint("Left_Knee_Pitch").qposadr[0]]
-    assert left_knee.max() <= 2.2 + 1e-5 and len(np.unique(np.round(left_knee, 4))) == 21
+    assert left_knee.max() <= HALF_KNEEL_RAD[1] + 1e-5 and len(np.unique(np.round(left_knee, 4))) == 21
     cfg.reverse_curriculum.max_progress = 0.0      # off: the seed's start, every episode at the kneel
     _, _, kind = jax.vmap(envs.make("getup", config=cfg)._start_state)(jax.random.split(jax.random.PRNGKey(0), 64))
     assert np.all(np.asarray(kind) == 1)

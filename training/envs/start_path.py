@@ -7,15 +7,20 @@ every exploratory move toward it that tips the robot ends the episode. Starting 
 way up lets PPO learn the end of the motion first and extend it backward (Florensa et al. 2017, "Reverse
 curriculum generation"); the full task (§4.5) later starts at the seed's fallen / kneeling / standing.
 
-The path, by "progress" p in [0, 2] (joint angles blended linearly, trunk upright, lowest point on the floor):
-  p = 0  standing (the `home` keyframe)
-  p = 1  half kneel: right leg as the kneel, left foot forward flat on the floor (left hip pitch −1.5,
-         knee 2.2, ankle −0.7 rad; foot pitch hip + knee + ankle = 0). Designed numerically (MuJoCo
-         4.0.0): the flat-footed left legs whose sole is level with the right knee; held by the shared
-         PD gains for 3 s it sinks 3 cm and stays at up_z ≥ 0.97 (tests/test_training_start_path.py).
-  p = 2  the `kneel` keyframe.
-p ∈ (0, 1) is a rising lunge (left foot flat throughout, right foot onto its toes); p ∈ (1, 2) swings the
-left leg back under the body.
+The path, by "progress" p in [0, 2]: joint angles piecewise linear between waypoints, trunk upright, lowest
+point on the floor.
+  p = 0     standing (the `home` keyframe)
+  p = 1     half kneel: right leg as the kneel, left foot forward flat on the floor (left hip pitch −1.5,
+            knee 2.2, ankle −0.7 rad; foot pitch hip + knee + ankle = 0). Designed numerically (MuJoCo
+            4.0.0): the flat-footed left legs whose sole is level with the right knee; held by the shared
+            PD gains for 3 s it sinks 3 cm and stays at up_z ≥ 0.97 (tests/test_training_start_path.py).
+  p = 1 … 2 the left leg swings back to the kneel with its knee lifted and its shin folded (knee up to the
+            joint's 2.34 rad, ankle at −0.87), so the right knee stays on the floor (root within 6 mm of the
+            kneel's height over a 201-start bank), as when a person kneeling on both knees brings one foot
+            forward; a straight blend from the half kneel to the kneel would push the left toes through the
+            floor and lift the right knee by up to 9 cm.
+  p = 2     the `kneel` keyframe.
+Waypoints: config.reverse_curriculum.left_leg_waypoints, rows of (progress, left hip pitch, knee, ankle pitch).
 """
 from __future__ import annotations
 
@@ -28,7 +33,7 @@ PATH_END = 2.0   # progress of the kneel
 LEFT_LEG = ("Left_Hip_Pitch", "Left_Knee_Pitch", "Left_Ankle_Pitch")
 
 
-def half_kneel_qpos(model: mujoco.MjModel, kneel_qpos: np.ndarray, left_leg_rad) -> np.ndarray:
+def with_left_leg(model: mujoco.MjModel, kneel_qpos: np.ndarray, left_leg_rad) -> np.ndarray:
     """The kneel with the left leg's (hip pitch, knee, ankle pitch) [rad] replaced, before floor placement."""
     q = np.array(kneel_qpos, dtype=np.float64)
     for name, angle in zip(LEFT_LEG, left_leg_rad, strict=True):
@@ -36,12 +41,26 @@ def half_kneel_qpos(model: mujoco.MjModel, kneel_qpos: np.ndarray, left_leg_rad)
     return q
 
 
-def pose_at(home: np.ndarray, half: np.ndarray, kneel: np.ndarray, progress: float) -> np.ndarray:
-    """Blended qpos at `progress` (root pose not yet placed)."""
+def path_points(model: mujoco.MjModel, home: np.ndarray, kneel: np.ndarray, waypoints) -> list:
+    """[(progress, qpos)] from standing (0) through the left-leg waypoints to the kneel (2)."""
+    rows = [tuple(float(x) for x in w) for w in waypoints]
+    progress = [0.0] + [r[0] for r in rows] + [PATH_END]
+    if any(len(r) != 1 + len(LEFT_LEG) for r in rows) or np.any(np.diff(progress) <= 0):
+        raise ValueError("reverse_curriculum.left_leg_waypoints: rows of (progress, hip pitch, knee, ankle "
+                         f"pitch) with progress rising strictly inside (0, {PATH_END}), got {list(waypoints)}")
+    return ([(0.0, np.asarray(home, np.float64))] + [(r[0], with_left_leg(model, kneel, r[1:])) for r in rows]
+            + [(PATH_END, np.asarray(kneel, np.float64))])
+
+
+def pose_at(points: list, progress: float) -> np.ndarray:
+    """qpos at `progress` on the path (root pose not yet placed)."""
     if not 0.0 <= progress <= PATH_END:
         raise ValueError(f"start-path progress must be in [0, {PATH_END}], got {progress}")
-    a, b, t = (home, half, progress) if progress <= 1.0 else (half, kneel, progress - 1.0)
-    return (1.0 - t) * a + t * b
+    for (p0, a), (p1, b) in zip(points[:-1], points[1:]):
+        if progress <= p1:
+            t = (progress - p0) / (p1 - p0)
+            return (1.0 - t) * a + t * b
+    return points[-1][1]
 
 
 def place_on_floor(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
@@ -55,14 +74,12 @@ def place_on_floor(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
     return q
 
 
-def path_bank(model: mujoco.MjModel, home: np.ndarray, kneel: np.ndarray, left_leg_rad,
-              size: int) -> np.ndarray:
+def path_bank(model: mujoco.MjModel, home: np.ndarray, kneel: np.ndarray, waypoints, size: int) -> np.ndarray:
     """(size, nq) placed starts at evenly spaced progress 0 … 2; the last one is the kneel."""
     if size < 2:
         raise ValueError(f"start-path bank_size must be ≥ 2, got {size}")
-    half = half_kneel_qpos(model, kneel, left_leg_rad)
-    return np.stack([place_on_floor(model, pose_at(home, half, kneel, p))
-                     for p in np.linspace(0.0, PATH_END, size)])
+    points = path_points(model, home, kneel, waypoints)
+    return np.stack([place_on_floor(model, pose_at(points, p)) for p in np.linspace(0.0, PATH_END, size)])
 
 
 def bank_limit(max_progress: float, size: int) -> int:
@@ -72,12 +89,13 @@ def bank_limit(max_progress: float, size: int) -> int:
     return int(np.floor(max_progress / PATH_END * (size - 1) + 1e-9)) + 1
 
 
-def render_strip(out_png: str, size: int = 11, left_leg_rad=(-1.5, 2.2, -0.7), px: int = 240) -> None:
+def render_strip(out_png: str, size: int = 21, px: int = 200) -> None:
     """Side view of `size` placed starts along the path, left to right standing → kneel, as one PNG."""
     import PIL.Image
+    from training.envs.getup import default_config
     model = t1model.load_model()
     bank = path_bank(model, t1model.keyframe_qpos(model, "home"), t1model.keyframe_qpos(model, "kneel"),
-                     left_leg_rad, size)
+                     default_config().reverse_curriculum.left_leg_waypoints, size)
     model.vis.global_.offwidth = max(model.vis.global_.offwidth, px)
     model.vis.global_.offheight = max(model.vis.global_.offheight, px)
     data, camera = mujoco.MjData(model), mujoco.MjvCamera()
