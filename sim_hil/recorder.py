@@ -24,13 +24,11 @@ def tracking_camera(model: mujoco.MjModel) -> mujoco.MjvCamera:
     return camera
 
 
-def render_video(model: mujoco.MjModel, poses: list[np.ndarray], path: Path, fps: int) -> None:
-    import mediapy
-    height, width = config.VIDEO_SIZE
+def render_frames(model: mujoco.MjModel, poses, camera: mujoco.MjvCamera, height: int, width: int) -> list:
+    """One RGB frame (height, width, 3) per qpos in `poses`, seen through `camera`."""
     model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
     model.vis.global_.offheight = max(model.vis.global_.offheight, height)
     data = mujoco.MjData(model)
-    camera = tracking_camera(model)
     renderer = mujoco.Renderer(model, height=height, width=width)
     try:
         frames = []
@@ -39,9 +37,15 @@ def render_video(model: mujoco.MjModel, poses: list[np.ndarray], path: Path, fps
             mujoco.mj_kinematics(model, data)
             renderer.update_scene(data, camera)
             frames.append(renderer.render())
-        mediapy.write_video(str(path), frames, fps=fps)
+        return frames
     finally:
         renderer.close()
+
+
+def render_video(model: mujoco.MjModel, poses: list[np.ndarray], path: Path, fps: int) -> None:
+    import mediapy
+    height, width = config.VIDEO_SIZE
+    mediapy.write_video(str(path), render_frames(model, poses, tracking_camera(model), height, width), fps=fps)
 
 
 def check_gl_backend(model: mujoco.MjModel) -> None:

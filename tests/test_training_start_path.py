@@ -137,3 +137,9 @@ def test_cpu_backend_resets_a_batch_whose_start_velocity_is_shared():
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
     assert state.data.qpos.shape == (8, env.mj_model.nq)
     assert np.all(np.asarray(state.info["trunk_height"]) > 0.35)
+
+
+def test_render_strip_draws_one_frame_per_start(tmp_path):
+    import PIL.Image
+    start_path.render_strip(str(tmp_path / "path.png"), size=3, px=64)
+    assert PIL.Image.open(tmp_path / "path.png").size == (3 * 64, 64)

@@ -92,24 +92,14 @@ def bank_limit(max_progress: float, size: int) -> int:
 def render_strip(out_png: str, size: int = 21, px: int = 200) -> None:
     """Side view of `size` placed starts along the path, left to right standing → kneel, as one PNG."""
     import PIL.Image
+    from sim_hil.recorder import render_frames
     from training.envs.getup import default_config
     model = t1model.load_model()
     bank = path_bank(model, t1model.keyframe_qpos(model, "home"), t1model.keyframe_qpos(model, "kneel"),
                      default_config().reverse_curriculum.left_leg_waypoints, size)
-    model.vis.global_.offwidth = max(model.vis.global_.offwidth, px)
-    model.vis.global_.offheight = max(model.vis.global_.offheight, px)
-    data, camera = mujoco.MjData(model), mujoco.MjvCamera()
+    camera = mujoco.MjvCamera()
     camera.lookat[:], camera.distance, camera.elevation, camera.azimuth = (0, 0, 0.35), 2.0, -5.0, 90.0
-    renderer = mujoco.Renderer(model, height=px, width=px)
-    try:
-        frames = []
-        for qpos in bank:
-            data.qpos[:] = qpos
-            mujoco.mj_forward(model, data)
-            renderer.update_scene(data, camera)
-            frames.append(renderer.render())
-    finally:
-        renderer.close()
+    frames = render_frames(model, bank, camera, px, px)
     PIL.Image.fromarray(np.concatenate(frames, axis=1)).save(out_png, optimize=True)
 
 
