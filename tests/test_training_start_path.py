@@ -10,14 +10,12 @@ HALF_KNEEL_RAD = (-1.5, 2.2, -0.7)      # left hip pitch, knee, ankle pitch at p
 HALF_KNEEL_HOLD_S = 3.0
 HALF_KNEEL_MAX_SINK_M = 0.05     # measured 0.03 m
 HALF_KNEEL_MIN_UP_Z = 0.95       # measured ≥ 0.97
+KNEEL_SWING_MAX_LIFT_M = 0.01    # the right knee stays on the floor while the left leg swings (measured 6 mm)
 
 
 @pytest.fixture(scope="module")
 def model():
     return t1.load_model()
-
-
-KNEEL_SWING_MAX_LIFT_M = 0.01           # the right knee stays on the floor while the left leg swings
 
 
 @pytest.fixture(scope="module")

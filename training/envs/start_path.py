@@ -56,11 +56,10 @@ def pose_at(points: list, progress: float) -> np.ndarray:
     """qpos at `progress` on the path (root pose not yet placed)."""
     if not 0.0 <= progress <= PATH_END:
         raise ValueError(f"start-path progress must be in [0, {PATH_END}], got {progress}")
-    for (p0, a), (p1, b) in zip(points[:-1], points[1:]):
-        if progress <= p1:
-            t = (progress - p0) / (p1 - p0)
-            return (1.0 - t) * a + t * b
-    return points[-1][1]
+    # the first segment that reaches `progress` (the last one ends at PATH_END, so one always does)
+    (p0, a), (p1, b) = next(seg for seg in zip(points[:-1], points[1:]) if progress <= seg[1][0])
+    t = (progress - p0) / (p1 - p0)
+    return (1.0 - t) * a + t * b
 
 
 def place_on_floor(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
