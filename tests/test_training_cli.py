@@ -207,7 +207,8 @@ def test_evaluate_two_seeds_writes_the_table(toy_runs):
     text = (toy_runs["eval"] / "report.md").read_text()
     assert "| success rate |" in text and "1605.0" in text and "2279.8" in text
     assert "NO (untrained placeholder)" in text
-    assert (toy_runs["eval"] / "heights.png").exists()
+    assert (toy_runs["eval"] / "heights.png").exists() and (toy_runs["eval"] / "table_4_3.png").exists()
+    assert "| Average Max Energy |" in text and "same direction" in text
     rows = (toy_runs["eval"] / "per_env.csv").read_text().splitlines()
     assert len(rows) == 1 + 2 * 2
 

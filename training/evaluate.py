@@ -11,8 +11,9 @@ physics state exactly as the runtime builds it (no noise, command 0, gait clock 
 phase because ‖command‖ < phase_freeze_command_norm), normalised, fed through the MLP, mapped to targets.
 
 Per env and control tick the host gets trunk height, up_z, waist height, and per-substep aggregates:
-energy Σ|τ·q̇|·dt_sim [J], max |τ| [N·m], max |q̈| [rad/s²], Σ|q̈|·dt_sim [rad/s], total contact normal
-force [N]. Falls / attempts / success / time to stand come from sim_hil/eval/events.py, the definitions
+energy Σ|τ·q̇|·dt_sim [J], the largest of one substep's Σ|τ·q̇|·dt_sim [J], max |τ| [N·m], Σ|τ|·dt_sim [N·m·s],
+max |q̈| [rad/s²], Σ|q̈|·dt_sim [rad/s]; after the tick, the total normal force [N] and the world-z force [N]
+of the robot's contacts with the world (the definitions of sim_hil/eval/metrics.py's effort_metrics). Falls / attempts / success / time to stand come from sim_hil/eval/events.py, the definitions
 the HIL evaluation uses too. Output: report.md (table beside the seed's numbers), per_env.csv, plots.
 """
 from __future__ import annotations
@@ -24,16 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from sim_hil.eval.seed_figures import SEED_TABLE_4_3
 from training import observation as obsdef
+from training import table_4_3
 from training.artifact import read_artifact
 
-# summary key -> the seed's Table 4.3 metric it is printed beside ({policy: keyframe, baseline: baseline})
-SEED_METRIC = {"energy_J": "Average Energy Sum", "max_torque_Nm": "Average Max Torques",
-               "max_joint_acc_radps2": "Average Max Joint Acceleration",
-               "total_joint_acc_radps": "Total Joint Acceleration", "mean_contact_force_N": "Average Contact Force"}
-SEED_REPORTED = {key: {"policy": SEED_TABLE_4_3[m][1], "baseline": SEED_TABLE_4_3[m][0]}
-                 for key, m in SEED_METRIC.items()}
 MANIFEST_MUST_MATCH_ENV = ("default_pose", "action_scale", "kp", "kd", "control_dt")
 MATCH_TOLERANCE = 1e-6
 
@@ -95,14 +90,20 @@ def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
     default_pose = jnp.asarray(policy.manifest["default_pose"], jnp.float32)
     scale = jnp.asarray(policy.manifest["action_scale"], jnp.float32)
 
-    def contact_normal_total(d):
-        """Σ normal force over active contacts [N]; contact slots and their dims are static in MJX."""
+    world_geom = jnp.asarray(env.mj_model.geom_bodyid == 0)
+
+    def contact_totals(d):
+        """(Σ normal force, Σ |world-z force|) [N] over the robot's penetrating contacts with the world;
+        contact slots and their dims are static in MJX."""
         con = d._impl.contact
-        total = jnp.float32(0.0)
+        normal, vertical = jnp.float32(0.0), jnp.float32(0.0)
         for dim in np.unique(np.asarray(con.dim)):
             force, idx = support.contact_force_dim(m, d, int(dim))
-            total += jnp.sum(jnp.where(con.dist[idx] < 0.0, jnp.abs(force[:, 0]), 0.0))
-        return total
+            active = (con.dist[idx] < 0.0) & jnp.any(world_geom[con.geom[idx]], axis=1)
+            fz = jnp.sum(force[:, :3] * con.frame[idx][:, :, 2], axis=1)   # contact frame rows → world z
+            normal += jnp.sum(jnp.where(active, jnp.abs(force[:, 0]), 0.0))
+            vertical += jnp.sum(jnp.where(active, jnp.abs(fz), 0.0))
+        return normal, vertical
 
     def readings(d):
         r = env.body_readings(d)
@@ -120,14 +121,16 @@ def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
             power = jnp.sum(jnp.abs(tau * d.qvel[6:]))  # [W], joint velocity at the start of the substep
             d = mjx.step(m, d.replace(ctrl=tau))
             qacc = jnp.abs(d.qacc[6:])
-            agg = agg + jnp.stack([power * sim_dt, 0.0, 0.0, jnp.sum(qacc) * sim_dt])
-            agg = agg.at[1].set(jnp.maximum(agg[1], jnp.max(jnp.abs(tau)))).at[2].set(
-                jnp.maximum(agg[2], jnp.max(qacc)))
-            return (d, agg), None
+            # sums: energy, Σ|q̈|·dt, Σ|τ|·dt; maxima: |τ|, |q̈|, one substep's energy
+            sums = agg[:3] + jnp.stack([power, jnp.sum(qacc), jnp.sum(jnp.abs(tau))]) * sim_dt
+            maxima = jnp.maximum(agg[3:], jnp.stack([jnp.max(jnp.abs(tau)), jnp.max(qacc), power * sim_dt]))
+            return (d, jnp.concatenate([sums, maxima])), None
 
-        (d, agg), _ = jax.lax.scan(substep, (d, jnp.zeros(4)), (), env.n_substeps)
-        out = {"readings": readings(d), "energy_J": agg[0], "max_torque_Nm": agg[1], "max_qacc": agg[2],
-               "qacc_integral": agg[3], "contact_force_N": contact_normal_total(d)}
+        (d, agg), _ = jax.lax.scan(substep, (d, jnp.zeros(6)), (), env.n_substeps)
+        normal, vertical = contact_totals(d)
+        out = {"readings": readings(d), "energy_J": agg[0], "qacc_integral": agg[1], "torque_integral": agg[2],
+               "max_torque_Nm": agg[3], "max_qacc": agg[4], "max_energy_J": agg[5],
+               "contact_force_N": normal, "contact_force_z_N": vertical}
         return (d, action), out
 
     def rollout_one(params, qpos, qvel):
@@ -161,13 +164,20 @@ def run_policy(env, policy: ArtifactPolicy, qpos, qvel, seconds: float) -> dict:
         rows.append({
             "success": ev.success, "time_to_stand_s": ev.time_to_stand_s, "attempts": ev.attempts,
             "falls": ev.falls, "energy_J": float(series["energy_J"][i].sum()),
+            "max_energy_J": float(series["max_energy_J"][i].max()),
             "max_torque_Nm": float(series["max_torque_Nm"][i].max()),
+            "total_torque_Nms": float(series["torque_integral"][i].sum()),
             "max_joint_acc_radps2": float(series["max_qacc"][i].max()),
             "total_joint_acc_radps": float(series["qacc_integral"][i].sum()),
             "max_contact_force_N": float(series["contact_force_N"][i].max()),
-            "mean_contact_force_N": float(series["contact_force_N"][i].mean())})
+            "mean_contact_force_N": float(series["contact_force_N"][i].mean()),
+            "z_contact_impulse_Ns": float(series["contact_force_z_N"][i].sum() * ctrl_dt)})
     return {"rows": rows, "t": t, "trunk_height": readings[:, :, 0], "waist_height": readings[:, :, 2],
             "up_z": readings[:, :, 1]}
+
+
+EFFORT_KEYS = ("energy_J", "max_energy_J", "max_torque_Nm", "total_torque_Nms", "max_joint_acc_radps2",
+               "total_joint_acc_radps", "max_contact_force_N", "mean_contact_force_N", "z_contact_impulse_Ns")
 
 
 def summarize(rows: list[dict]) -> dict:
@@ -178,19 +188,19 @@ def summarize(rows: list[dict]) -> dict:
     falls_total = sum(1 + r["falls"] for r in rows)
     return {"episodes": len(rows), "success_rate": float(np.mean([r["success"] for r in rows])),
             "attempts_per_fall": sum(r["attempts"] for r in rows) / falls_total,
-            "time_to_stand_s": mean("time_to_stand_s"), "energy_J": mean("energy_J"),
-            "max_torque_Nm": mean("max_torque_Nm"), "max_joint_acc_radps2": mean("max_joint_acc_radps2"),
-            "total_joint_acc_radps": mean("total_joint_acc_radps"),
-            "max_contact_force_N": mean("max_contact_force_N"), "mean_contact_force_N": mean("mean_contact_force_N")}
+            "time_to_stand_s": mean("time_to_stand_s"), **{k: mean(k) for k in EFFORT_KEYS}}
 
 
 ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attempts_per_fall", "{:.2f}"),
         ("time to stand [s]", "time_to_stand_s", "{:.2f}"), ("energy Σ\\|τ·q̇\\|·dt [J]", "energy_J", "{:.1f}"),
+        ("max energy in one physics step [J]", "max_energy_J", "{:.2f}"),
         ("max torque [N·m]", "max_torque_Nm", "{:.1f}"),
+        ("total torque Σ\\|τ\\|·dt [N·m·s]", "total_torque_Nms", "{:.0f}"),
         ("max joint acc [rad/s²]", "max_joint_acc_radps2", "{:.0f}"),
         ("total joint acc Σ\\|q̈\\|·dt [rad/s]", "total_joint_acc_radps", "{:.0f}"),
         ("max contact force [N]", "max_contact_force_N", "{:.0f}"),
-        ("mean contact force [N]", "mean_contact_force_N", "{:.0f}"))
+        ("mean contact force [N]", "mean_contact_force_N", "{:.0f}"),
+        ("z contact impulse Σ\\|F_z\\|·dt [N·s]", "z_contact_impulse_Ns", "{:.0f}"))
 
 
 def _fmt(fmt, value):
@@ -212,8 +222,12 @@ def markdown_report(results: dict, meta: dict) -> str:
     lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for label, key, fmt in ROWS:
         cells = [_fmt(fmt, results[n]["summary"][key]) for n in names]
-        cells += [_fmt("{:.1f}", SEED_REPORTED.get(key, {}).get(n)) for n in names]
+        cells += [_fmt("{:.1f}", table_4_3.SEED_REPORTED.get(key, {}).get(n)) for n in names]
         lines.append("| " + " | ".join([label] + cells) + " |")
+    if {"policy", "baseline"} <= set(results):
+        lines += ["", "Direction against the seed (policy = keyframe getup; `table_4_3.png`; definitions in "
+                  "training/table_4_3.py):", ""]
+        lines += table_4_3.direction_rows({n: r["summary"] for n, r in results.items()})
     lines += ["", f"Command: `{meta['command']}`", ""]
     return "\n".join(lines)
 
@@ -250,13 +264,13 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     out.mkdir(parents=True, exist_ok=True)
     env = envs.make(task, config_overrides={"backend": backend or default_backend()})
     qpos, qvel = envs.fallen_states(seeds, first_seed)
-    results = {}
-    for role, path in (("policy", policy_path), ("baseline", baseline)):
-        if path is None:
-            continue
-        policy = ArtifactPolicy.load(path)
+    policies = {role: ArtifactPolicy.load(path) for role, path in (("policy", policy_path), ("baseline", baseline))
+                if path is not None}   # both checked before either runs
+    for policy in policies.values():
         policy.check_env(env)
-        print(f"{role}: {path} (trained: {policy.trained})")
+    results = {}
+    for role, policy in policies.items():
+        print(f"{role}: {policy.path} (trained: {policy.trained})")
         run = run_policy(env, policy, qpos, qvel, seconds)
         results[role] = {"policy": policy, "run": run, "summary": summarize(run["rows"])}
     meta = {"seeds": seeds, "first_seed": first_seed, "seconds": seconds, "command": command or "evaluate()",
@@ -271,4 +285,6 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
             for i, row in enumerate(res["run"]["rows"]):
                 writer.writerow({"role": role, "seed": first_seed + i, "trained": res["policy"].trained, **row})
     plot_heights(results, out / "heights.png")
+    if baseline is not None:
+        table_4_3.plot_ratios({n: r["summary"] for n, r in results.items()}, out / "table_4_3.png")
     return report

@@ -3,9 +3,10 @@
 evaluate.py's MJX rollout aggregates per physics substep inside one jitted scan. Here the C batch steps one
 substep per call (firmware_like's motor step as MuJoCo's control callback, as in training), the policy runs
 jitted once per control tick, and the host aggregates exactly what the MJX rollout does:
-  energy Σ|τ·q̇₀|·dt_sim [J] (q̇₀: joint velocity at the substep's start, τ: the torque applied over it),
-  max |τ| [N·m], max |q̈| [rad/s²], Σ|q̈|·dt_sim [rad/s] per tick, and after the tick's last substep the
-  total normal force of the penetrating contacts [N] (MuJoCo's mj_contactForce; MJX: contact_force_dim).
+  energy Σ|τ·q̇₀|·dt_sim [J] (q̇₀: joint velocity at the substep's start, τ: the torque applied over it) and
+  its largest single substep, max |τ| [N·m], Σ|τ|·dt_sim [N·m·s], max |q̈| [rad/s²], Σ|q̈|·dt_sim [rad/s] per
+  tick, and after the tick's last substep the total normal and world-z force of the robot's penetrating
+  contacts with the world [N] (MuJoCo's mj_contactForce; MJX: contact_force_dim).
 A persistent batch keeps each simulation's whole MjData, so the contacts and constraint forces read after
 a tick are those of its last substep's start, as mjx.Data's are after mjx.step.
 """
@@ -19,7 +20,8 @@ from training import observation as obsdef
 
 def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int) -> dict:
     """(N,) fallen starts → dict of numpy series: readings (N, T + 1, 3) [trunk, up_z, waist], and per tick
-    (N, T): energy_J, max_torque_Nm, max_qacc, qacc_integral, contact_force_N."""
+    (N, T): energy_J, max_energy_J, max_torque_Nm, torque_integral, max_qacc, qacc_integral,
+    contact_force_N, contact_force_z_N."""
     import jax
     import jax.numpy as jnp
     from training.envs.cpu_backend import HostData
@@ -47,6 +49,7 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
 
     act = jax.jit(jax.vmap(act_one, in_axes=(None, 0, 0)))
     scratch = mujoco.MjData(m)
+    world_geom = m.geom_bodyid == 0
     force6 = np.zeros(6)
 
     def host_data():
@@ -54,7 +57,8 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
 
     readings = np.zeros((n, num_ticks + 1, 3), np.float32)
     series = {k: np.zeros((n, num_ticks), np.float32)
-              for k in ("energy_J", "max_torque_Nm", "max_qacc", "qacc_integral", "contact_force_N")}
+              for k in ("energy_J", "max_energy_J", "max_torque_Nm", "torque_integral", "max_qacc", "qacc_integral",
+                        "contact_force_N", "contact_force_z_N")}
     last_action = jnp.zeros((n, obsdef.NUM_JOINTS), jnp.float32)
     for tick in range(num_ticks):
         last_action, q_des, r = act(policy.params, host_data(), last_action)
@@ -63,18 +67,24 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
         for _ in range(env.n_substeps):
             dq0 = b.qvel[:, 6:].copy()
             b.step(nstep=1)
-            tau, qacc = b.actuator_force, np.abs(b.qacc[:, 6:])
-            series["energy_J"][:, tick] += np.sum(np.abs(tau * dq0), axis=1) * sim_dt
-            series["max_torque_Nm"][:, tick] = np.maximum(series["max_torque_Nm"][:, tick], np.abs(tau).max(axis=1))
+            tau, qacc = np.abs(b.actuator_force), np.abs(b.qacc[:, 6:])
+            energy = np.sum(tau * np.abs(dq0), axis=1) * sim_dt
+            series["energy_J"][:, tick] += energy
+            series["max_energy_J"][:, tick] = np.maximum(series["max_energy_J"][:, tick], energy)
+            series["max_torque_Nm"][:, tick] = np.maximum(series["max_torque_Nm"][:, tick], tau.max(axis=1))
+            series["torque_integral"][:, tick] += tau.sum(axis=1) * sim_dt
             series["max_qacc"][:, tick] = np.maximum(series["max_qacc"][:, tick], qacc.max(axis=1))
             series["qacc_integral"][:, tick] += qacc.sum(axis=1) * sim_dt
         for i in range(n):
             b.get_data(i, scratch)
-            total = 0.0
+            normal = vertical = 0.0
             for j in range(scratch.ncon):
-                if scratch.contact[j].dist < 0.0 and scratch.contact[j].efc_address >= 0:
+                con = scratch.contact[j]
+                if con.dist < 0.0 and con.efc_address >= 0 and world_geom[con.geom].any():
                     mujoco.mj_contactForce(m, scratch, j, force6)
-                    total += abs(force6[0])
-            series["contact_force_N"][i, tick] = total
+                    normal += abs(force6[0])
+                    vertical += abs(force6[:3] @ con.frame.reshape(3, 3)[:, 2])   # contact frame rows → world z
+            series["contact_force_N"][i, tick] = normal
+            series["contact_force_z_N"][i, tick] = vertical
     readings[:, num_ticks] = np.asarray(act(policy.params, host_data(), last_action)[2])
     return {"readings": readings, **series}
