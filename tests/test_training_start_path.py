@@ -75,12 +75,14 @@ def test_half_kneel_holds_under_shared_pd_on_its_left_foot(model, bank):
 
 
 def test_progress_and_bank_limits():
-    assert start_path.bank_limit(2.0, 41) == 41
-    assert start_path.bank_limit(1.0, 41) == 21
-    assert start_path.bank_limit(0.05, 41) == 2
-    for bad in (0.0, -1.0, 2.5):
+    assert start_path.bank_range(0.0, 2.0, 41) == slice(0, 41)
+    assert start_path.bank_range(0.0, 1.0, 41) == slice(0, 21)
+    assert start_path.bank_range(0.0, 0.05, 41) == slice(0, 2)
+    assert start_path.bank_range(1.0, 2.0, 41) == slice(20, 41)      # the swing, half kneel included
+    assert start_path.bank_range(1.01, 1.1, 41) == slice(21, 23)
+    for lo, hi in ((0.0, 0.0), (0.0, -1.0), (0.0, 2.5), (1.5, 1.0), (-0.1, 1.0)):
         with pytest.raises(ValueError, match="max_progress"):
-            start_path.bank_limit(bad, 41)
+            start_path.bank_range(lo, hi, 41)
     with pytest.raises(ValueError, match="progress"):
         start_path.pose_at([(0.0, np.zeros(3)), (2.0, np.ones(3))], 2.1)
     assert np.allclose(start_path.pose_at([(0.0, np.zeros(3)), (0.5, np.ones(3)), (2.0, np.zeros(3))], 1.25), 0.5)
@@ -110,6 +112,12 @@ def test_stage2_env_draws_starts_up_to_max_progress_and_at_the_kneel():
     # progress ≤ 1: standing … half kneel, never the leg swing of p ∈ (1, 2) (left knee 2.2 rad at most)
     left_knee = qpos[~at_kneel, env.mj_model.joint("Left_Knee_Pitch").qposadr[0]]
     assert left_knee.max() <= HALF_KNEEL_RAD[1] + 1e-5 and len(np.unique(np.round(left_knee, 4))) == 21
+    cfg.reverse_curriculum.min_progress, cfg.reverse_curriculum.max_progress = 1.0, 2.0   # the swing only
+    swing = envs.make("getup", config=cfg)
+    bank = start_path.path_bank(env.mj_model, np.asarray(env._home_qpos), np.asarray(env._kneel_qpos),
+                                cfg.reverse_curriculum.left_leg_waypoints, cfg.reverse_curriculum.bank_size)
+    assert np.allclose(np.asarray(swing._path_bank), bank[20:], atol=1e-6)    # half kneel (p 1) … kneel
+    cfg.reverse_curriculum.min_progress = 0.0
     cfg.reverse_curriculum.max_progress = 0.0      # off: the seed's start, every episode at the kneel
     _, _, kind = jax.vmap(envs.make("getup", config=cfg)._start_state)(jax.random.split(jax.random.PRNGKey(0), 64))
     assert np.all(np.asarray(kind) == 1)

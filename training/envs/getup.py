@@ -83,11 +83,12 @@ def default_config() -> config_dict.ConfigDict:
     cfg.stage2_fall_up_z = 0.7              # ... or when the trunk's up_z falls below this (46° of tilt)
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
     # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
-    # U{0 … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with kneel_prob.
+    # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with
+    # kneel_prob. min_progress > 0 spends the starts on the part still to learn (the swing, p 1 … 2).
     # left_leg_waypoints: (progress, left hip pitch, knee, ankle pitch [rad]); 1.0 is the half kneel, the rest
     # swing the leg back with the knee lifted (start_path.py's docstring)
     cfg.reverse_curriculum = config_dict.create(
-        max_progress=0.0, kneel_prob=0.25, bank_size=41,
+        max_progress=0.0, min_progress=0.0, kneel_prob=0.25, bank_size=41,
         left_leg_waypoints=[[1.0, -1.5, 2.2, -0.7], [1.3, -1.4, 2.3, -0.87], [1.5, -1.2, 2.34, -0.87],
                             [1.6, -0.9, 2.34, -0.87], [1.68, -0.75, 2.34, -0.87], [1.75, -0.5, 2.3, -0.05]])
     return cfg
@@ -183,9 +184,11 @@ class Getup(GetupBase):
             raise ValueError(f"reverse_curriculum: max_progress must be in [0, {start_path.PATH_END}] and "
                              f"kneel_prob in [0, 1], got {rc.max_progress} and {rc.kneel_prob}")
         if self._config.stage == "stage2" and rc.max_progress > 0:
+            # runs started before min_progress existed keep its default on --resume
+            starts = start_path.bank_range(rc.get("min_progress", 0.0), rc.max_progress, int(rc.bank_size))
             bank = start_path.path_bank(self._mj_model, np.asarray(self._home_qpos), np.asarray(self._kneel_qpos),
                                         rc.left_leg_waypoints, int(rc.bank_size))
-            self._path_bank = jnp.asarray(bank[:start_path.bank_limit(rc.max_progress, len(bank))], jnp.float32)
+            self._path_bank = jnp.asarray(bank[starts], jnp.float32)
 
     def _start_state(self, rng):
         """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path."""

@@ -81,11 +81,13 @@ def path_bank(model: mujoco.MjModel, home: np.ndarray, kneel: np.ndarray, waypoi
     return np.stack([place_on_floor(model, pose_at(points, p)) for p in np.linspace(0.0, PATH_END, size)])
 
 
-def bank_limit(max_progress: float, size: int) -> int:
-    """Number of bank entries at progress ≤ max_progress (the ones a start is drawn from)."""
-    if not 0.0 < max_progress <= PATH_END:
-        raise ValueError(f"reverse_curriculum.max_progress must be in (0, {PATH_END}], got {max_progress}")
-    return int(np.floor(max_progress / PATH_END * (size - 1) + 1e-9)) + 1
+def bank_range(min_progress: float, max_progress: float, size: int) -> slice:
+    """The bank entries at min_progress ≤ progress ≤ max_progress (the ones a start is drawn from)."""
+    if not 0.0 <= min_progress <= max_progress <= PATH_END or max_progress == 0.0:
+        raise ValueError(f"reverse_curriculum: need 0 ≤ min_progress ≤ max_progress ≤ {PATH_END} and "
+                         f"max_progress > 0, got min_progress {min_progress}, max_progress {max_progress}")
+    per_entry = PATH_END / (size - 1)
+    return slice(int(np.ceil(min_progress / per_entry - 1e-9)), int(np.floor(max_progress / per_entry + 1e-9)) + 1)
 
 
 def render_strip(out_png: str, size: int = 21, px: int = 200) -> None:
