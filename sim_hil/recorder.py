@@ -35,6 +35,7 @@ def render_frames(model: mujoco.MjModel, poses, camera: mujoco.MjvCamera, height
         for qpos in poses:
             data.qpos[:] = qpos
             mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)      # subtree_com: the tracking camera looks at the Trunk's
             renderer.update_scene(data, camera)
             frames.append(renderer.render())
         return frames
