@@ -4,7 +4,7 @@ Restated from mujoco_playground locomotion/t1/joystick.py (Apache-2.0, DeepMind)
 purpose: the motor is the firmware PD on torque actuators (base.py), action_scale 0.5 (the shared
 artifact default, gains are stiffer than Playground's), the gait clock is training/observation.py's
 (fixed frequency from the manifest, FROZEN while ‖command‖ < phase_freeze_command_norm instead of
-Playground's reset to π), the actor sees TERMS_UNION (no base linear velocity: the T1's IMU cannot
+Playground's reset to π; feet_phase then asks for both feet on the floor, as Playground's π does), the actor sees TERMS_UNION (no base linear velocity: the T1's IMU cannot
 measure it), contacts are read from MJX contacts of the foot boxes (no contact sensors in the model),
 and the collision variant is feet-only (collision.py). Ankle passive damping randomisation of
 Playground is not restated (this model has no passive damping; see randomize.py).
@@ -193,7 +193,8 @@ class Joystick(base.T1Env):
             "energy": R.energy(data.qvel[6:], data.actuator_force),
             "feet_air_time": R.feet_air_time(info["feet_air_time"], first_contact, cmd),
             "feet_slip": R.feet_slip(data.qvel[0:3], contact),
-            "feet_phase": R.feet_phase(feet[:, 2], info["phase"], cfg.max_foot_height_m),
+            "feet_phase": R.feet_phase(feet[:, 2], info["phase"], cfg.max_foot_height_m, cmd,
+                                       self._config.gait.phase_freeze_command_norm),
             "alive": R.alive(),
             "joint_deviation_knee": R.joint_deviation_knee(q, self._default_pose, self._knee_idx),
             "joint_deviation_hip": R.joint_deviation_hip(q, self._default_pose, self._hip_idx, cmd),
