@@ -2,7 +2,9 @@
 spawned fallen) and the C++ runtime running the student from policies/, a short scripted joystick
 sequence, a live status line, then a video and a plot of trunk height, waist height and forward velocity.
 The student is policies/student.safetensors when a trained one is shipped, else the untrained placeholder,
-and the demo says plainly which it runs."""
+and the demo says plainly which it runs. With the placeholder, a second run follows when a trained
+joystick expert is shipped: the same script from a standing start (the expert cannot get up), so the
+demo shows a skill the product has today."""
 from __future__ import annotations
 
 import argparse
@@ -20,6 +22,8 @@ from sim_hil.plots import plot_heights_and_velocity
 from training.artifact import read_artifact
 
 POLICIES = (ROOT / "policies" / "student.safetensors", ROOT / "policies" / "student_untrained.safetensors")
+JOYSTICK_EXPERT = ROOT / "policies" / "joystick.safetensors"
+FALLEN_SPAWN, STANDING_SPAWN = "fallen:62", "standing"
 # (start time [s], vx [m/s], vy [m/s], yaw rate [rad/s]): stand still while getting up, walk, turn, stop.
 JOYSTICK_SCRIPT = ((0.0, 0.0, 0.0, 0.0), (6.0, 0.4, 0.0, 0.0), (12.0, 0.3, 0.0, 0.5), (15.0, 0.0, 0.0, 0.0))
 JOYSTICK_RATE_HZ = 50.0
@@ -37,18 +41,33 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--policy", type=Path, default=None, help="artifact (default: the shipped student)")
     ap.add_argument("--seconds", type=float, default=18.0, help="sim seconds (realtime)")
-    ap.add_argument("--spawn", default="fallen:62")
+    ap.add_argument("--spawn", default=FALLEN_SPAWN)
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "demo")
     ap.add_argument("--no-log", action="store_true", help="do not write OUT/demo.lcmlog")
     args = ap.parse_args(argv)
     policy = args.policy or next(p for p in POLICIES if p.exists())
+    trained = bool(read_artifact(policy)[3]["trained"])
+    code = run(policy, args.spawn, args.seconds, args.out, "demo", log=not args.no_log)
+    if code != 0 or trained or args.policy is not None:
+        return code
+    print("demo: NOTE the policy is untrained — this run shows the plumbing (sim, bus, runtime, safety), "
+          "not a skill. Train and ship policies/student.safetensors (training/README.md).")
+    if JOYSTICK_EXPERT.exists() and read_artifact(JOYSTICK_EXPERT)[3]["trained"]:
+        print("\ndemo: part 2 — the trained joystick expert, standing start. It walks and turns; it cannot "
+              "get up, stands on one leg and falls after the stop (policies/PROVENANCE.md)")
+        code = run(JOYSTICK_EXPERT, STANDING_SPAWN, args.seconds, args.out, "demo_joystick", log=not args.no_log)
+    return code
+
+
+def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: bool) -> int:
+    """One realtime run of `policy` from `spawn` under the joystick script; OUT/NAME.mp4, NAME_plot.png,
+    NAME.lcmlog. Returns 0, or 1 when the simulator or the runtime failed."""
     manifest = read_artifact(policy)[3]
     trained = bool(manifest["trained"])
     banner = "trained" if trained else "UNTRAINED (random-init placeholder: expect flailing, not getting up)"
     print(f"demo: policy {policy.relative_to(ROOT) if policy.is_relative_to(ROOT) else policy} — {banner}")
-    args.out.mkdir(parents=True, exist_ok=True)
-    video = args.out / "demo.mp4"
-
+    out.mkdir(parents=True, exist_ok=True)
+    video = out / f"{name}.mp4"
     lc = lcm.LCM(contract.lcm_url())
     series = {"t": [], "trunk": [], "waist": [], "vx": []}
     last: dict[str, object] = {}
@@ -62,12 +81,12 @@ def main(argv=None) -> int:
 
     lc.subscribe(contract.CH_SIM_STATUS, on_sim)
     lc.subscribe(contract.CH_CONTROLLER_STATUS, lambda _c, d: last.__setitem__("rt", controller_status_t.decode(d)))
-    sim_args = ["--clock", "realtime", "--spawn", args.spawn, "--duration", str(args.seconds),
+    sim_args = ["--clock", "realtime", "--spawn", spawn, "--duration", str(seconds),
                 "--status-rate", "50", "--record", str(video)]
     runtime_args = ["--clock", "realtime", "--autostart"]
-    capture = None if args.no_log else LogCapture(
-        args.out / "demo.lcmlog", contract.lcm_url(),
-        RunInfo(run_name="demo", producer="demo", clock="realtime", policy_path=str(policy),
+    capture = None if not log else LogCapture(
+        out / f"{name}.lcmlog", contract.lcm_url(),
+        RunInfo(run_name=name, producer="demo", clock="realtime", policy_path=str(policy),
                 policy_hash=manifest["content_hash"], runtime_args=runtime_args, sim_args=sim_args))
     sim = start_sim(*sim_args)
     runtime = start_runtime(policy, *runtime_args)
@@ -83,7 +102,7 @@ def main(argv=None) -> int:
             js.vx, js.vy, js.yaw_rate = joystick_at(t_sim)
             lc.publish(contract.CH_JOYSTICK, js.encode())
             seq += 1
-            if t_sim >= args.seconds - 0.05:
+            if t_sim >= seconds - 0.05:
                 if final is None:             # the run is over: take the runtime's last word, stop it
                     final = last.get("rt")
                     code, err = stop(runtime)
@@ -113,16 +132,13 @@ def main(argv=None) -> int:
         return 1
     rt = final
     plot = plot_heights_and_velocity(
-        {policy.stem: series}, args.out / "demo_plot.png",
-        f"{policy.stem} ({'trained' if trained else 'UNTRAINED'}), spawn {args.spawn}",
+        {policy.stem: series}, out / f"{name}_plot.png",
+        f"{policy.stem} ({'trained' if trained else 'UNTRAINED'}), spawn {spawn}",
         command_vx=[(t, vx) for t, vx, _, _ in JOYSTICK_SCRIPT])
     print(f"demo: runtime ended in {rt.mode_name if rt else '?'}; faults: {rt.last_fault if rt and rt.last_fault else 'none'}")
     print(f"demo: video {video}\ndemo: plot  {plot}")
     if capture is not None:
         print(f"demo: log   {capture.path} (make replay LOG={capture.path}; make plot-log LOG={capture.path})")
-    if not trained:
-        print("demo: NOTE the policy is untrained — this run shows the plumbing (sim, bus, runtime, safety), "
-              "not a skill. Train and ship policies/student.safetensors (training/README.md).")
     return 0
 
 
