@@ -54,7 +54,7 @@ def main(argv=None) -> int:
           "not a skill. Train and ship policies/student.safetensors (training/README.md).")
     if JOYSTICK_EXPERT.exists() and read_artifact(JOYSTICK_EXPERT)[3]["trained"]:
         print("\ndemo: part 2 — the trained joystick expert, standing start. It walks and turns; it cannot "
-              "get up, stands on one leg and falls after the stop (policies/PROVENANCE.md)")
+              "get up, stands on one leg, may stumble after the stop (policies/PROVENANCE.md)")
         code = run(JOYSTICK_EXPERT, STANDING_SPAWN, args.seconds, args.out, "demo_joystick", log=not args.no_log)
     return code
 

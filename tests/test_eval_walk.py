@@ -27,6 +27,8 @@ def test_walk_runs_every_condition_per_trial_index():
     assert by_tag["forward"].command_vx_mps == plans.WALK_FORWARD_MPS and by_tag["forward"].clock == "lockstep"
     assert by_tag["turn"].command_yaw_rps == plans.WALK_YAW_RPS and by_tag["turn"].command_vx_mps == 0.0
     assert by_tag["forward realtime"].clock == "realtime"
+    assert by_tag["walk, turn, stop"].command_stop_s == plans.WALK_STOP_AT * 5.0
+    assert by_tag["forward"].command_stop_s is None
     assert all(s.spawn == "standing" for s in specs)
 
 
@@ -42,6 +44,10 @@ def test_summarise_measures_distance_and_unwrapped_heading():
     r = summarise(TrialSpec("flat", 0, "standing", 1.0, tag="turn"), "joystick", log, None)
     assert math.isclose(r.yaw_turned_rad, heading[-1] - heading[start], rel_tol=1e-6)
     assert math.isclose(r.drift_m, 4.0 - log.base_x[start], rel_tol=1e-9)
+    stopped = summarise(TrialSpec("flat", 0, "standing", 1.0, command_stop_s=0.5, tag="walk, turn, stop"),
+                        "joystick", log, None)
+    assert math.isclose(stopped.after_stop_m, 4.0 - log.base_x[250], rel_tol=1e-9)   # t = 0.5 s at tick 250
+    assert math.isnan(r.after_stop_m)
 
 
 @pytest.mark.slow
@@ -56,4 +62,5 @@ def test_walk_plan_end_to_end_with_a_realtime_trial(tmp_path, netns):
     assert {t["spec"]["clock"] for t in results["trials"]} == {"lockstep", "realtime"}
     report = (out / "report.md").read_text()
     assert "turn: heading turned [rad]" in report and "joystick: UNTRAINED" in report
+    assert "walk, turn, stop: distance after the stop [m]" in report
     assert "seed (student)" not in report

@@ -29,6 +29,7 @@ WALK_SECONDS = 20.0
 WALK_FORWARD_MPS = 0.4
 WALK_YAW_RPS = 0.5
 WALK_TARGETS = {"forward_m": 7.0, "stand_drift_m": 0.3, "turn_rad": 8.0}
+WALK_STOP_AT = 0.5              # "walk, turn, stop": the command for this fraction of the trial, then zero
 # wall: the three low walls at 0.4 m/s (Tables 6.1-6.2)
 WALL_TRIALS = 5
 WALL_COMMAND_MPS = 0.4
@@ -138,16 +139,19 @@ def push_rows(trials: list[TrialResult]) -> dict[str, str]:
 
 
 # ---- walk -------------------------------------------------------------------------------------------------
-WALK_CONDITIONS = (   # tag, vx [m/s], yaw rate [rad/s], clock
-    ("forward", WALK_FORWARD_MPS, 0.0, "lockstep"), ("stand", 0.0, 0.0, "lockstep"),
-    ("turn", 0.0, WALK_YAW_RPS, "lockstep"), ("forward realtime", WALK_FORWARD_MPS, 0.0, "realtime"))
+WALK_CONDITIONS = (   # tag, vx [m/s], yaw rate [rad/s], clock, stops (zero command after WALK_STOP_AT)
+    ("forward", WALK_FORWARD_MPS, 0.0, "lockstep", False), ("stand", 0.0, 0.0, "lockstep", False),
+    ("turn", 0.0, WALK_YAW_RPS, "lockstep", False), ("forward realtime", WALK_FORWARD_MPS, 0.0, "realtime", False),
+    # not an issue-13 target: stopping from a walk (make demo's joystick run fell once after its stop, session 6)
+    ("walk, turn, stop", WALK_FORWARD_MPS, WALK_YAW_RPS, "lockstep", True))
 
 
 def walk_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
     """Each trial index runs every condition once (--trials N: N of each)."""
     return [TrialSpec("flat", seed0 + i, "standing", seconds, command_vx_mps=vx, command_yaw_rps=yaw,
+                      command_stop_s=WALK_STOP_AT * seconds if stops else None,
                       clock=clock, prepare_s=STANDING_PREPARE_S, tag=tag)
-            for i in range(trials) for tag, vx, yaw, clock in WALK_CONDITIONS]
+            for i in range(trials) for tag, vx, yaw, clock, stops in WALK_CONDITIONS]
 
 
 def walk_rows(trials: list[TrialResult]) -> dict[str, str]:
@@ -158,6 +162,8 @@ def walk_rows(trials: list[TrialResult]) -> dict[str, str]:
         row[f"{tag}: fell"] = f"{sum(e.falls > 0 for e in ev)}/{len(sub)}"
         row[f"{tag}: distance from POLICY start [m]"] = _fmt([r.drift_m for r in sub])
         row[f"{tag}: heading turned [rad]"] = _fmt([r.yaw_turned_rad for r in sub])
+        if any(r.spec.command_stop_s is not None for r in sub):
+            row[f"{tag}: distance after the stop [m]"] = _fmt([r.after_stop_m for r in sub])
     return {**row, **_common(trials)}
 
 
@@ -203,8 +209,9 @@ PLANS = {
                              f"t = {PUSH_AT_S:g} s ({PUSH_FORWARD} forward, {PUSH_BACKWARD} backward)"),
     "walk": Plan("walk", "flat", 1, WALK_SECONDS, walk_specs, walk_rows,
                  description=f"standing starts, {WALK_SECONDS:g} s each: {WALK_FORWARD_MPS} m/s forward, zero "
-                             f"command, {WALK_YAW_RPS} rad/s yaw (lockstep), {WALK_FORWARD_MPS} m/s in realtime; "
-                             f"targets: forward ≥ {WALK_TARGETS['forward_m']:g} m, stand drift ≤ "
+                             f"command, {WALK_YAW_RPS} rad/s yaw (lockstep), {WALK_FORWARD_MPS} m/s in realtime, "
+                             f"{WALK_FORWARD_MPS} m/s with {WALK_YAW_RPS} rad/s, zero command from {WALK_STOP_AT:.0%} of the trial "
+                             f"(lockstep); targets: forward ≥ {WALK_TARGETS['forward_m']:g} m, stand drift ≤ "
                              f"{WALK_TARGETS['stand_drift_m']:g} m, turn ≥ {WALK_TARGETS['turn_rad']:g} rad, "
                              "no fall"),
     "wall": Plan("wall", "walls", WALL_TRIALS, WALL_SECONDS, wall_specs, wall_rows, finish_x_m=wall_finish_x(),

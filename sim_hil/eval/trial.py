@@ -49,6 +49,7 @@ class TrialSpec:
     seconds: float                # sim seconds
     command_vx_mps: float = 0.0   # constant forward command [m/s]
     command_yaw_rps: float = 0.0  # constant yaw-rate command [rad/s], counter-clockwise positive
+    command_stop_s: float | None = None   # sim time [s] from which the command is zero (None: never)
     clock: str = "lockstep"       # lockstep (the runtime answers every state) | realtime (both on the wall clock)
     faults: str = ""              # sim --faults (pushes: push:x=±J@t)
     record: str | None = None     # mp4 path
@@ -70,6 +71,7 @@ class TrialResult:
     finish_time_s: float                    # walls: first time past the finish line (nan: DNF)
     drift_m: float = float("nan")           # horizontal distance from POLICY start to the end [m]
     yaw_turned_rad: float = float("nan")    # heading change from POLICY start to the end, unwrapped [rad]
+    after_stop_m: float = float("nan")      # horizontal distance from the command's stop to the end [m]
     fall_x_m: list[float] = field(default_factory=list)   # base x at each fall / fallen start [m]
     runtime_faults: str = ""                # the runtime's latched fault text, if any
     segment_attempts: list[int] = field(default_factory=list)   # walls: getup attempts per wall segment
@@ -111,6 +113,8 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
             while not lockstep and (remaining := wall_start + k * config.CONTROL_DT_S - time.perf_counter()) > 0:
                 sim.link.poll(remaining)
             if k % JOYSTICK_EVERY_TICKS == 0:
+                if spec.command_stop_s is not None and sim.data.time >= spec.command_stop_s:
+                    stick.vx = stick.yaw_rate = 0.0
                 stick.utime, stick.seq = sim.now_us, k   # lockstep: ages are in sim time
                 sim.link.lc.publish(contract.CH_JOYSTICK, stick.encode())
             sim.tick()
@@ -185,13 +189,17 @@ def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | Non
     if start is not None:
         drift = float(np.hypot(log.base_x[-1] - log.base_x[start], log.base_y[-1] - log.base_y[start]))
         turned = float(np.unwrap(log.yaw[start:])[-1] - log.yaw[start])
+    after_stop = np.nan
+    if spec.command_stop_s is not None and log.n:
+        stop = min(int(np.searchsorted(log.t, spec.command_stop_s)), log.n - 1)
+        after_stop = float(np.hypot(log.base_x[-1] - log.base_x[stop], log.base_y[-1] - log.base_y[stop]))
     every = slice(None, None, PLOT_EVERY_TICKS)
     return TrialResult(
         spec=spec, controller=label,
         policy_start_s=float(log.t[start]) if start is not None else np.nan,
         events=events, effort=effort, slips=slip_events(log, sl), ran_to_stabilise=ran_to_stabilise(log, sl),
         final_x_m=float(log.base_x[-1]) if log.n else np.nan, finish_time_s=finish, fall_x_m=fall_x,
-        drift_m=drift, yaw_turned_rad=turned,
+        drift_m=drift, yaw_turned_rad=turned, after_stop_m=after_stop,
         runtime_faults=runtime_faults, segment_attempts=seg_attempts, segment_falls=seg_falls,
         plot={"t": log.t[every].tolist(), "trunk": log.trunk[every].tolist(), "waist": log.waist[every].tolist(),
               "vx": log.fwd_vel[every].tolist()})
