@@ -21,6 +21,7 @@ VEL_TOL = 5e-3        # [rad/s] joint velocity / gyro terms of the observation
 OBS_TOL = 1e-4        # every other observation entry (gravity, joint offsets, command, phase)
 REWARD_REL_TOL = 1e-2
 REWARD_ABS_TOL = 1e-4
+OPEN_SUPERVISOR = (1e6, 1e6)   # (max target step [rad], range fraction): neither limits anything
 
 
 def _standing_cfg(backend):
@@ -44,10 +45,13 @@ def test_motor_callback_equals_firmware_motor_step(cpu_env):
     rng = np.random.default_rng(11)
     motors = fw.MotorArray()
     kp, kd = np.asarray(cpu_env.manifest_fields()["kp"]), np.asarray(cpu_env.manifest_fields()["kd"])
+    tau_limit = np.asarray(cpu_env._tau_limit)
     for case in range(20):
-        q_des = rng.uniform(fw.Q_MIN, fw.Q_MAX)
         q = rng.uniform(fw.Q_MIN - 0.15, fw.Q_MAX + 0.15)      # soft-stop territory included
         dq = rng.uniform(-8, 8, 23)
+        # a target the supervisor passes unchanged (within its torque reach; rate and range opened below),
+        # so that the torques compare the firmware law alone (tests/test_training_motor.py: the supervisor)
+        q_des = q + (kd * dq + rng.uniform(-0.9, 0.9, 23) * tau_limit) / kp
         frames = fw.pack_commands(q_des, np.zeros(23), kp, kd, np.zeros(23))
         q_des_w, dq_des_w, kp_w, kd_w, tau_ff_w = fw.unpack_command(frames)
         assert motors.receive_all(frames, 2000 * (case + 1)) == 0
@@ -56,8 +60,9 @@ def test_motor_callback_equals_firmware_motor_step(cpu_env):
         m = mj.__copy__()
         m.actuator_biasprm[:, 0], m.actuator_biasprm[:, 1] = kp_w, kd_w
         d.qpos[7:], d.qvel[6:] = q, dq
-        d.userdata[:23] = q_des_w + (kd_w * dq_des_w + tau_ff_w) / kp_w
-        d.userdata[23] = cpu_env._cpu._lib.t1_mjcb_marker()
+        d.userdata[:23] = d.userdata[23:46] = q_des_w + (kd_w * dq_des_w + tau_ff_w) / kp_w
+        d.userdata[46:48] = OPEN_SUPERVISOR           # no rate or range limit
+        d.userdata[48] = cpu_env._cpu._lib.t1_mjcb_marker()
         mujoco.mj_forward(m, d)
         np.testing.assert_allclose(d.ctrl, tau_fw, atol=1e-3, err_msg=f"case {case}")
         np.testing.assert_allclose(d.actuator_force, tau_fw, atol=1e-3, err_msg=f"case {case}")
@@ -124,11 +129,12 @@ def test_every_task_step_keeps_the_metrics_wrappers_add(task):
 
 
 # Getup evaluation rollouts (training/evaluate.py's MJX scan, training/evaluate_cpu.py's C batch), first
-# control tick from the same fallen starts and policy. Trunk readings and the applied torques agree to
-# float32; integrals (energy, Σ|q̈|·dt, Σ|τ|·dt) to ≤ 3 % (measured ≤ 2.5 %: the engines' contact solvers
+# control tick from the same fallen starts and policy. The supervisor's rate limit keeps the torques off
+# their clamps, so they follow the engines' small differences in q, dq (kp·Δq): trunk readings agree to
+# ≤ 1e-3 (measured 3.4e-4) and peak torques to ≤ 0.5 N·m of 60 (measured 0.13); integrals (energy, Σ|q̈|·dt, Σ|τ|·dt) to ≤ 3 % (measured ≤ 2.5 %: the engines' contact solvers
 # differ on impact); the peaks of q̈ and one substep's energy, and the contact forces, are single-substep
 # impact values, where the two solvers differ most (measured ≤ 13 % and ≤ 10 %).
-EVAL_TOL = {"readings": (0.0, 1e-4), "max_torque_Nm": (0.0, 1e-2), "energy_J": (0.03, 1e-3),
+EVAL_TOL = {"readings": (0.0, 1e-3), "max_torque_Nm": (0.0, 0.5), "energy_J": (0.03, 1e-3),
             "qacc_integral": (0.03, 1e-3), "torque_integral": (0.03, 1e-3), "max_qacc": (0.2, 1.0),
             "max_energy_J": (0.2, 1e-3), "contact_force_N": (0.15, 1.0), "contact_force_z_N": (0.15, 1.0)}
 

@@ -110,33 +110,33 @@ def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
         return jnp.stack([r["trunk_height"], r["up_z"], r["waist_height"]])
 
     def control_tick(carry, params):
-        d, last_action = carry
+        d, last_action, target = carry
         obs_state = env.observation_state(d, jnp.zeros(3), last_action, phase0)
         action = policy_action(policy.manifest, params, obs_state)
         q_des = obsdef.action_to_targets(default_pose, scale, action)
 
         def substep(c, _):
-            d, agg = c
-            tau = env.pd_torque(q_des, d.qpos[7:], d.qvel[6:])
+            d, agg, target = c
+            tau, target = env.substep_torque(q_des, target, d.qpos[7:], d.qvel[6:])
             power = jnp.sum(jnp.abs(tau * d.qvel[6:]))  # [W], joint velocity at the start of the substep
             d = mjx.step(m, d.replace(ctrl=tau))
             qacc = jnp.abs(d.qacc[6:])
             # sums: energy, Σ|q̈|·dt, Σ|τ|·dt; maxima: |τ|, |q̈|, one substep's energy
             sums = agg[:3] + jnp.stack([power, jnp.sum(qacc), jnp.sum(jnp.abs(tau))]) * sim_dt
             maxima = jnp.maximum(agg[3:], jnp.stack([jnp.max(jnp.abs(tau)), jnp.max(qacc), power * sim_dt]))
-            return (d, jnp.concatenate([sums, maxima])), None
+            return (d, jnp.concatenate([sums, maxima]), target), None
 
-        (d, agg), _ = jax.lax.scan(substep, (d, jnp.zeros(6)), (), env.n_substeps)
+        (d, agg, target), _ = jax.lax.scan(substep, (d, jnp.zeros(6), target), (), env.n_substeps)
         normal, vertical = contact_totals(d)
         out = {"readings": readings(d), "energy_J": agg[0], "qacc_integral": agg[1], "torque_integral": agg[2],
                "max_torque_Nm": agg[3], "max_qacc": agg[4], "max_energy_J": agg[5],
                "contact_force_N": normal, "contact_force_z_N": vertical}
-        return (d, action), out
+        return (d, action, target), out
 
     def rollout_one(params, qpos, qvel):
         d0 = env.make_data(qpos, qvel)
         tick = lambda carry, _: control_tick(carry, params)  # noqa: E731
-        (_, _), series = jax.lax.scan(tick, (d0, jnp.zeros(obsdef.NUM_JOINTS)), (), num_ticks)
+        _, series = jax.lax.scan(tick, (d0, jnp.zeros(obsdef.NUM_JOINTS), env.start_target(qpos)), (), num_ticks)
         series["readings"] = jnp.concatenate([readings(d0)[None], series["readings"]], axis=0)
         return series
 

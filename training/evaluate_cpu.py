@@ -34,6 +34,7 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
     b = physics.evaluation_batch(n)
     b.qpos[:], b.qvel[:], b.qacc_warmstart[:], b.time[:] = qpos, qvel, 0.0, 0.0
     b.userdata[:, :nu] = qpos[:, 7:7 + nu]           # hold the start pose until the first action
+    b.userdata[:, nu:2 * nu] = qpos[:, 7:7 + nu]     # the runtime supervisor's last target: that pose
     b.forward()
 
     phase0 = jnp.asarray(obsdef.initial_gait_phase(np), jnp.float32)

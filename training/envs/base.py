@@ -3,7 +3,9 @@
 What every task shares (ARCHITECTURE.md, Training):
 * the ONE robot file, sim_hil/models/t1.xml, in a collision variant (training/envs/collision.py);
 * PD at the motor, recomputed EVERY physics substep (n_substeps = ctrl_dt / sim_dt = 10) with the
-  firmware's law and clamps (training/envs/motor.py), ONE gain set (the model's pd_kp / pd_kd);
+  firmware's law and clamps (training/envs/motor.py), ONE gain set (the model's pd_kp / pd_kd), on the
+  target the deployed runtime's supervisor would send at that 2 ms tick (rule R6: rate, torque, range;
+  motor.supervised_target), its last value carried in info["runtime_target"];
 * actions: q_des = default pose (home) + action_scale · action;
 * the actor observation from training/observation.py (xp=jax.numpy) plus uniform noise U(−1, 1)·scale
   per term; a privileged critic observation;
@@ -56,6 +58,9 @@ def base_config() -> config_dict.ConfigDict:
         # U(−1, 1)·scale·level added per observation term (Playground T1 scales; 0 for exact terms).
         noise=config_dict.create(level=1.0, scales=config_dict.create(
             gyro=0.2, gravity=0.05, command=0.0, joint_pos=0.03, joint_vel=1.5, last_action=0.0, phase=0.0)),
+        # the deployed runtime's target rule R6 (runtime/include/t1rt/safety.hpp SafetyConfig: 0.05 rad per
+        # 2 ms tick, 95 % of the joint range; tests/test_training_motor.py checks them against that file)
+        supervisor=config_dict.create(max_target_speed_rps=25.0, joint_range_fraction=0.95),
         impl="jax",
         backend="mjx",   # physics engine: mjx (JAX, GPU) | cpu (MuJoCo C on all cores, cpu_backend.py)
     )
@@ -92,7 +97,8 @@ class T1Env(mjx_env.MjxEnv):
             spec = self._robot_spec()
             cpu_backend.add_backend_elements(spec, collision.FOOT_GEOMS, FLOOR_GEOM)
             mj = self._compile(spec.compile())
-            self._cpu = cpu_backend.CpuPhysics(mj, self.n_substeps, template=self._mjx_model)
+            self._cpu = cpu_backend.CpuPhysics(mj, self.n_substeps, template=self._mjx_model,
+                                               supervisor=self._supervisor_settings(cfg))
         self._mj_model = mj
 
         self._default_pose_np = t1model.default_pose(mj)
@@ -108,6 +114,9 @@ class T1Env(mjx_env.MjxEnv):
         self._action_scale_np = float(scale[0]) if np.all(scale == scale[0]) else scale
         self._action_scale = jnp.asarray(self._action_scale_np, jnp.float32)
         self._d_safe = jnp.asarray(motor.D_SAFE_NMS)
+        self._target_step, fraction = self._supervisor_settings(cfg)
+        mid, half = 0.5 * (ranges[:, 0] + ranges[:, 1]), 0.5 * (ranges[:, 1] - ranges[:, 0]) * fraction
+        self._range_lo, self._range_hi = jnp.asarray(mid - half), jnp.asarray(mid + half)
 
         self._trunk_id = mj.body("Trunk").id
         self._waist_id = mj.body("Waist").id
@@ -204,17 +213,40 @@ class T1Env(mjx_env.MjxEnv):
         return motor.motor_torque(q_des, q, dq, m.actuator_biasprm[:, KP_SLOT], m.actuator_biasprm[:, KD_SLOT],
                                   self._tau_limit, self._q_min, self._q_max, self._d_safe)
 
-    def physics_step(self, data: mjx.Data, q_des: jax.Array) -> mjx.Data:
-        """One control step: n_substeps × (PD torque from the current q, dq → ctrl → mjx.step)."""
+    @staticmethod
+    def _supervisor_settings(cfg) -> tuple[float, float]:
+        """(max target step per physics substep [rad], joint-range fraction); runs configured before the
+        supervisor was modelled get its defaults."""
+        sup = cfg.supervisor if "supervisor" in cfg else base_config().supervisor
+        return float(sup.max_target_speed_rps) * float(cfg.sim_dt), float(sup.joint_range_fraction)
+
+    def substep_torque(self, q_des: jax.Array, last_target: jax.Array, q: jax.Array, dq: jax.Array):
+        """One physics substep = one 2 ms runtime tick: (firmware torque [N·m], the supervisor's target [rad])."""
+        m = self._mjx_model
+        kp, kd = m.actuator_biasprm[:, KP_SLOT], m.actuator_biasprm[:, KD_SLOT]
+        target = motor.supervised_target(q_des, last_target, q, dq, kp, kd, self._tau_limit, self._range_lo,
+                                         self._range_hi, self._target_step)
+        return self.pd_torque(target, q, dq), target
+
+    def physics_step(self, data: mjx.Data, q_des: jax.Array, last_target: jax.Array):
+        """One control step: n_substeps × (supervisor target and PD torque from the current q, dq → ctrl →
+        mjx.step). Returns (data, the supervisor's last target [rad])."""
         if self._cpu is not None:
-            return self._cpu.step(data, q_des)
+            return self._cpu.step(data, q_des, last_target)
         m = self._mjx_model
 
-        def substep(d, _):
-            tau = self.pd_torque(q_des, d.qpos[7:], d.qvel[6:])
-            return mjx.step(m, d.replace(ctrl=tau)), None
+        def substep(carry, _):
+            d, target = carry
+            tau, target = self.substep_torque(q_des, target, d.qpos[7:], d.qvel[6:])
+            return (mjx.step(m, d.replace(ctrl=tau)), target), None
 
-        return jax.lax.scan(substep, data, (), self.n_substeps)[0]
+        return jax.lax.scan(substep, (data, last_target), (), self.n_substeps)[0]
+
+    @staticmethod
+    def start_target(qpos: jax.Array) -> jax.Array:
+        """info["runtime_target"] at a start: the start pose held (the runtime's last target is the pose it
+        handed over from [rad])."""
+        return qpos[7:7 + NUM_JOINTS].astype(jnp.float32)
 
     def make_data(self, qpos: jax.Array, qvel: jax.Array) -> mjx.Data:
         if self._cpu is not None:

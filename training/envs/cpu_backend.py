@@ -6,9 +6,10 @@ both backends; only `T1Env.make_data` / `physics_step` and the contact readings 
 * Physics: `mujoco.batch.Batch` steps every env of a batch on a thread pool (0 = all cores) in C,
   without the GIL. Each env is one simulation row; the batch is made once per batch size (training
   envs, eval envs) and kept.
-* Motor law: firmware_like's `t1_motor_step` runs at every physics substep as MuJoCo's control
-  callback (training/cpu_physics/t1_mjcb_motor.c): the env writes q_des [rad] into d->userdata, the
-  callback writes the clamped torque [N·m] into d->ctrl. kp / kd come from each simulation's
+* Motor law: the deployed runtime's target rule R6 and then firmware_like's `t1_motor_step` run at
+  every physics substep as MuJoCo's control callback (training/cpu_physics/t1_mjcb_motor.c): the env
+  writes the wanted q_des and the supervisor's last target [rad] into d->userdata, the callback moves
+  that target and writes the clamped torque [N·m] into d->ctrl. kp / kd come from each simulation's
   actuator_biasprm, as in the MJX backend.
 * JAX side: one `jax.pure_callback` per control step with vmap_method="expand_dims", so brax's
   vmapped env.step makes ONE host call for the whole batch. The host keeps no per-env state between
@@ -96,9 +97,11 @@ def add_backend_elements(spec: mujoco.MjSpec, foot_geoms, floor_geom: str) -> No
 
 class CpuPhysics:
     """Batched C physics behind jax.pure_callback. `template`: the env's mjx.Model of the same robot
-    (without this backend's extra elements), which the randomization_fn is applied to."""
+    (without this backend's extra elements), which the randomization_fn is applied to. `supervisor`: (max
+    target step per substep [rad], joint-range fraction) of the runtime's target rule (t1_mjcb_motor.c)."""
 
-    def __init__(self, mj_model: mujoco.MjModel, n_substeps: int, template=None, nthread: int = 0):
+    def __init__(self, mj_model: mujoco.MjModel, n_substeps: int, *, supervisor: tuple[float, float],
+                 template=None, nthread: int = 0):
         self._lib = install_motor_callback()
         if mj_model.nuserdata != self._lib.t1_mjcb_nuserdata():
             raise ValueError("CpuPhysics: the model lacks the backend's userdata (add_backend_elements)")
@@ -114,6 +117,7 @@ class CpuPhysics:
         self._shapes = {f: np.shape(getattr(d, f)) for f in (*STATE_FIELDS, *READING_FIELDS)}
         self._shapes["site_xmat"] = (mj_model.nsite, 3, 3)
         self._njoint = mj_model.nu
+        self._supervisor = supervisor      # (max target step per substep [rad], joint-range fraction)
 
     def set_randomization(self, randomization_fn, seed: int) -> None:
         """brax's randomization_fn(mjx_model, rngs) -> (model, in_axes), applied to every batch made
@@ -143,9 +147,10 @@ class CpuPhysics:
             per_sim[...] = np.asarray(getattr(model_v, name), per_sim.dtype).reshape(per_sim.shape)
         b.set_const()    # qpos0 and masses feed mj_setConst's derived constants
 
-    def _write(self, b, time, qpos, qvel, warm, q_des) -> None:
+    def _write(self, b, time, qpos, qvel, warm, q_des, last_target) -> None:
+        nj = self._njoint
         b.time[:], b.qpos[:], b.qvel[:], b.qacc_warmstart[:] = time, qpos, qvel, warm
-        b.userdata[:, :self._njoint] = q_des
+        b.userdata[:, :nj], b.userdata[:, nj:2 * nj] = q_des, last_target
 
     def read(self, b, lead) -> tuple:
         """HostData's fields of batch b (float32), shaped (*lead, ...)."""
@@ -154,15 +159,16 @@ class CpuPhysics:
             out.append(np.asarray(getattr(b, f), np.float32).reshape((*lead, *self._shapes[f])))
         return tuple(out)
 
-    def host_step(self, time, qpos, qvel, warm, q_des):
+    def host_step(self, time, qpos, qvel, warm, q_des, last_target):
         lead = qpos.shape[:-1]
         n = int(np.prod(lead))
+        nj = self._njoint
         with self._lock:
             b = self._batch(n)
             self._write(b, time.reshape(n), qpos.reshape(n, -1), qvel.reshape(n, -1), warm.reshape(n, -1),
-                        q_des.reshape(n, -1))
+                        q_des.reshape(n, -1), last_target.reshape(n, -1))
             b.step(nstep=self.n_substeps)
-            return self.read(b, lead)
+            return (*self.read(b, lead), np.asarray(b.userdata[:, nj:2 * nj], np.float32).reshape(*lead, nj))
 
     def host_reset(self, qpos, qvel):
         lead = qpos.shape[:-1]
@@ -173,7 +179,8 @@ class CpuPhysics:
         with self._lock:
             b = self._batch(n)
             # hold the start pose: targets = the joints' own positions
-            self._write(b, 0.0, q, qvel.reshape(n, -1), 0.0, q[:, 7:7 + self._njoint])
+            hold = q[:, 7:7 + self._njoint]
+            self._write(b, 0.0, q, qvel.reshape(n, -1), 0.0, hold, hold)
             b.forward()
             return self.read(b, lead)
 
@@ -182,7 +189,9 @@ class CpuPhysics:
         b = mj_batch.Batch(self.model, n, self.nthread, persistent=persistent)
         for f in READING_FIELDS:     # a derived field is copied out only once bound, before the call
             b.bind(f)
-        b.userdata[:, self._njoint] = self._lib.t1_mjcb_marker()
+        nj = self._njoint
+        b.userdata[:, 2 * nj], b.userdata[:, 2 * nj + 1] = self._supervisor
+        b.userdata[:, 2 * nj + 2] = self._lib.t1_mjcb_marker()
         return b
 
     def evaluation_batch(self, n: int) -> mj_batch.Batch:
@@ -200,11 +209,14 @@ class CpuPhysics:
                                 vmap_method="expand_dims")
         return HostData(*out)
 
-    def step(self, data: HostData, q_des: jax.Array) -> HostData:
-        """One control step: n_substeps × (firmware PD in C → mj_step), all envs of the batch at once."""
-        out = jax.pure_callback(self.host_step, self._result_shapes(data.qpos.shape[:-1]), data.time,
-                                data.qpos, data.qvel, data.qacc_warmstart, q_des, vmap_method="expand_dims")
-        return HostData(*out)
+    def step(self, data: HostData, q_des: jax.Array, last_target: jax.Array) -> tuple[HostData, jax.Array]:
+        """One control step: n_substeps × (supervisor target and firmware PD in C → mj_step), all envs of
+        the batch at once. Returns (data, the supervisor's last target [rad])."""
+        lead = data.qpos.shape[:-1]
+        shapes = (*self._result_shapes(lead), jax.ShapeDtypeStruct((*lead, self._njoint), jnp.float32))
+        out = jax.pure_callback(self.host_step, shapes, data.time, data.qpos, data.qvel, data.qacc_warmstart,
+                                q_des, last_target, vmap_method="expand_dims")
+        return HostData(*out[:-1]), out[-1]
 
     def foot_contacts(self, data: HostData) -> jax.Array:
         """(left, right) foot touching the floor, from the contact sensors."""

@@ -156,7 +156,8 @@ class GetupBase(base.T1Env):
     def _physics(self, state, action):
         info = dict(state.info)
         info["rng"], k_obs = jax.random.split(info["rng"])
-        data = self.physics_step(state.data, self.motor_targets(action))
+        data, info["runtime_target"] = self.physics_step(state.data, self.motor_targets(action),
+                                                         info["runtime_target"])
         info.update(self.body_readings(data))
         info["up"] = self.up_vector(data)
         return data, info, k_obs
@@ -167,7 +168,8 @@ class GetupBase(base.T1Env):
 
     def _start_info(self, rng, data, kind) -> dict:
         return {"rng": rng, "last_act": jnp.zeros(base.NUM_JOINTS), "start_kind": kind.astype(jnp.int32),
-                "up": self.up_vector(data), **self.body_readings(data)}
+                "runtime_target": self.start_target(data.qpos), "up": self.up_vector(data),
+                **self.body_readings(data)}
 
 
 class Getup(GetupBase):

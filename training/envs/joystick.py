@@ -95,6 +95,7 @@ class Joystick(base.T1Env):
             "command_step": jnp.array(0, jnp.int32),
             "last_act": jnp.zeros(base.NUM_JOINTS),
             "motor_targets": self._default_pose,
+            "runtime_target": self.start_target(qpos),
             "feet_air_time": jnp.zeros(2),
             "last_contact": jnp.zeros(2, dtype=bool),
             "swing_peak": jnp.zeros(2),
@@ -115,7 +116,7 @@ class Joystick(base.T1Env):
         info["rng"], k_theta, k_mag, k_cmd, k_obs = jax.random.split(info["rng"], 5)
         data = self._apply_push(state.data, info, k_theta, k_mag)
         q_des = self.motor_targets(action)
-        data = self.physics_step(data, q_des)
+        data, info["runtime_target"] = self.physics_step(data, q_des, info["runtime_target"])
         info["motor_targets"] = q_des
 
         contact = self.foot_contacts(data)

@@ -37,3 +37,26 @@ def motor_torque(q_des, q, dq, kp, kd, tau_limit, q_min, q_max, d_safe):
     """Firmware motor step, normal mode: clip(kp·(q_des − q) − kd·dq + soft stop, ±τ_limit) [N·m]."""
     tau = kp * (q_des - q) - kd * dq + soft_stop_torque(q, dq, q_min, q_max, tau_limit, d_safe)
     return jnp.clip(tau, -tau_limit, tau_limit)
+
+
+def supervised_target(wanted, last, q, dq, kp, kd, tau_limit, range_lo, range_hi, max_step):
+    """The runtime supervisor's target rule R6 (runtime/src/safety_supervisor.cpp, clamp_targets), which
+    shapes every command the robot's motors get, once per 2 ms runtime tick [rad]:
+      1. rate: within ±max_step of the last commanded target;
+      2. torque: kp·(t − q) − kd·dq within ±τ_limit, as far as reachable under 1;
+      3. range: within [range_lo, range_hi] (the centred joint_range_fraction), as far as reachable under 1, 2;
+    the point of what is left nearest to the wanted target. Why it is modelled in training: without it a
+    policy learns target jumps the deployed runtime never sends (a kneel-to-stand lunge that stood in
+    training fell at once in the loop, session 6)."""
+    lo, hi = last - max_step, last + max_step
+    t_lo, t_hi = q + (kd * dq - tau_limit) / kp, q + (kd * dq + tau_limit) / kp
+    lo, hi = _narrow(lo, hi, t_lo, t_hi)
+    lo, hi = _narrow(lo, hi, range_lo, range_hi)
+    return jnp.clip(wanted, lo, hi)
+
+
+def _narrow(lo, hi, lim_lo, lim_hi):
+    """[lo, hi] ∩ [lim_lo, lim_hi], or the end of [lo, hi] nearest to the limit when they do not meet."""
+    new_lo = jnp.where(lim_hi < lo, lo, jnp.where(lim_lo > hi, hi, jnp.maximum(lo, lim_lo)))
+    new_hi = jnp.where(lim_hi < lo, lo, jnp.where(lim_lo > hi, hi, jnp.minimum(hi, lim_hi)))
+    return new_lo, new_hi

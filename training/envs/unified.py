@@ -91,6 +91,7 @@ class Unified(GetupBase):
             "push_step": jnp.array(0, jnp.int32),
             "push_interval_steps": self._push_interval_steps(k_push),
             "start_kind": kind.astype(jnp.int32),
+            "runtime_target": self.start_target(qpos),
             **self.body_readings(data),
         }
         obs = self._observe(data, info, k_obs)
@@ -101,7 +102,7 @@ class Unified(GetupBase):
         info = dict(state.info)
         info["rng"], k_theta, k_mag, k_cmd, k_obs = jax.random.split(info["rng"], 5)
         data = self._apply_push(state.data, info, k_theta, k_mag)
-        data = self.physics_step(data, self.motor_targets(action))
+        data, info["runtime_target"] = self.physics_step(data, self.motor_targets(action), info["runtime_target"])
         info.update(self.body_readings(data))
         scaled, standing = self._reward_terms(data, info)
         reward = sum(scaled.values()) * self.dt
