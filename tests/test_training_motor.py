@@ -68,7 +68,7 @@ def test_cpu_callback_and_jax_compute_the_same_target():
         assert np.all(np.abs(d.userdata[23:46] - last) <= env._target_step + 1e-9)
 
 
-@pytest.mark.parametrize("backend", ["cpu", "mjx"])
+@pytest.mark.parametrize("backend", ["cpu", pytest.param("mjx", marks=pytest.mark.slow)])
 def test_a_target_jump_reaches_the_motors_at_the_runtimes_rate(backend):
     """A full-scale action from standing: after one 20 ms control step the supervisor's target has moved
     10 ticks × 0.05 rad at most, as the deployed runtime would have sent."""
