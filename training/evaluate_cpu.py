@@ -33,8 +33,8 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
     sim_dt = float(m.opt.timestep)
     b = physics.evaluation_batch(n)
     b.qpos[:], b.qvel[:], b.qacc_warmstart[:], b.time[:] = qpos, qvel, 0.0, 0.0
-    b.userdata[:, :nu] = qpos[:, 7:7 + nu]           # hold the start pose until the first action
-    b.userdata[:, nu:2 * nu] = qpos[:, 7:7 + nu]     # the runtime supervisor's last target: that pose
+    hold = qpos[:, 7:7 + nu]                         # hold the start pose until the first action,
+    physics.write_targets(b, hold, hold)             # the runtime supervisor's last target too
     b.forward()
 
     phase0 = jnp.asarray(obsdef.initial_gait_phase(np), jnp.float32)
@@ -64,7 +64,7 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
     for tick in range(num_ticks):
         last_action, q_des, r = act(policy.params, host_data(), last_action)
         readings[:, tick] = np.asarray(r)
-        b.userdata[:, :nu] = np.asarray(q_des)
+        physics.write_targets(b, np.asarray(q_des))
         for _ in range(env.n_substeps):
             dq0 = b.qvel[:, 6:].copy()
             b.step(nstep=1)

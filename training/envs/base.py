@@ -90,6 +90,7 @@ class T1Env(mjx_env.MjxEnv):
         backend = cfg.get("backend", "mjx")
         if backend not in BACKENDS:
             raise ValueError(f"backend {backend!r}: expected one of {BACKENDS}")
+        self._target_step, range_fraction = self._supervisor_settings(cfg)
         mj = self._compile(self._robot_spec().compile())
         self._mjx_model = mjx.put_model(mj, impl="jax")   # cpu: the randomisation's template only
         self._cpu = None
@@ -98,7 +99,7 @@ class T1Env(mjx_env.MjxEnv):
             cpu_backend.add_backend_elements(spec, collision.FOOT_GEOMS, FLOOR_GEOM)
             mj = self._compile(spec.compile())
             self._cpu = cpu_backend.CpuPhysics(mj, self.n_substeps, template=self._mjx_model,
-                                               supervisor=self._supervisor_settings(cfg))
+                                               supervisor=(self._target_step, range_fraction))
         self._mj_model = mj
 
         self._default_pose_np = t1model.default_pose(mj)
@@ -114,8 +115,7 @@ class T1Env(mjx_env.MjxEnv):
         self._action_scale_np = float(scale[0]) if np.all(scale == scale[0]) else scale
         self._action_scale = jnp.asarray(self._action_scale_np, jnp.float32)
         self._d_safe = jnp.asarray(motor.D_SAFE_NMS)
-        self._target_step, fraction = self._supervisor_settings(cfg)
-        mid, half = 0.5 * (ranges[:, 0] + ranges[:, 1]), 0.5 * (ranges[:, 1] - ranges[:, 0]) * fraction
+        mid, half = 0.5 * (ranges[:, 0] + ranges[:, 1]), 0.5 * (ranges[:, 1] - ranges[:, 0]) * range_fraction
         self._range_lo, self._range_hi = jnp.asarray(mid - half), jnp.asarray(mid + half)
 
         self._trunk_id = mj.body("Trunk").id

@@ -147,10 +147,17 @@ class CpuPhysics:
             per_sim[...] = np.asarray(getattr(model_v, name), per_sim.dtype).reshape(per_sim.shape)
         b.set_const()    # qpos0 and masses feed mj_setConst's derived constants
 
-    def _write(self, b, time, qpos, qvel, warm, q_des, last_target) -> None:
+    def write_targets(self, b, q_des, last_target=None) -> None:
+        """The wanted targets and (when given) the supervisor's last targets [rad] of every simulation of b
+        (t1_mjcb_motor.c's userdata layout)."""
         nj = self._njoint
+        b.userdata[:, :nj] = q_des
+        if last_target is not None:
+            b.userdata[:, nj:2 * nj] = last_target
+
+    def _write(self, b, time, qpos, qvel, warm, q_des, last_target) -> None:
         b.time[:], b.qpos[:], b.qvel[:], b.qacc_warmstart[:] = time, qpos, qvel, warm
-        b.userdata[:, :nj], b.userdata[:, nj:2 * nj] = q_des, last_target
+        self.write_targets(b, q_des, last_target)
 
     def read(self, b, lead) -> tuple:
         """HostData's fields of batch b (float32), shaped (*lead, ...)."""
