@@ -3,7 +3,8 @@
     python -m training evaluate --policy policies/getup.safetensors --baseline policies/getup_baseline.safetensors \
         --task getup --seeds 32 --seconds 10 --out out/eval_getup [--backend cpu|mjx]
 
-N seeded fallen starts (training.envs.fallen_states) are rolled out in parallel with the getup env's model
+N seeded fallen starts (the env's fallen_starts: the settled fall after the runtime's PREPARE ramp, as
+`make eval-getup` hands them to the policy) are rolled out in parallel with the getup env's model
 and motor law, on either physics backend (default as `train`): MJX (jax.vmap over envs, lax.scan over
 control ticks, make_rollout below) or MuJoCo C (training/evaluate_cpu.py, the same series). The policy side is the
 artifact run through training/observation.py with xp=jax.numpy: the observation is built from the
@@ -263,7 +264,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     env = envs.make(task, config_overrides={"backend": backend or default_backend()})
-    qpos, qvel = envs.fallen_states(seeds, first_seed)
+    qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
     policies = {role: ArtifactPolicy.load(path) for role, path in (("policy", policy_path), ("baseline", baseline))
                 if path is not None}   # both checked before either runs
     for policy in policies.values():

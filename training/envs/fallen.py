@@ -3,14 +3,36 @@
 `sim_hil.model.fallen_state(model, seed)` drops the robot from a random pose and returns the settled
 lying state; it is deterministic per seed, so a bank of starts is (seed, seed + 1, ...). Results are
 cached in memory per seed, so a second env (or a test) asking for the same seeds pays nothing.
+
+The runtime's hand-over (`prepare_s` > 0). In the loop the policy never sees the settled fall itself:
+`t1-runtime --autostart` goes PASSIVE → DAMPING → PREPARE → POLICY, one tick each for the first two, and
+PREPARE ramps the joint targets linearly from the measured pose to the policy's default pose over
+prepare_s (runtime/src/safety_supervisor.cpp finish_tick) with the T1's stand-up gains (PREPARE_KP /
+PREPARE_KD) under rule R6. A lying robot straightens its limbs during that ramp and may roll. So the
+getup tasks start from the state after it, simulated here on sim_hil's robot (the loop's physics) with
+the CPU backend's motor callback (R6 + firmware_like's motor law at every 2 ms tick). Why: a policy
+trained from the settled fall met a different robot in the loop (session 6). Not modelled: the two
+PASSIVE / DAMPING ticks (4 ms) and the bus latency; the first POLICY target is rate-limited from the
+measured joint angles here, from the default pose in the runtime (they differ by PREPARE's tracking error).
 """
 from __future__ import annotations
 
 import functools
 
+import mujoco
 import numpy as np
 
+from sim_hil import config as sim_config
 from sim_hil import model as t1model
+
+# runtime/include/t1rt/prepare_gains.hpp kPrepareKp [N·m/rad] / kPrepareKd [N·m·s/rad], joint order of the
+# contract (tests/test_training_fallen.py reads them back from that header).
+PREPARE_KP = np.array([5.0, 5.0, 40.0, 50.0, 20.0, 10.0, 40.0, 50.0, 20.0, 10.0, 100.0,
+                       350.0, 350.0, 180.0, 350.0, 450.0, 450.0, 350.0, 350.0, 180.0, 350.0, 450.0, 450.0])
+PREPARE_KD = np.array([0.1, 0.1, 0.5, 1.5, 0.2, 0.2, 0.5, 1.5, 0.2, 0.2, 5.0,
+                       7.5, 7.5, 3.0, 5.5, 0.5, 0.5, 7.5, 7.5, 3.0, 5.5, 0.5, 0.5])
+# runtime/include/t1rt/safety.hpp SafetyConfig.prepare_duration_s: the ramp `make eval-getup` runs [s]
+PREPARE_S = 2.0
 
 
 @functools.lru_cache(maxsize=1)
@@ -26,11 +48,71 @@ def _one(seed: int) -> tuple[np.ndarray, np.ndarray]:
     return qpos, qvel
 
 
-def fallen_states(num: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """(qpos [num, nq], qvel [num, nv]) of fallen states for seeds seed, seed + 1, ..., seed + num − 1."""
+def _check(num, seed) -> None:
     if isinstance(num, bool) or not isinstance(num, (int, np.integer)) or num < 1:
         raise ValueError(f"fallen_states: num must be a positive int, got {num!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"fallen_states: seed must be a non-negative int, got {seed!r}")
-    states = [_one(int(seed) + i) for i in range(int(num))]
-    return np.stack([s[0] for s in states]), np.stack([s[1] for s in states])
+
+
+def fallen_states(num: int, seed: int, prepare_s: float = 0.0,
+                  supervisor: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos [num, nq], qvel [num, nv]) of fallen states for seeds seed, seed + 1, ..., seed + num − 1:
+    the settled fall, or with prepare_s > 0 the state after the runtime's PREPARE ramp of that length,
+    under R6 with `supervisor` = (max target speed [rad/s], joint-range fraction)."""
+    _check(num, seed)
+    if not (isinstance(prepare_s, (int, float)) and 0.0 <= prepare_s <= 10.0):
+        raise ValueError(f"fallen_states: prepare_s must be seconds in [0, 10] (the runtime's --prepare-s), "
+                         f"got {prepare_s!r}")
+    if prepare_s > 0 and supervisor is None:
+        raise ValueError("fallen_states: prepare_s > 0 needs the supervisor settings (max target speed, range "
+                         "fraction)")
+    if prepare_s == 0:
+        states = [_one(int(seed) + i) for i in range(int(num))]
+        return np.stack([s[0] for s in states]), np.stack([s[1] for s in states])
+    qpos, qvel = _prepared(int(num), int(seed), float(prepare_s), tuple(float(x) for x in supervisor))
+    return qpos.copy(), qvel.copy()
+
+
+@functools.lru_cache(maxsize=8)
+def _prepared(num: int, seed: int, prepare_s: float, supervisor: tuple[float, float]):
+    qpos, qvel = fallen_states(num, seed)
+    return after_prepare(qpos, qvel, prepare_s, supervisor)
+
+
+@functools.lru_cache(maxsize=1)
+def _prepare_physics():
+    """sim_hil's robot with the CPU backend's motor callback and the stand-up gains in the PD slots."""
+    from training.envs import base, collision, cpu_backend   # heavy (JAX); only where PREPARE runs
+
+    spec = mujoco.MjSpec.from_file(str(t1model.MODEL_PATH))
+    cpu_backend.add_backend_elements(spec, collision.FOOT_GEOMS, base.FLOOR_GEOM)
+    mj = spec.compile()
+    mj.actuator_biasprm[:, base.KP_SLOT] = PREPARE_KP
+    mj.actuator_biasprm[:, base.KD_SLOT] = PREPARE_KD
+    return mj
+
+
+def after_prepare(qpos: np.ndarray, qvel: np.ndarray, prepare_s: float,
+                  supervisor: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """The states (qpos [N, nq], qvel [N, nv]) after the runtime's PREPARE ramp from each given state;
+    supervisor = (max target speed [rad/s], joint-range fraction) of rule R6."""
+    from training.envs import cpu_backend
+
+    mj = _prepare_physics()
+    tick_s = mj.opt.timestep                             # one physics step = one 2 ms runtime tick
+    if abs(tick_s - sim_config.CONTROL_DT_S) > 1e-12:
+        raise ValueError(f"after_prepare: the model's timestep {tick_s} s is not the runtime tick "
+                         f"{sim_config.CONTROL_DT_S} s")
+    ticks = int(round(prepare_s / tick_s))
+    speed, fraction = supervisor
+    physics = cpu_backend.CpuPhysics(mj, 1, supervisor=(speed * tick_s, fraction))
+    b = physics.evaluation_batch(len(qpos))
+    b.qpos[:], b.qvel[:], b.time[:] = qpos, qvel, 0.0
+    start = np.asarray(qpos)[:, t1model.ROOT_QPOS:t1model.ROOT_QPOS + t1model.NUM_JOINTS]
+    goal = t1model.default_pose(mj)
+    physics.write_targets(b, start, start)               # PREPARE's first tick: last target = measured q
+    for k in range(1, ticks + 1):
+        physics.write_targets(b, start + (k / ticks) * (goal - start))
+        b.step(nstep=1)
+    return np.array(b.qpos), np.array(b.qvel)

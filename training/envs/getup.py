@@ -45,7 +45,7 @@ from training.envs import base
 from training.envs import getup_rewards as G
 from training.envs import start_path
 from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
-from training.envs.fallen import fallen_states
+from training.envs.fallen import PREPARE_S, fallen_states
 
 STAGES = ("stage1", "stage2", "full")
 GETUP_ACTION_SCALE_RAD = 2.0    # rad per unit action (see getup_common_config)
@@ -66,6 +66,9 @@ def getup_common_config() -> config_dict.ConfigDict:
     cfg.start_probs = [0.4, 0.4, 0.2]    # (fallen, kneeling, standing) for the full task
     cfg.fallen_bank_size = 128           # distinct precomputed fallen starts
     cfg.fallen_seed = 0
+    # fallen starts = the state after the runtime's PREPARE ramp of this length [s] (training/envs/fallen.py:
+    # the loop hands the policy that robot, not the settled fall); 0 = the settled fall itself
+    cfg.fallen_prepare_s = PREPARE_S
     cfg.standing_targets_m = [G.STANDING_TORSO_M, G.STANDING_WAIST_M]   # (torso, waist) after the gate
     # assist stages (training/envs/assists.py; ours, not the seed's): × the model's gravity, and the
     # elastic harness (stiffness 0 = none)
@@ -106,7 +109,7 @@ class GetupBase(base.T1Env):
                              f"(fallen, kneeling, standing), got {list(cfg.start_probs)}")
         self._start_logits = jnp.log(probs)
         if float(probs[0]) > 0:
-            qpos, qvel = fallen_states(int(cfg.fallen_bank_size), int(cfg.fallen_seed))
+            qpos, qvel = self.fallen_starts(int(cfg.fallen_bank_size), int(cfg.fallen_seed))
         else:  # no fallen starts: skip the host precomputation
             qpos, qvel = self._home_qpos[None], jnp.zeros((1, self._mj_model.nv))
         self._fallen_qpos, self._fallen_qvel = jnp.asarray(qpos), jnp.asarray(qvel)
@@ -116,6 +119,14 @@ class GetupBase(base.T1Env):
         if "obs_noise_scale" in cfg:   # the getup tasks (not the unified env, which uses the joystick's noise)
             # seed §4.6: the same U(−1, 1) range on every entry, whatever its unit (base.py scales per term)
             self._noise_scale = jnp.ones_like(self._noise_scale)
+
+    def fallen_starts(self, num: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        """(qpos, qvel) of this env's fallen starts for seeds seed … seed + num − 1 (training and evaluation):
+        after the runtime's PREPARE ramp, under this env's supervisor settings. Runs configured before the
+        hand-over was modelled get it too (they resume onto the loop's starts)."""
+        prepare_s = float(self._config.get("fallen_prepare_s", PREPARE_S))
+        step_per_substep, fraction = self._supervisor_settings(self._config)
+        return fallen_states(num, seed, prepare_s, (step_per_substep / float(self._config.sim_dt), fraction))
 
     def _keyframe_heights(self, qpos) -> tuple[float, float]:
         """(trunk, waist) origin heights [m] of a keyframe, from the model's kinematics."""

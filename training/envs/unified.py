@@ -52,6 +52,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.start_probs = list(getup.start_probs)
     cfg.fallen_bank_size = getup.fallen_bank_size
     cfg.fallen_seed = getup.fallen_seed
+    cfg.fallen_prepare_s = getup.fallen_prepare_s
     cfg.standing_targets_m = list(getup.standing_targets_m)
     cfg.command_resample_steps = joy.command_resample_steps
     cfg.zero_command_prob = joy.zero_command_prob

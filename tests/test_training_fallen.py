@@ -1,0 +1,89 @@
+"""The getup tasks' fallen starts are the loop's: the settled fall after the runtime's PREPARE ramp
+(training/envs/fallen.py). Constants against the runtime's headers, the ramp's effect, and the state at
+the first POLICY tick of a real lockstep run (t1-runtime + sim_hil) against the precomputed one."""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from sim_hil import config as sim_config
+from sim_hil import model as t1model
+from sim_hil.launch import ROOT
+from training.envs import base, fallen
+
+RUNTIME_INCLUDE = ROOT / "runtime" / "include" / "t1rt"
+UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained.safetensors"
+SUPERVISOR = (base.base_config().supervisor.max_target_speed_rps, base.base_config().supervisor.joint_range_fraction)
+SEEDS = 4
+MODE_POLICY = 3                      # runtime/include/t1rt/safety.hpp Mode::kPolicy
+LOOP_JOINT_TOL_RAD = 0.15            # bus latency and the two PASSIVE / DAMPING ticks are not modelled
+LOOP_ROOT_TOL_M = 0.03
+
+
+def _hpp_array(name: str) -> np.ndarray:
+    text = (RUNTIME_INCLUDE / "prepare_gains.hpp").read_text()
+    m = re.search(rf"{name}\{{([^}}]*)\}}", text)
+    assert m, f"{name} not found in prepare_gains.hpp"
+    body = re.sub(r"//[^\n]*", "", m.group(1))
+    return np.array([float(x.strip().rstrip("f")) for x in body.split(",") if x.strip()])
+
+
+def test_constants_are_the_runtimes():
+    np.testing.assert_array_equal(fallen.PREPARE_KP, _hpp_array("kPrepareKp"))
+    np.testing.assert_array_equal(fallen.PREPARE_KD, _hpp_array("kPrepareKd"))
+    m = re.search(r"prepare_duration_s\s*=\s*([0-9.]+);", (RUNTIME_INCLUDE / "safety.hpp").read_text())
+    assert m and float(m.group(1)) == fallen.PREPARE_S
+
+
+def test_prepare_straightens_the_lying_robot_without_standing_it_up():
+    raw_q, _ = fallen.fallen_states(SEEDS, 0)
+    q, v = fallen.fallen_states(SEEDS, 0, fallen.PREPARE_S, SUPERVISOR)
+    home = t1model.default_pose(t1model.load_model())
+    legs = slice(t1model.ROOT_QPOS + 11, t1model.ROOT_QPOS + 23)
+    err_raw = np.abs(raw_q[:, legs] - home[11:]).mean()
+    err = np.abs(q[:, legs] - home[11:]).mean()
+    assert err < 0.25 * err_raw, (err, err_raw)   # the stiff leg gains reach the default pose
+    assert np.all(q[:, 2] < 0.3)                  # still lying: PREPARE is no getup
+    assert np.all(np.isfinite(v))
+    again, _ = fallen.fallen_states(SEEDS, 0, fallen.PREPARE_S, SUPERVISOR)
+    np.testing.assert_array_equal(again, q)      # cached and deterministic
+    again[0, 2] = 9.0                            # a copy: the cache stays intact
+    assert fallen.fallen_states(SEEDS, 0, fallen.PREPARE_S, SUPERVISOR)[0][0, 2] != 9.0
+
+
+def test_bad_arguments_name_the_problem():
+    with pytest.raises(ValueError, match="prepare_s"):
+        fallen.fallen_states(2, 0, -1.0, SUPERVISOR)
+    with pytest.raises(ValueError, match="supervisor"):
+        fallen.fallen_states(2, 0, 2.0)
+    with pytest.raises(ValueError, match="seed"):
+        fallen.fallen_states(2, -3)
+
+
+def test_the_first_policy_tick_of_the_loop_starts_where_training_does(netns):
+    from sim_hil.launch import start_runtime, stop, wait_until_listening
+    from sim_hil.sim import SimConfig, Simulator
+
+    expected_q, _ = fallen.fallen_states(2, 0, fallen.PREPARE_S, SUPERVISOR)
+    for seed in range(2):
+        sim = Simulator(SimConfig(scenario="flat", spawn=f"fallen:{seed}", clock="lockstep", seed=seed,
+                                  lcm_url=netns, status_rate_hz=1.0 / sim_config.CONTROL_DT_S))
+        runtime = start_runtime(UNTRAINED_STUDENT, "--clock", "lockstep", "--autostart",
+                                "--prepare-s", f"{fallen.PREPARE_S:g}", "--lcm-url", netns)
+        wait_until_listening(runtime)
+        at_policy = None
+        try:
+            for _ in range(int(2 * fallen.PREPARE_S / sim_config.CONTROL_DT_S)):
+                sim.tick()
+                if sim.link.latest is not None and sim.link.latest.mode == MODE_POLICY:
+                    at_policy = sim.data.qpos.copy()
+                    break
+        finally:
+            sim.close()
+            stop(runtime)
+        assert at_policy is not None, "the runtime never reached POLICY"
+        joints = slice(t1model.ROOT_QPOS, None)
+        assert np.abs(at_policy[joints] - expected_q[seed, joints]).max() < LOOP_JOINT_TOL_RAD
+        assert np.linalg.norm(at_policy[:3] - expected_q[seed, :3]) < LOOP_ROOT_TOL_M
