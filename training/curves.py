@@ -24,6 +24,7 @@ PLOT_PANELS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("env-steps/s", ("training/sps", "episode/sps", "SPS")),
     ("success", ("eval/episode_success", "episode/success")),
     ("success from the kneel", ("eval/episode_success_from_kneel",)),
+    ("success from fallen", ("eval/episode_success_from_fallen",)),
     ("loss", ("training/policy_loss", "training/total_loss", "actor_loss")),
 )
 

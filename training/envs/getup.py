@@ -229,7 +229,8 @@ class Getup(GetupBase):
 
     @staticmethod
     def metric_names():
-        return ("reward/height", "reward/pose", "reward/energy", "gate", "success", "success_from_kneel")
+        return ("reward/height", "reward/pose", "reward/energy", "gate", "success", "success_from_kneel",
+                "success_from_fallen")
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
         """Height Reward, Pose Reward (the stage's form) and the energy cost of the state after the step."""
@@ -264,6 +265,7 @@ class Getup(GetupBase):
                               else self.standing(info)).astype(jnp.float32)
         # standing in an episode that started at the kneel (with the reverse curriculum, the share that counts)
         metrics["success_from_kneel"] = metrics["success"] * (info["start_kind"] == 1)
+        metrics["success_from_fallen"] = metrics["success"] * (info["start_kind"] == 0)   # the full task's aim
         done = self.invalid(data) | self.fell_from_kneel(info)
         return state.replace(data=data, obs=obs, reward=reward, done=done.astype(jnp.float32), metrics=metrics,
                              info=info)
