@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from sim_hil.eval.events import (EventThresholds, GetupEvents, getup_events, standing_mask,
-                                 up_z_from_quat)
+from sim_hil.eval.events import (EventThresholds, GetupEvents, getup_events, kneel_gate_mask, standing_mask,
+                                 through_kneel_gate, up_z_from_quat)
 
 DT_S = 0.02                 # 50 Hz series: the events must not depend on the tick rate
 STAND_M, KNEEL_M, LIE_M = 0.66, 0.45, 0.15
@@ -141,3 +141,25 @@ def test_bad_thresholds_rejected():
         EventThresholds(standing_trunk_height_m=0.3)
     with pytest.raises(ValueError, match="attempt_rise_m"):
         EventThresholds(attempt_rise_m=0.0)
+
+
+UP_Z_TILT_0_5_DEG, UP_Z_TILT_0_6_DEG = math.cos(math.radians(0.5)), math.cos(math.radians(0.6))
+
+
+def test_kneel_gate_by_hand():
+    # 0.4 − min(h, 0.4) < 0.005 m and √(2 − 2·u_z) < 0.01 (a tilt below 0.573°)
+    h = np.array([0.3951, 0.3949, 0.67, 0.67, 0.67])
+    up = np.array([1.0, 1.0, 1.0, UP_Z_TILT_0_5_DEG, UP_Z_TILT_0_6_DEG])
+    assert kneel_gate_mask(h, up).tolist() == [True, False, True, True, False]
+
+
+def test_through_kneel_gate_before_the_stand_up():
+    upright_kneel = script((LIE_M, LIE_M, 0.5), (LIE_M, KNEEL_M, 0.5), (KNEEL_M, KNEEL_M, 0.5),
+                           (KNEEL_M, STAND_M, 0.5), (STAND_M, STAND_M, 2.0))
+    assert through_kneel_gate(*upright_kneel, getup_events(*upright_kneel)) is True
+    # the same rise with the trunk tilted 10° until it stands: never through the gate
+    t, h, up = upright_kneel
+    tilted_up = np.where(h < 0.6, math.cos(math.radians(10.0)), 1.0)
+    assert through_kneel_gate(t, h, tilted_up, getup_events(t, h, tilted_up)) is False
+    stays_down = script((LIE_M, LIE_M, 2.0))
+    assert through_kneel_gate(*stays_down, getup_events(*stays_down)) is None

@@ -66,6 +66,14 @@ def test_gate_exactly_as_written(h, up, ok):
     assert bool(G.gate(h, jnp.asarray(up))) is ok
 
 
+def test_gate_is_the_evaluations_kneel_gate():
+    from sim_hil.eval.events import kneel_gate_mask
+    for h in (0.3, 0.3949, 0.3951, 0.67):
+        for deg in (0.0, 0.5, 0.6, 10.0):
+            up = _tilted(deg)
+            assert bool(G.gate(h, jnp.asarray(up))) == bool(kneel_gate_mask(h, up[2])), (h, deg)
+
+
 def test_gated_terms_by_hand():
     on, off = jnp.asarray(True), jnp.asarray(False)
     assert float(G.gated_height_reward(off, 0.7, 0.9)) == pytest.approx(0.7)

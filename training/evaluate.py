@@ -147,7 +147,7 @@ def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
 def run_policy(env, policy: ArtifactPolicy, qpos, qvel, seconds: float) -> dict:
     """Roll out and reduce to per-env metrics (numpy) plus the height series for plots."""
     import jax
-    from sim_hil.eval.events import getup_events
+    from sim_hil.eval.events import getup_events, through_kneel_gate
     ctrl_dt = float(policy.manifest["control_dt"])
     ticks = int(round(seconds / ctrl_dt))
     if ticks < 1:
@@ -162,9 +162,10 @@ def run_policy(env, policy: ArtifactPolicy, qpos, qvel, seconds: float) -> dict:
     rows = []
     for i in range(readings.shape[0]):
         ev = getup_events(t, readings[i, :, 0], readings[i, :, 1])
+        gate = through_kneel_gate(t, readings[i, :, 0], readings[i, :, 1], ev)
         rows.append({
             "success": ev.success, "time_to_stand_s": ev.time_to_stand_s, "attempts": ev.attempts,
-            "falls": ev.falls, "energy_J": float(series["energy_J"][i].sum()),
+            "falls": ev.falls, "through_kneel_gate": math.nan if gate is None else float(gate), "energy_J": float(series["energy_J"][i].sum()),
             "max_energy_J": float(series["max_energy_J"][i].max()),
             "max_torque_Nm": float(series["max_torque_Nm"][i].max()),
             "total_torque_Nms": float(series["torque_integral"][i].sum()),
@@ -189,11 +190,14 @@ def summarize(rows: list[dict]) -> dict:
     falls_total = sum(1 + r["falls"] for r in rows)
     return {"episodes": len(rows), "success_rate": float(np.mean([r["success"] for r in rows])),
             "attempts_per_fall": sum(r["attempts"] for r in rows) / falls_total,
-            "time_to_stand_s": mean("time_to_stand_s"), **{k: mean(k) for k in EFFORT_KEYS}}
+            "time_to_stand_s": mean("time_to_stand_s"), "through_kneel_gate": mean("through_kneel_gate"),
+            **{k: mean(k) for k in EFFORT_KEYS}}
 
 
 ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attempts_per_fall", "{:.2f}"),
-        ("time to stand [s]", "time_to_stand_s", "{:.2f}"), ("energy Σ\\|τ·q̇\\|·dt [J]", "energy_J", "{:.1f}"),
+        ("time to stand [s]", "time_to_stand_s", "{:.2f}"),
+        ("through the kneel gate before standing (share of those that stood)", "through_kneel_gate", "{:.2f}"),
+        ("energy Σ\\|τ·q̇\\|·dt [J]", "energy_J", "{:.1f}"),
         ("max energy in one physics step [J]", "max_energy_J", "{:.2f}"),
         ("max torque [N·m]", "max_torque_Nm", "{:.1f}"),
         ("total torque Σ\\|τ\\|·dt [N·m·s]", "total_torque_Nms", "{:.0f}"),

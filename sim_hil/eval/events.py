@@ -42,6 +42,11 @@ STAND_HOLD_S = 1.0          # a stand must last this long to count (a stumble th
 # Lying trunk height is ~0.1-0.25 m, kneeling ~0.4-0.5 m: 0.15 m is a clear push off the ground (sitting
 # up, rolling onto the knees) but more than the bounce of a body settling after impact (a few cm).
 ATTEMPT_RISE_M = 0.15
+# The seed's kneel gate (§4.8; training/envs/getup_rewards.py rewards on these same numbers): trunk height
+# 0.4 − min(h, 0.4) < 0.005 m and ‖u − e_z‖ < 0.01, u the trunk's up vector, so ‖u − e_z‖ = √(2 − 2·u_z).
+KNEEL_GATE_HEIGHT_M = 0.4
+KNEEL_GATE_HEIGHT_TOL_M = 0.005
+KNEEL_GATE_UP_ERROR = 0.01
 
 
 @dataclass(frozen=True)
@@ -105,6 +110,28 @@ def standing_mask(trunk_height, up_z, th: EventThresholds = EventThresholds()) -
     if h.shape != u.shape:
         raise ValueError(f"standing_mask: trunk_height shape {h.shape} != up_z shape {u.shape}")
     return (h >= th.standing_trunk_height_m) & (u >= th.upright_up_z)
+
+
+def kneel_gate_mask(trunk_height, up_z) -> np.ndarray:
+    """Per-sample kneel gate of the seed (§4.8) from trunk height [m] and up_z."""
+    h = np.asarray(trunk_height, dtype=np.float64)
+    up_error = np.sqrt(np.maximum(2.0 - 2.0 * np.asarray(up_z, dtype=np.float64), 0.0))
+    return (KNEEL_GATE_HEIGHT_M - np.minimum(h, KNEEL_GATE_HEIGHT_M) < KNEEL_GATE_HEIGHT_TOL_M) & \
+        (up_error < KNEEL_GATE_UP_ERROR)
+
+
+def through_kneel_gate(t, trunk_height, up_z, events: GetupEvents,
+                       th: EventThresholds = EventThresholds()) -> bool | None:
+    """Whether the trunk met the kneel gate on its way up: at a sample that does not count as standing,
+    between the start of the first down phase and its stand-up (issue 14: a keyframe getup rises through
+    the kneel; any upright stand meets the gate, so standing samples do not count). None when it never
+    stood up from that phase."""
+    if math.isnan(events.time_to_stand_s):
+        return None
+    t, h, u = (np.asarray(x, dtype=np.float64) for x in (t, trunk_height, up_z))
+    first_down = t[0] if h[0] < th.fallen_trunk_height_m else events.fall_times_s[0]
+    rising = (t >= first_down) & (t < first_down + events.time_to_stand_s) & ~standing_mask(h, u, th)
+    return bool(np.any(kneel_gate_mask(h[rising], u[rising])))
 
 
 def _stand_up_onsets(t: np.ndarray, standing: np.ndarray, hold_s: float) -> np.ndarray:

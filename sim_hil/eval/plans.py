@@ -101,7 +101,9 @@ def getup_rows(trials: list[TrialResult]) -> dict[str, str]:
     ok = [e for e in ev if e.success]
     row = {"success rate": f"{len(ok)}/{len(trials)} ({100 * len(ok) / max(len(trials), 1):.0f} %)",
            "time to stand [s]": _fmt([e.time_to_stand_s for e in ok]),
-           "getup attempts": _fmt([e.attempts for e in ev])}
+           "getup attempts": _fmt([e.attempts for e in ev]),
+           "through the kneel gate before standing": f"{sum(r.through_kneel_gate is True for r in trials)}/"
+                                                     f"{sum(r.through_kneel_gate is not None for r in trials)} stood"}
     for key, label in (("energy_J", "energy Σ|τ·q̇|·dt [J]"), ("max_energy_J", "max energy per tick [J]"),
                        ("max_torque_Nm", "max torque [N·m]"), ("total_torque_Nms", "total torque Σ|τ|·dt [N·m·s]"),
                        ("max_joint_acc", "max joint acc [rad/s²]"), ("total_joint_acc", "total joint acc Σ|q̈|·dt [rad/s]"),

@@ -21,7 +21,7 @@ from t1 import joint_command_t, joystick_t
 
 from messages import contract
 from sim_hil import config
-from sim_hil.eval.events import GetupEvents, getup_events
+from sim_hil.eval.events import GetupEvents, getup_events, through_kneel_gate
 from sim_hil.eval.metrics import TickLog, effort_metrics, ran_to_stabilise, slip_events
 from sim_hil.launch import start_runtime, stop, wait_until_listening
 
@@ -77,6 +77,7 @@ class TrialResult:
     segment_attempts: list[int] = field(default_factory=list)   # walls: getup attempts per wall segment
     segment_falls: list[int] = field(default_factory=list)
     plot: dict[str, list[float]] = field(default_factory=dict)
+    through_kneel_gate: bool | None = None  # met the kneel gate before its first stand-up (None: never stood up)
 
 
 def trial_log_name(spec: TrialSpec, label: str) -> str:
@@ -154,10 +155,11 @@ def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | Non
     """Events and metrics of one logged trial (split out so scripted logs can be checked without a sim)."""
     in_policy = np.flatnonzero(log.mode == joint_command_t.MODE_POLICY)
     start = int(in_policy[0]) if in_policy.size else None
-    events, effort, fall_x = None, {}, []
+    events, effort, fall_x, gate = None, {}, [], None
     if start is not None:
         sl = slice(start, None)
         events = getup_events(log.t[sl], log.trunk[sl], log.up_z[sl])
+        gate = through_kneel_gate(log.t[sl], log.trunk[sl], log.up_z[sl], events)
         starts_down = bool(log.trunk[start] < config.FALLEN_TRUNK_HEIGHT_M)
         fall_ticks = [int(np.searchsorted(log.t, ft)) for ft in events.fall_times_s]
         fall_x = [float(log.base_x[i]) for i in ([start] if starts_down else []) + fall_ticks]
@@ -201,7 +203,7 @@ def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | Non
         final_x_m=float(log.base_x[-1]) if log.n else np.nan, finish_time_s=finish, fall_x_m=fall_x,
         drift_m=drift, yaw_turned_rad=turned, after_stop_m=after_stop,
         runtime_faults=runtime_faults, segment_attempts=seg_attempts, segment_falls=seg_falls,
-        plot={"t": log.t[every].tolist(), "trunk": log.trunk[every].tolist(), "waist": log.waist[every].tolist(),
+        through_kneel_gate=gate, plot={"t": log.t[every].tolist(), "trunk": log.trunk[every].tolist(), "waist": log.waist[every].tolist(),
               "vx": log.fwd_vel[every].tolist()})
 
 

@@ -23,9 +23,12 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-GATE_HEIGHT_M = 0.4            # torso height the gate checks [m]
-GATE_HEIGHT_TOL_M = 0.005      # 0.4 − min(h, 0.4) below this [m]
-GATE_UP_ERROR = 0.01           # ‖u − e_z‖ below this
+from sim_hil.eval import events
+
+# the gate's numbers live with the event definitions, so the evaluations count gate passes the same way
+GATE_HEIGHT_M = events.KNEEL_GATE_HEIGHT_M            # torso height the gate checks [m]
+GATE_HEIGHT_TOL_M = events.KNEEL_GATE_HEIGHT_TOL_M    # 0.4 − min(h, 0.4) below this [m]
+GATE_UP_ERROR = events.KNEEL_GATE_UP_ERROR            # ‖u − e_z‖ below this
 STANDUP_HEIGHT_BONUS = 1.83    # gate·(1.83 + …) in the Height Reward
 STANDUP_POSE_BONUS = 0.6       # gate·(0.6 + …) in the Pose Reward
 STANDUP_POSE_WEIGHT = 100.0    # gate·(… + 100·pose(q, q_init))
