@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -114,6 +115,7 @@ def test_full_task_terms_by_hand(full_env, gate_on):
     up = UP if gate_on else _tilted(5.0)
     info = {"trunk_height": jnp.asarray(h_torso), "waist_height": jnp.asarray(h_waist),
             "up_z": jnp.asarray(up[2]), "up": jnp.asarray(up)}
+    info["gate"] = full_env.gate_state(info, jnp.asarray(False))
     terms = full_env.reward_terms(_state(full_env), info)
     r_ori = (0.25 * up[2] + 0.5) ** 2
     ho = lambda t, w: 2 * r_ori * (min(h_torso, t) / t + min(h_waist, w) / w + 1) / 3  # noqa: E731
@@ -131,15 +133,35 @@ def test_full_task_terms_by_hand(full_env, gate_on):
     assert float(terms["energy"]) == pytest.approx(float(np.sum(0.3 * 2.0 / limits)), rel=1e-5)
 
 
-def test_gate_does_not_latch(full_env):
-    """Passing the gate, then tilting: back on the keyframe reward (the module docstring's choice)."""
+def test_gate_latches_until_the_trunk_is_down(full_env):
+    """Passing the gate, then tilting: still the standing reward; down below 0.35 m: the keyframe reward
+    again, until the gate holds once more (the getup module docstring's choice)."""
     state = _state(full_env)
     upright = {"trunk_height": jnp.asarray(0.6), "waist_height": jnp.asarray(0.5), "up_z": jnp.asarray(1.0),
                "up": jnp.asarray(UP)}
     tilted = dict(upright, up=jnp.asarray(_tilted(3.0)), up_z=jnp.asarray(_tilted(3.0)[2]))
-    assert bool(full_env.reward_terms(state, upright)["gate"])
-    after = full_env.reward_terms(state, tilted)
-    assert not bool(after["gate"]) and float(after["height"]) < 1.83
+    down = dict(tilted, trunk_height=jnp.asarray(0.3))
+    assert not bool(full_env.gate_state(tilted, jnp.asarray(False)))      # never met: off
+    on = full_env.gate_state(upright, jnp.asarray(False))
+    still = full_env.gate_state(tilted, on)
+    assert bool(on) and bool(still)
+    assert float(full_env.reward_terms(state, dict(tilted, gate=still))["height"]) > 1.83
+    off = full_env.gate_state(down, still)
+    assert not bool(off)
+    assert not bool(full_env.gate_state(tilted, off))                     # tilted again: needs the gate anew
+    per_step = envs.make("getup", config_overrides={"fallen_bank_size": 2, "gate_latches": False})
+    assert not bool(per_step.gate_state(tilted, on))                      # the seed's literal reading
+
+
+def test_env_carries_the_latched_gate_through_steps(full_env):
+    state = jax.jit(full_env.reset)(jax.random.PRNGKey(3))
+    step = jax.jit(full_env.step)
+    for _ in range(3):
+        state = step(state, jnp.zeros(23))
+    expected = full_env.gate_state(state.info, jnp.asarray(False))
+    assert state.info["gate"].dtype == jnp.bool_
+    assert float(state.metrics["gate"]) == float(state.info["gate"])
+    assert bool(state.info["gate"]) >= bool(expected)
 
 
 def test_stage_rewards(full_env):
@@ -147,6 +169,7 @@ def test_stage_rewards(full_env):
             "up": jnp.asarray(_tilted(90.0))}
     s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
     s2 = envs.make("getup", config_overrides={"stage": "stage2"})
+    info["gate"] = jnp.asarray(False)
     t1, t2 = s1.reward_terms(_state(s1), info), s2.reward_terms(_state(s2), info)
     assert float(t1["height"]) < 1.0                     # stage 1: the keyframe reward only
     # stage 2: §4.7's rewards toward standing, no gate bonuses: HO(torso 0.67, waist 0.55) and pose(q, q_init)

@@ -9,7 +9,14 @@ Stages (config.stage), rewards from getup_rewards.py (formulas there):
   0.6 + 100·pose for standing-like joint angles in ANY posture, and PPO learned to lie on the floor with
   straight legs (5 M steps: pose term 97 per step, height term flat, success 0; runs/getup_stage2).
 * "full" (fine-tuned from the stage-2 checkpoint, §4.5): starts fallen / kneeling / standing with
-  config.start_probs = (0.4, 0.4, 0.2); Height and Pose gated per step (§4.8).
+  config.start_probs = (0.4, 0.4, 0.2); Height and Pose gated (§4.8). The gate is the seed's per-step
+  condition, latched (config.gate_latches, ours: the seed is silent on it): once met it stays on until the
+  trunk is down again (below sim_hil's fallen height, 0.35 m), then the keyframe reward is back. Why: the
+  per-step gate needs the trunk within 0.573° of vertical, which a standing robot keeps only now and then;
+  measured from v12 (stage 2 under R6), which stood 306 steps per eval episode but met the gate in only 14,
+  a per-step-gated fine-tune unlearned the stand-up within 2 M steps (success from the kneel 181 → 0,
+  gate 14 → 1 steps per episode: every small tilt paid the kneel reward, so it stayed kneeling). Latched,
+  the kneel keyframe (trunk 0.405 m, upright) is where the standing phase begins, as §4.8 describes it.
 reward per control step = Height + Pose − energy_weight·energy (then × ctrl_dt, as every task here).
 Fine-tunes: energy_weight > 0 (the energy fine-tune; 0 before it, §4.7), obs_noise_scale > 0 (the
 robustness fine-tune: U(−1, 1)·obs_noise_scale added to EVERY observation entry, §4.6; the seed's is 1).
@@ -44,6 +51,7 @@ from training import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
 from training.envs import start_path
+from sim_hil.config import FALLEN_TRUNK_HEIGHT_M
 from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import PREPARE_S, fallen_states
 
@@ -82,6 +90,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg = getup_common_config()
     cfg.stage = "full"
     cfg.energy_weight = 0.0
+    cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)
     cfg.stage2_fall_trunk_height_m = 0.35   # stage 2 ends when the trunk drops below this [m] (docstring)
     cfg.stage2_fall_up_z = 0.7              # ... or when the trunk's up_z falls below this (46° of tilt)
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
@@ -175,7 +184,10 @@ class GetupBase(base.T1Env):
 
     def _privileged_extra(self, info):
         """Critic extras of the getup tasks: gate met, ‖u − e_z‖."""
-        return jnp.stack([G.gate(info["trunk_height"], info["up"]).astype(jnp.float32), G.up_error(info["up"])])
+        return jnp.stack([self._critic_gate(info).astype(jnp.float32), G.up_error(info["up"])])
+
+    def _critic_gate(self, info):
+        return G.gate(info["trunk_height"], info["up"])
 
     def _start_info(self, rng, data, kind) -> dict:
         return {"rng": rng, "last_act": jnp.zeros(base.NUM_JOINTS), "start_kind": kind.astype(jnp.int32),
@@ -214,6 +226,22 @@ class Getup(GetupBase):
         # start_kind: the kneel is "kneeling"; a path start is counted with "standing" (it is on the way up)
         return qpos, jnp.zeros(self._mj_model.nv), jnp.where(at_kneel, 1, 2).astype(jnp.int32)
 
+    def _start_info(self, rng, data, kind) -> dict:
+        info = super()._start_info(rng, data, kind)
+        info["gate"] = self.gate_state(info, jnp.zeros((), dtype=bool))
+        return info
+
+    def gate_state(self, info, was_on) -> jax.Array:
+        """The gate the full task's rewards use: §4.8's per-step condition, latched from the step it first
+        holds until the trunk is down (config.gate_latches; the module docstring says why)."""
+        now = G.gate(info["trunk_height"], info["up"])
+        if not self._config.get("gate_latches", True):
+            return now
+        return (now | was_on) & (info["trunk_height"] >= FALLEN_TRUNK_HEIGHT_M)
+
+    def _critic_gate(self, info):
+        return info["gate"]      # the reward's phase, which the critic cannot infer from one state
+
     def start_probabilities(self):
         stage = self._config.stage
         return {"stage1": [1.0, 0.0, 0.0], "stage2": [0.0, 1.0, 0.0]}.get(stage, list(self._config.start_probs))
@@ -240,7 +268,7 @@ class Getup(GetupBase):
         kneel_p = G.pose_reward(q, self._kneel_pose)
         stand_h = self.height_orientation(info, self._standing_targets)
         stand_p = G.pose_reward(q, self._default_pose)
-        ok = G.gate(info["trunk_height"], info["up"])
+        ok = info["gate"]
         if stage == "stage1":
             height, pose = kneel_h, kneel_p
         elif stage == "stage2":
@@ -252,6 +280,7 @@ class Getup(GetupBase):
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         data, info, k_obs = self._physics(state, action)
+        info["gate"] = self.gate_state(info, state.info["gate"])
         terms = self.reward_terms(data, info)
         scaled = {"height": terms["height"], "pose": terms["pose"],
                   "energy": -self._config.energy_weight * terms["energy"]}

@@ -13,11 +13,9 @@ Gated terms (§4.8):
     Height Reward = (1 − gate)·HO(kneel targets) + gate·(1.83 + HO(standing targets: torso 0.67, waist 0.55))
     Pose Reward   = (1 − gate)·pose(q, q_kneel)  + gate·(0.6 + 100·pose(q, q_init))   (q_init: standing pose)
 
-Choice where the seed is silent — the gate does NOT latch: it is evaluated on every step's state, as the
-seed's formulas are written (a per-step function of h_torso and u), and §4.8 takes min(h_torso, 0.4) "to
-ensure the gate condition remains stable as the robot continues to rise", which is only needed if the
-gate is re-evaluated while rising. A robot that tilts or drops below 0.395 m after passing the gate is
-back on the keyframe reward, which is exactly the incentive to stay upright through the stand-up.
+`gate` is the per-step condition exactly as written. Whether it latches, the seed does not say: the getup
+env (training/envs/getup.py) latches it, with the measurement that made us choose so (a per-step gate,
+our first choice, unlearned the stand-up: a standing robot is rarely within 0.573° of vertical).
 """
 from __future__ import annotations
 
