@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 
@@ -100,17 +101,34 @@ TEST(TimingStats, LastMeanP99Max) {
   EXPECT_DOUBLE_EQ(t.max(), 100);
 }
 
-TEST(PeriodicTask, KeepsTheRate) {
+// Behaviour only (lower bounds): how far past a deadline the OS wakes us depends on the machine's load,
+// so the rate itself is measured by `make bench`, not asserted here.
+TEST(PeriodicTask, NeverWakesBeforeItsAbsoluteDeadline) {
   PeriodicTask task(kLoopPeriodNs);
-  task.start();
   const int64_t t0 = monotonic_ns();
+  task.start();
   for (int i = 0; i < 50; ++i) {
-    task.wait_next();
+    // Deadlines are absolute and a re-phase after an overrun only moves them later, so tick i never
+    // wakes before the (i+1)-th grid point after start, however late earlier ticks were.
+    EXPECT_GE(task.wait_next(), t0 + (i + 1) * kLoopPeriodNs) << "tick " << i;
     task.end_compute();
   }
-  const double elapsed_s = (monotonic_ns() - t0) * 1e-9;
-  EXPECT_NEAR(elapsed_s, 50 * kLoopDtS, 0.02);
+  EXPECT_GE(monotonic_ns() - t0, 50 * kLoopPeriodNs);
   EXPECT_EQ(task.lateness().count(), 50);
+  EXPECT_EQ(task.compute().count(), 50);
+}
+
+TEST(PeriodicTask, MissedPeriodIsCountedAndRePhasedWithoutABurst) {
+  PeriodicTask task(kLoopPeriodNs);
+  task.start();
+  task.wait_next();
+  const int64_t overruns_before = task.overruns();  // a loaded machine may already have overrun
+  const timespec stall{0, static_cast<long>(3 * kLoopPeriodNs)};  // a tick that overruns by > 1 period
+  nanosleep(&stall, nullptr);
+  const int64_t late_wake_ns = task.wait_next();
+  EXPECT_EQ(task.overruns(), overruns_before + 1);
+  // No catch-up burst: the tick after the overrun still waits a whole period.
+  EXPECT_GE(task.wait_next() - late_wake_ns, kLoopPeriodNs);
 }
 
 // Golden vectors written by training/observation.py + training/export.py.
