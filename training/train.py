@@ -19,7 +19,7 @@ from typing import Any, Sequence
 
 from ml_collections import config_dict
 
-from training import checkpoints, curves
+from training import checkpoints, curves, ppo_networks
 from training.checkpoints import REPO_ROOT
 from training.cli import apply_overrides
 
@@ -49,6 +49,10 @@ def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
         # exploration: the sampling std × this (1 = brax's tanh-normal, std ≈ 0.69 at init). The same
         # pre-tanh noise moves a getup target 4× as far as a joystick one (action scale 2 vs 0.5 rad)
         policy_std_scale=1.0,
+        # steps at the start of a run in which only the critic learns (the policy gets no gradient): a
+        # fine-tune on new starts first fits the value of states the pretrained critic never saw, so the
+        # first policy updates do not follow its errors (issue 14: full getup from stage 2)
+        value_warmup_steps=0,
         checkpoint_every_steps=10_000_000,  # one epoch ≈ 1 min on an H100 at ~150k env-steps/s
         run_evals=True, num_eval_envs=128, deterministic_eval=True,
         log_training_metrics=True, training_metrics_steps=1_000_000,
@@ -90,37 +94,6 @@ class TrainResult:
 
 class _StopAtCheckpoint(Exception):
     """Raised from brax's policy_params_fn after a checkpoint when the time box is spent."""
-
-
-def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observations_fn=None,
-                                policy_hidden_layer_sizes=(512, 256, 128), value_hidden_layer_sizes=(512, 256, 128),
-                                policy_obs_key="state", value_obs_key="state", policy_std_scale: float = 1.0):
-    """brax's make_ppo_networks, its tanh-normal policy's std multiplied by policy_std_scale (brax's own
-    NormalTanhDistribution var_scale; make_ppo_networks does not pass it on). Only sampling and the PPO
-    log-probabilities change: the parameters, checkpoints and exported means are brax's. Every keyword is
-    named here so that brax's checkpoint network_config records it."""
-    from brax.training import distribution
-    from brax.training.agents.ppo import networks as ppo_networks
-    from brax.training.types import identity_observation_preprocessor
-    nets = ppo_networks.make_ppo_networks(
-        observation_size, action_size,
-        preprocess_observations_fn=preprocess_observations_fn or identity_observation_preprocessor,
-        policy_hidden_layer_sizes=policy_hidden_layer_sizes, value_hidden_layer_sizes=value_hidden_layer_sizes,
-        policy_obs_key=policy_obs_key, value_obs_key=value_obs_key)
-    if policy_std_scale == 1.0:
-        return nets
-    return nets.replace(parametric_action_distribution=distribution.NormalTanhDistribution(
-        event_size=action_size, var_scale=policy_std_scale))
-
-
-def _network_factory(cfg):
-    return functools.partial(
-        ppo_networks_with_std_scale,
-        policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),
-        value_hidden_layer_sizes=tuple(cfg.value_hidden_layer_sizes),
-        policy_obs_key=cfg.policy_obs_key, value_obs_key=cfg.value_obs_key,
-        # runs recorded before the knob existed sampled with brax's std
-        policy_std_scale=float(cfg.get("policy_std_scale", 1.0)))
 
 
 def _randomization(cfg, env=None, seed: int = 0):
@@ -242,8 +215,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
 
     env = make_env(task, env_cfg)
     offset, target = int(state["env_steps"]), int(state["target_steps"])
-    remaining = max(0, target - offset)
-    factory = _network_factory(ppo_cfg)
+    factory = ppo_networks.network_factory(ppo_cfg)
     from brax.training import checkpoint as brax_checkpoint
     net_cfg = brax_checkpoint.network_config(
         observation_size={k: tuple(v) for k, v in env.observation_size.items()},
@@ -255,9 +227,10 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
                     desc=state["name"], dynamic_ncols=True)
     clock = {"last_epoch_end": time.monotonic(), "epoch_s": 0.0, "sps": []}
     latest = {"params": restore, "steps": offset}
+    phase = {"offset": offset}   # env steps before the running ppo.train call (which counts from 0)
 
     def progress_fn(step, metrics):
-        total = offset + int(step)
+        total = phase["offset"] + int(step)
         recorded = log.log(total, metrics)
         for key in ("training/sps", "episode/sps"):  # per epoch / per training step
             if key in recorded:
@@ -272,7 +245,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
             return
         now = time.monotonic()
         clock["epoch_s"], clock["last_epoch_end"] = now - clock["last_epoch_end"], now
-        total = offset + int(step)
+        total = phase["offset"] + int(step)
         checkpoints.save_checkpoint(run_dir, total, params, net_cfg)
         latest.update(params=params, steps=total)
         state["env_steps"] = total
@@ -280,30 +253,39 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
         if max_minutes is not None and now - t_start + clock["epoch_s"] > 60.0 * max_minutes:
             raise _StopAtCheckpoint()
 
+    def run_ppo(num_steps: int, network_factory):
+        phase["offset"] = latest["steps"]
+        ppo.train(
+            environment=env, num_timesteps=num_steps, num_envs=ppo_cfg.num_envs,
+            episode_length=int(env_cfg.episode_length),
+            wrap_env_fn=functools.partial(wrapper.wrap_for_brax_training, full_reset=bool(ppo_cfg.full_reset)),
+            seed=seed + phase["offset"],
+            learning_rate=ppo_cfg.learning_rate, entropy_cost=ppo_cfg.entropy_cost,
+            discounting=ppo_cfg.discounting, unroll_length=ppo_cfg.unroll_length,
+            batch_size=ppo_cfg.batch_size, num_minibatches=ppo_cfg.num_minibatches,
+            num_updates_per_batch=ppo_cfg.num_updates_per_batch,
+            num_resets_per_eval=ppo_cfg.num_resets_per_eval,
+            normalize_observations=ppo_cfg.normalize_observations, reward_scaling=ppo_cfg.reward_scaling,
+            clipping_epsilon=ppo_cfg.clipping_epsilon, max_grad_norm=ppo_cfg.max_grad_norm,
+            network_factory=network_factory, num_evals=_epochs(ppo_cfg, num_steps),
+            run_evals=ppo_cfg.run_evals, num_eval_envs=ppo_cfg.num_eval_envs,
+            deterministic_eval=ppo_cfg.deterministic_eval,
+            log_training_metrics=ppo_cfg.log_training_metrics,
+            training_metrics_steps=ppo_cfg.training_metrics_steps,
+            progress_fn=progress_fn, policy_params_fn=policy_params_fn,
+            randomization_fn=_randomization(ppo_cfg, env, seed + phase["offset"]),
+            restore_params=None if latest["params"] is None else tuple(latest["params"]))
+
+    # (end step, networks): the critic-only warm-up, then PPO proper
+    warmup_end = min(target, int(ppo_cfg.get("value_warmup_steps", 0)))
+    phases = ((warmup_end, ppo_networks.frozen_policy_factory(factory)), (target, factory))
     stopped = False
-    if remaining > 0:
-        wrap = functools.partial(wrapper.wrap_for_brax_training, full_reset=bool(ppo_cfg.full_reset))
-        try:
-            ppo.train(
-                environment=env, num_timesteps=remaining, num_envs=ppo_cfg.num_envs,
-                episode_length=int(env_cfg.episode_length), wrap_env_fn=wrap, seed=seed + offset,
-                learning_rate=ppo_cfg.learning_rate, entropy_cost=ppo_cfg.entropy_cost,
-                discounting=ppo_cfg.discounting, unroll_length=ppo_cfg.unroll_length,
-                batch_size=ppo_cfg.batch_size, num_minibatches=ppo_cfg.num_minibatches,
-                num_updates_per_batch=ppo_cfg.num_updates_per_batch,
-                num_resets_per_eval=ppo_cfg.num_resets_per_eval,
-                normalize_observations=ppo_cfg.normalize_observations, reward_scaling=ppo_cfg.reward_scaling,
-                clipping_epsilon=ppo_cfg.clipping_epsilon, max_grad_norm=ppo_cfg.max_grad_norm,
-                network_factory=factory, num_evals=_epochs(ppo_cfg, remaining),
-                run_evals=ppo_cfg.run_evals, num_eval_envs=ppo_cfg.num_eval_envs,
-                deterministic_eval=ppo_cfg.deterministic_eval,
-                log_training_metrics=ppo_cfg.log_training_metrics,
-                training_metrics_steps=ppo_cfg.training_metrics_steps,
-                progress_fn=progress_fn, policy_params_fn=policy_params_fn,
-                randomization_fn=_randomization(ppo_cfg, env, seed + offset),
-                restore_params=None if restore is None else tuple(restore))
-        except _StopAtCheckpoint:
-            stopped = True
+    try:
+        for end, network_factory in phases:
+            if end > latest["steps"]:
+                run_ppo(end - latest["steps"], network_factory)
+    except _StopAtCheckpoint:
+        stopped = True
     bar.close()
     minutes = (time.monotonic() - t_start) / 60.0
     steady = clock["sps"][1:]  # the first epoch includes jit compilation

@@ -1,0 +1,53 @@
+"""The PPO networks of every run: brax's, with the sampling std scaled, and a frozen-policy variant for
+the critic warm-up. The factory's keywords are what brax's checkpoint network_config records."""
+from __future__ import annotations
+
+import functools
+
+
+def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observations_fn=None,
+                                policy_hidden_layer_sizes=(512, 256, 128), value_hidden_layer_sizes=(512, 256, 128),
+                                policy_obs_key="state", value_obs_key="state", policy_std_scale: float = 1.0):
+    """brax's make_ppo_networks, its tanh-normal policy's std multiplied by policy_std_scale (brax's own
+    NormalTanhDistribution var_scale; make_ppo_networks does not pass it on). Only sampling and the PPO
+    log-probabilities change: the parameters, checkpoints and exported means are brax's. Every keyword is
+    named here so that brax's checkpoint network_config records it."""
+    from brax.training import distribution
+    from brax.training.agents.ppo import networks as brax_ppo_networks
+    from brax.training.types import identity_observation_preprocessor
+    nets = brax_ppo_networks.make_ppo_networks(
+        observation_size, action_size,
+        preprocess_observations_fn=preprocess_observations_fn or identity_observation_preprocessor,
+        policy_hidden_layer_sizes=policy_hidden_layer_sizes, value_hidden_layer_sizes=value_hidden_layer_sizes,
+        policy_obs_key=policy_obs_key, value_obs_key=value_obs_key)
+    if policy_std_scale == 1.0:
+        return nets
+    return nets.replace(parametric_action_distribution=distribution.NormalTanhDistribution(
+        event_size=action_size, var_scale=policy_std_scale))
+
+
+def network_factory(cfg):
+    """The run's network factory from its PPO config (training/train.py ppo_config)."""
+    return functools.partial(
+        ppo_networks_with_std_scale,
+        policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),
+        value_hidden_layer_sizes=tuple(cfg.value_hidden_layer_sizes),
+        policy_obs_key=cfg.policy_obs_key, value_obs_key=cfg.value_obs_key,
+        # runs recorded before the knob existed sampled with brax's std
+        policy_std_scale=float(cfg.get("policy_std_scale", 1.0)))
+
+
+def frozen_policy_factory(factory):
+    """The same networks, with no gradient into the policy's parameters: PPO's loss then trains only the
+    critic (value warm-up). Sampling, checkpoints and exports are unchanged."""
+    import jax
+    from brax.training import networks
+
+    def make(*args, **kwargs):
+        nets = factory(*args, **kwargs)
+        policy = nets.policy_network
+        frozen = networks.FeedForwardNetwork(
+            init=policy.init,
+            apply=lambda processor, params, *a, **k: policy.apply(processor, jax.lax.stop_gradient(params), *a, **k))
+        return nets.replace(policy_network=frozen)
+    return make
