@@ -201,9 +201,17 @@ def test_toy_distill_exports_student(toy_runs):
     # the toy run used distill's default env: the unified walk–fall–getup task
     assert cli.build_parser().parse_args(["distill", "--getup", "g", "--joystick", "j", "--out", "o"]).task == "unified"
     layers, _, _, manifest = read_artifact(toy_runs["student"] / "student.safetensors")
-    assert manifest["output_rule"] == "tanh_normal" and manifest["trained"] is False
+    # the seed's raw actions (no tanh squash): the loc half of brax's head, output rule linear
+    assert manifest["output_rule"] == "linear" and manifest["trained"] is False
     assert [tuple(t) for t in manifest["obs_terms"]] == list(obsdef.TERMS_UNION)
-    assert layers[-1][0].shape[0] == 2 * obsdef.NUM_JOINTS and manifest["provenance"]["steps"] > 0
+    assert layers[-1][0].shape[0] == obsdef.NUM_JOINTS and manifest["provenance"]["steps"] > 0
+
+
+def test_dagger_beta_is_the_seeds_step_function():
+    from training.distill import bc_config, beta_schedule
+    beta = beta_schedule(bc_config().beta_teacher_phases)
+    assert [float(beta(step)) for step in (0, 1, 2, 999)] == [1.0, 0.0, 0.0, 0.0]
+    assert float(beta_schedule(3)(2)) == 1.0 and float(beta_schedule(3)(3)) == 0.0
 
 
 @pytest.mark.slow

@@ -1,8 +1,9 @@
 """Student distillation: brax `bc` online DAgger from the stitched teacher (training/teacher.py).
 
-Defaults are the seed's Table 5.2: 1024 envs, demo length 6, β 1 → 0 (probability that the teacher's
-action is executed; linear over the first `beta_decay_fraction` of the DAgger phases, then 0), batch 256,
-lr 4e-4, 4 epochs per phase, normalised observations. The student sees the full term layout
+Defaults are the seed's Table 5.2 and Algorithm 1: 1024 envs, demo length 6, β 1 → 0 as a step function
+(the teacher's action is executed in the first DAgger phase only, `jp.where(step == 0, 1, 0)`), batch 256,
+lr 4e-4, 4 epochs per phase, normalised observations, no tanh squash (raw actions), scramble time = the
+episode length (1000), evaluation rollouts 1.15 × the episode length. The student sees the full term layout
 (training/observation.py TERMS_UNION) so one network can walk and get up; the env is built with
 obs_terms = TERMS_UNION, and the privileged waist height rides along in the observation dict for the
 teacher only. The default env is `unified` (training/envs/unified.py: fallen / kneeling / standing starts,
@@ -10,9 +11,9 @@ joystick commands and pushes, falls not terminal), so the student sees both expe
 hand-overs between them, as the seed's student does; `task` picks another env (e.g. getup or joystick).
 
 Export: brax bc's policy network is the PPO policy MLP with a NormalTanhDistribution head (2·23 outputs:
-loc, scale). With tanh_squash (brax default, kept here) the student's action is tanh(loc) — exactly the
-artifact's `tanh_normal` rule, exported unchanged. With tanh_squash=False brax acts with `loc` itself;
-that is exported as output rule `linear` with the last layer cut to its first 23 rows (the `loc` half).
+loc, scale). Without tanh squash (the seed's choice) brax acts with `loc` itself: exported as output rule
+`linear` with the last layer cut to its first 23 rows (the `loc` half). With `bc.tanh_squash=True` the
+action is tanh(loc), the artifact's `tanh_normal` rule, exported unchanged.
 """
 from __future__ import annotations
 
@@ -35,9 +36,12 @@ DEFAULT_TASK = "unified"  # the whole walk–fall–getup task (training/envs/un
 def bc_config(preset: str = "gpu") -> config_dict.ConfigDict:
     cfg = config_dict.create(
         num_envs=1024, demo_length=6, batch_size=256, learning_rate=4e-4, epochs=4,
-        normalize_observations=True, dagger_steps=1000, beta_decay_fraction=0.5, num_evals=11,
-        num_eval_envs=128, eval_length=0,  # 0: the env's episode_length
-        scramble_time=0, reset=True, tanh_squash=True, policy_hidden_layer_sizes=(512, 256, 128))
+        normalize_observations=True, dagger_steps=1000,
+        beta_teacher_phases=1,  # β = 1 for this many DAgger phases, then 0 (the seed's step function)
+        num_evals=11,  # the initial evaluation + the seed's 10
+        num_eval_envs=128, eval_length_factor=1.15,  # × the env's episode length (Table 5.2: 1150 of 1000)
+        scramble_time=0,  # 0: the env's episode length (Table 5.2: 1000)
+        reset=True, tanh_squash=False, policy_hidden_layer_sizes=(512, 256, 128))
     if preset == "toy":
         cfg.update(dict(num_envs=8, demo_length=2, batch_size=8, dagger_steps=4, num_evals=0, num_eval_envs=4,
                         epochs=1, policy_hidden_layer_sizes=(16, 16)))
@@ -59,11 +63,11 @@ class _Stop(Exception):
     pass
 
 
-def beta_schedule(dagger_steps: int, decay_fraction: float):
-    """β(step): 1 at the first phase, linearly to 0 at decay_fraction·dagger_steps, 0 after."""
+def beta_schedule(teacher_phases: int):
+    """β(step) = probability that the teacher's action is executed: 1 in the first `teacher_phases` DAgger
+    phases, then 0 (the seed's Algorithm 1 with teacher_phases = 1)."""
     import jax.numpy as jnp
-    span = max(1.0, decay_fraction * dagger_steps)
-    return lambda step: jnp.clip(1.0 - step / span, 0.0, 1.0)
+    return lambda step: jnp.where(step < teacher_phases, 1.0, 0.0)
 
 
 class WaistObservation:
@@ -173,10 +177,10 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
             demo_length=cfg.demo_length, teacher_inference_fn=teacher,
             normalize_observations=cfg.normalize_observations, epochs=cfg.epochs, tanh_squash=cfg.tanh_squash,
             env=wrapped, num_envs=cfg.num_envs, num_eval_envs=cfg.num_eval_envs,
-            eval_length=int(cfg.eval_length or episode_length), batch_size=cfg.batch_size,
+            eval_length=round(cfg.eval_length_factor * episode_length), batch_size=cfg.batch_size,
             scramble_time=cfg.scramble_time or episode_length, network_factory=factory, progress_fn=progress_fn,
             seed=seed, learning_rate=cfg.learning_rate, dagger_steps=cfg.dagger_steps,
-            dagger_beta_fn=beta_schedule(cfg.dagger_steps, cfg.beta_decay_fraction), num_evals=cfg.num_evals,
+            dagger_beta_fn=beta_schedule(cfg.beta_teacher_phases), num_evals=cfg.num_evals,
             reset=cfg.reset, save_checkpoint_path=str(ckpt_root))
     except _Stop:
         stopped = True
