@@ -96,7 +96,7 @@ EVAL_POLICY   ?= $(firstword $(wildcard policies/student.safetensors) policies/s
 EVAL_BASELINE ?=
 EVAL_ARGS     ?=
 EVAL_FLAGS     = --policy $(EVAL_POLICY) $(if $(EVAL_BASELINE),--baseline $(EVAL_BASELINE)) $(EVAL_ARGS)
-.PHONY: eval-getup eval-push eval-wall eval-puddle eval-walk
+.PHONY: eval-getup eval-push eval-wall eval-puddle eval-walk eval-fig51
 # The joystick expert's walking targets (standing starts: forward, stand, turn, forward in realtime). One
 # job: the realtime trial must not share the two cores with a lockstep one.
 WALK_POLICY ?= policies/joystick.safetensors
@@ -110,3 +110,7 @@ eval-wall: build
 	$(NETNS) $(PY) -m sim_hil.eval wall $(EVAL_FLAGS)
 eval-puddle: build
 	$(NETNS) $(PY) -m sim_hil.eval puddle $(EVAL_FLAGS)
+# The seed's Fig. 5.1 in the loop: seed 62, fallen, 0.4 m/s forward; the stitched teacher beside the student.
+EVAL_TEACHER ?= policies/getup.safetensors,policies/joystick.safetensors
+eval-fig51: build
+	$(NETNS) $(PY) -m sim_hil.eval fig5.1 $(EVAL_FLAGS) --teacher $(EVAL_TEACHER)

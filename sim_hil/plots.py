@@ -13,27 +13,41 @@ from sim_hil import config  # noqa: E402
 
 
 def plot_heights_and_velocity(series: dict[str, dict[str, list[float]]], path: Path, title: str,
-                              command_vx: list[tuple[float, float]] | None = None) -> Path:
-    """series: label -> {"t": [s], "trunk": [m], "waist": [m], "vx": [m/s]} (one line per label)."""
-    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
-    for label, s in series.items():
+                              command_vx: list[tuple[float, float]] | None = None,
+                              side_by_side: bool = False) -> Path:
+    """series: label -> {"t": [s], "trunk": [m], "waist": [m], "vx": [m/s]}: one line per label in one column,
+    or (side_by_side, as the seed's Fig. 5.1) one column per label on shared axes."""
+    columns = len(series) if side_by_side and series else 1
+    fig, grid = plt.subplots(3, columns, figsize=(4 * columns + 2 if columns > 1 else 8, 7), sharex=True,
+                             sharey="row", squeeze=False)
+    for col, (label, s) in enumerate(series.items()):
+        axes = grid[:, col if side_by_side else 0]
         axes[0].plot(s["t"], s["trunk"], label=label)
         axes[1].plot(s["t"], s["waist"], label=label)
         axes[2].plot(s["t"], s["vx"], label=label)
-    axes[0].axhline(config.FALLEN_TRUNK_HEIGHT_M, color="grey", ls=":", lw=1, label="fallen below")
-    axes[1].axhline(config.GETUP_SWITCH_WAIST_HEIGHT_M, color="grey", ls="--", lw=1,
-                    label="teacher switch (getup below)")
-    if command_vx:
-        ts, vs = zip(*command_vx)
-        axes[2].step(ts, vs, where="post", color="k", ls="--", lw=1, label="command vx")
-    axes[0].set_ylabel("trunk height [m]")
-    axes[1].set_ylabel("waist height [m]")
-    axes[2].set_ylabel("forward velocity [m/s]")
-    axes[2].set_xlabel("time [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8)
-    axes[0].set_title(title)
+        if side_by_side:
+            axes[0].set_title(label)
+    for axes in grid.T:
+        axes[0].axhline(config.FALLEN_TRUNK_HEIGHT_M, color="grey", ls=":", lw=1, label="fallen below")
+        axes[1].axhline(config.GETUP_SWITCH_WAIST_HEIGHT_M, color="grey", ls="--", lw=1,
+                        label="teacher switch (getup below)")
+        if command_vx:
+            ts, vs = map(list, zip(*command_vx))
+            t_end = max((s["t"][-1] for s in series.values() if s["t"]), default=ts[-1])
+            if t_end > ts[-1]:      # the last command holds to the end (a step needs its end point)
+                ts, vs = ts + [t_end], vs + [vs[-1]]
+            axes[2].step(ts, vs, where="post", color="k", ls="--", lw=1, label="command vx")
+        axes[2].set_xlabel("time [s]")
+        for ax in axes:
+            ax.grid(alpha=0.3)
+            ax.legend(loc="upper right", fontsize=8)
+    grid[0, 0].set_ylabel("trunk height [m]")
+    grid[1, 0].set_ylabel("waist height [m]")
+    grid[2, 0].set_ylabel("forward velocity [m/s]")
+    if columns > 1:
+        fig.suptitle(title)
+    else:
+        grid[0, 0].set_title(title)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)

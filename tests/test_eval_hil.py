@@ -11,6 +11,7 @@ import sys
 import numpy as np
 import pytest
 
+from sim_hil.eval import plans
 from sim_hil.eval.plans import PUSH_AT_S
 from sim_hil.launch import ROOT, _env
 from training import observation as obsdef
@@ -64,3 +65,44 @@ def test_scenario_one_trial_writes_report(scenario, baseline, tmp_path, netns):
         assert trial["runtime_faults"] == "", trial["runtime_faults"]
     if scenario == "push":
         assert results["trials"][0]["spec"]["faults"].startswith("push:x=")
+
+
+def test_fig51_is_the_seeds_figure_setup():
+    plan = plans.PLANS["fig5.1"]
+    [spec] = plan.specs(plan.default_trials, plan.default_seconds, plan.seed0)
+    assert (spec.seed, spec.spawn, spec.command_vx_mps) == (62, "fallen:62", 0.4)
+    assert spec.prepare_s == 2.0 and plan.side_by_side
+
+
+def test_fig51_forward_velocity_counts_only_once_standing():
+    from t1 import joint_command_t
+    from sim_hil import model as t1model
+    from sim_hil.eval.metrics import TickLog
+    from sim_hil.eval.trial import TrialSpec, summarise
+    n, start, up = 3000, 100, 1000                     # 6 s at 2 ms: POLICY from 0.2 s, up from 2 s
+    log = TickLog(t1model.load_model(), n)
+    log.t[:] = np.arange(n) * 0.002
+    log.mode[start:] = joint_command_t.MODE_POLICY
+    log.trunk[:], log.up_z[:], log.fwd_vel[:] = 0.15, 0.1, -0.5   # lying, sliding back
+    log.trunk[up:], log.up_z[up:], log.fwd_vel[up:] = 0.66, 1.0, 0.4
+    spec = plans.fig51_specs(1, 6.0, plans.FIG51_SEED)[0]
+    row = plans.fig51_rows([summarise(spec, "student", log, None)])
+    assert row["stood up"] == "1/1" and row["getup attempts"] == "1.00"
+    assert row["forward velocity once standing [m/s]"] == "0.40"
+
+
+@pytest.mark.slow
+def test_fig51_teacher_and_student_side_by_side(baseline, tmp_path, netns):
+    """The untrained placeholders stand in for the experts: the plumbing, and a report that claims nothing."""
+    out = tmp_path / "fig51"
+    cmd = [sys.executable, "-m", "sim_hil.eval", "fig5.1", "--policy", str(STUDENT),
+           "--teacher", f"{baseline[0]},{baseline[1]}", "--seconds", "2.5", "--no-video", "--out", str(out)]
+    run = subprocess.run(cmd, cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=150)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    results = json.loads((out / "results.json").read_text())
+    assert set(results["rows"]) == {"student", "teacher"}
+    assert {t["spec"]["seed"] for t in results["trials"]} == {62}
+    assert all(t["policy_start_s"] is not None for t in results["trials"])
+    report = (out / "report.md").read_text()
+    assert "teacher getup: UNTRAINED" in report and "No result is claimed" in report
+    assert "forward velocity once standing [m/s]" in report and (out / "plots.png").stat().st_size > 0

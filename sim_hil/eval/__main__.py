@@ -1,7 +1,8 @@
-"""`python -m sim_hil.eval <getup|push|wall|puddle> --policy STUDENT [--baseline GETUP,JOYSTICK] ...`
+"""`python -m sim_hil.eval <scenario> --policy STUDENT [--baseline GETUP,JOYSTICK] [--teacher GETUP,JOYSTICK] ...`
 
-Seeded lockstep trials of the student (one artifact) and, with --baseline, the baseline composite (getup
-expert below waist 0.5 m, joystick policy above: t1-runtime --policy-upright). Writes report.md, plots.png,
+Seeded lockstep trials of the student (one artifact) and, with --baseline / --teacher, a composite (getup
+policy below waist 0.5 m, joystick policy above: t1-runtime --policy-upright): the baseline composite of
+chapter 6, or the stitched teacher the student was distilled from (fig5.1: the seed's Fig. 5.1). Writes report.md, plots.png,
 video.mp4 and results.json under --out (default out/eval/<scenario>). Run inside tools/netns (make eval-*).
 Two trials run at once at most (--jobs), each sim+runtime pair on its own LCM port.
 """
@@ -31,9 +32,11 @@ def parse_args(argv):
     ap.add_argument("--policy", type=Path, required=True, help="student artifact (*.safetensors)")
     ap.add_argument("--label", default="student", help="name of --policy in the report (e.g. joystick)")
     ap.add_argument("--baseline", default="", help="GETUP,JOYSTICK artifacts of the baseline composite")
+    ap.add_argument("--teacher", default="", help="GETUP,JOYSTICK artifacts of the stitched teacher (experts)")
     ap.add_argument("--trials", type=int, default=None, help="trials per policy (default: the scenario's)")
     ap.add_argument("--seconds", type=float, default=None, help="sim seconds per trial (default: the scenario's)")
-    ap.add_argument("--seed", type=int, default=0, help="first trial seed (trial i uses seed + i)")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="first trial seed (trial i uses seed + i; default: the scenario's, 0 or fig5.1's 62)")
     ap.add_argument("--jobs", type=int, default=MAX_JOBS, help=f"parallel trials, 1..{MAX_JOBS}")
     ap.add_argument("--out", type=Path, default=None, help="default: out/eval/<scenario>")
     ap.add_argument("--no-video", action="store_true", help="skip the mp4 (rendering costs ~0.1 s per frame)")
@@ -48,12 +51,16 @@ def parse_args(argv):
         ap.error(f"--seconds {args.seconds}: must be > 0")
     if not 1 <= args.jobs <= MAX_JOBS:
         ap.error(f"--jobs {args.jobs}: must be 1..{MAX_JOBS}")
+    args.seed = plan.seed0 if args.seed is None else args.seed
     controllers = [Controller(args.label, args.policy)]
-    if args.baseline:
-        parts = [p.strip() for p in args.baseline.split(",")]
+    for flag, label in (("baseline", "baseline"), ("teacher", "teacher")):
+        value = getattr(args, flag)
+        if not value:
+            continue
+        parts = [p.strip() for p in value.split(",")]
         if len(parts) != 2 or not all(parts):
-            ap.error(f"--baseline {args.baseline!r}: expected GETUP.safetensors,JOYSTICK.safetensors")
-        controllers.append(Controller("baseline", Path(parts[0]), Path(parts[1])))
+            ap.error(f"--{flag} {value!r}: expected GETUP.safetensors,JOYSTICK.safetensors")
+        controllers.append(Controller(label, Path(parts[0]), Path(parts[1])))
     for c in controllers:
         for p in (c.policy, c.upright):
             if p is not None and not p.is_file():

@@ -35,6 +35,11 @@ WALL_TRIALS = 5
 WALL_COMMAND_MPS = 0.4
 WALL_FINISH_BEHIND_LAST_M = 1.0  # finish line this far past the last wall's centre
 WALL_SECONDS = 60.0             # 15 m at 0.4 m/s is 37.5 s; the rest is time to fall and get up
+# fig5.1: the seed's Fig. 5.1 (§5): one fallen start (seed 62), 0.4 m/s forward from the start, teacher and
+# student side by side: trunk height, waist height, forward velocity
+FIG51_SEED = 62
+FIG51_COMMAND_MPS = 0.4
+FIG51_SECONDS = 20.0            # 2 s PREPARE ramp, up to 10 s to get up, the rest walking
 # puddle: seeded layouts (μ 0.4), constant forward command (Tables 6.3-6.4)
 PUDDLE_TRIALS = 10
 PUDDLE_COMMAND_MPS = 0.4
@@ -67,6 +72,8 @@ class Plan:
     finish_x_m: float | None = None
     segment_edges_x: list[float] | None = None
     description: str = ""
+    side_by_side: bool = False      # plots.png: one column per controller (else one overlaid column)
+    seed0: int = 0                  # the first trial seed when --seed is not given
 
 
 def _fmt(values, digits=2, unit="") -> str:
@@ -186,6 +193,31 @@ def wall_rows(trials: list[TrialResult]) -> dict[str, str]:
     return {**row, **_common(trials)}
 
 
+# ---- fig5.1 ----------------------------------------------------------------------------------------------
+def fig51_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
+    return [TrialSpec("flat", seed0 + i, f"fallen:{seed0 + i}", seconds, command_vx_mps=FIG51_COMMAND_MPS)
+            for i in range(trials)]
+
+
+def _vx_once_standing(r: TrialResult) -> float:
+    """Mean forward velocity [m/s] from the stand-up (POLICY start + time to stand) to the end; nan if never up."""
+    if r.events is None or math.isnan(r.events.time_to_stand_s):
+        return math.nan
+    t, vx = np.asarray(r.plot["t"]), np.asarray(r.plot["vx"])
+    after = vx[t >= r.policy_start_s + r.events.time_to_stand_s]
+    return float(after.mean()) if after.size else math.nan
+
+
+def fig51_rows(trials: list[TrialResult]) -> dict[str, str]:
+    ev = _events(trials)
+    return {"stood up": f"{sum(e.success for e in ev)}/{len(trials)}",
+            "time to stand [s]": _fmt([e.time_to_stand_s for e in ev]),
+            "getup attempts": _fmt([e.attempts for e in ev]),
+            "forward velocity once standing [m/s]": _fmt([_vx_once_standing(r) for r in trials]),
+            "distance [m]": _fmt([r.final_x_m for r in trials], 1),
+            **_common(trials)}
+
+
 # ---- puddle ----------------------------------------------------------------------------------------------
 def puddle_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
     return [TrialSpec("puddles", seed0 + i, "standing", seconds, command_vx_mps=PUDDLE_COMMAND_MPS,
@@ -220,6 +252,9 @@ PLANS = {
                  segment_edges_x=wall_segment_edges(),
                  description=f"three 0.2 m walls at x = {', '.join(f'{x:g}' for x in wall_xs())} m, "
                              f"{WALL_COMMAND_MPS} m/s forward; finish line x = {wall_finish_x():g} m"),
+    "fig5.1": Plan("fig5.1", "flat", 1, FIG51_SECONDS, fig51_specs, fig51_rows, side_by_side=True, seed0=FIG51_SEED,
+                   description=f"the seed's Fig. 5.1: fallen start (seed {FIG51_SEED}), {FIG51_COMMAND_MPS} m/s "
+                               "forward from the start; teacher (--teacher) and student side by side"),
     "puddle": Plan("puddle", "puddles", PUDDLE_TRIALS, PUDDLE_SECONDS, puddle_specs, puddle_rows,
                    description=f"seeded puddle layouts (μ {sim_scenarios.PUDDLE_FRICTION}), "
                                f"{PUDDLE_COMMAND_MPS} m/s forward"),

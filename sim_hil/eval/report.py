@@ -40,13 +40,15 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
     rows = {label: plan.rows(trials_of) for label, trials_of in by_label.items()}
 
     # plot: trial 0 of every controller (the representative trial: the first seed, the same for all)
-    series = {label: min(rs, key=lambda r: r.spec.seed).plot for label, rs in by_label.items() if rs}
+    # (the teacher first, as the seed's Fig. 5.1 reads left to right: teacher, then students)
+    series = {label: min(rs, key=lambda r: r.spec.seed).plot
+              for label, rs in sorted(by_label.items(), key=lambda kv: kv[0] != "teacher") if rs}
     cmd_vx = results[0].spec.command_vx_mps if results else 0.0
     plot = plot_heights_and_velocity(
         series, out / "plots.png",
         f"{plan.name}: seed {min(r.spec.seed for r in results)} "
         "(" + ", ".join(f"{k} {'trained' if v else 'UNTRAINED'}" for k, v in flags.items()) + ")",
-        command_vx=[(0.0, cmd_vx)] if cmd_vx else None)
+        command_vx=[(0.0, cmd_vx)] if cmd_vx else None, side_by_side=plan.side_by_side)
 
     lines = [f"# Evaluation `{plan.name}`: {plan.description}", "",
              trained_line(flags), ""]
