@@ -74,21 +74,41 @@ def test_fig51_is_the_seeds_figure_setup():
     assert spec.prepare_s == 2.0 and plan.side_by_side
 
 
-def test_fig51_forward_velocity_counts_only_once_standing():
+def _lying_then_standing_log(n: int = 3000, policy_from: int = 100, up_from: int = 1000):
+    """A scripted trial log (2 ms ticks): POLICY from tick policy_from, lying and sliding back, standing
+    and walking at 0.4 m/s from tick up_from."""
     from t1 import joint_command_t
     from sim_hil import model as t1model
     from sim_hil.eval.metrics import TickLog
-    from sim_hil.eval.trial import TrialSpec, summarise
-    n, start, up = 3000, 100, 1000                     # 6 s at 2 ms: POLICY from 0.2 s, up from 2 s
     log = TickLog(t1model.load_model(), n)
     log.t[:] = np.arange(n) * 0.002
-    log.mode[start:] = joint_command_t.MODE_POLICY
-    log.trunk[:], log.up_z[:], log.fwd_vel[:] = 0.15, 0.1, -0.5   # lying, sliding back
-    log.trunk[up:], log.up_z[up:], log.fwd_vel[up:] = 0.66, 1.0, 0.4
+    log.mode[policy_from:] = joint_command_t.MODE_POLICY
+    log.trunk[:], log.up_z[:], log.fwd_vel[:] = 0.15, 0.1, -0.5
+    log.trunk[up_from:], log.up_z[up_from:], log.fwd_vel[up_from:] = 0.66, 1.0, 0.4
+    log.base_x[:] = np.linspace(0.0, 20.0, n)       # crosses every wall segment and the finish line
+    return log
+
+
+def test_fig51_forward_velocity_counts_only_once_standing():
+    from sim_hil.eval.trial import summarise
     spec = plans.fig51_specs(1, 6.0, plans.FIG51_SEED)[0]
-    row = plans.fig51_rows([summarise(spec, "student", log, None)])
+    row = plans.fig51_rows([summarise(spec, "student", _lying_then_standing_log(), None)])
     assert row["stood up"] == "1/1" and row["getup attempts"] == "1.00"
     assert row["forward velocity once standing [m/s]"] == "0.40"
+
+
+@pytest.mark.parametrize("name", sorted(plans.PLANS))
+def test_every_seed_figure_names_a_row_of_its_report(name):
+    """The seed's figures are keyed by our row labels: a renamed row must not silently lose its seed value."""
+    from sim_hil.eval.seed_figures import SEED_FIGURES
+    from sim_hil.eval.trial import summarise
+    plan = plans.PLANS[name]
+    log = _lying_then_standing_log()
+    trials = [summarise(spec, "student", log, plan.finish_x_m, "", plan.segment_edges_x)
+              for spec in plan.specs(3, 6.0, plan.seed0)]
+    rows = plan.rows(trials)
+    assert set(SEED_FIGURES.get(name, {})) <= set(rows), set(SEED_FIGURES.get(name, {})) - set(rows)
+    assert all(isinstance(v, str) for t in trials for v in plan.trial_cells(t).values())
 
 
 @pytest.mark.slow

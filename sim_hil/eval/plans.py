@@ -69,6 +69,7 @@ class Plan:
     default_seconds: float
     specs: Callable[[int, float, int], list[TrialSpec]]     # (trials, seconds, seed0) -> specs
     rows: Callable[[list[TrialResult]], dict[str, str]]     # one controller's trials -> table cells
+    trial_cells: Callable[[TrialResult], dict[str, str]]    # one trial -> its cells in the per-trial table
     finish_x_m: float | None = None
     segment_edges_x: list[float] | None = None
     description: str = ""
@@ -187,6 +188,9 @@ def wall_rows(trials: list[TrialResult]) -> dict[str, str]:
     row = {"completion time [s]": _fmt([r.finish_time_s - r.policy_start_s for r in done], 1),
            "DNF": f"{len(trials) - len(done)}/{len(trials)}",
            "distance [m]": _fmt([r.final_x_m for r in trials], 1)}
+    attempts = [r.segment_attempts for r in trials if r.segment_attempts]
+    row["getup attempts per wall"] = _fmt([a for per_wall in attempts for a in per_wall])
+    row["getup attempts per trial"] = _fmt([sum(per_wall) for per_wall in attempts])
     for i in range(len(wall_xs())):
         row[f"wall {i + 1}: getup attempts"] = _fmt([r.segment_attempts[i] for r in trials if r.segment_attempts])
         row[f"wall {i + 1}: falls"] = _fmt([r.segment_falls[i] for r in trials if r.segment_falls])
@@ -235,27 +239,68 @@ def puddle_rows(trials: list[TrialResult]) -> dict[str, str]:
             **_common(trials)}
 
 
+# ---- per trial (the report's table beside the seed's per-trial tables) -----------------------------------
+def _n(value, digits=1) -> str:
+    return "—" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.{digits}f}"
+
+
+def _getup_cells(r: TrialResult) -> dict[str, str]:
+    e = r.events
+    return {"stood up": "—" if e is None else ("yes" if e.success else "no"),
+            "time to stand [s]": _n(e.time_to_stand_s if e else None, 2), "getup attempts": str(e.attempts) if e else "—"}
+
+
+def _push_cells(r: TrialResult) -> dict[str, str]:
+    e = r.events
+    return {"direction": r.spec.tag, "fell": "—" if e is None else ("yes" if e.falls else "no"),
+            "getup attempts": str(e.attempts) if e else "—", "up at the end": "—" if e is None else ("yes" if e.success else "no"),
+            "ran to stabilise": "yes" if r.ran_to_stabilise else "no"}
+
+
+def _walk_cells(r: TrialResult) -> dict[str, str]:
+    return {"condition": r.spec.tag, "fell": "—" if r.events is None else ("yes" if r.events.falls else "no"),
+            "distance [m]": _n(r.drift_m, 2), "heading turned [rad]": _n(r.yaw_turned_rad, 2)}
+
+
+def _wall_cells(r: TrialResult) -> dict[str, str]:
+    done = not math.isnan(r.finish_time_s)
+    return {"completion time [s]": _n(r.finish_time_s - r.policy_start_s) if done else "DNF",
+            "getup attempts (total)": str(sum(r.segment_attempts)) if r.segment_attempts else "—",
+            "per wall": ", ".join(map(str, r.segment_attempts)) or "—", "distance [m]": _n(r.final_x_m)}
+
+
+def _puddle_cells(r: TrialResult) -> dict[str, str]:
+    e = r.events
+    return {"slips": str(r.slips), "getup attempts": str(e.attempts) if e else "—",
+            "up at the end": "—" if e is None else ("yes" if e.success else "no"), "distance [m]": _n(r.final_x_m)}
+
+
+def _fig51_cells(r: TrialResult) -> dict[str, str]:
+    return {**_getup_cells(r), "forward velocity once standing [m/s]": _n(_vx_once_standing(r), 2),
+            "distance [m]": _n(r.final_x_m)}
+
+
 PLANS = {
-    "getup": Plan("getup", "flat", GETUP_TRIALS, GETUP_SECONDS, getup_specs, getup_rows,
+    "getup": Plan("getup", "flat", GETUP_TRIALS, GETUP_SECONDS, getup_specs, getup_rows, _getup_cells,
                   description="seeded fallen starts on flat ground, no command (Table 4.3 metrics)"),
-    "push": Plan("push", "flat", PUSH_FORWARD + PUSH_BACKWARD, PUSH_SECONDS, push_specs, push_rows,
+    "push": Plan("push", "flat", PUSH_FORWARD + PUSH_BACKWARD, PUSH_SECONDS, push_specs, push_rows, _push_cells,
                  description=f"standing, no command, one torso impulse of ±{PUSH_IMPULSE_NS:g} N·s at "
                              f"t = {PUSH_AT_S:g} s ({PUSH_FORWARD} forward, {PUSH_BACKWARD} backward)"),
-    "walk": Plan("walk", "flat", 1, WALK_SECONDS, walk_specs, walk_rows,
+    "walk": Plan("walk", "flat", 1, WALK_SECONDS, walk_specs, walk_rows, _walk_cells,
                  description=f"standing starts, {WALK_SECONDS:g} s each: {WALK_FORWARD_MPS} m/s forward, zero "
                              f"command, {WALK_YAW_RPS} rad/s yaw (lockstep), {WALK_FORWARD_MPS} m/s in realtime, "
                              f"{WALK_FORWARD_MPS} m/s with {WALK_YAW_RPS} rad/s, zero command from {WALK_STOP_AT:.0%} of the trial "
                              f"(lockstep); targets: forward ≥ {WALK_TARGETS['forward_m']:g} m, stand drift ≤ "
                              f"{WALK_TARGETS['stand_drift_m']:g} m, turn ≥ {WALK_TARGETS['turn_rad']:g} rad, "
                              "no fall"),
-    "wall": Plan("wall", "walls", WALL_TRIALS, WALL_SECONDS, wall_specs, wall_rows, finish_x_m=wall_finish_x(),
+    "wall": Plan("wall", "walls", WALL_TRIALS, WALL_SECONDS, wall_specs, wall_rows, _wall_cells, finish_x_m=wall_finish_x(),
                  segment_edges_x=wall_segment_edges(),
                  description=f"three 0.2 m walls at x = {', '.join(f'{x:g}' for x in wall_xs())} m, "
                              f"{WALL_COMMAND_MPS} m/s forward; finish line x = {wall_finish_x():g} m"),
-    "fig5.1": Plan("fig5.1", "flat", 1, FIG51_SECONDS, fig51_specs, fig51_rows, side_by_side=True, seed0=FIG51_SEED,
+    "fig5.1": Plan("fig5.1", "flat", 1, FIG51_SECONDS, fig51_specs, fig51_rows, _fig51_cells, side_by_side=True, seed0=FIG51_SEED,
                    description=f"the seed's Fig. 5.1: fallen start (seed {FIG51_SEED}), {FIG51_COMMAND_MPS} m/s "
                                "forward from the start; teacher (--teacher) and student side by side"),
-    "puddle": Plan("puddle", "puddles", PUDDLE_TRIALS, PUDDLE_SECONDS, puddle_specs, puddle_rows,
+    "puddle": Plan("puddle", "puddles", PUDDLE_TRIALS, PUDDLE_SECONDS, puddle_specs, puddle_rows, _puddle_cells,
                    description=f"seeded puddle layouts (μ {sim_scenarios.PUDDLE_FRICTION}), "
                                f"{PUDDLE_COMMAND_MPS} m/s forward"),
 }

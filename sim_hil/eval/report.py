@@ -1,5 +1,6 @@
-"""Report of one evaluation scenario under out/eval/<scenario>/: report.md (our numbers beside the seed's,
-the policies' "trained" flags at the top and next to every table), plots.png (trunk height, waist height,
+"""Report of one evaluation scenario under out/eval/<scenario>/: report.md (our numbers beside the seed's
+student and baseline figures, every trial beside the seed's per-trial tables, the policies' "trained" flags
+at the top and next to every table), plots.png (trunk height, waist height,
 forward velocity of a representative trial, as the seed's Fig. 5.1), video.mp4, results.json."""
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from pathlib import Path
 
 from sim_hil.eval import events, metrics
 from sim_hil.eval.plans import COMMON_ROWS, Plan
-from sim_hil.eval.seed_figures import SEED_FIGURES, seed_figure
+from sim_hil.eval.seed_figures import SEED_FIGURES, SEED_TRIAL_TABLES, seed_cells, seed_columns
 from sim_hil.eval.trial import Controller, TrialResult
 from sim_hil.plots import plot_heights_and_velocity
 from training.artifact import read_artifact
@@ -66,16 +67,14 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
     labels = list(rows)
     keys = list(dict.fromkeys(k for r in rows.values() for k in r))
     seeded = plan.name in SEED_FIGURES        # walk (the joystick expert's targets) has no seed table
-    lines += ["## Results", "", trained_line(flags), "",
-              "| metric | " + " | ".join(labels) + (" | seed (student) |" if seeded else " |"),
-              "|---|" + "---|" * len(labels) + ("---|" if seeded else "")]
-    def cell(text: str) -> str:
-        return text.replace("|", "\\|")        # Σ|τ·q̇| must not split a markdown cell
-    for k in keys:
-        seed = "—" if k in COMMON_ROWS else seed_figure(plan.name, k)
-        lines.append(f"| {cell(k)} | " + " | ".join(cell(rows[lb].get(k, "")) for lb in labels) + " |"
-                     + (f" {cell(seed)} |" if seeded else ""))
+    seed_heads = list(seed_columns(plan.name)) if seeded else []
+    lines += ["## Results", "", trained_line(flags), ""]
+    lines += _table(["metric", *labels, *seed_heads],
+                    [[k, *(rows[lb].get(k, "") for lb in labels),
+                      *((["—", "—"] if k in COMMON_ROWS else seed_cells(plan.name, k)) if seeded else [])]
+                     for k in keys])
     lines += ["", "Values: mean ± std over trials (one value: a single trial).", ""]
+    lines += _per_trial(plan, results, flags)
 
     th = events.EventThresholds()
     lines += ["## Definitions", "",
@@ -113,3 +112,24 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
     if logs:
         paths["logs"] = logs[0].parent
     return paths
+
+
+def _table(header: list[str], body: list[list[str]]) -> list[str]:
+    def cell(text: str) -> str:
+        return str(text).replace("|", "\\|")        # Σ|τ·q̇| must not split a markdown cell
+    return ["| " + " | ".join(map(cell, header)) + " |", "|" + "---|" * len(header),
+            *("| " + " | ".join(map(cell, row)) + " |" for row in body)]
+
+
+def _per_trial(plan: Plan, results: list[TrialResult], flags: dict[str, bool]) -> list[str]:
+    """Every trial's own cells, then the seed's per-trial tables of this scenario (verbatim)."""
+    cells = [plan.trial_cells(r) for r in results]
+    keys = list(dict.fromkeys(k for c in cells for k in c))
+    lines = ["## Per trial", "", trained_line(flags), ""]
+    lines += _table(["policy", "seed", *keys], [[r.controller, str(r.spec.seed), *(c.get(k, "") for k in keys)]
+                                                 for r, c in zip(results, cells)])
+    for t in SEED_TRIAL_TABLES.get(plan.name, ()):
+        lines += ["", f"The seed's {t.title}:", "", *_table(list(t.header), [list(row) for row in t.rows])]
+        if t.note:
+            lines += ["", t.note]
+    return [*lines, ""]
