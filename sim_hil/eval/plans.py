@@ -244,21 +244,24 @@ def _n(value, digits=1) -> str:
     return "—" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.{digits}f}"
 
 
-def _getup_cells(r: TrialResult) -> dict[str, str]:
+def _yes(flag) -> str:
+    return "—" if flag is None else ("yes" if flag else "no")
+
+
+def _getup_cells(r: TrialResult) -> dict[str, str]:   # events are None when POLICY was never reached
     e = r.events
-    return {"stood up": "—" if e is None else ("yes" if e.success else "no"),
-            "time to stand [s]": _n(e.time_to_stand_s if e else None, 2), "getup attempts": str(e.attempts) if e else "—"}
+    return {"stood up": _yes(e and e.success), "time to stand [s]": _n(e.time_to_stand_s if e else None, 2),
+            "getup attempts": str(e.attempts) if e else "—"}
 
 
 def _push_cells(r: TrialResult) -> dict[str, str]:
     e = r.events
-    return {"direction": r.spec.tag, "fell": "—" if e is None else ("yes" if e.falls else "no"),
-            "getup attempts": str(e.attempts) if e else "—", "up at the end": "—" if e is None else ("yes" if e.success else "no"),
-            "ran to stabilise": "yes" if r.ran_to_stabilise else "no"}
+    return {"direction": r.spec.tag, "fell": _yes(e and e.falls > 0), "getup attempts": str(e.attempts) if e else "—",
+            "up at the end": _yes(e and e.success), "ran to stabilise": _yes(r.ran_to_stabilise)}
 
 
 def _walk_cells(r: TrialResult) -> dict[str, str]:
-    return {"condition": r.spec.tag, "fell": "—" if r.events is None else ("yes" if r.events.falls else "no"),
+    return {"condition": r.spec.tag, "fell": _yes(r.events and r.events.falls > 0),
             "distance [m]": _n(r.drift_m, 2), "heading turned [rad]": _n(r.yaw_turned_rad, 2)}
 
 
@@ -272,7 +275,7 @@ def _wall_cells(r: TrialResult) -> dict[str, str]:
 def _puddle_cells(r: TrialResult) -> dict[str, str]:
     e = r.events
     return {"slips": str(r.slips), "getup attempts": str(e.attempts) if e else "—",
-            "up at the end": "—" if e is None else ("yes" if e.success else "no"), "distance [m]": _n(r.final_x_m)}
+            "up at the end": _yes(e and e.success), "distance [m]": _n(r.final_x_m)}
 
 
 def _fig51_cells(r: TrialResult) -> dict[str, str]:
