@@ -255,3 +255,6 @@ def test_getup_rollout(task):
         np.testing.assert_allclose(np.asarray(s.obs["state"]), _observation_reference(env, s, zeros3, phase0),
                                    atol=1e-5)
         assert "success" in s.metrics
+        # both tasks count the standing steps of fallen-start episodes apart (the evaluation's aim)
+        np.testing.assert_array_equal(np.asarray(s.metrics["success_from_fallen"]),
+                                      np.asarray(s.metrics["success"]) * (np.asarray(s.info["start_kind"]) == 0))
