@@ -2,11 +2,11 @@
 spawned fallen) and the C++ runtime running the student from policies/, a short scripted joystick
 sequence, a live status line, then a video and a plot of trunk height, waist height and forward velocity.
 The student is policies/student.safetensors when a trained one is shipped, else the untrained placeholder,
-and the demo says plainly which it runs. With the placeholder, a second run follows that shows the skills
-the product has today: when a trained baseline getup and joystick expert are shipped, the chapter-6
-baseline composite (getup policy below waist height 0.5 m, the joystick expert above: t1-runtime
---policy-upright) from the same fallen start, so the robot gets up and walks; with the joystick expert
-alone, the script from a standing start (the expert cannot get up)."""
+and the demo says plainly which it runs. With the placeholder, the skills the product has today follow:
+the trained baseline getup alone from the same fallen start (it gets up and stands; it ignores the
+joystick), then the trained joystick expert walking the script from a standing start. Not the two
+stitched: in the runtime's composite the joystick expert takes over at waist 0.5 m a robot still rising,
+and it falls (measured in session 10; issue 16's baseline composite)."""
 from __future__ import annotations
 
 import argparse
@@ -55,31 +55,26 @@ def main(argv=None) -> int:
         return code
     print("demo: NOTE the policy is untrained — this run shows the plumbing (sim, bus, runtime, safety), "
           "not a skill. Train and ship policies/student.safetensors (training/README.md).")
-    if not _trained(JOYSTICK_EXPERT):
-        return code
-    if _trained(BASELINE_GETUP):
-        print("\ndemo: part 2 — the baseline composite of the seed's chapter 6: the reward-only getup policy "
-              "while the waist is below 0.5 m, the joystick expert above (trained policies; their unmet "
-              "targets are in policies/PROVENANCE.md). Same fallen start: it gets up, then walks the script")
-        return run(BASELINE_GETUP, args.spawn, args.seconds, args.out, "demo_baseline", log=not args.no_log,
-                   upright=JOYSTICK_EXPERT)
-    print("\ndemo: part 2 — the trained joystick expert, standing start. It walks and turns; it cannot "
-          "get up, stands on one leg, may stumble after the stop (policies/PROVENANCE.md)")
-    return run(JOYSTICK_EXPERT, STANDING_SPAWN, args.seconds, args.out, "demo_joystick", log=not args.no_log)
+    if code == 0 and _trained(BASELINE_GETUP):
+        print("\ndemo: next — the trained baseline getup (reward-only, policies/PROVENANCE.md), same fallen "
+              "start. It gets up and stands; it does not walk (it ignores the joystick)")
+        code = run(BASELINE_GETUP, args.spawn, args.seconds, args.out, "demo_getup", log=not args.no_log)
+    if code == 0 and _trained(JOYSTICK_EXPERT):
+        print("\ndemo: next — the trained joystick expert, standing start. It walks and turns; it cannot "
+              "get up, stands on one leg, may stumble after the stop (policies/PROVENANCE.md)")
+        code = run(JOYSTICK_EXPERT, STANDING_SPAWN, args.seconds, args.out, "demo_joystick", log=not args.no_log)
+    return code
 
 
 def _trained(artifact: Path) -> bool:
     return artifact.exists() and bool(read_artifact(artifact)[3]["trained"])
 
 
-def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: bool,
-        upright: Path | None = None) -> int:
+def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: bool) -> int:
     """One realtime run of `policy` from `spawn` under the joystick script; OUT/NAME.mp4, NAME_plot.png,
-    NAME.lcmlog. With `upright`, the runtime's composite: `policy` while the waist is low, `upright` above.
-    Returns 0, or 1 when the simulator or the runtime failed."""
+    NAME.lcmlog. Returns 0, or 1 when the simulator or the runtime failed."""
     manifest = read_artifact(policy)[3]
     trained = bool(manifest["trained"])
-    label = policy.stem + (f" + {upright.stem}" if upright else "")
     banner = "trained" if trained else "UNTRAINED (random-init placeholder: expect flailing, not getting up)"
     print(f"demo: policy {policy.relative_to(ROOT) if policy.is_relative_to(ROOT) else policy} — {banner}")
     out.mkdir(parents=True, exist_ok=True)
@@ -99,7 +94,7 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
     lc.subscribe(contract.CH_CONTROLLER_STATUS, lambda _c, d: last.__setitem__("rt", controller_status_t.decode(d)))
     sim_args = ["--clock", "realtime", "--spawn", spawn, "--duration", str(seconds),
                 "--status-rate", "50", "--record", str(video)]
-    runtime_args = ["--clock", "realtime", "--autostart", *(["--policy-upright", str(upright)] if upright else [])]
+    runtime_args = ["--clock", "realtime", "--autostart"]
     capture = None if not log else LogCapture(
         out / f"{name}.lcmlog", contract.lcm_url(),
         RunInfo(run_name=name, producer="demo", clock="realtime", policy_path=str(policy),
@@ -148,8 +143,8 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
         return 1
     rt = final
     plot = plot_heights_and_velocity(
-        {label: series}, out / f"{name}_plot.png",
-        f"{label} ({'trained' if trained else 'UNTRAINED'}), spawn {spawn}",
+        {policy.stem: series}, out / f"{name}_plot.png",
+        f"{policy.stem} ({'trained' if trained else 'UNTRAINED'}), spawn {spawn}",
         command_vx=[(t, vx) for t, vx, _, _ in JOYSTICK_SCRIPT])
     print(f"demo: runtime ended in {rt.mode_name if rt else '?'}; faults: {rt.last_fault if rt and rt.last_fault else 'none'}")
     print(f"demo: video {video}\ndemo: plot  {plot}")
