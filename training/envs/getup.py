@@ -152,6 +152,15 @@ class GetupBase(base.T1Env):
     def standing(info):
         return (info["trunk_height"] >= STANDING_TRUNK_HEIGHT_M) & (info["up_z"] >= UPRIGHT_UP_Z)
 
+    def energy_cost(self, data):
+        """§4.7's energy cost Σ|v·τ/τmax| of the state after the step (before its weight)."""
+        return G.energy_cost(data.qvel[6:], data.actuator_force, self._tau_limit)
+
+    @staticmethod
+    def success_from(kind: str, success, info):
+        """`success` counted only in episodes that started as START_KINDS' `kind`."""
+        return success * (info["start_kind"] == START_KINDS.index(kind))
+
     def start_probabilities(self):
         return list(self._config.start_probs)
 
@@ -276,7 +285,7 @@ class Getup(GetupBase):
         else:
             height, pose = G.gated_height_reward(ok, kneel_h, stand_h), G.gated_pose_reward(ok, kneel_p, stand_p)
         return {"height": height, "pose": pose, "gate": ok,
-                "energy": G.energy_cost(data.qvel[6:], data.actuator_force, self._tau_limit)}
+                "energy": self.energy_cost(data)}
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         data, info, k_obs = self._physics(state, action)
@@ -293,8 +302,8 @@ class Getup(GetupBase):
         metrics["success"] = (terms["gate"] if self._config.stage == "stage1"
                               else self.standing(info)).astype(jnp.float32)
         # standing in an episode that started at the kneel (with the reverse curriculum, the share that counts)
-        metrics["success_from_kneel"] = metrics["success"] * (info["start_kind"] == 1)
-        metrics["success_from_fallen"] = metrics["success"] * (info["start_kind"] == 0)   # the full task's aim
+        metrics["success_from_kneel"] = self.success_from("kneeling", metrics["success"], info)
+        metrics["success_from_fallen"] = self.success_from("fallen", metrics["success"], info)   # the full task's aim
         done = self.invalid(data) | self.fell_from_kneel(info)
         return state.replace(data=data, obs=obs, reward=reward, done=done.astype(jnp.float32), metrics=metrics,
                              info=info)

@@ -24,7 +24,6 @@ import jax.numpy as jnp
 from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
-from training.envs import getup_rewards as G
 from training.envs.getup import GetupBase, getup_common_config
 
 METRIC_NAMES = ("reward/height", "reward/energy", "success", "success_from_fallen")
@@ -55,7 +54,7 @@ class GetupBaseline(GetupBase):
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         data, info, k_obs = self._physics(state, action)
         height = self.height_orientation(info, self._standing_targets)
-        energy = -self._config.energy_weight * G.energy_cost(data.qvel[6:], data.actuator_force, self._tau_limit)
+        energy = -self._config.energy_weight * self.energy_cost(data)
         reward = (height + energy) * self.dt
         info["last_act"] = action
         obs = self._observe(data, info, k_obs, self._privileged_extra(info))
@@ -63,6 +62,6 @@ class GetupBaseline(GetupBase):
         metrics.update({"reward/height": height.astype(jnp.float32), "reward/energy": energy.astype(jnp.float32),
                         "success": self.standing(info).astype(jnp.float32)})
         # standing steps of the episodes that started fallen: the evaluation's aim when standing starts are mixed in
-        metrics["success_from_fallen"] = metrics["success"] * (info["start_kind"] == 0)
+        metrics["success_from_fallen"] = self.success_from("fallen", metrics["success"], info)
         done = self.invalid(data).astype(jnp.float32)
         return state.replace(data=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
