@@ -179,8 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="batched rollouts of an artifact: getup from seeded fallen "
                        "starts, or joystick command tracking")
-    p.add_argument("--policy", required=True, help="policy artifact (.safetensors)")
-    p.add_argument("--baseline", help="second artifact to compare against (getup)")
+    p.add_argument("--policy", required=True, help="policy artifact (.safetensors); for getup also GETUP,UPRIGHT: "
+                   "the runtime's composite of two (getup below waist 0.5 m, upright above)")
+    p.add_argument("--baseline", help="second policy to compare against (getup): an artifact or GETUP,UPRIGHT")
     p.add_argument("--task", choices=tuple(EVAL_SECONDS), default="getup")
     p.add_argument("--seeds", type=int, default=32,
                    help="episodes: seeded fallen starts (getup) or seeded joystick episodes")

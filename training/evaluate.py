@@ -10,6 +10,8 @@ control ticks, make_rollout below) or MuJoCo C (training/evaluate_cpu.py, the sa
 artifact run through training/observation.py with xp=jax.numpy: the observation is built from the
 physics state exactly as the runtime builds it (no noise, command 0, gait clock frozen at its initial
 phase because ‖command‖ < phase_freeze_command_norm), normalised, fed through the MLP, mapped to targets.
+A policy may also be the runtime's composite of two artifacts, `--policy GETUP,UPRIGHT` (CompositePolicy:
+the getup member below waist 0.5 m, the upright one above), the seed's chapter-6 baseline.
 
 Per env and control tick the host gets trunk height, up_z, waist height, and per-substep aggregates:
 energy Σ|τ·q̇|·dt_sim [J], the largest of one substep's Σ|τ·q̇|·dt_sim [J], max |τ| [N·m], Σ|τ|·dt_sim [N·m·s],
@@ -29,6 +31,7 @@ import numpy as np
 from training import observation as obsdef
 from training import table_4_3
 from training.artifact import read_artifact
+from training.teacher import WAIST_SWITCH_HEIGHT_M
 
 MANIFEST_MUST_MATCH_ENV = ("default_pose", "action_scale", "kp", "kd", "control_dt")
 MATCH_TOLERANCE = 1e-6
@@ -68,6 +71,81 @@ class ArtifactPolicy:
         policies of one shape share one compilation."""
         return (tuple((np.asarray(w), np.asarray(b)) for w, b in self.layers), self.obs_mean, self.obs_std)
 
+    def describe(self) -> str:
+        m = self.manifest
+        return (f"`{self.path}` name `{m['name']}`, trained: "
+                f"**{'yes' if m['trained'] else 'NO (untrained placeholder)'}**, env steps "
+                f"{m['provenance']['steps']}, content hash {m['content_hash'][:12]}")
+
+    def act(self, params, obs_state: obsdef.ObservationState, waist_height_m):
+        """One env's tick in jax: (action, joint targets [rad]); one policy, so the waist height is unused."""
+        import jax.numpy as jnp
+        del waist_height_m
+        action = policy_action(self.manifest, params, obs_state)
+        return action, obsdef.action_to_targets(jnp.asarray(self.manifest["default_pose"], jnp.float32),
+                                                jnp.asarray(self.manifest["action_scale"], jnp.float32), action)
+
+
+@dataclass(frozen=True)
+class CompositePolicy:
+    """The runtime's composite mode (`t1-runtime --policy GETUP --policy-upright UPRIGHT`, the seed's
+    chapter-6 baseline): the getup member acts while the waist is below the switch height (0.5 m, the
+    stitched teacher's), else the upright (joystick) member, each through its own action map. The idle
+    member follows the applied action (runtime/src/controller.cpp), so both read one last action."""
+    getup: ArtifactPolicy
+    upright: ArtifactPolicy
+
+    # the upright member maps actions around its own pose and scale; it shares the env's motor law only
+    UPRIGHT_MUST_MATCH_ENV = ("kp", "kd", "control_dt")
+
+    @classmethod
+    def load(cls, spec: str) -> "CompositePolicy":
+        parts = [p.strip() for p in str(spec).split(",")]
+        if len(parts) != 2 or not all(parts):
+            raise ValueError(f"{spec!r}: a composite is GETUP.safetensors,UPRIGHT.safetensors")
+        return cls(ArtifactPolicy.load(parts[0]), ArtifactPolicy.load(parts[1]))
+
+    @property
+    def path(self) -> str:
+        return f"{self.getup.path},{self.upright.path}"
+
+    @property
+    def manifest(self) -> dict:     # control_dt and the like: the getup member's (checked equal to the env's)
+        return self.getup.manifest
+
+    @property
+    def trained(self) -> bool:
+        return self.getup.trained and self.upright.trained
+
+    def check_env(self, env) -> None:
+        self.getup.check_env(env)
+        fields = env.manifest_fields()
+        for key in self.UPRIGHT_MUST_MATCH_ENV:
+            ours, theirs = np.asarray(self.upright.manifest[key], float), np.asarray(fields[key], float)
+            if np.max(np.abs(ours - theirs)) > MATCH_TOLERANCE:
+                raise ValueError(f"{self.upright.path}: manifest {key} differs from the evaluation env's "
+                                 f"(a composite's members share one motor law)")
+
+    @property
+    def params(self):
+        return (self.getup.params, self.upright.params)
+
+    def describe(self) -> str:
+        return (f"composite (getup below waist {WAIST_SWITCH_HEIGHT_M} m, upright above): getup "
+                f"{self.getup.describe()}; upright {self.upright.describe()}")
+
+    def act(self, params, obs_state: obsdef.ObservationState, waist_height_m):
+        import jax.numpy as jnp
+        a_g, q_g = self.getup.act(params[0], obs_state, waist_height_m)
+        a_u, q_u = self.upright.act(params[1], obs_state, waist_height_m)
+        use_getup = waist_height_m < WAIST_SWITCH_HEIGHT_M
+        return jnp.where(use_getup, a_g, a_u), jnp.where(use_getup, q_g, q_u)
+
+
+def load_policy(spec) -> ArtifactPolicy | CompositePolicy:
+    """An artifact path, or GETUP,UPRIGHT for the runtime's composite of two."""
+    return CompositePolicy.load(spec) if "," in str(spec) else ArtifactPolicy.load(spec)
+
 
 def policy_action(manifest: dict, params, obs_state: obsdef.ObservationState):
     """The artifact's per-tick computation in jax (training/observation.py with xp=jax.numpy)."""
@@ -78,7 +156,7 @@ def policy_action(manifest: dict, params, obs_state: obsdef.ObservationState):
                               manifest["output_rule"], xp=jnp)
 
 
-def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
+def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
     """jitted (params, qpos [N, nq], qvel [N, nv]) → dict of (N, T + 1) / (N, T) series."""
     import jax
     import jax.numpy as jnp
@@ -88,8 +166,6 @@ def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
     m = env.mjx_model
     sim_dt = float(env.mj_model.opt.timestep)
     phase0 = jnp.asarray(obsdef.initial_gait_phase(np), jnp.float32)
-    default_pose = jnp.asarray(policy.manifest["default_pose"], jnp.float32)
-    scale = jnp.asarray(policy.manifest["action_scale"], jnp.float32)
 
     world_geom = jnp.asarray(env.mj_model.geom_bodyid == 0)
 
@@ -113,8 +189,7 @@ def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
     def control_tick(carry, params):
         d, last_action, target = carry
         obs_state = env.observation_state(d, jnp.zeros(3), last_action, phase0)
-        action = policy_action(policy.manifest, params, obs_state)
-        q_des = obsdef.action_to_targets(default_pose, scale, action)
+        action, q_des = policy.act(params, obs_state, env.body_readings(d)["waist_height"])
 
         def substep(c, _):
             d, agg, target = c
@@ -144,7 +219,7 @@ def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
     return jax.jit(jax.vmap(rollout_one, in_axes=(None, 0, 0)))
 
 
-def run_policy(env, policy: ArtifactPolicy, qpos, qvel, seconds: float) -> dict:
+def run_policy(env, policy: ArtifactPolicy | CompositePolicy, qpos, qvel, seconds: float) -> dict:
     """Roll out and reduce to per-env metrics (numpy) plus the height series for plots."""
     import jax
     from sim_hil.eval.events import getup_events, through_kneel_gate
@@ -217,10 +292,7 @@ def markdown_report(results: dict, meta: dict) -> str:
     lines = [f"# Getup evaluation ({meta['seeds']} seeded fallen starts from seed {meta['first_seed']}, "
              f"{meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]
     for role, res in results.items():
-        m = res["policy"].manifest
-        lines.append(f"- {role}: `{res['policy'].path}` name `{m['name']}`, trained: "
-                     f"**{'yes' if m['trained'] else 'NO (untrained placeholder)'}**, env steps "
-                     f"{m['provenance']['steps']}, content hash {m['content_hash'][:12]}")
+        lines.append(f"- {role}: {res['policy'].describe()}")
     lines += ["", "Means over episodes (time to stand: over episodes that stood up). Seed = the seed "
               "thesis's reported figure where one exists.", ""]
     header = ["metric"] + [f"{n}" for n in names] + [f"seed: {n}" for n in names]
@@ -230,8 +302,9 @@ def markdown_report(results: dict, meta: dict) -> str:
         cells += [_fmt("{:.1f}", table_4_3.SEED_REPORTED.get(key, {}).get(n)) for n in names]
         lines.append("| " + " | ".join([label] + cells) + " |")
     if {"policy", "baseline"} <= set(results):
-        lines += ["", "Direction against the seed (policy = keyframe getup; `table_4_3.png`; definitions in "
-                  "training/table_4_3.py):", ""]
+        lines += ["", "Direction against the seed's Table 4.3 (the seed compares its keyframe expert with its "
+                  "baseline getup: the comparison is the seed's where `policy` is a keyframe getup; "
+                  "`table_4_3.png`; definitions in training/table_4_3.py):", ""]
         lines += table_4_3.direction_rows({n: r["summary"] for n, r in results.items()})
     lines += ["", f"Command: `{meta['command']}`", ""]
     return "\n".join(lines)
@@ -269,7 +342,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     out.mkdir(parents=True, exist_ok=True)
     env = envs.make(task, config_overrides={"backend": backend or default_backend()})
     qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
-    policies = {role: ArtifactPolicy.load(path) for role, path in (("policy", policy_path), ("baseline", baseline))
+    policies = {role: load_policy(path) for role, path in (("policy", policy_path), ("baseline", baseline))
                 if path is not None}   # both checked before either runs
     for policy in policies.values():
         policy.check_env(env)

@@ -25,7 +25,6 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
     import jax
     import jax.numpy as jnp
     from training.envs.cpu_backend import HostData
-    from training.evaluate import policy_action
 
     physics = env.cpu_physics
     m = physics.model
@@ -38,15 +37,12 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
     b.forward()
 
     phase0 = jnp.asarray(obsdef.initial_gait_phase(np), jnp.float32)
-    default_pose = jnp.asarray(policy.manifest["default_pose"], jnp.float32)
-    scale = jnp.asarray(policy.manifest["action_scale"], jnp.float32)
 
     def act_one(params, data, last_action):
         obs_state = env.observation_state(data, jnp.zeros(3), last_action, phase0)
-        action = policy_action(policy.manifest, params, obs_state)
         r = env.body_readings(data)
-        return action, obsdef.action_to_targets(default_pose, scale, action), \
-            jnp.stack([r["trunk_height"], r["up_z"], r["waist_height"]])
+        action, q_des = policy.act(params, obs_state, r["waist_height"])
+        return action, q_des, jnp.stack([r["trunk_height"], r["up_z"], r["waist_height"]])
 
     act = jax.jit(jax.vmap(act_one, in_axes=(None, 0, 0)))
     scratch = mujoco.MjData(m)
