@@ -137,7 +137,7 @@ def toy_runs(tmp_path_factory):
                   "--out", str(dirs["boxed"]), *toy],
         "distill": ["distill", "--getup", str(dirs["getup"] / "getup_stage2.safetensors"), "--joystick",
                     str(dirs["joystick"]), "--out", str(dirs["student"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)",
-                    *toy]})  # default --task: the unified env (no fallen starts: their precompute is slow)
+                    "--name", "student_toy", *toy]})  # default --task: the unified env (no fallen starts: their precompute is slow)
     dirs["eval_joystick"] = root / "eval_joystick"
     _run_parallel({"evaluate": ["evaluate", "--policy", str(dirs["getup"] / "getup_stage2.safetensors"),
                                 "--baseline", str(dirs["getup_baseline"] / "getup_baseline.safetensors"),
@@ -200,7 +200,8 @@ def test_toy_distill_exports_student(toy_runs):
     from training import observation as obsdef
     # the toy run used distill's default env: the unified walk–fall–getup task
     assert cli.build_parser().parse_args(["distill", "--getup", "g", "--joystick", "j", "--out", "o"]).task == "unified"
-    layers, _, _, manifest = read_artifact(toy_runs["student"] / "student.safetensors")
+    layers, _, _, manifest = read_artifact(toy_runs["student"] / "student_toy.safetensors")
+    assert manifest["name"] == "student_toy"
     # the seed's raw actions (no tanh squash): the loc half of brax's head, output rule linear
     assert manifest["output_rule"] == "linear" and manifest["trained"] is False
     assert [tuple(t) for t in manifest["obs_terms"]] == list(obsdef.TERMS_UNION)
@@ -238,7 +239,7 @@ def test_runtime_accepts_exported_artifacts(netns, toy_runs):
     if not RUNTIME.exists():
         pytest.skip(f"{RUNTIME} not built (make build)")
     artifacts = [_artifact(toy_runs[t]) for t in ("joystick", "getup", "getup_baseline")]
-    for path in artifacts + [toy_runs["student"] / "student.safetensors"]:
+    for path in artifacts + [toy_runs["student"] / "student_toy.safetensors"]:
         proc = subprocess.run([str(RUNTIME), "--policy", str(path), "--clock", "lockstep", "--duration", "0.1",
                                "--quiet"], capture_output=True, text=True, timeout=30)
         assert proc.returncode != RUNTIME_BAD_ARTIFACT_EXIT, f"{path.name}: {proc.stderr}"

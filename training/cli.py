@@ -92,7 +92,8 @@ def _cmd_distill(args, command: str) -> int:
     result = distill.distill(
         args.getup, args.joystick, args.out, task=args.task, overrides=args.config,
         preset="toy" if args.toy else "gpu", seed=args.seed, num_envs=args.envs, ship=args.ship,
-        command=command, progress=not args.no_progress, max_minutes=args.max_minutes, backend=args.backend)
+        command=command, progress=not args.no_progress, max_minutes=args.max_minutes, backend=args.backend,
+        name=args.name)
     print(f"{result.run_dir}: {result.dagger_steps} DAgger phases, artifact {result.artifact} "
           f"(output rule {result.output_rule})")
     return 0
@@ -173,6 +174,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a DAgger (bc.*) or env (env.*) config field; repeatable")
     p.add_argument("--toy", action="store_true")
     p.add_argument("--ship", action="store_true")
+    p.add_argument("--name", default="student",
+                   help="policy name: the artifact's file name and manifest name (default: student)")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     common(p)
     p.set_defaults(func=_cmd_distill)
