@@ -208,6 +208,21 @@ def test_toy_distill_exports_student(toy_runs):
     assert layers[-1][0].shape[0] == obsdef.NUM_JOINTS and manifest["provenance"]["steps"] > 0
 
 
+@pytest.mark.slow
+def test_export_phase_writes_an_earlier_checkpoint(toy_runs, capsys):
+    from training.distill import export_phase
+    run = toy_runs["student"]
+    final_layers, _, _, final = read_artifact(run / "student_toy.safetensors")
+    phases = final["provenance"]["dagger_phases"]   # the toy run keeps one checkpoint: its last phase
+    layers, _, _, again = read_artifact(export_phase(run, phases, "student_again", run / "student_toy.safetensors"))
+    assert again["name"] == "student_again" and again["provenance"]["steps"] == final["provenance"]["steps"]
+    assert again["obs_terms"] == final["obs_terms"] and again["output_rule"] == final["output_rule"]
+    assert again["trained"] is False and all(np.array_equal(w, v) for (w, _), (v, _) in zip(layers, final_layers))
+    assert cli.main(["export-phase", "--run", str(run), "--phase", "3", "--name", "x",
+                     "--like", str(run / "student_toy.safetensors")]) == 2
+    assert "no checkpoint at phase 3" in capsys.readouterr().err
+
+
 def test_dagger_beta_is_the_seeds_step_function():
     from training.distill import bc_config, beta_schedule
     beta = beta_schedule(bc_config().beta_teacher_phases)

@@ -1,4 +1,4 @@
-"""`python -m training {train,teacher,distill,evaluate}`: the command line of the training side.
+"""`python -m training {train,teacher,distill,export-phase,evaluate}`: the command line of the training side.
 
 Heavy imports (jax, brax, the MJX envs) happen inside the subcommands, so `--help` is instant.
 """
@@ -8,6 +8,7 @@ import argparse
 import ast
 import shlex
 import sys
+from pathlib import Path
 from typing import Mapping, Sequence
 
 TASKS = ("joystick", "getup", "getup_baseline")  # = training.envs.TASKS (checked when the envs load)
@@ -99,6 +100,14 @@ def _cmd_distill(args, command: str) -> int:
     return 0
 
 
+def _cmd_export_phase(args, command: str) -> int:
+    from training import distill
+    like = args.like or Path(args.run) / "student.safetensors"
+    path = distill.export_phase(args.run, args.phase, args.name, like)
+    print(f"{path}: DAgger phase {args.phase} of {args.run} (manifest from {like})")
+    return 0
+
+
 BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported: parsing needs no JAX)
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
@@ -179,6 +188,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     common(p)
     p.set_defaults(func=_cmd_distill)
+
+    p = sub.add_parser("export-phase", help="export a finished distill run's checkpoint at an earlier DAgger "
+                       "phase (e.g. the seed's DAgger-400 / DAgger-1000 of Fig. 5.1)")
+    p.add_argument("--run", required=True, help="distill run directory")
+    p.add_argument("--phase", type=int, required=True, help="DAgger phase of a checkpoint in RUN/checkpoints")
+    p.add_argument("--name", required=True, help="policy name: RUN/NAME.safetensors")
+    p.add_argument("--like", help="the run's final artifact, whose manifest is reused (default RUN/student.safetensors)")
+    p.set_defaults(func=_cmd_export_phase)
 
     p = sub.add_parser("evaluate", help="batched rollouts of an artifact: getup from seeded fallen "
                        "starts, or joystick command tracking")

@@ -94,18 +94,24 @@ class WaistObservation:
         return self._add(self._env.step(state.replace(obs=inner_obs), action))
 
 
+def loc_half(policy_params) -> dict:
+    """brax bc's policy params with the last layer cut to its first 23 rows: the tanh-normal head's `loc`,
+    the action itself when there is no tanh squash (output rule `linear`)."""
+    inner = dict(policy_params["params"])
+    last = f"hidden_{len(inner) - 1}"
+    inner[last] = {"kernel": np.asarray(inner[last]["kernel"])[:, :obsdef.NUM_JOINTS],
+                   "bias": np.asarray(inner[last]["bias"])[:obsdef.NUM_JOINTS]}
+    return {"params": inner}
+
+
 def export_student(params, env, path, name: str, tanh_squash: bool, trained: bool, provenance: dict) -> str:
     """brax bc (normalizer, policy) → artifact; returns the output rule written."""
     from training.export import export_brax_ppo
     from training.train import ACTIVATION
     policy = params[1]
     output_rule = "tanh_normal"
-    if not tanh_squash:  # act = loc: keep only the loc half of the last layer
-        inner = dict(policy["params"])
-        last = f"hidden_{len(inner) - 1}"
-        inner[last] = {"kernel": np.asarray(inner[last]["kernel"])[:, :obsdef.NUM_JOINTS],
-                       "bias": np.asarray(inner[last]["bias"])[:obsdef.NUM_JOINTS]}
-        policy, output_rule = {"params": inner}, "linear"
+    if not tanh_squash:  # act = loc
+        policy, output_rule = loc_half(policy), "linear"
     manifest = dict(env.manifest_fields())
     manifest.update(name=name, activation=ACTIVATION, output_rule=output_rule, trained=trained,
                     provenance=provenance)
@@ -209,3 +215,32 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
         from training.train import ship_artifact
         ship_artifact(artifact, {"task": f"distill ({task} env)"}, provenance_table)
     return DistillResult(run_dir, artifact, phases, rule, minutes)
+
+
+def export_phase(run_dir, phase: int, name: str, like) -> Path:
+    """Export a finished run's checkpoint at DAgger phase `phase` as run_dir/<name>.safetensors, with the
+    manifest of the run's final artifact `like` (same env and network) and that phase's steps: e.g. the
+    seed's DAgger-400 / DAgger-1000 students of Fig. 5.1 as checkpoints of one longer run. (Not the same as
+    a run of that length: brax bc resets the envs at each evaluation, every dagger_steps / (num_evals − 1)
+    phases, so a shorter run resets more often.)"""
+    from training.artifact import read_artifact
+    from training.export import export_brax_ppo
+    run_dir = Path(run_dir)
+    ckpt = run_dir / checkpoints.CHECKPOINT_DIR / f"{int(phase):012d}"
+    if not ckpt.is_dir():
+        found = [int(p.name) for p in checkpoints.list_checkpoints(run_dir)]
+        raise FileNotFoundError(f"{ckpt}: no checkpoint at phase {phase} (the run has phases {found})")
+    _, _, _, manifest = read_artifact(like)
+    prov = dict(manifest["provenance"])
+    if not prov.get("dagger_phases"):
+        raise ValueError(f"{like}: its provenance has no dagger_phases; not a distilled student")
+    steps_per_phase = int(prov["steps"]) // int(prov["dagger_phases"])
+    prov.update(steps=int(phase) * steps_per_phase, dagger_phases=int(phase),
+                exported_from=f"{ckpt} (checkpoint of the run that made {Path(like).name})")
+    params = checkpoints.load_checkpoint(ckpt)
+    policy = loc_half(params[1]) if manifest["output_rule"] == "linear" else params[1]
+    fields = {k: v for k, v in manifest.items() if k != "content_hash"}
+    fields.update(name=name, provenance=prov, trained=bool(manifest["trained"]) and int(phase) > 0)
+    path = run_dir / f"{name}.safetensors"
+    export_brax_ppo((params[0], policy), fields, path)
+    return path
