@@ -110,7 +110,8 @@ eval-wall: build
 	$(NETNS) $(PY) -m sim_hil.eval wall $(EVAL_FLAGS)
 eval-puddle: build
 	$(NETNS) $(PY) -m sim_hil.eval puddle $(EVAL_FLAGS)
-# The seed's Fig. 5.1 in the loop: seed 62, fallen, 0.4 m/s forward; the stitched teacher beside the student.
-EVAL_TEACHER ?= policies/getup.safetensors,policies/joystick.safetensors
+# The seed's Fig. 5.1 in the loop: seed 62, fallen, 0.4 m/s forward; the stitched teacher beside the student
+# (default: the teacher the student was distilled from, named in its provenance).
+EVAL_TEACHER ?=
 eval-fig51: build
-	$(NETNS) $(PY) -m sim_hil.eval fig5.1 $(EVAL_FLAGS) --teacher $(EVAL_TEACHER)
+	$(NETNS) $(PY) -m sim_hil.eval fig5.1 $(EVAL_FLAGS) $(if $(EVAL_TEACHER),--teacher $(EVAL_TEACHER))

@@ -126,3 +126,23 @@ def test_fig51_teacher_and_student_side_by_side(baseline, tmp_path, netns):
     report = (out / "report.md").read_text()
     assert "teacher getup: UNTRAINED" in report and "No result is claimed" in report
     assert "forward velocity once standing [m/s]" in report and (out / "plots.png").stat().st_size > 0
+
+
+def test_fig51_teacher_defaults_to_the_one_the_student_names(baseline, tmp_path):
+    from sim_hil.eval.__main__ import distilled_from, parse_args
+    layers, _, _ = random_policy(np.random.default_rng(3), obsdef.TERMS_UNION, PLACEHOLDER_HIDDEN)
+    size = obsdef.observation_size(obsdef.TERMS_UNION)
+    student = tmp_path / "student.safetensors"
+    provenance = {"git_commit": "test", "steps": 0, "date": "test", "command": "test",
+                  "teacher": {"getup": str(baseline[0]), "joystick": "policies/joystick.safetensors"}}
+    write_artifact(student, layers, np.zeros(size, np.float32), np.ones(size, np.float32),
+                   base_manifest(name="student", trained=False, obs_terms=[list(t) for t in obsdef.TERMS_UNION],
+                                 provenance=provenance))
+    want = f"{baseline[0]},{ROOT / 'policies' / 'joystick.safetensors'}"
+    assert distilled_from(student) == want       # relative paths are the repository root's
+    args, _, controllers = parse_args(["fig5.1", "--policy", str(student), "--out", str(tmp_path / "o")])
+    assert args.teacher == want and [c.label for c in controllers] == ["student", "teacher"]
+    with pytest.raises(ValueError, match="names no teacher"):
+        distilled_from(STUDENT)
+    with pytest.raises(SystemExit):   # argparse's error: the untrained placeholder was not distilled
+        parse_args(["fig5.1", "--policy", str(STUDENT)])

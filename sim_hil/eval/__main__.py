@@ -25,6 +25,18 @@ ROOT = Path(__file__).resolve().parents[2]
 MAX_JOBS = 2            # the machine has 2 cores: at most 2 sim+runtime pairs
 EXIT_OK, EXIT_USAGE, EXIT_FAILED = 0, 2, 1
 
+def distilled_from(student: Path) -> str:
+    """GETUP,JOYSTICK: the stitched teacher a distilled artifact names in its provenance (paths as given to
+    `python -m training distill`, relative to the repository root)."""
+    from training.artifact import read_artifact
+    if not student.is_file():
+        raise ValueError(f"policy artifact {student} does not exist")
+    teacher = read_artifact(student)[3]["provenance"].get("teacher")
+    if not isinstance(teacher, dict) or not {"getup", "joystick"} <= set(teacher):
+        raise ValueError(f"{student}: its provenance names no teacher (not a distilled student); give --teacher")
+    return ",".join(str(p if Path(p).is_absolute() else ROOT / p) for p in (teacher["getup"], teacher["joystick"]))
+
+
 def parse_args(argv):
     ap = argparse.ArgumentParser(prog="python -m sim_hil.eval", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -32,7 +44,8 @@ def parse_args(argv):
     ap.add_argument("--policy", type=Path, required=True, help="student artifact (*.safetensors)")
     ap.add_argument("--label", default="student", help="name of --policy in the report (e.g. joystick)")
     ap.add_argument("--baseline", default="", help="GETUP,JOYSTICK artifacts of the baseline composite")
-    ap.add_argument("--teacher", default="", help="GETUP,JOYSTICK artifacts of the stitched teacher (experts)")
+    ap.add_argument("--teacher", default="", help="GETUP,JOYSTICK artifacts of the stitched teacher (experts); "
+                    "fig5.1's default: the teacher the student's provenance names")
     ap.add_argument("--trials", type=int, default=None, help="trials per policy (default: the scenario's)")
     ap.add_argument("--seconds", type=float, default=None, help="sim seconds per trial (default: the scenario's)")
     ap.add_argument("--seed", type=int, default=None,
@@ -52,6 +65,11 @@ def parse_args(argv):
     if not 1 <= args.jobs <= MAX_JOBS:
         ap.error(f"--jobs {args.jobs}: must be 1..{MAX_JOBS}")
     args.seed = plan.seed0 if args.seed is None else args.seed
+    if plan.name == "fig5.1" and not args.teacher:   # the seed's figure is teacher beside student
+        try:
+            args.teacher = distilled_from(args.policy)
+        except ValueError as e:
+            ap.error(str(e))
     controllers = [Controller(args.label, args.policy)]
     for flag, label in (("baseline", "baseline"), ("teacher", "teacher")):
         value = getattr(args, flag)
