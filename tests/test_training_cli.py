@@ -223,6 +223,26 @@ def test_export_phase_writes_an_earlier_checkpoint(toy_runs, capsys):
     assert "no checkpoint at phase 3" in capsys.readouterr().err
 
 
+@pytest.mark.slow
+def test_distill_goes_on_from_a_run(toy_runs, tmp_path, capsys):
+    """--from: a new run starts from the old run's newest checkpoint; phases, steps and curve continue."""
+    from training.distill import STATE_FILE
+    first = json.loads((toy_runs["student"] / STATE_FILE).read_text())
+    out = tmp_path / "more"
+    args = ["distill", "--getup", str(toy_runs["getup"] / "getup_stage2.safetensors"), "--joystick",
+            str(toy_runs["joystick"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)", "--toy", "--no-progress",
+            "--from", str(toy_runs["student"])]
+    assert cli.main([*args, "--out", str(out)]) == 0
+    state = json.loads((out / STATE_FILE).read_text())
+    assert state["phases"] == 2 * first["phases"] and state["steps"] == 2 * first["steps"]
+    assert state["phases_before"] == first["phases"] and state["from"].endswith(f"{first['phases']:012d}")
+    prov = read_artifact(out / "student.safetensors")[3]["provenance"]
+    assert prov["dagger_phases"] == state["phases"] and prov["steps"] == state["steps"]
+    assert min(s for s, _ in max(curves.read_curves(out / curves.CSV_NAME).values(), key=len)) > first["steps"] - 1
+    assert cli.main([*args, "--out", str(out)]) == 2          # never into a run that has checkpoints
+    assert "already holds DAgger checkpoints" in capsys.readouterr().err
+
+
 def test_dagger_beta_is_the_seeds_step_function():
     from training.distill import bc_config, beta_schedule
     beta = beta_schedule(bc_config().beta_teacher_phases)

@@ -94,7 +94,7 @@ def _cmd_distill(args, command: str) -> int:
         args.getup, args.joystick, args.out, task=args.task, overrides=args.config,
         preset="toy" if args.toy else "gpu", seed=args.seed, num_envs=args.envs, ship=args.ship,
         command=command, progress=not args.no_progress, max_minutes=args.max_minutes, backend=args.backend,
-        name=args.name)
+        name=args.name, from_checkpoint=args.from_)
     print(f"{result.run_dir}: {result.dagger_steps} DAgger phases, artifact {result.artifact} "
           f"(output rule {result.output_rule})")
     return 0
@@ -185,6 +185,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ship", action="store_true")
     p.add_argument("--name", default="student",
                    help="policy name: the artifact's file name and manifest name (default: student)")
+    p.add_argument("--from", dest="from_", metavar="CHECKPOINT",
+                   help="go on from a distill run's checkpoint (or its run directory → the newest) into a new --out; "
+                        "the phase count, curve and provenance continue")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     common(p)
     p.set_defaults(func=_cmd_distill)

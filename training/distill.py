@@ -18,6 +18,7 @@ action is tanh(loc), the artifact's `tanh_normal` rule, exported unchanged.
 from __future__ import annotations
 
 import functools
+import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,6 +62,29 @@ class DistillResult:
 
 class _Stop(Exception):
     pass
+
+
+STATE_FILE = "distill_state.json"   # a finished run's totals: phases and env steps, from which run it went on
+
+
+def prior_progress(from_checkpoint) -> dict:
+    """{"checkpoint": absolute path or None, "phases", "steps"}: where a --from run starts. The phases and
+    steps of the checkpoint's run before it (its STATE_FILE's phases_before) plus the checkpoint's own."""
+    if from_checkpoint is None:
+        return {"checkpoint": None, "phases": 0, "steps": 0}
+    ckpt = checkpoints.resolve_checkpoint(from_checkpoint).resolve()
+    run = ckpt.parent.parent
+    state_path = run / STATE_FILE
+    if not state_path.exists():
+        raise FileNotFoundError(f"{state_path}: the run of {ckpt} has no {STATE_FILE} (it says how many "
+                                "phases and env steps came before); write one or start without --from")
+    state = json.loads(state_path.read_text())
+    own_phases = int(state["phases"]) - int(state["phases_before"])
+    if own_phases <= 0:
+        raise ValueError(f"{state_path}: the run made no DAgger phase of its own")
+    per_phase = (int(state["steps"]) - int(state["steps_before"])) // own_phases
+    return {"checkpoint": str(ckpt), "phases": int(state["phases_before"]) + int(ckpt.name),
+            "steps": int(state["steps_before"]) + int(ckpt.name) * per_phase}
 
 
 def beta_schedule(teacher_phases: int):
@@ -123,7 +147,11 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
             preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
             command: str = "", progress: bool = True, max_minutes: float | None = None,
             name: str = "student", provenance_table=checkpoints.PROVENANCE_TABLE,
-            backend: str | None = None) -> DistillResult:
+            backend: str | None = None, from_checkpoint=None) -> DistillResult:
+    """One DAgger run; with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
+    student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
+    and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
+    continue from that run's (STATE_FILE), so a campaign goes on across sessions."""
     import jax
     import tqdm
     from brax.training.agents.bc import networks as bc_networks
@@ -135,6 +163,10 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     checkpoints.jax_setup()
     t_start = time.monotonic()
     run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
+    if checkpoints.list_checkpoints(run_dir):
+        raise FileExistsError(f"{run_dir}: already holds DAgger checkpoints; give a new --out "
+                              f"(continue a run with --from {run_dir})")
+    before = prior_progress(from_checkpoint)
     run_dir.mkdir(parents=True, exist_ok=True)
     cfg, env_cfg = bc_config(preset), envs.default_config(task)
     env_cfg.obs_terms = [list(t) for t in obsdef.TERMS_UNION]
@@ -169,7 +201,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
 
     def progress_fn(step, metrics):
         step = int(step)
-        recorded = log.log(step * phase_env_steps, {k: np.mean(np.asarray(v)) for k, v in metrics.items()})
+        recorded = log.log(before["steps"] + step * phase_env_steps, {k: np.mean(np.asarray(v)) for k, v in metrics.items()})
         bar.update(max(0, step - bar.n))
         if "SPS" in recorded:
             bar.set_postfix(samples_per_s=f"{recorded['SPS']:,.0f}", refresh=False)
@@ -187,7 +219,8 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
             scramble_time=cfg.scramble_time or episode_length, network_factory=factory, progress_fn=progress_fn,
             seed=seed, learning_rate=cfg.learning_rate, dagger_steps=cfg.dagger_steps,
             dagger_beta_fn=beta_schedule(cfg.beta_teacher_phases), num_evals=cfg.num_evals,
-            reset=cfg.reset, save_checkpoint_path=str(ckpt_root))
+            reset=cfg.reset, save_checkpoint_path=str(ckpt_root),
+            restore_checkpoint_path=before["checkpoint"])
     except _Stop:
         stopped = True
     bar.close()
@@ -201,15 +234,21 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
         params = checkpoints.load_checkpoint(done[-1])
     params = jax.tree.map(np.asarray, tuple(params))
     minutes = (time.monotonic() - t_start) / 60.0
-    provenance = {"git_commit": checkpoints.git_commit(), "steps": int(phases * phase_env_steps),
+    provenance = {"git_commit": checkpoints.git_commit(), "steps": before["steps"] + int(phases * phase_env_steps),
                   "date": checkpoints.utc_now(), "command": command or "unknown",
                   "device": checkpoints.device_description(), "minutes": round(minutes, 2),
-                  "algorithm": "brax bc (online DAgger)", "dagger_phases": phases, "preset": preset,
+                  "algorithm": "brax bc (online DAgger)", "dagger_phases": before["phases"] + phases,
+                  "dagger_phases_before": before["phases"], "from": before["checkpoint"], "preset": preset,
                   "backend": env_cfg.backend,
                   "teacher": {"getup": str(getup_path), "joystick": str(joystick_path)},
                   "stopped_by_max_minutes": stopped}
     artifact = run_dir / f"{name}.safetensors"
-    trained = phases > 0 and preset != "toy"
+    trained = provenance["dagger_phases"] > 0 and preset != "toy"
+    (run_dir / STATE_FILE).write_text(json.dumps(
+        {"phases": provenance["dagger_phases"], "steps": provenance["steps"], "phases_before": before["phases"],
+         "steps_before": before["steps"], "from": before["checkpoint"], "artifact": artifact.name, "command": provenance["command"],
+         "date": provenance["date"], "minutes": provenance["minutes"], "stopped_by_max_minutes": stopped},
+        indent=1) + "\n")
     rule = export_student(params, env, artifact, name, cfg.tanh_squash, trained, provenance)
     if ship and not stopped:
         from training.train import ship_artifact
@@ -232,15 +271,15 @@ def export_phase(run_dir, phase: int, name: str, like) -> Path:
         raise FileNotFoundError(f"{ckpt}: no checkpoint at phase {phase} (the run has phases {found})")
     _, _, _, manifest = read_artifact(like)
     prov = dict(manifest["provenance"])
-    if not prov.get("dagger_phases"):
+    if "dagger_phases" not in prov:
         raise ValueError(f"{like}: its provenance has no dagger_phases; not a distilled student")
-    steps_per_phase = int(prov["steps"]) // int(prov["dagger_phases"])
-    prov.update(steps=int(phase) * steps_per_phase, dagger_phases=int(phase),
+    at = prior_progress(ckpt)    # the campaign's phases and env steps at this checkpoint
+    prov.update(steps=at["steps"], dagger_phases=at["phases"],
                 exported_from=f"{ckpt} (checkpoint of the run that made {Path(like).name})")
     params = checkpoints.load_checkpoint(ckpt)
     policy = loc_half(params[1]) if manifest["output_rule"] == "linear" else params[1]
     fields = {k: v for k, v in manifest.items() if k != "content_hash"}
-    fields.update(name=name, provenance=prov, trained=bool(manifest["trained"]) and int(phase) > 0)
+    fields.update(name=name, provenance=prov, trained=bool(manifest["trained"]) and at["phases"] > 0)
     path = run_dir / f"{name}.safetensors"
     export_brax_ppo((params[0], policy), fields, path)
     return path
