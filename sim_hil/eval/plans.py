@@ -23,6 +23,12 @@ GETUP_SECONDS = 12.0            # 2 s PREPARE ramp + 10 s to get up
 PUSH_FORWARD, PUSH_BACKWARD = 20, 10
 PUSH_IMPULSE_NS = 40.0          # 1.3 m/s on 31.6 kg: enough to knock a standing T1 over (judgement)
 PUSH_AT_S = 2.0                 # 0.1 s PREPARE + ~2 s standing under the policy
+# Lockstep trials are deterministic, so the seed varies the push as a hand push varies (the seed's pushes
+# were by hand): the impulse within ± this fraction, its direction within ± this angle off the x axis
+# [rad], and its time within this window [s] after PUSH_AT_S.
+PUSH_IMPULSE_SPREAD = 0.15
+PUSH_ANGLE_SPREAD_RAD = 0.26    # ≈ 15°
+PUSH_TIME_SPREAD_S = 0.5
 PUSH_SECONDS = 16.0
 # walk: the joystick expert's in-the-loop targets (issue 13), standing starts on flat ground
 WALK_SECONDS = 20.0
@@ -35,6 +41,8 @@ WALL_TRIALS = 5
 WALL_COMMAND_MPS = 0.4
 WALL_FINISH_BEHIND_LAST_M = 1.0  # finish line this far past the last wall's centre
 WALL_SECONDS = 60.0             # 15 m at 0.4 m/s is 37.5 s; the rest is time to fall and get up
+WALL_START_SPREAD_S = 1.0       # the seed picks when the command starts in this window [s]: each trial meets
+                                # the walls at another point of its gait (deterministic lockstep otherwise)
 # fig5.1: the seed's Fig. 5.1 (§5): one fallen start (seed 62), 0.4 m/s forward from the start, teacher and
 # student side by side: trunk height, waist height, forward velocity
 FIG51_SEED = 62
@@ -126,9 +134,13 @@ def push_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
     out = []
     for i in range(trials):
         forward = i % 3 != 2
-        sign = 1.0 if forward else -1.0
+        rng = np.random.default_rng(seed0 + i)
+        impulse = PUSH_IMPULSE_NS * (1.0 + rng.uniform(-PUSH_IMPULSE_SPREAD, PUSH_IMPULSE_SPREAD))
+        angle = rng.uniform(-PUSH_ANGLE_SPREAD_RAD, PUSH_ANGLE_SPREAD_RAD) + (0.0 if forward else math.pi)
+        at = PUSH_AT_S + rng.uniform(0.0, PUSH_TIME_SPREAD_S)
         out.append(TrialSpec("flat", seed0 + i, "standing", seconds, prepare_s=STANDING_PREPARE_S,
-                             faults=f"push:x={sign * PUSH_IMPULSE_NS:g},y=0,z=0@{PUSH_AT_S:g}",
+                             faults=f"push:x={impulse * math.cos(angle):.2f},y={impulse * math.sin(angle):.2f},"
+                                    f"z=0@{at:.3f}",
                              tag="forward" if forward else "backward"))
     return out
 
@@ -180,12 +192,18 @@ def walk_rows(trials: list[TrialResult]) -> dict[str, str]:
 # ---- wall ------------------------------------------------------------------------------------------------
 def wall_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
     return [TrialSpec("walls", seed0 + i, "standing", seconds, command_vx_mps=WALL_COMMAND_MPS,
+                      command_start_s=STANDING_PREPARE_S + np.random.default_rng(seed0 + i).uniform(0.0, WALL_START_SPREAD_S),
                       prepare_s=STANDING_PREPARE_S) for i in range(trials)]
+
+
+def _course_time_s(r: TrialResult) -> float:
+    """From the first commanded tick under the policy to the finish line [s]."""
+    return r.finish_time_s - max(r.policy_start_s, r.spec.command_start_s)
 
 
 def wall_rows(trials: list[TrialResult]) -> dict[str, str]:
     done = [r for r in trials if not math.isnan(r.finish_time_s)]
-    row = {"completion time [s]": _fmt([r.finish_time_s - r.policy_start_s for r in done], 1),
+    row = {"completion time [s]": _fmt([_course_time_s(r) for r in done], 1),
            "DNF": f"{len(trials) - len(done)}/{len(trials)}",
            "distance [m]": _fmt([r.final_x_m for r in trials], 1)}
     attempts = [r.segment_attempts for r in trials if r.segment_attempts]
@@ -267,7 +285,7 @@ def _walk_cells(r: TrialResult) -> dict[str, str]:
 
 def _wall_cells(r: TrialResult) -> dict[str, str]:
     done = not math.isnan(r.finish_time_s)
-    return {"completion time [s]": _n(r.finish_time_s - r.policy_start_s) if done else "DNF",
+    return {"completion time [s]": _n(_course_time_s(r)) if done else "DNF",
             "getup attempts (total)": str(sum(r.segment_attempts)) if r.segment_attempts else "—",
             "per wall": ", ".join(map(str, r.segment_attempts)) or "—", "distance [m]": _n(r.final_x_m)}
 
@@ -287,8 +305,10 @@ PLANS = {
     "getup": Plan("getup", "flat", GETUP_TRIALS, GETUP_SECONDS, getup_specs, getup_rows, _getup_cells,
                   description="seeded fallen starts on flat ground, no command (Table 4.3 metrics)"),
     "push": Plan("push", "flat", PUSH_FORWARD + PUSH_BACKWARD, PUSH_SECONDS, push_specs, push_rows, _push_cells,
-                 description=f"standing, no command, one torso impulse of ±{PUSH_IMPULSE_NS:g} N·s at "
-                             f"t = {PUSH_AT_S:g} s ({PUSH_FORWARD} forward, {PUSH_BACKWARD} backward)"),
+                 description=f"standing, no command, one torso impulse of ±{PUSH_IMPULSE_NS:g} N·s "
+                             f"(seeded: ±{PUSH_IMPULSE_SPREAD:.0%}, ±{math.degrees(PUSH_ANGLE_SPREAD_RAD):.0f}° off x) at "
+                             f"t = {PUSH_AT_S:g}-{PUSH_AT_S + PUSH_TIME_SPREAD_S:g} s ({PUSH_FORWARD} forward, "
+                             f"{PUSH_BACKWARD} backward)"),
     "walk": Plan("walk", "flat", 1, WALK_SECONDS, walk_specs, walk_rows, _walk_cells,
                  description=f"standing starts, {WALK_SECONDS:g} s each: {WALK_FORWARD_MPS} m/s forward, zero "
                              f"command, {WALK_YAW_RPS} rad/s yaw (lockstep), {WALK_FORWARD_MPS} m/s in realtime, "
@@ -299,7 +319,8 @@ PLANS = {
     "wall": Plan("wall", "walls", WALL_TRIALS, WALL_SECONDS, wall_specs, wall_rows, _wall_cells, finish_x_m=wall_finish_x(),
                  segment_edges_x=wall_segment_edges(),
                  description=f"three 0.2 m walls at x = {', '.join(f'{x:g}' for x in wall_xs())} m, "
-                             f"{WALL_COMMAND_MPS} m/s forward; finish line x = {wall_finish_x():g} m"),
+                             f"{WALL_COMMAND_MPS} m/s forward from a seeded start within {WALL_START_SPREAD_S:g} s; "
+                             f"finish line x = {wall_finish_x():g} m"),
     "fig5.1": Plan("fig5.1", "flat", 1, FIG51_SECONDS, fig51_specs, fig51_rows, _fig51_cells, side_by_side=True, seed0=FIG51_SEED,
                    description=f"the seed's Fig. 5.1: fallen start (seed {FIG51_SEED}), {FIG51_COMMAND_MPS} m/s "
                                "forward from the start; teacher (--teacher) and student side by side"),

@@ -49,6 +49,7 @@ class TrialSpec:
     seconds: float                # sim seconds
     command_vx_mps: float = 0.0   # constant forward command [m/s]
     command_yaw_rps: float = 0.0  # constant yaw-rate command [rad/s], counter-clockwise positive
+    command_start_s: float = 0.0  # sim time [s] before which the command is zero
     command_stop_s: float | None = None   # sim time [s] from which the command is zero (None: never)
     clock: str = "lockstep"       # lockstep (the runtime answers every state) | realtime (both on the wall clock)
     faults: str = ""              # sim --faults (pushes: push:x=±J@t)
@@ -106,7 +107,6 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
     n = int(round(spec.seconds / config.CONTROL_DT_S))
     log = TickLog(sim.model, n)
     stick = joystick_t()
-    stick.vx, stick.yaw_rate = float(spec.command_vx_mps), float(spec.command_yaw_rps)
     wall_start = time.perf_counter()
     try:
         for k in range(n):
@@ -114,8 +114,10 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
             while not lockstep and (remaining := wall_start + k * config.CONTROL_DT_S - time.perf_counter()) > 0:
                 sim.link.poll(remaining)
             if k % JOYSTICK_EVERY_TICKS == 0:
-                if spec.command_stop_s is not None and sim.data.time >= spec.command_stop_s:
-                    stick.vx = stick.yaw_rate = 0.0
+                commanding = sim.data.time >= spec.command_start_s and (
+                    spec.command_stop_s is None or sim.data.time < spec.command_stop_s)
+                stick.vx, stick.yaw_rate = ((float(spec.command_vx_mps), float(spec.command_yaw_rps)) if commanding
+                                            else (0.0, 0.0))
                 stick.utime, stick.seq = sim.now_us, k   # lockstep: ages are in sim time
                 sim.link.lc.publish(contract.CH_JOYSTICK, stick.encode())
             sim.tick()
