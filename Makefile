@@ -91,8 +91,8 @@ clean:
 
 # Evaluation in the loop (the seed's chapter 6; sim_hil/eval): seeded lockstep trials of the student and,
 # with EVAL_BASELINE=GETUP,JOYSTICK, the baseline composite; reports under out/eval/<scenario>/.
-# e.g. make eval-getup EVAL_ARGS="--trials 20" EVAL_BASELINE=policies/getup.safetensors,policies/joystick.safetensors
-EVAL_POLICY   ?= $(firstword $(wildcard policies/student.safetensors) policies/student_untrained.safetensors)
+# e.g. make eval-getup EVAL_ARGS="--trials 20" EVAL_BASELINE=policies/getup_baseline.safetensors,policies/joystick.safetensors
+EVAL_POLICY   ?= $(firstword $(wildcard policies/student.safetensors policies/student_baseline_teacher.safetensors) policies/student_untrained.safetensors)
 EVAL_BASELINE ?=
 EVAL_ARGS     ?=
 EVAL_FLAGS     = --policy $(EVAL_POLICY) $(if $(EVAL_BASELINE),--baseline $(EVAL_BASELINE)) $(EVAL_ARGS)

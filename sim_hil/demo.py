@@ -1,12 +1,12 @@
 """`make demo`: the deployment path end to end. Inside the project namespace: the simulated T1 (realtime,
 spawned fallen) and the C++ runtime running the student from policies/, a short scripted joystick
 sequence, a live status line, then a video and a plot of trunk height, waist height and forward velocity.
-The student is policies/student.safetensors when a trained one is shipped, else the untrained placeholder,
-and the demo says plainly which it runs. With the placeholder, the skills the product has today follow:
-the trained baseline getup alone from the same fallen start (it gets up and stands; it ignores the
-joystick), then the trained joystick expert walking the script from a standing start. Not the two
-stitched: in the runtime's composite the joystick expert takes over at waist 0.5 m a robot still rising,
-and it falls (measured in session 10; issue 16's baseline composite)."""
+The student is the first shipped of POLICIES: policies/student.safetensors (distilled from the seed's
+stitched teacher, keyframe getup + joystick), else policies/student_baseline_teacher.safetensors (distilled
+the same way from the teacher the product has: the reward-only baseline getup + the joystick expert), else
+the untrained placeholder; the demo says which it runs and which teacher a student was distilled from.
+Unless it is the seed's student, the trained experts follow one by one: the baseline getup alone from the
+same fallen start, then the joystick expert walking the script from a standing start."""
 from __future__ import annotations
 
 import argparse
@@ -23,7 +23,9 @@ from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.plots import plot_heights_and_velocity
 from training.artifact import read_artifact
 
-POLICIES = (ROOT / "policies" / "student.safetensors", ROOT / "policies" / "student_untrained.safetensors")
+SEED_STUDENT = ROOT / "policies" / "student.safetensors"   # distilled from the seed's keyframe + joystick teacher
+POLICIES = (SEED_STUDENT, ROOT / "policies" / "student_baseline_teacher.safetensors",
+            ROOT / "policies" / "student_untrained.safetensors")
 JOYSTICK_EXPERT = ROOT / "policies" / "joystick.safetensors"
 BASELINE_GETUP = ROOT / "policies" / "getup_baseline.safetensors"
 FALLEN_SPAWN, STANDING_SPAWN = "fallen:62", "standing"
@@ -51,10 +53,15 @@ def main(argv=None) -> int:
     policy = args.policy or next(p for p in POLICIES if p.exists())
     trained = bool(read_artifact(policy)[3]["trained"])
     code = run(policy, args.spawn, args.seconds, args.out, "demo", log=not args.no_log)
-    if code != 0 or trained or args.policy is not None:
+    if code != 0 or args.policy is not None or (trained and policy == SEED_STUDENT):
         return code
-    print("demo: NOTE the policy is untrained — this run shows the plumbing (sim, bus, runtime, safety), "
-          "not a skill. Train and ship policies/student.safetensors (training/README.md).")
+    if trained:
+        print("demo: NOTE this student was distilled from the baseline composite (reward-only baseline getup + "
+              "joystick expert), not from the seed's keyframe teacher, and it misses the seed's targets: see its "
+              "row in policies/PROVENANCE.md. The experts it was distilled from follow, one by one.")
+    else:
+        print("demo: NOTE the policy is untrained — this run shows the plumbing (sim, bus, runtime, safety), "
+              "not a skill. Train and ship policies/student.safetensors (training/README.md).")
     if code == 0 and _trained(BASELINE_GETUP):
         print("\ndemo: next — the trained baseline getup (reward-only, policies/PROVENANCE.md), same fallen "
               "start. It gets up and stands; it does not walk (it ignores the joystick)")
@@ -77,6 +84,10 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
     trained = bool(manifest["trained"])
     banner = "trained" if trained else "UNTRAINED (random-init placeholder: expect flailing, not getting up)"
     print(f"demo: policy {policy.relative_to(ROOT) if policy.is_relative_to(ROOT) else policy} — {banner}")
+    teacher = manifest["provenance"].get("teacher")
+    if isinstance(teacher, dict):
+        print(f"demo: a student distilled (DAgger, {manifest['provenance'].get('dagger_phases', '?')} phases) from "
+              f"the stitched teacher getup={teacher.get('getup')} + joystick={teacher.get('joystick')}")
     out.mkdir(parents=True, exist_ok=True)
     video = out / f"{name}.mp4"
     lc = lcm.LCM(contract.lcm_url())
