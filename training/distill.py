@@ -201,7 +201,8 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
 
     def progress_fn(step, metrics):
         step = int(step)
-        recorded = log.log(before["steps"] + step * phase_env_steps, {k: np.mean(np.asarray(v)) for k, v in metrics.items()})
+        recorded = log.log(before["steps"] + step * phase_env_steps,
+                           {k: np.mean(np.asarray(v)) for k, v in metrics.items()})
         bar.update(max(0, step - bar.n))
         if "SPS" in recorded:
             bar.set_postfix(samples_per_s=f"{recorded['SPS']:,.0f}", refresh=False)
@@ -246,8 +247,9 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     trained = provenance["dagger_phases"] > 0 and preset != "toy"
     (run_dir / STATE_FILE).write_text(json.dumps(
         {"phases": provenance["dagger_phases"], "steps": provenance["steps"], "phases_before": before["phases"],
-         "steps_before": before["steps"], "from": before["checkpoint"], "artifact": artifact.name, "command": provenance["command"],
-         "date": provenance["date"], "minutes": provenance["minutes"], "stopped_by_max_minutes": stopped},
+         "steps_before": before["steps"], "from": before["checkpoint"], "artifact": artifact.name,
+         "command": provenance["command"], "date": provenance["date"], "minutes": provenance["minutes"],
+         "stopped_by_max_minutes": stopped},
         indent=1) + "\n")
     rule = export_student(params, env, artifact, name, cfg.tanh_squash, trained, provenance)
     if ship and not stopped:

@@ -25,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 MAX_JOBS = 2            # the machine has 2 cores: at most 2 sim+runtime pairs
 EXIT_OK, EXIT_USAGE, EXIT_FAILED = 0, 2, 1
 
+
 def distilled_from(student: Path) -> str:
     """GETUP,JOYSTICK: the stitched teacher a distilled artifact names in its provenance (paths as given to
     `python -m training distill`, relative to the repository root)."""
