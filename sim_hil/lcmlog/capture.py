@@ -26,6 +26,16 @@ FLUSH_INTERVAL_MS = 20        # lcm-logger's disk flush period: how soon readine
 MARK_TIMEOUT_S = 10.0         # a logger that has not written the run_info_t marker by then is broken
 MARK_POLL_S = 0.05            # run_info_t re-sent at this period until it shows up in the file
 STOP_TIMEOUT_S = 10.0         # SIGINT -> lcm-logger writes what it holds and exits
+# The logger's UDP receive buffer [bytes]. Nothing waits for the logger (a lockstep sim waits only for the
+# runtime), so when a loaded CPU starves it, the buffer is all that keeps messages: the kernel default
+# (~208 KiB) holds ~50 ms of the project's traffic and dropped a state under load; 4 MiB holds seconds.
+# The kernel caps it at net.core.rmem_max.
+LOGGER_RECV_BUF_BYTES = 4 * 1024 * 1024
+
+
+def logger_url(url: str) -> str:
+    """`url` with the logger's receive buffer option (LCM udpm `recv_buf_size`) added."""
+    return f"{url}{'&' if '?' in url else '?'}recv_buf_size={LOGGER_RECV_BUF_BYTES}"
 
 
 def channel_regex() -> str:
@@ -71,7 +81,7 @@ class LogCapture:
         self.path.unlink(missing_ok=True)
         self.proc = subprocess.Popen(
             [lcm_tool("lcm-logger"), "--quiet", "--force", f"--flush-interval={FLUSH_INTERVAL_MS}",
-             f"--lcm-url={url}", f"--channel={channel_regex()}", str(self.path)],
+             f"--lcm-url={logger_url(url)}", f"--channel={channel_regex()}", str(self.path)],
             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         self._info, self._lc = info, lcm.LCM(url)
         if not self._stamp_and_wait(0):
