@@ -51,7 +51,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-log", action="store_true", help="do not write OUT/demo.lcmlog")
     args = ap.parse_args(argv)
     policy = args.policy or next(p for p in POLICIES if p.exists())
-    trained = bool(read_artifact(policy)[3]["trained"])
+    trained = _trained(policy)
     code = run(policy, args.spawn, args.seconds, args.out, "demo", log=not args.no_log)
     if code != 0 or args.policy is not None or (trained and policy == SEED_STUDENT):
         return code

@@ -214,7 +214,7 @@ def test_export_phase_writes_an_earlier_checkpoint(toy_runs, capsys):
     run = toy_runs["student"]
     final_layers, _, _, final = read_artifact(run / "student_toy.safetensors")
     phases = final["provenance"]["dagger_phases"]   # the toy run keeps one checkpoint: its last phase
-    layers, _, _, again = read_artifact(export_phase(run, phases, "student_again", run / "student_toy.safetensors"))
+    layers, _, _, again = read_artifact(export_phase(run, phases, "student_again"))   # like: the state file's
     assert again["name"] == "student_again" and again["provenance"]["steps"] == final["provenance"]["steps"]
     assert again["obs_terms"] == final["obs_terms"] and again["output_rule"] == final["output_rule"]
     assert again["trained"] is False and all(np.array_equal(w, v) for (w, _), (v, _) in zip(layers, final_layers))

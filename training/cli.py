@@ -8,7 +8,6 @@ import argparse
 import ast
 import shlex
 import sys
-from pathlib import Path
 from typing import Mapping, Sequence
 
 TASKS = ("joystick", "getup", "getup_baseline")  # = training.envs.TASKS (checked when the envs load)
@@ -102,9 +101,8 @@ def _cmd_distill(args, command: str) -> int:
 
 def _cmd_export_phase(args, command: str) -> int:
     from training import distill
-    like = args.like or Path(args.run) / "student.safetensors"
-    path = distill.export_phase(args.run, args.phase, args.name, like)
-    print(f"{path}: DAgger phase {args.phase} of {args.run} (manifest from {like})")
+    path = distill.export_phase(args.run, args.phase, args.name, args.like)
+    print(f"{path}: DAgger phase {args.phase} of {args.run}")
     return 0
 
 
@@ -197,7 +195,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--run", required=True, help="distill run directory")
     p.add_argument("--phase", type=int, required=True, help="DAgger phase of a checkpoint in RUN/checkpoints")
     p.add_argument("--name", required=True, help="policy name: RUN/NAME.safetensors")
-    p.add_argument("--like", help="the run's final artifact, whose manifest is reused (default RUN/student.safetensors)")
+    p.add_argument("--like", help="the run's final artifact, whose manifest is reused (default: the one "
+                   "RUN/distill_state.json names)")
     p.set_defaults(func=_cmd_export_phase)
 
     p = sub.add_parser("evaluate", help="batched rollouts of an artifact: getup from seeded fallen "

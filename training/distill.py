@@ -258,9 +258,10 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     return DistillResult(run_dir, artifact, phases, rule, minutes)
 
 
-def export_phase(run_dir, phase: int, name: str, like) -> Path:
+def export_phase(run_dir, phase: int, name: str, like=None) -> Path:
     """Export a finished run's checkpoint at DAgger phase `phase` as run_dir/<name>.safetensors, with the
-    manifest of the run's final artifact `like` (same env and network) and that phase's steps: e.g. the
+    manifest of the run's final artifact `like` (default: the one its STATE_FILE names; same env and
+    network) and that phase's steps: e.g. the
     seed's DAgger-400 / DAgger-1000 students of Fig. 5.1 as checkpoints of one longer run. (Not the same as
     a run of that length: brax bc resets the envs at each evaluation, every dagger_steps / (num_evals − 1)
     phases, so a shorter run resets more often.)"""
@@ -271,11 +272,13 @@ def export_phase(run_dir, phase: int, name: str, like) -> Path:
     if not ckpt.is_dir():
         found = [int(p.name) for p in checkpoints.list_checkpoints(run_dir)]
         raise FileNotFoundError(f"{ckpt}: no checkpoint at phase {phase} (the run has phases {found})")
+    at = prior_progress(ckpt)    # the campaign's phases and env steps at this checkpoint
+    if like is None:
+        like = run_dir / json.loads((run_dir / STATE_FILE).read_text())["artifact"]
     _, _, _, manifest = read_artifact(like)
     prov = dict(manifest["provenance"])
     if "dagger_phases" not in prov:
         raise ValueError(f"{like}: its provenance has no dagger_phases; not a distilled student")
-    at = prior_progress(ckpt)    # the campaign's phases and env steps at this checkpoint
     prov.update(steps=at["steps"], dagger_phases=at["phases"],
                 exported_from=f"{ckpt} (checkpoint of the run that made {Path(like).name})")
     params = checkpoints.load_checkpoint(ckpt)

@@ -54,10 +54,10 @@ class ArtifactPolicy:
     def trained(self) -> bool:
         return bool(self.manifest["trained"])
 
-    def check_env(self, env) -> None:
+    def check_env(self, env, keys=MANIFEST_MUST_MATCH_ENV) -> None:
         """The artifact must command the motors the way the env's model does, or the rollout lies."""
         fields = env.manifest_fields()
-        for key in MANIFEST_MUST_MATCH_ENV:
+        for key in keys:
             ours, theirs = np.asarray(self.manifest[key], float), np.asarray(fields[key], float)
             if ours.shape != theirs.shape and ours.size != 1:
                 raise ValueError(f"{self.path}: {key} has shape {ours.shape}, the env has {theirs.shape}")
@@ -119,12 +119,7 @@ class CompositePolicy:
 
     def check_env(self, env) -> None:
         self.getup.check_env(env)
-        fields = env.manifest_fields()
-        for key in self.UPRIGHT_MUST_MATCH_ENV:
-            ours, theirs = np.asarray(self.upright.manifest[key], float), np.asarray(fields[key], float)
-            if np.max(np.abs(ours - theirs)) > MATCH_TOLERANCE:
-                raise ValueError(f"{self.upright.path}: manifest {key} differs from the evaluation env's "
-                                 f"(a composite's members share one motor law)")
+        self.upright.check_env(env, self.UPRIGHT_MUST_MATCH_ENV)
 
     @property
     def params(self):
