@@ -146,3 +146,21 @@ def test_fig51_teacher_defaults_to_the_one_the_student_names(baseline, tmp_path)
         distilled_from(STUDENT)
     with pytest.raises(SystemExit):   # argparse's error: the untrained placeholder was not distilled
         parse_args(["fig5.1", "--policy", str(STUDENT)])
+
+
+def test_push_and_wall_trials_differ_by_seed_within_their_spreads():
+    """Lockstep trials are deterministic: without a seeded difference 20 trials would be one trial 20 times."""
+    import math
+    from sim_hil.faults import parse_faults
+    pushes = plans.push_specs(30, plans.PUSH_SECONDS, 0)
+    assert pushes == plans.push_specs(30, plans.PUSH_SECONDS, 0)          # same seed, same trial
+    assert len({p.faults for p in pushes}) == len(pushes)
+    for spec in pushes:
+        (push,) = parse_faults(spec.faults)
+        x, y = push.params["x"], push.params["y"]
+        assert abs(math.hypot(x, y) / plans.PUSH_IMPULSE_NS - 1.0) <= plans.PUSH_IMPULSE_SPREAD + 1e-3
+        assert (x > 0) == (spec.tag == "forward") and abs(math.atan2(y, abs(x))) <= plans.PUSH_ANGLE_SPREAD_RAD + 1e-3
+        assert plans.PUSH_AT_S <= push.start_s <= plans.PUSH_AT_S + plans.PUSH_TIME_SPREAD_S
+    starts = [w.command_start_s for w in plans.wall_specs(5, plans.WALL_SECONDS, 0)]
+    assert len(set(starts)) == 5
+    assert all(plans.STANDING_PREPARE_S <= s <= plans.STANDING_PREPARE_S + plans.WALL_START_SPREAD_S for s in starts)
