@@ -40,6 +40,14 @@ def test_config_overrides_prefixed_bare_and_errors():
         cli.apply_overrides({"ppo": ppo, "env": env}, ["env.missing=1"])
 
 
+def test_config_overrides_take_json_booleans():
+    env = config_dict.create(gate_latches=True, deterministic=False)
+    cli.apply_overrides({"env": env}, ["env.gate_latches=false", "env.deterministic=True"])
+    assert env.gate_latches is False and env.deterministic is True
+    with pytest.raises(ValueError, match="gate_latches=maybe"):
+        cli.apply_overrides({"env": env}, ["env.gate_latches=maybe"])
+
+
 def test_cli_rejects_bad_usage(capsys):
     with pytest.raises(SystemExit):
         cli.main(["train", "not_a_task", "--out", "/tmp/x"])

@@ -15,8 +15,13 @@ STAGES = ("stage1", "stage2", "full")
 
 
 # ---------------------------------------------------------------- --config key=value
+_BOOL_WORDS = {"true": True, "false": False}   # the JSON / YAML spellings, typed out of habit
+
+
 def _parse_value(text: str):
-    """Python literal if it is one (1e-4, (0.4, 0.4, 0.2), True), else the text itself."""
+    """Python literal if it is one (1e-4, (0.4, 0.4, 0.2), True; also true / false), else the text itself."""
+    if text.strip().lower() in _BOOL_WORDS:
+        return _BOOL_WORDS[text.strip().lower()]
     try:
         return ast.literal_eval(text)
     except (ValueError, SyntaxError):
