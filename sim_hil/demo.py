@@ -1,12 +1,13 @@
 """`make demo`: the deployment path end to end. Inside the project namespace: the simulated T1 (realtime,
 spawned fallen) and the C++ runtime running the student from policies/, a short scripted joystick
 sequence, a live status line, then a video and a plot of trunk height, waist height and forward velocity.
-The student is the first shipped of POLICIES: policies/student.safetensors (distilled from the seed's
-stitched teacher, keyframe getup + joystick), else policies/student_baseline_teacher.safetensors (distilled
-the same way from the teacher the product has: the reward-only baseline getup + the joystick expert), else
-the untrained placeholder; the demo says which it runs and which teacher a student was distilled from.
-Unless it is the seed's student, the trained experts follow one by one: the baseline getup alone from the
-same fallen start, then the joystick expert walking the script from a standing start."""
+The student is the first shipped of POLICIES: policies/student.safetensors (distilled from the stitched
+teacher keyframe getup + joystick), else policies/student_baseline_teacher.safetensors (distilled the same
+way from the reward-only baseline getup + the joystick expert), else the untrained placeholder; the demo
+says which it runs and which teacher a student was distilled from. No shipped student meets the seed's
+targets yet, so the trained experts follow one by one: the student's getup expert (its teacher's, else the
+baseline) alone from the same fallen start, then the joystick expert walking the script from a standing
+start."""
 from __future__ import annotations
 
 import argparse
@@ -23,8 +24,7 @@ from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.plots import plot_heights_and_velocity
 from training.artifact import read_artifact
 
-SEED_STUDENT = ROOT / "policies" / "student.safetensors"   # distilled from the seed's keyframe + joystick teacher
-POLICIES = (SEED_STUDENT, ROOT / "policies" / "student_baseline_teacher.safetensors",
+POLICIES = (ROOT / "policies" / "student.safetensors", ROOT / "policies" / "student_baseline_teacher.safetensors",
             ROOT / "policies" / "student_untrained.safetensors")
 JOYSTICK_EXPERT = ROOT / "policies" / "joystick.safetensors"
 BASELINE_GETUP = ROOT / "policies" / "getup_baseline.safetensors"
@@ -53,24 +53,32 @@ def main(argv=None) -> int:
     policy = args.policy or next(p for p in POLICIES if p.exists())
     trained = _trained(policy)
     code = run(policy, args.spawn, args.seconds, args.out, "demo", log=not args.no_log)
-    if code != 0 or args.policy is not None or (trained and policy == SEED_STUDENT):
+    if code != 0 or args.policy is not None:
         return code
     if trained:
-        print("demo: NOTE this student was distilled from the baseline composite (reward-only baseline getup + "
-              "joystick expert), not from the seed's keyframe teacher, and it misses the seed's targets: see its "
-              "row in policies/PROVENANCE.md. The experts it was distilled from follow, one by one.")
+        print("demo: NOTE this student misses the seed's targets: see its row in policies/PROVENANCE.md. "
+              "The experts of its teacher follow, one by one.")
     else:
         print("demo: NOTE the policy is untrained — this run shows the plumbing (sim, bus, runtime, safety), "
               "not a skill. Train and ship policies/student.safetensors (training/README.md).")
-    if code == 0 and _trained(BASELINE_GETUP):
-        print("\ndemo: next — the trained baseline getup (reward-only, policies/PROVENANCE.md), same fallen "
+    getup = _teacher_getup(policy)
+    if code == 0 and _trained(getup):
+        print(f"\ndemo: next — the trained getup expert {getup.name} (policies/PROVENANCE.md), same fallen "
               "start. It gets up and stands; it does not walk (it ignores the joystick)")
-        code = run(BASELINE_GETUP, args.spawn, args.seconds, args.out, "demo_getup", log=not args.no_log)
+        code = run(getup, args.spawn, args.seconds, args.out, "demo_getup", log=not args.no_log)
     if code == 0 and _trained(JOYSTICK_EXPERT):
         print("\ndemo: next — the trained joystick expert, standing start. It walks and turns; it cannot "
               "get up, stands on one leg, may stumble after the stop (policies/PROVENANCE.md)")
         code = run(JOYSTICK_EXPERT, STANDING_SPAWN, args.seconds, args.out, "demo_joystick", log=not args.no_log)
     return code
+
+
+def _teacher_getup(student: Path) -> Path:
+    """The getup expert a student was distilled from (its manifest's teacher, shipped under policies/ by that
+    name), else the baseline getup."""
+    teacher = read_artifact(student)[3]["provenance"].get("teacher")
+    shipped = ROOT / "policies" / Path(teacher["getup"]).name if isinstance(teacher, dict) else None
+    return shipped if shipped is not None and shipped.exists() else BASELINE_GETUP
 
 
 def _trained(artifact: Path) -> bool:
