@@ -22,7 +22,7 @@ from messages import contract
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop, stop_cleanly_on_sigterm
 from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.plots import plot_heights_and_velocity
-from training.artifact import read_artifact
+from training.artifact import read_artifact, stitched_teacher
 
 POLICIES = (ROOT / "policies" / "student.safetensors", ROOT / "policies" / "student_baseline_teacher.safetensors",
             ROOT / "policies" / "student_untrained.safetensors")
@@ -76,8 +76,8 @@ def main(argv=None) -> int:
 def _teacher_getup(student: Path) -> Path:
     """The getup expert a student was distilled from (its manifest's teacher, shipped under policies/ by that
     name), else the baseline getup."""
-    teacher = read_artifact(student)[3]["provenance"].get("teacher")
-    shipped = ROOT / "policies" / Path(teacher["getup"]).name if isinstance(teacher, dict) else None
+    teacher = stitched_teacher(read_artifact(student)[3])
+    shipped = ROOT / "policies" / Path(teacher["getup"]).name if teacher else None
     return shipped if shipped is not None and shipped.exists() else BASELINE_GETUP
 
 
@@ -92,10 +92,10 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
     trained = bool(manifest["trained"])
     banner = "trained" if trained else "UNTRAINED (random-init placeholder: expect flailing, not getting up)"
     print(f"demo: policy {policy.relative_to(ROOT) if policy.is_relative_to(ROOT) else policy} — {banner}")
-    teacher = manifest["provenance"].get("teacher")
-    if isinstance(teacher, dict):
+    teacher = stitched_teacher(manifest)
+    if teacher:
         print(f"demo: a student distilled (DAgger, {manifest['provenance'].get('dagger_phases', '?')} phases) from "
-              f"the stitched teacher getup={teacher.get('getup')} + joystick={teacher.get('joystick')}")
+              f"the stitched teacher getup={teacher['getup']} + joystick={teacher['joystick']}")
     out.mkdir(parents=True, exist_ok=True)
     video = out / f"{name}.mp4"
     lc = lcm.LCM(contract.lcm_url())

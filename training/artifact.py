@@ -151,6 +151,13 @@ def write_artifact(path, layers: Sequence[tuple[Any, Any]], obs_mean, obs_std, m
     return read_artifact_bytes(data)[3]["content_hash"]
 
 
+def stitched_teacher(manifest: Mapping[str, Any]) -> dict[str, str] | None:
+    """{"getup": path, "joystick": path}: the teacher a distilled student names in its provenance (paths as
+    given to `python -m training distill`), or None for an artifact that was not distilled."""
+    teacher = manifest.get("provenance", {}).get("teacher")
+    return teacher if isinstance(teacher, dict) and {"getup", "joystick"} <= set(teacher) else None
+
+
 def read_artifact(path):
     """→ (layers [(W (out,in), b)], obs_mean, obs_std, manifest dict). ValueError naming the field."""
     try:

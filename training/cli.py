@@ -20,8 +20,9 @@ _BOOL_WORDS = {"true": True, "false": False}   # the JSON / YAML spellings, type
 
 def _parse_value(text: str):
     """Python literal if it is one (1e-4, (0.4, 0.4, 0.2), True; also true / false), else the text itself."""
-    if text.strip().lower() in _BOOL_WORDS:
-        return _BOOL_WORDS[text.strip().lower()]
+    word = text.strip().lower()
+    if word in _BOOL_WORDS:
+        return _BOOL_WORDS[word]
     try:
         return ast.literal_eval(text)
     except (ValueError, SyntaxError):

@@ -29,11 +29,11 @@ EXIT_OK, EXIT_USAGE, EXIT_FAILED = 0, 2, 1
 def distilled_from(student: Path) -> str:
     """GETUP,JOYSTICK: the stitched teacher a distilled artifact names in its provenance (paths as given to
     `python -m training distill`, relative to the repository root)."""
-    from training.artifact import read_artifact
+    from training.artifact import read_artifact, stitched_teacher
     if not student.is_file():
         raise ValueError(f"policy artifact {student} does not exist")
-    teacher = read_artifact(student)[3]["provenance"].get("teacher")
-    if not isinstance(teacher, dict) or not {"getup", "joystick"} <= set(teacher):
+    teacher = stitched_teacher(read_artifact(student)[3])
+    if teacher is None:
         raise ValueError(f"{student}: its provenance names no teacher (not a distilled student); give --teacher")
     return ",".join(str(p if Path(p).is_absolute() else ROOT / p) for p in (teacher["getup"], teacher["joystick"]))
 
