@@ -60,6 +60,15 @@ def test_yaw_breakdown_bins_commands_and_measures_the_turn_gain():
     assert math.isclose(bins[0]["rms_radps"], 0.0, abs_tol=1e-12) and math.isclose(bins[0]["gain"], 1.0)
     assert math.isclose(bins[3]["rms_radps"], 0.45, rel_tol=1e-9) and math.isclose(bins[3]["gain"], 0.5)
     assert math.isnan(bins[1]["rms_radps"])
+    assert math.isclose(bins[0]["bias_radps"], 0.0, abs_tol=1e-12) and math.isclose(bins[3]["bias_radps"], -0.45)
+
+
+def test_yaw_breakdown_shows_a_steady_veer_as_bias():
+    s = _series(n_eps=2, ticks=100, cmd=(0.4, 0.0, 0.1), vel=(0.4, 0.0, 0.02))   # veers right by 0.08 rad/s
+    s["cmd"][1, :, 2], s["vel"][1, :, 2] = -0.1, -0.18
+    bins = ej.yaw_by_command(s, ej.episode_rows(s, DT))
+    assert math.isclose(bins[0]["bias_radps"], -0.08, rel_tol=1e-9)
+    assert math.isclose(bins[0]["rms_radps"], 0.08, rel_tol=1e-9)
 
 
 def test_step_response_follows_the_error_after_a_change_until_the_next_one():

@@ -93,7 +93,9 @@ def episode_rows(series: dict, ctrl_dt: float) -> list[dict]:
 
 def yaw_by_command(series: dict, rows: list[dict]) -> list[dict]:
     """Yaw tracking per |commanded yaw rate| bin, over the ticks before each episode's fall: RMS error
-    [rad/s] and gain Σ ω_z·sign(ω_cmd) / Σ |ω_cmd| (1: turns as fast as told, 0: does not turn)."""
+    [rad/s], gain Σ ω_z·sign(ω_cmd) / Σ |ω_cmd| (1: turns as fast as told, 0: does not turn) and signed
+    bias mean(ω_z − ω_cmd) [rad/s]. Commands are drawn symmetric in yaw, so a bias is a steady veer to one
+    side: what keeps a policy that tracks yaw "on average" from walking a straight course."""
     cmd = np.concatenate([np.asarray(series["cmd"])[i, :r["ticks"], 2] for i, r in enumerate(rows)])
     yaw = np.concatenate([np.asarray(series["vel"])[i, :r["ticks"], 2] for i, r in enumerate(rows)])
     out = []
@@ -103,6 +105,7 @@ def yaw_by_command(series: dict, rows: list[dict]) -> list[dict]:
         c, w = cmd[sel], yaw[sel]
         out.append({"lo": lo, "hi": hi, "ticks": int(sel.sum()),
                     "rms_radps": float(np.sqrt(np.mean((c - w) ** 2))) if sel.any() else math.nan,
+                    "bias_radps": float(np.mean(w - c)) if sel.any() else math.nan,
                     "gain": float(np.sum(w * np.sign(c)) / np.sum(np.abs(c))) if np.any(c) else math.nan})
     return out
 
@@ -159,10 +162,12 @@ def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict, yaw_bins:
              f"{summary['rms_yaw_rate_settled_radps']:.3f} | (information) | |",
              "", f"Targets met: **{'all' if all(met.values()) else 'NO'}**. Command: `{meta['command']}`", ""]
     if yaw_bins:
-        lines += ["Yaw tracking by commanded yaw rate (gain: achieved / commanded, 1 = turns as told):", "",
-                  "| \\|ω_cmd\\| [rad/s] | ticks | RMS error [rad/s] | gain |", "|---|---|---|---|"]
-        lines += [f"| {b['lo']:.2f}–{b['hi']:.2f} | {b['ticks']} | {b['rms_radps']:.3f} | {b['gain']:.2f} |"
-                  for b in yaw_bins]
+        lines += ["Yaw tracking by commanded yaw rate (gain: achieved / commanded, 1 = turns as told; bias: "
+                  "mean ω_z − ω_cmd, a steady veer, + = to the left):", "",
+                  "| \\|ω_cmd\\| [rad/s] | ticks | RMS error [rad/s] | gain | bias [rad/s] |",
+                  "|---|---|---|---|---|"]
+        lines += [f"| {b['lo']:.2f}–{b['hi']:.2f} | {b['ticks']} | {b['rms_radps']:.3f} | {b['gain']:.2f} | "
+                  f"{b['bias_radps']:+.3f} |" for b in yaw_bins]
         lines.append("")
     if response and response["changes"]:
         lines += [f"Linear-velocity error after a command change ({response['changes']} mid-episode changes, "
