@@ -164,3 +164,21 @@ def test_push_and_wall_trials_differ_by_seed_within_their_spreads():
     starts = [w.command_start_s for w in plans.wall_specs(5, plans.WALL_SECONDS, 0)]
     assert len(set(starts)) == 5
     assert all(plans.STANDING_PREPARE_S <= s <= plans.STANDING_PREPARE_S + plans.WALL_START_SPREAD_S for s in starts)
+
+
+def test_course_operator_steers_back_down_the_course_only_while_upright():
+    """Walls and puddles: the robot may rise from a fall facing anywhere; the operator turns it back to +x."""
+    import math
+    from sim_hil.eval.events import heading_from_quat
+    from sim_hil.eval.trial import STEER_MAX_RPS, STEER_MIN_UP_Z, operator_yaw_rate
+    assert operator_yaw_rate(0.0, 0.0, 1.0) == 0.0
+    assert 0.0 < operator_yaw_rate(0.0, -0.1, 1.0) < STEER_MAX_RPS       # facing right of the course: turn left
+    assert operator_yaw_rate(0.0, 0.1, 1.0) == -operator_yaw_rate(0.0, -0.1, 1.0)
+    assert operator_yaw_rate(0.0, -2.0, 1.0) == STEER_MAX_RPS             # capped
+    assert operator_yaw_rate(0.0, 3.0, 1.0) == -STEER_MAX_RPS and operator_yaw_rate(0.0, -3.0, 1.0) == STEER_MAX_RPS
+    assert operator_yaw_rate(3.0, -3.0, 1.0) < 0.0                         # the short way round through ±π
+    assert operator_yaw_rate(0.0, 1.0, STEER_MIN_UP_Z - 0.01) == 0.0      # lying down: no heading to steer
+    half = 0.7
+    assert math.isclose(heading_from_quat((math.cos(half / 2), 0.0, 0.0, math.sin(half / 2))), half)
+    for specs in (plans.wall_specs(2, plans.WALL_SECONDS, 0), plans.puddle_specs(2, plans.PUDDLE_SECONDS, 0)):
+        assert all(s.steer_heading_rad == plans.COURSE_HEADING_RAD for s in specs)

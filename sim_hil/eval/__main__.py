@@ -55,6 +55,8 @@ def parse_args(argv):
     ap.add_argument("--out", type=Path, default=None, help="default: out/eval/<scenario>")
     ap.add_argument("--no-video", action="store_true", help="skip the mp4 (rendering costs ~0.1 s per frame)")
     ap.add_argument("--no-log", action="store_true", help="no LCM log per trial (default: OUT/logs/*.lcmlog)")
+    ap.add_argument("--no-steer", action="store_true",
+                    help="wall, puddle: a constant stick instead of the operator steering down the course")
     args = ap.parse_args(argv)
     plan = PLANS[args.scenario]
     args.trials = plan.default_trials if args.trials is None else args.trials
@@ -100,6 +102,8 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     video = None if args.no_video else args.out / "video.mp4"
     specs = plan.specs(args.trials, args.seconds, args.seed)
+    if args.no_steer:
+        specs = [replace(s, steer_heading_rad=None) for s in specs]
     jobs = []
     for i, spec in enumerate(specs):
         for c in controllers:

@@ -81,6 +81,12 @@ class GetupEvents:
     fall_times_s: list[float] = field(default_factory=list)
 
 
+def heading_from_quat(quat_wxyz) -> float:
+    """Heading [rad] in (−π, π] of a body with quaternion (w x y z): the yaw of its x axis about world z."""
+    w, x, y, z = (float(c) for c in quat_wxyz)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
 def up_z_from_quat(quat_wxyz) -> np.ndarray:
     """World z of the body z axis from (..., 4) quaternions (w x y z): 1 - 2(x² + y²)."""
     q = np.asarray(quat_wxyz, dtype=np.float64)

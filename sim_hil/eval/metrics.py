@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 
 from sim_hil import config
-from sim_hil.eval.events import up_z_from_quat
+from sim_hil.eval.events import heading_from_quat, up_z_from_quat
 
 FOOT_BODIES = ("left_foot_link", "right_foot_link")
 # Slip: a loaded foot sliding. 50 N is a sixth of the robot's weight (31.6 kg · 9.81 = 310 N): a foot that
@@ -58,8 +58,7 @@ class TickLog:
         self.waist[k] = data.xpos[self._waist, 2]
         self.up_z[k] = up_z_from_quat(data.xquat[self._trunk])
         self.base_x[k], self.base_y[k] = data.qpos[0], data.qpos[1]
-        w, x, y, z = data.qpos[3:7]
-        yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))   # heading [rad], wrapped
+        yaw = heading_from_quat(data.qpos[3:7])   # [rad], wrapped
         self.yaw[k] = yaw
         vx, vy = data.qvel[0], data.qvel[1]
         self.fwd_vel[k] = math.cos(yaw) * vx + math.sin(yaw) * vy   # as sim_status_t.forward_velocity

@@ -10,7 +10,7 @@ from typing import Callable
 import numpy as np
 
 from sim_hil import scenarios as sim_scenarios
-from sim_hil.eval.trial import TrialResult, TrialSpec
+from sim_hil.eval.trial import STEER_GAIN_PER_S, STEER_MAX_RPS, TrialResult, TrialSpec
 
 # Standing spawns start in the default pose already: a short PREPARE hands the robot to the policy at once
 # (the trial measures the policy; PREPARE itself holds the pose with the T1's stand-up gains, see
@@ -52,6 +52,11 @@ FIG51_SECONDS = 20.0            # 2 s PREPARE ramp, up to 10 s to get up, the re
 PUDDLE_TRIALS = 10
 PUDDLE_COMMAND_MPS = 0.4
 PUDDLE_SECONDS = 40.0           # 16 m of path (puddles lie on x 1-15 m) at 0.4 m/s
+# walls and puddles: the courses run along +x; the operator steers the robot down them (trial.py,
+# operator_yaw_rate; `--no-steer` for a constant stick)
+COURSE_HEADING_RAD = 0.0
+STEERED = (f"the operator steers down the course (yaw rate {STEER_GAIN_PER_S:g}/s × heading error, "
+           f"≤ {STEER_MAX_RPS:g} rad/s, while upright) unless the command says --no-steer")
 
 
 def wall_xs() -> list[float]:
@@ -192,6 +197,7 @@ def walk_rows(trials: list[TrialResult]) -> dict[str, str]:
 # ---- wall ------------------------------------------------------------------------------------------------
 def wall_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
     return [TrialSpec("walls", seed0 + i, "standing", seconds, command_vx_mps=WALL_COMMAND_MPS,
+                      steer_heading_rad=COURSE_HEADING_RAD,
                       command_start_s=STANDING_PREPARE_S + np.random.default_rng(seed0 + i).uniform(0.0, WALL_START_SPREAD_S),
                       prepare_s=STANDING_PREPARE_S) for i in range(trials)]
 
@@ -243,7 +249,7 @@ def fig51_rows(trials: list[TrialResult]) -> dict[str, str]:
 # ---- puddle ----------------------------------------------------------------------------------------------
 def puddle_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
     return [TrialSpec("puddles", seed0 + i, "standing", seconds, command_vx_mps=PUDDLE_COMMAND_MPS,
-                      prepare_s=STANDING_PREPARE_S) for i in range(trials)]
+                      steer_heading_rad=COURSE_HEADING_RAD, prepare_s=STANDING_PREPARE_S) for i in range(trials)]
 
 
 def puddle_rows(trials: list[TrialResult]) -> dict[str, str]:
@@ -320,11 +326,11 @@ PLANS = {
                  segment_edges_x=wall_segment_edges(),
                  description=f"three 0.2 m walls at x = {', '.join(f'{x:g}' for x in wall_xs())} m, "
                              f"{WALL_COMMAND_MPS} m/s forward from a seeded start within {WALL_START_SPREAD_S:g} s; "
-                             f"finish line x = {wall_finish_x():g} m"),
+                             f"finish line x = {wall_finish_x():g} m; {STEERED}"),
     "fig5.1": Plan("fig5.1", "flat", 1, FIG51_SECONDS, fig51_specs, fig51_rows, _fig51_cells, side_by_side=True, seed0=FIG51_SEED,
                    description=f"the seed's Fig. 5.1: fallen start (seed {FIG51_SEED}), {FIG51_COMMAND_MPS} m/s "
                                "forward from the start; teacher (--teacher) and student side by side"),
     "puddle": Plan("puddle", "puddles", PUDDLE_TRIALS, PUDDLE_SECONDS, puddle_specs, puddle_rows, _puddle_cells,
                    description=f"seeded puddle layouts (μ {sim_scenarios.PUDDLE_FRICTION}), "
-                               f"{PUDDLE_COMMAND_MPS} m/s forward"),
+                               f"{PUDDLE_COMMAND_MPS} m/s forward; {STEERED}"),
 }

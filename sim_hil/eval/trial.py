@@ -10,6 +10,7 @@ the default pose), so every metric starts at the first tick the runtime commands
 """
 from __future__ import annotations
 
+import math
 import re
 import time
 from dataclasses import dataclass, field
@@ -21,13 +22,20 @@ from t1 import joint_command_t, joystick_t
 
 from messages import contract
 from sim_hil import config
-from sim_hil.eval.events import GetupEvents, getup_events, through_kneel_gate
+from sim_hil.eval.events import GetupEvents, getup_events, heading_from_quat, through_kneel_gate, up_z_from_quat
 from sim_hil.eval.metrics import TickLog, effort_metrics, ran_to_stabilise, slip_events
 from sim_hil.launch import start_runtime, stop, wait_until_listening
 
 JOYSTICK_EVERY_TICKS = 10       # 50 Hz joystick, as a gamepad; the runtime zeroes it only after 250 ms
 PLOT_EVERY_TICKS = 10           # plotted series at 50 Hz
 EVAL_PORT_OFFSET = 101          # trial LCM ports: contract port + this + worker index
+# The operator of a course (walls, puddles) keeps the robot pointed down it, as a person with a gamepad
+# would: a policy rises from a fall facing anywhere and tracks a yaw RATE, not a heading, so a constant
+# stick measures where the getup left it facing, not whether it crosses the course. Proportional on the
+# heading error, within the joystick's yaw range, and only while upright (a lying trunk has no heading).
+STEER_GAIN_PER_S = 1.0          # yaw-rate command per rad of heading error [rad/s / rad]
+STEER_MAX_RPS = 0.5             # |yaw-rate command| cap [rad/s]
+STEER_MIN_UP_Z = 0.8            # steer only while the trunk's up axis is this close to vertical (≈ 37°)
 
 
 @dataclass(frozen=True)
@@ -51,6 +59,8 @@ class TrialSpec:
     command_yaw_rps: float = 0.0  # constant yaw-rate command [rad/s], counter-clockwise positive
     command_start_s: float = 0.0  # sim time [s] before which the command is zero
     command_stop_s: float | None = None   # sim time [s] from which the command is zero (None: never)
+    steer_heading_rad: float | None = None  # operator steering to this heading (operator_yaw_rate); None:
+                                            # the constant command_yaw_rps
     clock: str = "lockstep"       # lockstep (the runtime answers every state) | realtime (both on the wall clock)
     faults: str = ""              # sim --faults (pushes: push:x=±J@t)
     record: str | None = None     # mp4 path
@@ -116,7 +126,7 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
             if k % JOYSTICK_EVERY_TICKS == 0:
                 commanding = sim.data.time >= spec.command_start_s and (
                     spec.command_stop_s is None or sim.data.time < spec.command_stop_s)
-                stick.vx, stick.yaw_rate = ((float(spec.command_vx_mps), float(spec.command_yaw_rps)) if commanding
+                stick.vx, stick.yaw_rate = ((float(spec.command_vx_mps), _yaw_command(spec, sim.data)) if commanding
                                             else (0.0, 0.0))
                 stick.utime, stick.seq = sim.now_us, k   # lockstep: ages are in sim time
                 sim.link.lc.publish(contract.CH_JOYSTICK, stick.encode())
@@ -134,6 +144,22 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
     if sim.lockstep_timeouts:
         raise RuntimeError(f"{sim.lockstep_timeouts} lockstep timeouts: the runtime did not answer every state")
     return summarise(spec, controller.label, log, finish_x_m, _last_fault(err), segment_edges_x)
+
+
+def operator_yaw_rate(target_heading_rad: float, heading_rad: float, up_z: float) -> float:
+    """The course operator's yaw-rate command [rad/s]: P on the wrapped heading error, capped; 0 while the
+    robot is not upright."""
+    if up_z < STEER_MIN_UP_Z:
+        return 0.0
+    error = math.remainder(target_heading_rad - heading_rad, math.tau)   # wrapped to [−π, π]
+    return float(np.clip(STEER_GAIN_PER_S * error, -STEER_MAX_RPS, STEER_MAX_RPS))
+
+
+def _yaw_command(spec: TrialSpec, data) -> float:
+    if spec.steer_heading_rad is None:
+        return float(spec.command_yaw_rps)
+    quat = data.qpos[3:7]
+    return operator_yaw_rate(spec.steer_heading_rad, heading_from_quat(quat), float(up_z_from_quat(quat)))
 
 
 def _start_log(spec: TrialSpec, controller: Controller, runtime_args: list[str], lcm_url: str):
