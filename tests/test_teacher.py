@@ -23,12 +23,38 @@ def _expert(name, terms, scale, bias):
 def test_each_expert_reaches_the_same_targets_in_the_student_map():
     getup = _expert("getup", obsdef.TERMS_GETUP, 2.0, 0.3)
     joystick = _expert("joystick", obsdef.TERMS_UNION, 0.5, 0.3)
-    teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, 2.0)
-    obs = jnp.zeros((2, obsdef.observation_size(obsdef.TERMS_UNION)))
-    action, extra = teacher({STUDENT_OBS_KEY: obs, WAIST_OBS_KEY: jnp.array([[0.2], [0.6]])})
+    teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, 2.0, student_tanh_squash=True)
+    action, extra = teacher(_obs(getup_waist=True, upright_waist=True))
     action, loc = np.asarray(action), np.asarray(extra["loc"])
     np.testing.assert_allclose(2.0 * action[0], 2.0 * np.tanh(0.3), rtol=1e-6)   # getup: its own map
     np.testing.assert_allclose(2.0 * action[1], 0.5 * np.tanh(0.3), rtol=1e-5)   # joystick: same targets
-    np.testing.assert_allclose(np.tanh(loc), action, rtol=1e-5)
+    np.testing.assert_allclose(np.tanh(loc), action, rtol=1e-5)   # a squashing student acts with tanh(loc)
     with pytest.raises(ValueError, match="exceeds the student's"):
-        make_teacher(getup, joystick, obsdef.TERMS_UNION, 0.5)
+        make_teacher(getup, joystick, obsdef.TERMS_UNION, 0.5, student_tanh_squash=True)
+
+
+def _obs(getup_waist, upright_waist):
+    """Two envs in the student's layout, waist below the switch height in the first, above in the second."""
+    obs = jnp.zeros((2, obsdef.observation_size(obsdef.TERMS_UNION)))
+    return {STUDENT_OBS_KEY: obs, WAIST_OBS_KEY: jnp.array([[0.2 if getup_waist else 0.6], [0.6]])}
+
+
+@pytest.mark.parametrize("tanh_squash", [False, True])
+def test_brax_bc_loss_is_least_where_the_student_executes_the_teachers_action(tanh_squash):
+    """brax bc's loss compares tanh(loc) whatever the output rule. A student without squash (Table 5.2) acts
+    with loc, so its minimiser must be the teacher's action itself, also for saturated getup actions."""
+    from brax.training.agents.bc.losses import bc_loss
+    getup = _expert("getup", obsdef.TERMS_GETUP, 2.0, 1.5)        # tanh(1.5) = 0.905: a large getup target
+    joystick = _expert("joystick", obsdef.TERMS_UNION, 0.5, 0.3)
+    teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, 2.0, student_tanh_squash=tanh_squash)
+    obs = _obs(getup_waist=True, upright_waist=True)
+    teacher_action, extras = teacher(obs)
+
+    def loss_if_student_executes(executed):
+        loc = jnp.arctanh(executed) if tanh_squash else executed   # the loc that makes the student act so
+        make_policy = lambda params: lambda o, key_sample=None: (None, {"loc": loc})
+        return float(bc_loss(None, None, {"observations": obs, "teacher_action_extras": extras}, make_policy)[0])
+
+    assert loss_if_student_executes(teacher_action) < 1e-8
+    for miss in (-0.05, 0.05):
+        assert loss_if_student_executes(teacher_action + miss) > 1e-4

@@ -188,7 +188,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     env = envs.make(task, config=env_cfg)
     student_terms = env.obs_terms
     teacher = make_teacher(load_expert(getup_path, "getup"), load_expert(joystick_path, "joystick"), student_terms,
-                           env.manifest_fields()["action_scale"])
+                           env.manifest_fields()["action_scale"], student_tanh_squash=cfg.tanh_squash)
     episode_length = int(env_cfg.episode_length)
     wrapped = WaistObservation(wrapper.wrap_for_brax_training(env, episode_length=episode_length,
                                                               full_reset=True), env)

@@ -132,12 +132,18 @@ class TermAdapter:
 
 
 def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, student_action_scale,
-                 switch_height_m: float = WAIST_SWITCH_HEIGHT_M):
+                 student_tanh_squash: bool, switch_height_m: float = WAIST_SWITCH_HEIGHT_M):
     """brax-bc teacher: obs dict {"state": student-layout obs, "waist_height": (..., 1)} →
-    (action, {"loc": atanh(action)}) in the STUDENT's action map; the getup expert where waist height <
+    (action, {"loc": label}) in the STUDENT's action map; the getup expert where waist height <
     switch_height_m. The experts' maps differ (joystick ±0.5 rad around home, getup up to 2 rad): each
     expert's action is turned into the same joint targets in the student's map, a_s = a_e · s_e / s_s
-    (the student's scale is at least each expert's, so |a_s| ≤ 1)."""
+    (the student's scale is at least each expert's, so |a_s| ≤ 1).
+
+    The label is what the student must output to execute a_s. brax bc's loss is
+    ‖tanh(loc_student) − tanh(label)‖² whatever the student's output rule, so it is minimised at
+    loc_student = label. A tanh-squashed student acts with tanh(loc): label = atanh(a_s). A student without
+    squash (the seed's Table 5.2) acts with loc itself: label = a_s. (With atanh(a_s) it would execute
+    atanh(a_s), e.g. 1.47 for a teacher's 0.9, overshooting every large getup target.)"""
     import jax.numpy as jnp
     to_getup = TermAdapter(student_terms, getup.obs_terms)
     to_joystick = TermAdapter(student_terms, joystick.obs_terms)
@@ -151,6 +157,8 @@ def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, stude
     def in_student_map(expert, loc):
         ratio = jnp.asarray(ratios[expert.name])
         action = jnp.tanh(loc) * ratio
+        if not student_tanh_squash:
+            return action, action
         # where the maps agree keep loc exactly (no atanh round trip at saturation)
         return action, jnp.where(ratio == 1.0, loc, jnp.arctanh(jnp.clip(action, -1 + 1e-6, 1 - 1e-6)))
 
@@ -158,9 +166,9 @@ def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, stude
         del key  # deterministic experts
         state = obs[STUDENT_OBS_KEY]
         use_getup = obs[WAIST_OBS_KEY] < switch_height_m
-        a_g, loc_g = in_student_map(getup, getup.loc(to_getup(state)))
-        a_j, loc_j = in_student_map(joystick, joystick.loc(to_joystick(state)))
-        return jnp.where(use_getup, a_g, a_j), {"loc": jnp.where(use_getup, loc_g, loc_j)}
+        a_g, label_g = in_student_map(getup, getup.loc(to_getup(state)))
+        a_j, label_j = in_student_map(joystick, joystick.loc(to_joystick(state)))
+        return jnp.where(use_getup, a_g, a_j), {"loc": jnp.where(use_getup, label_g, label_j)}
 
     return teacher
 
@@ -177,7 +185,8 @@ def check_teacher(getup_path, joystick_path, num_envs: int = 16, seed: int = 0, 
     env = envs.make(task, config_overrides=overrides)
     student_terms = obsdef.TERMS_UNION
     to_student = TermAdapter(env.obs_terms, student_terms)
-    teacher = make_teacher(getup, joystick, student_terms, env.manifest_fields()["action_scale"])
+    teacher = make_teacher(getup, joystick, student_terms, env.manifest_fields()["action_scale"],
+                           student_tanh_squash=False)  # the check executes the action only
 
     def act(state):
         obs = {STUDENT_OBS_KEY: to_student(state.obs[STUDENT_OBS_KEY]),
