@@ -58,3 +58,26 @@ def test_brax_bc_loss_is_least_where_the_student_executes_the_teachers_action(ta
     assert loss_if_student_executes(teacher_action) < 1e-8
     for miss in (-0.05, 0.05):
         assert loss_if_student_executes(teacher_action + miss) > 1e-4
+
+
+def test_each_expert_reads_its_own_previous_action():
+    """The env's last action is in the student's map; the joystick expert (±0.5 rad per unit against the
+    student's 2) must read it back in its own, clipped to its tanh range, else it sees a quarter of it."""
+    at = obsdef.term_slice(obsdef.TERMS_UNION, "last_action")
+    size = obsdef.observation_size(obsdef.TERMS_UNION)
+    # a linear probe: loc = the last_action entries the joystick expert reads (weights pick that slice)
+    probe = np.zeros((2 * N, size), np.float32)
+    probe[np.arange(N), np.arange(at.start, at.stop)] = 1.0
+    joystick = Expert("joystick", ((probe, np.zeros(2 * N, np.float32)),), np.zeros(size, np.float32),
+                      np.ones(size, np.float32), "swish", obsdef.TERMS_UNION, np.full(N, 0.5, np.float32))
+    getup = _expert("getup", obsdef.TERMS_GETUP, 2.0, 0.3)     # reads no last action: untouched
+    teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, 2.0, student_tanh_squash=False)
+    last_student = np.zeros((2, N), np.float32)
+    last_student[1, :2] = (0.1, 0.6)          # the joystick's own 0.4, and a getup target beyond its range
+    obs = _obs()
+    obs[STUDENT_OBS_KEY] = obs[STUDENT_OBS_KEY].at[:, at].set(last_student)
+    action = np.asarray(teacher(obs)[0])
+    read = np.arctanh(action[1, :2] * 4.0)          # back through the joystick's tanh and the map ratio
+    np.testing.assert_allclose(read, (0.4, 1.0), rtol=1e-4)
+    np.testing.assert_allclose(action[0], np.tanh(0.3), rtol=1e-6)
+    assert obsdef.term_slice(obsdef.TERMS_GETUP, "last_action") is None

@@ -214,6 +214,7 @@ def test_toy_distill_exports_student(toy_runs):
     assert manifest["output_rule"] == "linear" and manifest["trained"] is False
     assert [tuple(t) for t in manifest["obs_terms"]] == list(obsdef.TERMS_UNION)
     assert layers[-1][0].shape[0] == obsdef.NUM_JOINTS and manifest["provenance"]["steps"] > 0
+    assert manifest["provenance"]["env_steps_per_s"] > 0     # the provenance table's env-steps/s column
 
 
 @pytest.mark.slow

@@ -238,6 +238,8 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     provenance = {"git_commit": checkpoints.git_commit(), "steps": before["steps"] + int(phases * phase_env_steps),
                   "date": checkpoints.utc_now(), "command": command or "unknown",
                   "device": checkpoints.device_description(), "minutes": round(minutes, 2),
+                  # this call's env steps per wall second (evaluations and compilation included)
+                  "env_steps_per_s": round(phases * phase_env_steps / max(60.0 * minutes, 1e-9), 1),
                   "algorithm": "brax bc (online DAgger)", "dagger_phases": before["phases"] + phases,
                   "dagger_phases_before": before["phases"], "from": before["checkpoint"], "preset": preset,
                   "backend": env_cfg.backend,

@@ -143,6 +143,17 @@ def observation_size(terms: Sequence[Sequence[Any]]) -> int:
     return check_terms(terms)
 
 
+def term_slice(terms: Sequence[Sequence[Any]], name: str) -> slice | None:
+    """Where term `name` sits in an observation laid out as `terms`; None when the layout lacks it."""
+    check_terms(terms)
+    start = 0
+    for term, size in terms:
+        if term == name:
+            return slice(start, start + int(size))
+        start += int(size)
+    return None
+
+
 def build_observation(terms: Sequence[Sequence[Any]], state: ObservationState, xp=np):
     """Concatenate the terms, in the given order, into one (..., N) vector (unnormalised)."""
     check_terms(terms)

@@ -139,6 +139,13 @@ def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, stude
     expert's action is turned into the same joint targets in the student's map, a_s = a_e · s_e / s_s
     (the student's scale is at least each expert's, so |a_s| ≤ 1).
 
+    The observation's last action is mapped back the same way: an expert that reads `last_action` gets
+    clip(a_s · s_s / s_e, −1, 1), the previous joint targets in ITS map, so while it drives it reads its own
+    previous action, as when it was trained and in the runtime. (Read in the student's map, the joystick
+    expert saw a quarter of its own action and fell 4.5× as often: 541 falls against 119 in 128 standing
+    starts × 20 s with pushes; training/runs/student_own_map_teacher/PROGRESS.md.) The clip matters only on
+    the first tick after the getup expert or the student acted with targets outside the expert's range.
+
     The label is what the student must output to execute a_s. brax bc's loss is
     ‖tanh(loc_student) − tanh(label)‖² whatever the student's output rule, so it is minimised at
     loc_student = label. A tanh-squashed student acts with tanh(loc): label = atanh(a_s). A student without
@@ -153,6 +160,16 @@ def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, stude
         if np.any(ratios[e.name] > 1.0 + 1e-6):
             raise ValueError(f"{e.name} expert's action scale exceeds the student's on some joint: the student "
                              "could not reach its targets (give the student env the larger scale)")
+    last_action_at = {e.name: obsdef.term_slice(e.obs_terms, "last_action") for e in (getup, joystick)}
+
+    def expert_obs(expert, adapter, state):
+        """The student-layout observation in the expert's layout, with its last action in the expert's map."""
+        obs = adapter(state)
+        where = last_action_at[expert.name]
+        if where is None:
+            return obs
+        own = jnp.clip(obs[..., where] / jnp.asarray(ratios[expert.name]), -1.0, 1.0)
+        return obs.at[..., where].set(own)
 
     def in_student_map(expert, loc):
         ratio = jnp.asarray(ratios[expert.name])
@@ -166,8 +183,8 @@ def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, stude
         del key  # deterministic experts
         state = obs[STUDENT_OBS_KEY]
         use_getup = obs[WAIST_OBS_KEY] < switch_height_m
-        a_g, label_g = in_student_map(getup, getup.loc(to_getup(state)))
-        a_j, label_j = in_student_map(joystick, joystick.loc(to_joystick(state)))
+        a_g, label_g = in_student_map(getup, getup.loc(expert_obs(getup, to_getup, state)))
+        a_j, label_j = in_student_map(joystick, joystick.loc(expert_obs(joystick, to_joystick, state)))
         return jnp.where(use_getup, a_g, a_j), {"loc": jnp.where(use_getup, label_g, label_j)}
 
     return teacher
