@@ -1,6 +1,8 @@
 """The measurement behind this run's PROGRESS.md: how often does the stitched teacher fall while walking?
-Unified env (full-body collision, the joystick env's commands and pushes), standing starts only, the teacher
-drives, CPU backend. A fall = the waist going below the switch height (0.5 m) from above.
+Unified env (full-body collision, the joystick env's commands and pushes), standing (default) or fallen starts
+only, the teacher drives, CPU backend. A fall = the trunk dropping below sim_hil's fallen
+height (0.35 m) after standing (trunk ≥ 0.6 m, up_z ≥ 0.9: sim_hil/eval/events.py, as the loop counts attempts);
+from a fallen start, every fall is a fall back after a getup.
 
     PYTHONPATH=$PWD:$PWD/build/gen/python .venv/bin/python training/runs/student_own_map_teacher/teacher_falls.py [--student-map]
 
@@ -13,11 +15,18 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from sim_hil.config import FALLEN_TRUNK_HEIGHT_M
+from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training import checkpoints, envs
 from training import observation as obsdef
 from training.teacher import STUDENT_OBS_KEY, WAIST_OBS_KEY, WAIST_SWITCH_HEIGHT_M, load_expert, make_teacher
 
+QUICK_FALL_TICKS = 150     # a fall this soon after coming to standing [ticks of 0.02 s]: a failed hand-over
 TEACHER = ("training/runs/getup_keyframe_energy/getup_keyframe_energy.safetensors", "policies/joystick.safetensors")
+
+
+def standing(info) -> np.ndarray:
+    return (np.asarray(info["trunk_height"]) >= STANDING_TRUNK_HEIGHT_M) & (np.asarray(info["up_z"]) >= UPRIGHT_UP_Z)
 
 
 def main() -> None:
@@ -26,10 +35,12 @@ def main() -> None:
     ap.add_argument("--envs", type=int, default=128)
     ap.add_argument("--ticks", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--start", choices=("standing", "fallen"), default="standing")
     args = ap.parse_args()
     checkpoints.jax_setup()
     cfg = envs.default_config("unified")
-    cfg.backend, cfg.start_probs = "cpu", [0.0, 0.0, 1.0]
+    cfg.backend = "cpu"
+    cfg.start_probs = [0.0, 0.0, 1.0] if args.start == "standing" else [1.0, 0.0, 0.0]
     env = envs.make("unified", config=cfg)
     getup, joystick = load_expert(TEACHER[0], "getup"), load_expert(TEACHER[1], "joystick")
     student_scale = env.manifest_fields()["action_scale"]
@@ -45,16 +56,22 @@ def main() -> None:
 
     reset, step, act = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step)), jax.jit(jax.vmap(act))
     state = reset(jax.random.split(jax.random.PRNGKey(args.seed), args.envs))
-    up, falls, tracking = np.ones(args.envs, bool), np.zeros(args.envs), []
-    for _ in range(args.ticks):
+    up = standing(state.info)
+    falls, quick_falls, tracking = np.zeros(args.envs), np.zeros(args.envs), []
+    stood_at = np.full(args.envs, -10 ** 6)          # tick each env last came to standing
+    for tick in range(args.ticks):
         state = step(state, act(state))
-        standing = np.asarray(state.info["waist_height"]) >= WAIST_SWITCH_HEIGHT_M
-        falls += up & ~standing
-        up = standing
+        now_up, down = standing(state.info), np.asarray(state.info["trunk_height"]) < FALLEN_TRUNK_HEIGHT_M
+        fell = up & down
+        falls += fell
+        quick_falls += fell & (tick - stood_at <= QUICK_FALL_TICKS)
+        stood_at = np.where(now_up & ~up, tick, stood_at)
+        up = (up | now_up) & ~down
         tracking.append(float(np.mean(np.asarray(state.metrics["reward/tracking_lin_vel"]))))
-    print(f"{'student-map' if args.student_map else 'own-map'} last action: {args.envs} standing starts × "
-          f"{args.ticks} ticks: {int(falls.sum())} falls, {int((falls > 0).sum())} envs fell at least once, "
-          f"tracking_lin_vel reward {np.mean(tracking):.3f} per tick, standing at the end {up.mean():.1%}")
+    print(f"{'student-map' if args.student_map else 'own-map'} last action: {args.envs} {args.start} starts × "
+          f"{args.ticks} ticks: {int(falls.sum())} falls ({int(quick_falls.sum())} within {QUICK_FALL_TICKS} ticks of "
+          f"coming to standing), {int((falls > 0).sum())} envs fell at least once, "
+          f"tracking_lin_vel reward {np.mean(tracking):.3f} per tick, standing at the end {np.mean(standing(state.info)):.1%}")
 
 
 if __name__ == "__main__":
