@@ -18,7 +18,7 @@ from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
 from training import observation as obsdef
-from training.envs import base
+from training.envs import base, handover
 from training.envs import joystick_rewards as R
 
 # Playground's pose-cost weights per joint (head, arms, waist, legs), joint order.
@@ -38,6 +38,10 @@ def default_config() -> config_dict.ConfigDict:
     cfg.reset = config_dict.create(xy_range_m=0.5, yaw_range_rad=3.14, joint_scale=[0.5, 1.5],
                                    root_vel_range=0.5)
     cfg.push = config_dict.create(enable=True, interval_range_s=[5.0, 10.0], magnitude_range_mps=[0.1, 1.0])
+    # hand-over starts (training/envs/handover.py; ours): this share of episodes starts in the state where the
+    # stitched teacher hands the getup expert `getup_policy`'s rise over, from `bank_starts` fallen starts
+    # (seeds from `seed`, apart from the evaluations' 0 …); 0 = standing starts only, as Playground's
+    cfg.handover = config_dict.create(prob=0.0, getup_policy="", bank_starts=256, seed=100_000)
     cfg.reward = config_dict.create(
         scales=config_dict.create(
             tracking_lin_vel=1.0, tracking_ang_vel=0.5, lin_vel_z=0.0, ang_vel_xy=-0.15, orientation=-1.0,
@@ -61,6 +65,15 @@ class Joystick(base.T1Env):
         self._hip_idx = jnp.array([mj.joint(n).qposadr[0] - 7 for n in HIP_JOINTS])
         self._knee_idx = jnp.array([mj.joint(n).qposadr[0] - 7 for n in KNEE_JOINTS])
         self._pose_weights = jnp.array(POSE_WEIGHTS)
+        self._handover = None
+        h = self._config.get("handover")   # runs made before hand-over starts existed have none
+        if h is not None and not 0.0 <= h.prob <= 1.0:
+            raise ValueError(f"handover.prob must be in [0, 1], got {h.prob}")
+        if h is not None and h.prob > 0:
+            if not h.getup_policy:
+                raise ValueError("handover.prob > 0 needs handover.getup_policy (a getup artifact or checkpoint)")
+            bank = handover.handover_bank(h.getup_policy, int(h.bank_starts), int(h.seed))
+            self._handover = jax.tree.map(jnp.asarray, bank)
 
     # ------------------------------------------------------------------ commands
     def sample_command(self, rng: jax.Array) -> jax.Array:
@@ -87,13 +100,17 @@ class Joystick(base.T1Env):
                                                        maxval=cfg.joint_scale[1]))
         qvel = jnp.zeros(self._mj_model.nv).at[0:6].set(
             jax.random.uniform(k_v, (6,), minval=-cfg.root_vel_range, maxval=cfg.root_vel_range))
+        last_act = jnp.zeros(base.NUM_JOINTS)
+        if self._handover is not None:
+            rng, k_hand = jax.random.split(rng)
+            qpos, qvel, last_act = self._maybe_handover_start(k_hand, qpos, qvel, last_act, yaw)
         data = self.make_data(qpos, qvel)
 
         info = {
             "rng": rng,
             "command": self.sample_command(k_cmd),
             "command_step": jnp.array(0, jnp.int32),
-            "last_act": jnp.zeros(base.NUM_JOINTS),
+            "last_act": last_act,
             "motor_targets": self._default_pose,
             "runtime_target": self.start_target(qpos),
             "feet_air_time": jnp.zeros(2),
@@ -110,6 +127,17 @@ class Joystick(base.T1Env):
         metrics = {f"reward/{k}": jnp.zeros(()) for k in self._config.reward.scales.keys()}
         metrics["swing_peak"] = jnp.zeros(())
         return mjx_env.State(data, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
+
+    def _maybe_handover_start(self, rng, qpos, qvel, last_act, yaw):
+        """With probability handover.prob, a hand-over state instead of the standing start, at the standing
+        start's place and heading; its last action = the getup expert's last targets in this env's map."""
+        k_use, k_idx = jax.random.split(rng)
+        bank = self._handover
+        idx = jax.random.randint(k_idx, (), 0, bank.qpos.shape[0])
+        hq, hv = handover.place(bank.qpos[idx], bank.qvel[idx], qpos[0:2], yaw)
+        h_act = jnp.clip((bank.joint_targets[idx] - self._default_pose) / self._action_scale, -1.0, 1.0)
+        use = jax.random.uniform(k_use) < self._config.handover.prob
+        return jnp.where(use, hq, qpos), jnp.where(use, hv, qvel), jnp.where(use, h_act, last_act)
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         info = dict(state.info)

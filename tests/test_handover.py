@@ -1,0 +1,83 @@
+"""Hand-over starts of the joystick expert (training/envs/handover.py): where the stitched teacher hands a
+rising robot from the shipped keyframe getup expert to the joystick expert, and the joystick env's resets
+from them. The slow tests roll the getup expert (CPU physics) and compile one joystick reset."""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+from sim_hil import model as t1model
+from training import envs
+from training.envs import handover
+from training.teacher import WAIST_SWITCH_HEIGHT_M
+
+GETUP = "policies/getup_keyframe.safetensors"
+BANK_STARTS = 6
+
+
+def _rotation(quat) -> np.ndarray:
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, np.asarray(quat, np.float64))
+    return mat.reshape(3, 3)
+
+
+def test_place_turns_the_root_and_its_world_velocity_only():
+    mj = t1model.load_model()
+    qpos = np.array(mj.key("home").qpos, np.float32)
+    qpos[3:7] = (np.cos(0.2), np.sin(0.2), 0.0, 0.0)          # rolled 0.4 rad about x
+    qvel = np.arange(mj.nv, dtype=np.float32) * 0.1
+    yaw = 0.7
+    q2, v2 = (np.asarray(x) for x in handover.place(jnp.asarray(qpos), jnp.asarray(qvel), jnp.array([1.5, -2.0]),
+                                                     jnp.float32(yaw)))
+    turn = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]])
+    np.testing.assert_allclose(_rotation(q2[3:7]), turn @ _rotation(qpos[3:7]), atol=1e-6)
+    np.testing.assert_allclose(q2[:3], (1.5, -2.0, qpos[2]), atol=1e-6)
+    np.testing.assert_allclose(v2[:3], turn @ qvel[:3], atol=1e-6)          # world-frame linear velocity
+    np.testing.assert_allclose(v2[3:], qvel[3:], atol=1e-6)                 # body-frame angular velocity, joints
+    np.testing.assert_allclose(q2[7:], qpos[7:])
+
+
+@pytest.mark.parametrize("over, why", [({"handover.prob": 0.5}, "needs handover.getup_policy"),
+                                       ({"handover.prob": 1.5, "handover.getup_policy": GETUP}, r"in \[0, 1\]")])
+def test_joystick_env_refuses_a_bad_handover_config(over, why):
+    with pytest.raises(ValueError, match=why):
+        envs.make("joystick", config_overrides=over)
+
+
+@pytest.fixture(scope="module")
+def bank():
+    return handover.handover_bank(GETUP, BANK_STARTS, seed=handover_seed())
+
+
+def handover_seed():
+    return int(envs.default_config("joystick").handover.seed)
+
+
+@pytest.mark.slow
+def test_bank_holds_the_states_where_the_waist_passes_the_switch(bank):
+    mj = t1model.load_model()
+    data = mujoco.MjData(mj)
+    waist = mj.body("Waist").id
+    assert 1 <= bank.qpos.shape[0] <= BANK_STARTS
+    for qpos, qvel, targets in zip(*bank):
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(mj, data)
+        assert WAIST_SWITCH_HEIGHT_M <= data.xpos[waist, 2] < WAIST_SWITCH_HEIGHT_M + 0.1   # the first tick past
+        assert np.all(np.isfinite(qvel)) and np.all(np.isfinite(targets))
+    assert np.median(bank.qvel[:, 2]) > 0.0          # the keyframe expert's rise: the trunk still going up
+
+
+@pytest.mark.slow
+def test_joystick_env_starts_from_the_bank(bank):
+    env = envs.make("joystick", config_overrides={"handover.prob": 1.0, "handover.getup_policy": GETUP,
+                                                  "handover.bank_starts": BANK_STARTS, "episode_length": 20})
+    state = jax.jit(env.reset)(jax.random.PRNGKey(3))
+    q = np.asarray(state.data.qpos)
+    row = int(np.argmin(np.abs(bank.qpos[:, 7:] - q[7:]).sum(axis=1)))
+    np.testing.assert_allclose(q[7:], bank.qpos[row, 7:], atol=1e-6)           # its joints, as handed over
+    np.testing.assert_allclose(q[2], bank.qpos[row, 2], atol=1e-6)             # its height
+    expected = np.clip((bank.joint_targets[row] - np.asarray(env._default_pose)) / 0.5, -1.0, 1.0)
+    np.testing.assert_allclose(np.asarray(state.info["last_act"]), expected, atol=1e-6)

@@ -1,0 +1,96 @@
+"""Hand-over starts: the states in which the stitched teacher hands a rising robot to the joystick expert.
+
+The teacher (training/teacher.py) switches from the getup expert to the joystick expert when the waist
+rises past WAIST_SWITCH_HEIGHT_M (0.5 m). The joystick expert was trained from standing starts only, and the
+getup expert arrives there mid-lunge: with the keyframe expert, trunk at 0.62 m rising at 0.8 m/s (median)
+in the hand-overs it holds, at 1.25 m/s in the 32 % it drops within 3 s
+(training/runs/joystick_handover/PROGRESS.md). Fine-tuning the joystick expert from these states teaches it
+to catch the lunge (ours, not the seed's: the seed's teacher stitches two experts as trained).
+
+`handover_bank` rolls a getup artifact from fallen starts in the getup env (full-body collision, CPU
+physics: a one-off host computation, whatever backend trains) and keeps, per episode, the state of the
+first control tick with the waist at or above the switch height, with the joint targets [rad] of the getup
+expert's last action (the joystick expert's last action at the hand-over, in its own map). The joystick env
+(training/envs/joystick.py, config.handover) starts a share of its episodes from it, each turned to a
+random heading and moved to a random place as its standing starts are.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from training.teacher import STUDENT_OBS_KEY, WAIST_SWITCH_HEIGHT_M, load_expert
+
+MAX_RISE_S = 10.0   # [s] a fallen start that has not handed over by then is left out
+
+
+class HandoverBank(NamedTuple):
+    qpos: np.ndarray            # (n, nq)
+    qvel: np.ndarray            # (n, nv); the free joint's linear part in world axes [m/s]
+    joint_targets: np.ndarray   # (n, 23) the getup expert's last joint targets [rad]
+
+
+def handover_bank(getup_policy: str, num_starts: int, seed: int) -> HandoverBank:
+    """Hand-over states of `getup_policy` (artifact or checkpoint) from `num_starts` random draws of a bank of
+    `num_starts` seeded fallen starts (seed, seed + 1, …); identical states (a start drawn twice) kept once."""
+    from training import envs
+    env = envs.make("getup", config_overrides={"backend": "cpu", "start_probs": [1.0, 0.0, 0.0],
+                                               "fallen_bank_size": int(num_starts), "fallen_seed": int(seed),
+                                               "obs_noise_scale": 0.0})
+    getup = load_expert(getup_policy, "getup")
+    if tuple(map(tuple, env.obs_terms)) != getup.obs_terms:
+        raise ValueError(f"{getup_policy}: observation terms {getup.obs_terms} are not the getup env's")
+    default_pose = jnp.asarray(env.manifest_fields()["default_pose"], jnp.float32)
+
+    def act(state):
+        action = jnp.tanh(getup.loc(state.obs[STUDENT_OBS_KEY]))
+        return action, default_pose + jnp.asarray(getup.action_scale) * action
+
+    reset, step, act = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step)), jax.jit(jax.vmap(act))
+    state = reset(jax.random.split(jax.random.PRNGKey(seed), num_starts))
+    found = np.zeros(num_starts, bool)
+    qpos = np.zeros((num_starts, env.mj_model.nq))
+    qvel = np.zeros((num_starts, env.mj_model.nv))
+    targets = np.zeros((num_starts, getup.action_scale.shape[0]))
+    for _ in range(int(round(MAX_RISE_S / env.dt))):
+        action, target = act(state)
+        state = step(state, action)
+        new = ~found & (np.asarray(state.info["waist_height"]) >= WAIST_SWITCH_HEIGHT_M)
+        qpos[new], qvel[new], targets[new] = (np.asarray(state.data.qpos)[new], np.asarray(state.data.qvel)[new],
+                                              np.asarray(target)[new])
+        found |= new
+        if found.all():
+            break
+    if not found.any():
+        raise ValueError(f"{getup_policy}: no hand-over in {MAX_RISE_S} s from {num_starts} fallen starts "
+                         f"(the waist never reached {WAIST_SWITCH_HEIGHT_M} m): not a trained getup expert")
+    _, keep = np.unique(qpos[found].round(9), axis=0, return_index=True)
+    keep = np.sort(keep)
+    return HandoverBank(qpos[found][keep].astype(np.float32), qvel[found][keep].astype(np.float32),
+                        targets[found][keep].astype(np.float32))
+
+
+def yaw_quaternion(yaw):
+    """(w, x, y, z) of a turn by `yaw` [rad] about the world z axis."""
+    return jnp.array([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])
+
+
+def quat_multiply(a, b):
+    """Hamilton product a ⊗ b of (w, x, y, z) quaternions (a applied after b)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return jnp.array([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                      aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw])
+
+
+def place(qpos, qvel, xy, yaw):
+    """A free-floating robot's state moved to `xy` [m] and turned by `yaw` [rad] about the world z axis:
+    the root orientation and the world-frame linear velocity turn; the body-frame angular velocity and the
+    joints do not."""
+    c, s = jnp.cos(yaw), jnp.sin(yaw)
+    qpos = qpos.at[0:2].set(xy).at[3:7].set(quat_multiply(yaw_quaternion(yaw), qpos[3:7]))
+    vx, vy = qvel[0], qvel[1]
+    return qpos, qvel.at[0:2].set(jnp.stack([c * vx - s * vy, s * vx + c * vy]))
