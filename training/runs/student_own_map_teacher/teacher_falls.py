@@ -5,6 +5,7 @@ height (0.35 m) after standing (trunk ≥ 0.6 m, up_z ≥ 0.9: sim_hil/eval/even
 from a fallen start, every fall is a fall back after a getup.
 
     PYTHONPATH=$PWD:$PWD/build/gen/python .venv/bin/python training/runs/student_own_map_teacher/teacher_falls.py [--student-map]
+        [--start standing|fallen] [--getup G] [--joystick J]
 
 --student-map: the joystick expert reads the env's last action as it is, in the student's map (a quarter of
 its own), which is what make_teacher fed it before this run. ~1 min on 2 cores for 128 envs × 1000 ticks.
@@ -36,13 +37,15 @@ def main() -> None:
     ap.add_argument("--ticks", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--start", choices=("standing", "fallen"), default="standing")
+    ap.add_argument("--getup", default=TEACHER[0], help="getup expert (artifact or checkpoint)")
+    ap.add_argument("--joystick", default=TEACHER[1], help="joystick expert (artifact or checkpoint)")
     args = ap.parse_args()
     checkpoints.jax_setup()
     cfg = envs.default_config("unified")
     cfg.backend = "cpu"
     cfg.start_probs = [0.0, 0.0, 1.0] if args.start == "standing" else [1.0, 0.0, 0.0]
     env = envs.make("unified", config=cfg)
-    getup, joystick = load_expert(TEACHER[0], "getup"), load_expert(TEACHER[1], "joystick")
+    getup, joystick = load_expert(args.getup, "getup"), load_expert(args.joystick, "joystick")
     student_scale = env.manifest_fields()["action_scale"]
     teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, student_scale, student_tanh_squash=False)
     at = obsdef.term_slice(obsdef.TERMS_UNION, "last_action")
