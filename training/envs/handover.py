@@ -21,6 +21,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+from brax import math as brax_math
 
 from training.teacher import STUDENT_OBS_KEY, WAIST_SWITCH_HEIGHT_M, load_expert
 
@@ -73,24 +74,10 @@ def handover_bank(getup_policy: str, num_starts: int, seed: int) -> HandoverBank
                         targets[found][keep].astype(np.float32))
 
 
-def yaw_quaternion(yaw):
-    """(w, x, y, z) of a turn by `yaw` [rad] about the world z axis."""
-    return jnp.array([jnp.cos(yaw / 2), 0.0, 0.0, jnp.sin(yaw / 2)])
-
-
-def quat_multiply(a, b):
-    """Hamilton product a ⊗ b of (w, x, y, z) quaternions (a applied after b)."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return jnp.array([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                      aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw])
-
-
 def place(qpos, qvel, xy, yaw):
     """A free-floating robot's state moved to `xy` [m] and turned by `yaw` [rad] about the world z axis:
     the root orientation and the world-frame linear velocity turn; the body-frame angular velocity and the
     joints do not."""
-    c, s = jnp.cos(yaw), jnp.sin(yaw)
-    qpos = qpos.at[0:2].set(xy).at[3:7].set(quat_multiply(yaw_quaternion(yaw), qpos[3:7]))
-    vx, vy = qvel[0], qvel[1]
-    return qpos, qvel.at[0:2].set(jnp.stack([c * vx - s * vy, s * vx + c * vy]))
+    turn = brax_math.quat_rot_axis(jnp.array([0.0, 0.0, 1.0]), yaw)     # (w, x, y, z), as MuJoCo's
+    qpos = qpos.at[0:2].set(xy).at[3:7].set(brax_math.quat_mul(turn, qpos[3:7]))
+    return qpos, qvel.at[0:3].set(brax_math.rotate(qvel[0:3], turn))
