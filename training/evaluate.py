@@ -217,7 +217,6 @@ def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
 def run_policy(env, policy: ArtifactPolicy | CompositePolicy, qpos, qvel, seconds: float) -> dict:
     """Roll out and reduce to per-env metrics (numpy) plus the height series for plots."""
     import jax
-    from sim_hil.eval.events import getup_events, through_kneel_gate
     ctrl_dt = float(policy.manifest["control_dt"])
     ticks = int(round(seconds / ctrl_dt))
     if ticks < 1:
@@ -229,27 +228,40 @@ def run_policy(env, policy: ArtifactPolicy | CompositePolicy, qpos, qvel, second
         series = jax.tree.map(np.asarray, make_rollout(env, policy, ticks)(policy.params, qpos, qvel))
     readings = series["readings"]                      # (N, T + 1, 3)
     t = np.arange(ticks + 1) * ctrl_dt
-    rows = []
-    for i in range(readings.shape[0]):
-        ev = getup_events(t, readings[i, :, 0], readings[i, :, 1])
-        gate = through_kneel_gate(t, readings[i, :, 0], readings[i, :, 1], ev)
-        rows.append({
-            "success": ev.success, "time_to_stand_s": ev.time_to_stand_s, "attempts": ev.attempts,
-            "falls": ev.falls, "through_kneel_gate": math.nan if gate is None else float(gate), "energy_J": float(series["energy_J"][i].sum()),
-            "max_energy_J": float(series["max_energy_J"][i].max()),
-            "max_torque_Nm": float(series["max_torque_Nm"][i].max()),
-            "total_torque_Nms": float(series["torque_integral"][i].sum()),
-            "max_joint_acc_radps2": float(series["max_qacc"][i].max()),
-            "total_joint_acc_radps": float(series["qacc_integral"][i].sum()),
-            "max_contact_force_N": float(series["contact_force_N"][i].max()),
-            "mean_contact_force_N": float(series["contact_force_N"][i].mean()),
-            "z_contact_impulse_Ns": float(series["contact_force_z_N"][i].sum() * ctrl_dt)})
+    rows = [episode_row(t, readings[i], {k: v[i] for k, v in series.items() if k != "readings"})
+            for i in range(readings.shape[0])]
     return {"rows": rows, "t": t, "trunk_height": readings[:, :, 0], "waist_height": readings[:, :, 2],
             "up_z": readings[:, :, 1]}
 
 
-EFFORT_KEYS = ("energy_J", "max_energy_J", "max_torque_Nm", "total_torque_Nms", "max_joint_acc_radps2",
-               "total_joint_acc_radps", "max_contact_force_N", "mean_contact_force_N", "z_contact_impulse_Ns")
+def episode_row(t, readings, series) -> dict:
+    """One episode's metrics from its readings (T + 1, 3: trunk height, up_z, waist height) at times t [s]
+    and its per-tick effort series (T,). energy_to_stand_J counts the ticks before the first stand-up only
+    (nan if it never stood): the energy of getting up, which the whole episode's energy_J mixes with the
+    standing that follows it under the upright policy."""
+    from sim_hil.eval.events import getup_events, through_kneel_gate
+    ev = getup_events(t, readings[:, 0], readings[:, 1])
+    gate = through_kneel_gate(t, readings[:, 0], readings[:, 1], ev)
+    stood = not math.isnan(ev.time_to_stand_s)
+    stand_tick = int(np.searchsorted(t, t[0] + ev.time_to_stand_s - 1e-9)) if stood else 0
+    ctrl_dt = float(t[1] - t[0])
+    return {
+        "success": ev.success, "time_to_stand_s": ev.time_to_stand_s, "attempts": ev.attempts,
+        "falls": ev.falls, "through_kneel_gate": math.nan if gate is None else float(gate),
+        "energy_J": float(series["energy_J"].sum()),
+        "energy_to_stand_J": float(series["energy_J"][:stand_tick].sum()) if stood else math.nan,
+        "max_energy_J": float(series["max_energy_J"].max()),
+        "max_torque_Nm": float(series["max_torque_Nm"].max()),
+        "total_torque_Nms": float(series["torque_integral"].sum()),
+        "max_joint_acc_radps2": float(series["max_qacc"].max()),
+        "total_joint_acc_radps": float(series["qacc_integral"].sum()),
+        "max_contact_force_N": float(series["contact_force_N"].max()),
+        "mean_contact_force_N": float(series["contact_force_N"].mean()),
+        "z_contact_impulse_Ns": float(series["contact_force_z_N"].sum() * ctrl_dt)}
+
+
+EFFORT_KEYS = ("energy_J", "energy_to_stand_J", "max_energy_J", "max_torque_Nm", "total_torque_Nms",
+               "max_joint_acc_radps2", "total_joint_acc_radps", "max_contact_force_N", "mean_contact_force_N", "z_contact_impulse_Ns")
 
 
 def summarize(rows: list[dict]) -> dict:
@@ -268,6 +280,7 @@ ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attem
         ("time to stand [s]", "time_to_stand_s", "{:.2f}"),
         ("through the kneel gate before standing (share of those that stood)", "through_kneel_gate", "{:.2f}"),
         ("energy Σ\\|τ·q̇\\|·dt [J]", "energy_J", "{:.1f}"),
+        ("energy until the first stand-up [J] (episodes that stood)", "energy_to_stand_J", "{:.1f}"),
         ("max energy in one physics step [J]", "max_energy_J", "{:.2f}"),
         ("max torque [N·m]", "max_torque_Nm", "{:.1f}"),
         ("total torque Σ\\|τ\\|·dt [N·m·s]", "total_torque_Nms", "{:.0f}"),
@@ -288,8 +301,8 @@ def markdown_report(results: dict, meta: dict) -> str:
              f"{meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]
     for role, res in results.items():
         lines.append(f"- {role}: {res['policy'].describe()}")
-    lines += ["", "Means over episodes (time to stand: over episodes that stood up). Seed = the seed "
-              "thesis's reported figure where one exists.", ""]
+    lines += ["", "Means over episodes (time to stand and energy until the first stand-up: over episodes that "
+              "stood up). Seed = the seed thesis's reported figure where one exists.", ""]
     header = ["metric"] + [f"{n}" for n in names] + [f"seed: {n}" for n in names]
     lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for label, key, fmt in ROWS:
@@ -301,8 +314,22 @@ def markdown_report(results: dict, meta: dict) -> str:
                   "baseline getup: the comparison is the seed's where `policy` is a keyframe getup; "
                   "`table_4_3.png`; definitions in training/table_4_3.py):", ""]
         lines += table_4_3.direction_rows({n: r["summary"] for n, r in results.items()})
+        ratio, both = paired_energy_to_stand(results["policy"]["run"]["rows"], results["baseline"]["run"]["rows"])
+        lines += ["", f"Energy until the first stand-up, paired by seed over the {both} seeds where both stood: "
+                  f"policy / baseline = {_fmt('{:.2f}', ratio)} (the getup's own energy: the whole-episode "
+                  "energy above also counts the standing after it)."]
     lines += ["", f"Command: `{meta['command']}`", ""]
     return "\n".join(lines)
+
+
+def paired_energy_to_stand(policy_rows: list[dict], baseline_rows: list[dict]) -> tuple[float, int]:
+    """Σ energy_to_stand_J of the policy / of the baseline over the seeds where both stood up, and how many."""
+    pairs = [(p["energy_to_stand_J"], b["energy_to_stand_J"]) for p, b in zip(policy_rows, baseline_rows, strict=True)
+             if not (math.isnan(p["energy_to_stand_J"]) or math.isnan(b["energy_to_stand_J"]))]
+    if not pairs:
+        return math.nan, 0
+    policy_j, baseline_j = np.sum(pairs, axis=0)
+    return float(policy_j / baseline_j), len(pairs)
 
 
 def plot_heights(results: dict, png: Path) -> None:

@@ -1,0 +1,43 @@
+"""The getup evaluation's energy until the first stand-up (training/evaluate.py episode_row) and its
+seed-paired ratio: the getup's own energy, apart from the standing that follows it."""
+import math
+
+import numpy as np
+
+from training.evaluate import episode_row, paired_energy_to_stand
+
+DT = 0.02       # [s] control tick
+TICKS = 500     # 10 s
+
+
+def _episode(stand_at_s: float | None, joules_per_tick: float = 1.0):
+    """A fallen start (trunk 0.2 m, lying) that stands (trunk 0.66 m, upright) from stand_at_s on."""
+    t = np.arange(TICKS + 1) * DT
+    up = np.zeros(TICKS + 1) if stand_at_s is None else (t >= stand_at_s).astype(float)
+    readings = np.stack([0.2 + 0.46 * up, 0.1 + 0.9 * up, 0.15 + 0.55 * up], axis=1)
+    zeros = np.zeros(TICKS)
+    series = {"energy_J": np.full(TICKS, joules_per_tick), "max_energy_J": zeros, "max_torque_Nm": zeros,
+              "torque_integral": zeros, "max_qacc": zeros, "qacc_integral": zeros,
+              "contact_force_N": zeros, "contact_force_z_N": zeros}
+    return t, readings, series
+
+
+def test_energy_until_the_first_stand_up_counts_only_the_ticks_before_it():
+    row = episode_row(*_episode(stand_at_s=2.0))
+    assert row["success"] and math.isclose(row["time_to_stand_s"], 2.0)
+    assert math.isclose(row["energy_to_stand_J"], 2.0 / DT)        # 100 ticks of 1 J
+    assert math.isclose(row["energy_J"], TICKS)                    # the whole episode
+
+
+def test_an_episode_that_never_stood_has_no_energy_until_standing():
+    row = episode_row(*_episode(stand_at_s=None))
+    assert not row["success"] and math.isnan(row["energy_to_stand_J"])
+
+
+def test_the_paired_ratio_uses_only_seeds_where_both_stood():
+    policy = [episode_row(*_episode(1.0)), episode_row(*_episode(None)), episode_row(*_episode(2.0))]
+    baseline = [episode_row(*_episode(2.0)), episode_row(*_episode(1.0)), episode_row(*_episode(None))]
+    ratio, both = paired_energy_to_stand(policy, baseline)
+    assert both == 1 and math.isclose(ratio, 0.5)
+    ratio, both = paired_energy_to_stand(policy[1:2], baseline[2:3])
+    assert both == 0 and math.isnan(ratio)
