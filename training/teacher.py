@@ -97,19 +97,14 @@ class TermAdapter:
     FILLABLE = ("command", "phase")
 
     def __init__(self, source_terms: Sequence, target_terms: Sequence):
-        obsdef.check_terms(source_terms)
         obsdef.check_terms(target_terms)
-        offsets, start = {}, 0
-        for name, size in source_terms:
-            offsets[name] = (start, int(size))
-            start += int(size)
         self.source_terms, self.target_terms = tuple(map(tuple, source_terms)), tuple(map(tuple, target_terms))
-        missing = [n for n, _ in target_terms if n not in offsets and n not in self.FILLABLE]
+        self._plan = [(name, obsdef.term_slice(source_terms, name), int(size)) for name, size in target_terms]
+        self.filled = [name for name, where, _ in self._plan if where is None]
+        missing = [name for name in self.filled if name not in self.FILLABLE]
         if missing:
             raise ValueError(f"obs_terms: the env does not produce {missing} (env terms: "
                              f"{[n for n, _ in source_terms]}), and only {self.FILLABLE} can be filled in")
-        self.filled = [n for n, _ in target_terms if n not in offsets]
-        self._plan = [(name, offsets.get(name), int(size)) for name, size in target_terms]
         self.identity = self.source_terms == self.target_terms
 
     def __call__(self, obs, xp=None):
@@ -121,7 +116,7 @@ class TermAdapter:
         parts = []
         for name, where, size in self._plan:
             if where is not None:
-                parts.append(obs[..., where[0]:where[0] + where[1]])
+                parts.append(obs[..., where])
             elif name == "command":
                 parts.append(xp.zeros(batch + (size,), obs.dtype))
             else:  # phase: frozen initial gait clock, [cos φL, cos φR, sin φL, sin φR]
