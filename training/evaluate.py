@@ -77,8 +77,20 @@ class ArtifactPolicy:
                 f"**{'yes' if m['trained'] else 'NO (untrained placeholder)'}**, env steps "
                 f"{m['provenance']['steps']}, content hash {m['content_hash'][:12]}")
 
+    def initial_last_action(self) -> np.ndarray:
+        """The rollout's last-action carry at the first tick (the runtime resets it to 0 entering POLICY)."""
+        return np.zeros(obsdef.NUM_JOINTS, np.float32)
+
+    def in_own_map(self, q_target):
+        """Joint targets [rad] as this policy's action, clipped to its range (how a composite's idle member
+        reads what the other applied)."""
+        import jax.numpy as jnp
+        pose, scale = (jnp.asarray(self.manifest[k], jnp.float32) for k in ("default_pose", "action_scale"))
+        return jnp.clip((q_target - pose) / scale, -1.0, 1.0)
+
     def act(self, params, obs_state: obsdef.ObservationState, waist_height_m):
-        """One env's tick in jax: (action, joint targets [rad]); one policy, so the waist height is unused."""
+        """One env's tick in jax: (action = the next tick's last action, joint targets [rad]); one policy, so
+        the waist height is unused."""
         import jax.numpy as jnp
         del waist_height_m
         action = policy_action(self.manifest, params, obs_state)
@@ -90,8 +102,9 @@ class ArtifactPolicy:
 class CompositePolicy:
     """The runtime's composite mode (`t1-runtime --policy GETUP --policy-upright UPRIGHT`, the seed's
     chapter-6 baseline): the getup member acts while the waist is below the switch height (0.5 m, the
-    stitched teacher's), else the upright (joystick) member, each through its own action map. The idle
-    member follows the applied action (runtime/src/controller.cpp), so both read one last action."""
+    stitched teacher's), else the upright (joystick) member, each through its own action map. Each member
+    reads its own last action: the acting one its action, the idle one the applied joint targets in its
+    map, clipped (runtime/src/policy.cpp `follow`, as the teacher); the rollout carries both, (2, 23)."""
     getup: ArtifactPolicy
     upright: ArtifactPolicy
 
@@ -129,12 +142,19 @@ class CompositePolicy:
         return (f"composite (getup below waist {WAIST_SWITCH_HEIGHT_M} m, upright above): getup "
                 f"{self.getup.describe()}; upright {self.upright.describe()}")
 
+    def initial_last_action(self) -> np.ndarray:
+        return np.zeros((2, obsdef.NUM_JOINTS), np.float32)     # [getup member's, upright member's]
+
     def act(self, params, obs_state: obsdef.ObservationState, waist_height_m):
         import jax.numpy as jnp
-        a_g, q_g = self.getup.act(params[0], obs_state, waist_height_m)
-        a_u, q_u = self.upright.act(params[1], obs_state, waist_height_m)
+        own = obs_state.last_action
+        a_g, q_g = self.getup.act(params[0], obs_state._replace(last_action=own[..., 0, :]), waist_height_m)
+        a_u, q_u = self.upright.act(params[1], obs_state._replace(last_action=own[..., 1, :]), waist_height_m)
         use_getup = waist_height_m < WAIST_SWITCH_HEIGHT_M
-        return jnp.where(use_getup, a_g, a_u), jnp.where(use_getup, q_g, q_u)
+        q_target = jnp.where(use_getup, q_g, q_u)
+        next_own = jnp.stack([jnp.where(use_getup, a_g, self.getup.in_own_map(q_target)),
+                              jnp.where(use_getup, self.upright.in_own_map(q_target), a_u)], axis=-2)
+        return next_own, q_target
 
 
 def load_policy(spec) -> ArtifactPolicy | CompositePolicy:
@@ -207,7 +227,8 @@ def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
     def rollout_one(params, qpos, qvel):
         d0 = env.make_data(qpos, qvel)
         tick = lambda carry, _: control_tick(carry, params)  # noqa: E731
-        _, series = jax.lax.scan(tick, (d0, jnp.zeros(obsdef.NUM_JOINTS), env.start_target(qpos)), (), num_ticks)
+        _, series = jax.lax.scan(tick, (d0, jnp.asarray(policy.initial_last_action()), env.start_target(qpos)),
+                                 (), num_ticks)
         series["readings"] = jnp.concatenate([readings(d0)[None], series["readings"]], axis=0)
         return series
 

@@ -191,7 +191,7 @@ void Controller::tick(double now_s) {
     const auto result = active_->step(s.quat, s.gyro, command_vel_, s.q, s.dq);
     if (upright_ && result == PolicyEngine::Result::kOk) {
       PolicyEngine& idle = active_ == upright_.get() ? *engine_ : *upright_;
-      idle.follow(active_->action(), command_vel_);
+      idle.follow(active_->q_target(), command_vel_);
     }
     if (result == PolicyEngine::Result::kNonFiniteObs) supervisor_.fault(fault_bit::kNonFiniteObs, "non-finite observation");
     if (result == PolicyEngine::Result::kNonFiniteAction) supervisor_.fault(fault_bit::kNonFiniteAction, "non-finite action");

@@ -1,5 +1,6 @@
 #include "t1rt/policy.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -126,9 +127,12 @@ void PolicyEngine::reset() {
   gait_.reset();
 }
 
-void PolicyEngine::follow(const JointArray& applied_action, const float* command) {
+void PolicyEngine::follow(const JointArray& applied_q_target, const float* command) {
   gait_.advance(artifact_.gait_frequency_hz, artifact_.control_dt_s, command, artifact_.phase_freeze_command_norm);
-  last_action_ = applied_action;
+  for (std::size_t i = 0; i < kJoints; ++i) {
+    const float own = (applied_q_target[i] - artifact_.default_pose[i]) / artifact_.action_scale[i];
+    last_action_[i] = std::clamp(own, -1.0f, 1.0f);
+  }
 }
 
 PolicyEngine::Result PolicyEngine::step(const float* imu_quat, const float* gyro, const float* command,

@@ -17,13 +17,17 @@ using namespace t1rt::testing;
 
 namespace {
 constexpr int64_t kTickUs = 2000;
+constexpr int kTicksPerPolicyTick = 10;               // 20 ms control period / 2 ms loop tick
 constexpr int kHipPitch = 11;
 constexpr int kGetupObsSize = 3 + 3 + 23 + 23 + 23;  // gyro gravity joint_pos joint_vel last_action
+constexpr float kUprightActionScaleRad = 0.5f;       // [rad per unit action]: make_spec's
+constexpr float kGetupActionScaleRad = 0.8f;         // a wider map (the ankle rolls allow ≤ 0.88)
 
 // A constant policy: zero weights, the last bias drives one joint to default + 0.5 * tanh(bias) [rad].
 ArtifactSpec constant_spec(const std::string& name, float hip_bias, bool getup_terms) {
   ArtifactSpec s = make_spec({8});
   s.meta["name"] = name;
+  if (getup_terms) s.meta["action_scale"] = kGetupActionScaleRad;
   for (auto& kv : s.tensors)
     if (kv.first.rfind("layers.", 0) == 0) std::fill(kv.second.data.begin(), kv.second.data.end(), 0.0f);
   s.tensors["layers.1.bias"].data[kHipPitch] = hip_bias;
@@ -157,8 +161,27 @@ TEST_F(CompositeLcm, SwitchesMemberByWaistHeightAndSaysSo) {
   EXPECT_EQ(ctrl_->member(), CompositeMember::kUpright);
   EXPECT_LT(peer_.last_cmd.q_des[kHipPitch], pose_[kHipPitch] - 0.3f);
   EXPECT_EQ(ctrl_->member_switches(), 2);  // upright (initial) -> getup -> upright
-  // the idle member followed the applied action: its last_action is the upright action now
-  EXPECT_EQ(ctrl_->policy().action()[kHipPitch], ctrl_->active_policy().action()[kHipPitch]);
+}
+
+TEST_F(CompositeLcm, IdleMemberReadsTheAppliedTargetsInItsOwnMap) {
+  to_policy(0.3f);
+  for (int i = 0; i < kTicksPerPolicyTick; ++i) step(0.3f);
+  ASSERT_EQ(ctrl_->member(), CompositeMember::kGetup);
+  PolicyEngine& getup = ctrl_->policy();
+  for (int i = 0; i < kTicksPerPolicyTick; ++i) step(0.62f);
+  ASSERT_EQ(ctrl_->member(), CompositeMember::kUpright);
+  PolicyEngine& upright = ctrl_->active_policy();
+  // the upright member drove: target = pose + 0.5 * tanh(-2) [rad]; the getup member reads that target in
+  // its own, wider map, not the upright's action
+  const float applied_rad = upright.q_target()[kHipPitch] - pose_[kHipPitch];
+  EXPECT_NEAR(getup.action()[kHipPitch], applied_rad / kGetupActionScaleRad, 1e-6f);
+  EXPECT_NEAR(getup.action()[kHipPitch], upright.action()[kHipPitch] * kUprightActionScaleRad / kGetupActionScaleRad,
+              1e-6f);
+  for (int i = 0; i < kTicksPerPolicyTick; ++i) step(0.3f);
+  ASSERT_EQ(ctrl_->member(), CompositeMember::kGetup);
+  // the getup member drove to pose + 0.8 tanh(2) = pose + 0.77 rad: past the upright's ±0.5 rad reach, so
+  // the upright member reads its previous action as the end of its range
+  EXPECT_FLOAT_EQ(upright.action()[kHipPitch], 1.0f);
 }
 
 TEST_F(CompositeLcm, StaleSimStatusHoldsThenFaults) {

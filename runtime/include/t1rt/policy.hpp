@@ -72,10 +72,12 @@ class PolicyEngine {
   Result step(const float* imu_quat, const float* gyro, const float* command, const float* q, const float* dq);
   const Eigen::VectorXf& obs_raw() const { return obs_raw_; }
   const Eigen::VectorXf& obs_normalized() const { return obs_norm_; }
-  // Composite mode, for the member that did NOT act this policy tick: its clock and its last_action
-  // follow what was applied, as in the stitched teacher, where both experts read the env's one
-  // last_action and one gait clock. No MLP is run.
-  void follow(const JointArray& applied_action, const float* command);
+  // Composite mode, for the member that did NOT act this policy tick: its clock follows, and its
+  // last_action becomes the applied joint targets [rad] in ITS action map, clip((q - pose) / scale, -1, 1),
+  // as the stitched teacher hands each expert the env's one last action (training/teacher.py). The members'
+  // maps differ (joystick 0.5 rad per unit, getup up to 2): read raw, the other member's action would
+  // mean other targets. No MLP is run.
+  void follow(const JointArray& applied_q_target, const float* command);
   const JointArray& action() const { return last_action_; }
   const JointArray& q_target() const { return q_target_; }
   const GaitPhase& gait() const { return gait_; }
