@@ -141,7 +141,8 @@ EVAL_TOL = {"readings": (0.0, 1e-3), "max_torque_Nm": (0.0, 0.5), "energy_J": (0
 
 @pytest.mark.slow
 def test_getup_evaluation_rollout_matches_mjx_on_the_first_tick():
-    from training.evaluate import ArtifactPolicy, make_rollout
+    from training.artifact_policy import ArtifactPolicy
+    from training.evaluate import make_rollout
     from training.evaluate_cpu import cpu_rollout
     from sim_hil.launch import ROOT
     policy = ArtifactPolicy.load(ROOT / "tests" / "golden" / "random_policy.safetensors")  # any policy will do

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from training import observation as obsdef
-from training.evaluate import ArtifactPolicy, CompositePolicy, load_policy
+from training.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
 from training.teacher import WAIST_SWITCH_HEIGHT_M
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -7,7 +7,7 @@ N seeded fallen starts (the env's fallen_starts: the settled fall after the runt
 `make eval-getup` hands them to the policy) are rolled out in parallel with the getup env's model
 and motor law, on either physics backend (default as `train`): MJX (jax.vmap over envs, lax.scan over
 control ticks, make_rollout below) or MuJoCo C (training/evaluate_cpu.py, the same series). The policy side is the
-artifact run through training/observation.py with xp=jax.numpy: the observation is built from the
+artifact run through training/observation.py with xp=jax.numpy (training/artifact_policy.py): the observation is built from the
 physics state exactly as the runtime builds it (no noise, command 0, gait clock frozen at its initial
 phase because ‖command‖ < phase_freeze_command_norm), normalised, fed through the MLP, mapped to targets.
 A policy may also be the runtime's composite of two artifacts, `--policy GETUP,UPRIGHT` (CompositePolicy:
@@ -23,152 +23,13 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from training import observation as obsdef
 from training import table_4_3
-from training.artifact import read_artifact
-from training.teacher import WAIST_SWITCH_HEIGHT_M
-
-MANIFEST_MUST_MATCH_ENV = ("default_pose", "action_scale", "kp", "kd", "control_dt")
-MATCH_TOLERANCE = 1e-6
-
-
-@dataclass(frozen=True)
-class ArtifactPolicy:
-    path: Path
-    layers: tuple
-    obs_mean: np.ndarray
-    obs_std: np.ndarray
-    manifest: dict
-
-    @classmethod
-    def load(cls, path) -> "ArtifactPolicy":
-        layers, mean, std, manifest = read_artifact(path)
-        return cls(Path(path), tuple(layers), mean, std, manifest)
-
-    @property
-    def trained(self) -> bool:
-        return bool(self.manifest["trained"])
-
-    def check_env(self, env, keys=MANIFEST_MUST_MATCH_ENV) -> None:
-        """The artifact must command the motors the way the env's model does, or the rollout lies."""
-        fields = env.manifest_fields()
-        for key in keys:
-            ours, theirs = np.asarray(self.manifest[key], float), np.asarray(fields[key], float)
-            if ours.shape != theirs.shape and ours.size != 1:
-                raise ValueError(f"{self.path}: {key} has shape {ours.shape}, the env has {theirs.shape}")
-            if np.max(np.abs(ours - theirs)) > MATCH_TOLERANCE:
-                raise ValueError(f"{self.path}: manifest {key} differs from the evaluation env's "
-                                 f"(max |Δ| = {np.max(np.abs(ours - theirs)):.3g})")
-
-    @property
-    def params(self):
-        """(layers, obs_mean, obs_std) as a pytree: passed to the jitted rollout as an ARGUMENT, so two
-        policies of one shape share one compilation."""
-        return (tuple((np.asarray(w), np.asarray(b)) for w, b in self.layers), self.obs_mean, self.obs_std)
-
-    def describe(self) -> str:
-        m = self.manifest
-        return (f"`{self.path}` name `{m['name']}`, trained: "
-                f"**{'yes' if m['trained'] else 'NO (untrained placeholder)'}**, env steps "
-                f"{m['provenance']['steps']}, content hash {m['content_hash'][:12]}")
-
-    def initial_last_action(self) -> np.ndarray:
-        """The rollout's last-action carry at the first tick (the runtime resets it to 0 entering POLICY)."""
-        return np.zeros(obsdef.NUM_JOINTS, np.float32)
-
-    def in_own_map(self, q_target):
-        """Joint targets [rad] as this policy's action, clipped to its range (how a composite's idle member
-        reads what the other applied)."""
-        import jax.numpy as jnp
-        pose, scale = (jnp.asarray(self.manifest[k], jnp.float32) for k in ("default_pose", "action_scale"))
-        return jnp.clip((q_target - pose) / scale, -1.0, 1.0)
-
-    def act(self, params, obs_state: obsdef.ObservationState, waist_height_m):
-        """One env's tick in jax: (action = the next tick's last action, joint targets [rad]); one policy, so
-        the waist height is unused."""
-        import jax.numpy as jnp
-        del waist_height_m
-        action = policy_action(self.manifest, params, obs_state)
-        return action, obsdef.action_to_targets(jnp.asarray(self.manifest["default_pose"], jnp.float32),
-                                                jnp.asarray(self.manifest["action_scale"], jnp.float32), action)
-
-
-@dataclass(frozen=True)
-class CompositePolicy:
-    """The runtime's composite mode (`t1-runtime --policy GETUP --policy-upright UPRIGHT`, the seed's
-    chapter-6 baseline): the getup member acts while the waist is below the switch height (0.5 m, the
-    stitched teacher's), else the upright (joystick) member, each through its own action map. Each member
-    reads its own last action: the acting one its action, the idle one the applied joint targets in its
-    map, clipped (runtime/src/policy.cpp `follow`, as the teacher); the rollout carries both, (2, 23)."""
-    getup: ArtifactPolicy
-    upright: ArtifactPolicy
-
-    # the upright member maps actions around its own pose and scale; it shares the env's motor law only
-    UPRIGHT_MUST_MATCH_ENV = ("kp", "kd", "control_dt")
-
-    @classmethod
-    def load(cls, spec: str) -> "CompositePolicy":
-        parts = [p.strip() for p in str(spec).split(",")]
-        if len(parts) != 2 or not all(parts):
-            raise ValueError(f"{spec!r}: a composite is GETUP.safetensors,UPRIGHT.safetensors")
-        return cls(ArtifactPolicy.load(parts[0]), ArtifactPolicy.load(parts[1]))
-
-    @property
-    def path(self) -> str:
-        return f"{self.getup.path},{self.upright.path}"
-
-    @property
-    def manifest(self) -> dict:     # control_dt and the like: the getup member's (checked equal to the env's)
-        return self.getup.manifest
-
-    @property
-    def trained(self) -> bool:
-        return self.getup.trained and self.upright.trained
-
-    def check_env(self, env) -> None:
-        self.getup.check_env(env)
-        self.upright.check_env(env, self.UPRIGHT_MUST_MATCH_ENV)
-
-    @property
-    def params(self):
-        return (self.getup.params, self.upright.params)
-
-    def describe(self) -> str:
-        return (f"composite (getup below waist {WAIST_SWITCH_HEIGHT_M} m, upright above): getup "
-                f"{self.getup.describe()}; upright {self.upright.describe()}")
-
-    def initial_last_action(self) -> np.ndarray:
-        return np.zeros((2, obsdef.NUM_JOINTS), np.float32)     # [getup member's, upright member's]
-
-    def act(self, params, obs_state: obsdef.ObservationState, waist_height_m):
-        import jax.numpy as jnp
-        own = obs_state.last_action
-        a_g, q_g = self.getup.act(params[0], obs_state._replace(last_action=own[..., 0, :]), waist_height_m)
-        a_u, q_u = self.upright.act(params[1], obs_state._replace(last_action=own[..., 1, :]), waist_height_m)
-        use_getup = waist_height_m < WAIST_SWITCH_HEIGHT_M
-        q_target = jnp.where(use_getup, q_g, q_u)
-        next_own = jnp.stack([jnp.where(use_getup, a_g, self.getup.in_own_map(q_target)),
-                              jnp.where(use_getup, self.upright.in_own_map(q_target), a_u)], axis=-2)
-        return next_own, q_target
-
-
-def load_policy(spec) -> ArtifactPolicy | CompositePolicy:
-    """An artifact path, or GETUP,UPRIGHT for the runtime's composite of two."""
-    return CompositePolicy.load(spec) if "," in str(spec) else ArtifactPolicy.load(spec)
-
-
-def policy_action(manifest: dict, params, obs_state: obsdef.ObservationState):
-    """The artifact's per-tick computation in jax (training/observation.py with xp=jax.numpy)."""
-    import jax.numpy as jnp
-    layers, mean, std = params
-    obs = obsdef.build_observation(manifest["obs_terms"], obs_state, jnp)
-    return obsdef.mlp_forward(layers, obsdef.normalize(obs, mean, std), manifest["activation"],
-                              manifest["output_rule"], xp=jnp)
+from training.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
 
 
 def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from training.evaluate import ArtifactPolicy, policy_action
+from training.artifact_policy import ArtifactPolicy, policy_action
 
 SETTLE_S = 1.0  # [s] after a command change before "settled" tracking is counted
 STEP_RESPONSE_S = (0.0, 0.2, 0.4, 0.6, 1.0, 2.0)   # times after a mid-episode command change [s]
