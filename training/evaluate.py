@@ -7,8 +7,8 @@ N seeded fallen starts (the env's fallen_starts: the settled fall after the runt
 `make eval-getup` hands them to the policy) are rolled out in parallel with the getup env's model
 and motor law, on either physics backend (default as `train`): MJX (jax.vmap over envs, lax.scan over
 control ticks, make_rollout below) or MuJoCo C (training/evaluate_cpu.py, the same series). The policy side is the
-artifact run through training/observation.py with xp=jax.numpy (training/artifact_policy.py): the observation is built from the
-physics state exactly as the runtime builds it (no noise, command 0, gait clock frozen at its initial
+artifact run through training/observation.py with xp=jax.numpy (training/artifact_policy.py): the observation is
+built from the physics state exactly as the runtime builds it (no noise, command 0, gait clock frozen at its initial
 phase because ‖command‖ < phase_freeze_command_norm), normalised, fed through the MLP, mapped to targets.
 A policy may also be the runtime's composite of two artifacts, `--policy GETUP,UPRIGHT` (CompositePolicy:
 the getup member below waist 0.5 m, the upright one above), the seed's chapter-6 baseline.
