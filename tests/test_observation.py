@@ -110,6 +110,8 @@ def test_mlp_output_rules_and_activations():
     with pytest.raises(ValueError, match="activation"):
         ob.mlp_forward(layers, x, "gelu", "linear")
     np.testing.assert_allclose(ob.action_to_targets(np.ones(N), 0.5, np.full(N, 2.0)), np.full(N, 2.0))
+    np.testing.assert_allclose(ob.targets_to_action(np.ones(N), 0.5, np.full(N, 1.25)), np.full(N, 0.5))
+    np.testing.assert_allclose(ob.targets_to_action(np.ones(N), 0.5, np.full(N, 2.0)), np.full(N, 1.0))  # clipped
 
 
 def test_numpy_and_jax_agree_under_jit_and_vmap():

@@ -66,7 +66,7 @@ class ArtifactPolicy:
         reads what the other applied)."""
         import jax.numpy as jnp
         pose, scale = (jnp.asarray(self.manifest[k], jnp.float32) for k in ("default_pose", "action_scale"))
-        return jnp.clip((q_target - pose) / scale, -1.0, 1.0)
+        return obsdef.targets_to_action(pose, scale, q_target, jnp)
 
     def act(self, params, obs_state: obsdef.ObservationState, waist_height_m):
         """One env's tick in jax: (action = the next tick's last action, joint targets [rad]); one policy, so

@@ -56,7 +56,8 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
     series = {k: np.zeros((n, num_ticks), np.float32)
               for k in ("energy_J", "max_energy_J", "max_torque_Nm", "torque_integral", "max_qacc", "qacc_integral",
                         "contact_force_N", "contact_force_z_N")}
-    last_action = jnp.broadcast_to(jnp.asarray(policy.initial_last_action()), (n,) + policy.initial_last_action().shape)
+    first = jnp.asarray(policy.initial_last_action())     # (23,), or (2, 23) for a composite
+    last_action = jnp.broadcast_to(first, (n,) + first.shape)
     for tick in range(num_ticks):
         last_action, q_des, r = act(policy.params, host_data(), last_action)
         readings[:, tick] = np.asarray(r)

@@ -221,6 +221,12 @@ def action_to_targets(default_pose, action_scale, action):
     return default_pose + action_scale * action
 
 
+def targets_to_action(default_pose, action_scale, q_target, xp=np):
+    """The inverse map, clipped to the action range: joint targets [rad] as a policy with this pose and
+    scale would have commanded them (how one policy reads the targets another applied)."""
+    return xp.clip((q_target - default_pose) / action_scale, -1.0, 1.0)
+
+
 def policy_step(terms, state: ObservationState, layers, obs_mean, obs_std, activation, output_rule,
                 action_scale, xp=np):
     """observation → normalised → action → targets, the whole per-tick computation. Returns a dict."""

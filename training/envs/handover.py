@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 from brax import math as brax_math
 
+from training import observation as obsdef
 from training.teacher import STUDENT_OBS_KEY, WAIST_SWITCH_HEIGHT_M, load_expert
 
 MAX_RISE_S = 10.0   # [s] a fallen start that has not handed over by then is left out
@@ -48,7 +49,7 @@ def handover_bank(getup_policy: str, num_starts: int, seed: int) -> HandoverBank
 
     def act(state):
         action = jnp.tanh(getup.loc(state.obs[STUDENT_OBS_KEY]))
-        return action, default_pose + jnp.asarray(getup.action_scale) * action
+        return action, obsdef.action_to_targets(default_pose, jnp.asarray(getup.action_scale), action)
 
     reset, step, act = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step)), jax.jit(jax.vmap(act))
     state = reset(jax.random.split(jax.random.PRNGKey(seed), num_starts))

@@ -135,7 +135,7 @@ class Joystick(base.T1Env):
         bank = self._handover
         idx = jax.random.randint(k_idx, (), 0, bank.qpos.shape[0])
         hq, hv = handover.place(bank.qpos[idx], bank.qvel[idx], qpos[0:2], yaw)
-        h_act = jnp.clip((bank.joint_targets[idx] - self._default_pose) / self._action_scale, -1.0, 1.0)
+        h_act = obsdef.targets_to_action(self._default_pose, self._action_scale, bank.joint_targets[idx], jnp)
         use = jax.random.uniform(k_use) < self._config.handover.prob
         return jnp.where(use, hq, qpos), jnp.where(use, hv, qvel), jnp.where(use, h_act, last_act)
 
