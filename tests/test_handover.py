@@ -81,3 +81,46 @@ def test_joystick_env_starts_from_the_bank(bank):
     np.testing.assert_allclose(q[2], bank.qpos[row, 2], atol=1e-6)             # its height
     expected = np.clip((bank.joint_targets[row] - np.asarray(env._default_pose)) / 0.5, -1.0, 1.0)
     np.testing.assert_allclose(np.asarray(state.info["last_act"]), expected, atol=1e-6)
+
+
+# ------------------------------------------------------------------ knockdown starts (the other hand-over)
+JOYSTICK = "policies/joystick.safetensors"
+KNOCK_STARTS = 8
+
+
+@pytest.mark.parametrize("over, why", [({"knockdown_starts.prob": 0.5}, "needs knockdown_starts.joystick_policy"),
+                                       ({"knockdown_starts.prob": -0.1}, r"in \[0, 1\]")])
+def test_getup_env_refuses_a_bad_knockdown_config(over, why):
+    with pytest.raises(ValueError, match=why):
+        envs.make("getup", config_overrides={"fallen_bank_size": 2, **over})
+
+
+@pytest.fixture(scope="module")
+def knock_bank():
+    return handover.knockdown_bank(JOYSTICK, KNOCK_STARTS, seed=int(envs.default_config("getup").knockdown_starts.seed))
+
+
+@pytest.mark.slow
+def test_knockdown_bank_holds_the_states_where_the_waist_drops_past_the_switch(knock_bank):
+    qpos, qvel = knock_bank
+    mj = t1model.load_model()
+    data = mujoco.MjData(mj)
+    waist = mj.body("Waist").id
+    assert 1 <= qpos.shape[0] <= KNOCK_STARTS
+    for q in qpos:
+        data.qpos[:] = q
+        mujoco.mj_kinematics(mj, data)
+        assert WAIST_SWITCH_HEIGHT_M - 0.1 < data.xpos[waist, 2] < WAIST_SWITCH_HEIGHT_M   # the first tick below
+    assert np.all(np.isfinite(qvel)) and np.median(qvel[:, 2]) < 0.0                  # still falling
+    assert np.median(np.hypot(qvel[:, 0], qvel[:, 1])) > 0.5                           # with the push's momentum
+
+
+@pytest.mark.slow
+def test_getup_env_starts_fallen_episodes_from_the_knockdown_bank(knock_bank):
+    env = envs.make("getup", config_overrides={
+        "start_probs": [1.0, 0.0, 0.0], "fallen_bank_size": 2, "episode_length": 20, "knockdown_starts.prob": 1.0,
+        "knockdown_starts.joystick_policy": JOYSTICK, "knockdown_starts.bank_starts": KNOCK_STARTS})
+    state = jax.jit(env.reset)(jax.random.PRNGKey(3))
+    q = np.asarray(state.data.qpos)
+    assert np.min(np.abs(knock_bank[0] - q).sum(axis=1)) < 1e-5
+    assert int(state.info["start_kind"]) == 0                      # counted with the fallen starts

@@ -258,3 +258,18 @@ def test_getup_rollout(task):
         # both tasks count the standing steps of fallen-start episodes apart (the evaluation's aim)
         np.testing.assert_array_equal(np.asarray(s.metrics["success_from_fallen"]),
                                       np.asarray(s.metrics["success"]) * (np.asarray(s.info["start_kind"]) == 0))
+
+
+def test_unified_knockdown_pushes(env_by_task):
+    """knockdown.prob of the unified env's pushes are as hard as the loop's push test; the rest (all, by
+    default) are the joystick env's."""
+    keys = jax.random.split(jax.random.PRNGKey(3), 4000)
+    walk_lo, walk_hi = envs.default_config("joystick").push.magnitude_range_mps
+    default = np.asarray(jax.vmap(env_by_task["unified"]._push_magnitude)(keys))
+    assert default.min() >= walk_lo and default.max() <= walk_hi
+    env = _make("unified", **{"knockdown.prob": 0.25})
+    lo, hi = env._config.knockdown.magnitude_range_mps
+    mixed = np.asarray(jax.vmap(env._push_magnitude)(keys))
+    hard = mixed > walk_hi
+    assert np.all((mixed >= walk_lo) & (mixed <= hi)) and np.all(mixed[hard] >= lo)
+    assert 0.22 < hard.mean() < 0.28       # 1000 ± 27 (1 σ) of 4000 draws

@@ -50,7 +50,7 @@ from mujoco_playground._src import mjx_env
 from training import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
-from training.envs import start_path
+from training.envs import handover, start_path
 from sim_hil.config import FALLEN_TRUNK_HEIGHT_M
 from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import PREPARE_S, fallen_states
@@ -93,6 +93,10 @@ def default_config() -> config_dict.ConfigDict:
     cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)
     cfg.stage2_fall_trunk_height_m = 0.35   # stage 2 ends when the trunk drops below this [m] (docstring)
     cfg.stage2_fall_up_z = 0.7              # ... or when the trunk's up_z falls below this (46° of tilt)
+    # knockdown starts (training/envs/handover.py knockdown_bank; ours): this share of the fallen starts is
+    # instead where the teacher hands `joystick_policy`, knocked over by a push, to the getup expert mid-fall
+    # (from `bank_starts` standing starts, seeds from `seed`); 0 = the seed's fallen starts only
+    cfg.knockdown_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=200_000)
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
     # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
     # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with
@@ -223,11 +227,28 @@ class Getup(GetupBase):
             bank = start_path.path_bank(self._mj_model, np.asarray(self._home_qpos), np.asarray(self._kneel_qpos),
                                         rc.left_leg_waypoints, int(rc.bank_size))
             self._path_bank = jnp.asarray(bank[starts], jnp.float32)
+        self._knockdown = None
+        kd = self._config.get("knockdown_starts")   # runs made before knockdown starts existed have none
+        if kd is not None and not 0.0 <= kd.prob <= 1.0:
+            raise ValueError(f"knockdown_starts.prob must be in [0, 1], got {kd.prob}")
+        if kd is not None and kd.prob > 0:
+            if not kd.joystick_policy:
+                raise ValueError("knockdown_starts.prob > 0 needs knockdown_starts.joystick_policy (a joystick "
+                                 "artifact or checkpoint)")
+            bank = handover.knockdown_bank(kd.joystick_policy, int(kd.bank_starts), int(kd.seed))
+            self._knockdown = tuple(jnp.asarray(x) for x in bank)
 
     def _start_state(self, rng):
-        """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path."""
-        if self._path_bank is None:
+        """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path; with
+        knockdown starts, a share of the fallen ones from the knockdown bank."""
+        if self._path_bank is None and self._knockdown is None:
             return super()._start_state(rng)
+        if self._path_bank is None:
+            k_start, k_use, k_idx = jax.random.split(rng, 3)
+            qpos, qvel, kind = super()._start_state(k_start)
+            use = (kind == 0) & (jax.random.uniform(k_use) < self._config.knockdown_starts.prob)
+            idx = jax.random.randint(k_idx, (), 0, self._knockdown[0].shape[0])
+            return jnp.where(use, self._knockdown[0][idx], qpos), jnp.where(use, self._knockdown[1][idx], qvel), kind
         k_kneel, k_idx = jax.random.split(rng)
         at_kneel = jax.random.uniform(k_kneel) < self._config.reverse_curriculum.kneel_prob
         idx = jax.random.randint(k_idx, (), 0, self._path_bank.shape[0])

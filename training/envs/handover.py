@@ -1,4 +1,4 @@
-"""Hand-over starts: the states in which the stitched teacher hands a rising robot to the joystick expert.
+"""Hand-over starts: the states in which the stitched teacher hands a robot from one expert to the other.
 
 The teacher (training/teacher.py) switches from the getup expert to the joystick expert when the waist
 rises past WAIST_SWITCH_HEIGHT_M (0.5 m). The joystick expert was trained from standing starts only, and the
@@ -13,6 +13,14 @@ first control tick with the waist at or above the switch height, with the joint 
 expert's last action (the joystick expert's last action at the hand-over, in its own map). The joystick env
 (training/envs/joystick.py, config.handover) starts a share of its episodes from it, each turned to a
 random heading and moved to a random place as its standing starts are.
+
+`knockdown_bank` is the other way: the joystick expert, standing or walking, is knocked over by a push as
+hard as the loop's push test, and the state of the first control tick with the waist below the switch
+height is where the getup expert takes over, mid-fall. The getup expert was trained from fallen starts after
+the runtime's PREPARE ramp (limbs straightened, at rest), so a push's landing, limbs in a walking pose and
+still moving, was new to it: in the loop's push test the failed getup attempts after one forward fall are
+what misses the seed's 1.16 (training/runs/student_knockdown/PROGRESS.md). The getup env (config
+knockdown_starts) replaces a share of its fallen starts with these.
 """
 from __future__ import annotations
 
@@ -27,6 +35,11 @@ from training import observation as obsdef
 from training.teacher import STUDENT_OBS_KEY, WAIST_SWITCH_HEIGHT_M, load_expert
 
 MAX_RISE_S = 10.0   # [s] a fallen start that has not handed over by then is left out
+# A knockdown: a base speed change [m/s] as hard as the loop's push test (sim_hil/eval/plans.py: 40 N·s ±
+# 15 % on the 31.6 kg robot, 1.1–1.5 m/s), the joystick env's pushes being at most 1.0 m/s
+KNOCKDOWN_MPS = (1.0, 1.6)
+KNOCK_AT_S = (0.3, 1.0)       # [s] after a standing start: the joystick expert is walking or standing by then
+MAX_FALL_S = 3.0              # [s] after the push: a robot still up by then (it caught itself) is left out
 
 
 class HandoverBank(NamedTuple):
@@ -73,6 +86,39 @@ def handover_bank(getup_policy: str, num_starts: int, seed: int) -> HandoverBank
     keep = np.sort(keep)
     return HandoverBank(qpos[found][keep].astype(np.float32), qvel[found][keep].astype(np.float32),
                         targets[found][keep].astype(np.float32))
+
+
+def knockdown_bank(joystick_policy: str, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos, qvel) where the teacher hands `joystick_policy` (artifact or checkpoint), knocked over from
+    `num_starts` seeded standing starts (random commands, half of them zero; full-body collision, CPU
+    physics), to the getup expert: the first control tick with the waist below the switch height."""
+    from training import envs
+    env = envs.make("joystick", config_overrides={"backend": "cpu", "collision": "full_body", "push.enable": False,
+                                                  "zero_command_prob": 0.5, "noise.level": 0.0})
+    joystick = load_expert(joystick_policy, "joystick")
+    if tuple(map(tuple, env.obs_terms)) != joystick.obs_terms:
+        raise ValueError(f"{joystick_policy}: observation terms {joystick.obs_terms} are not the joystick env's")
+    rng = np.random.default_rng(seed)
+    knock_tick = np.round(rng.uniform(*KNOCK_AT_S, num_starts) / env.dt).astype(int)
+    heading = rng.uniform(0.0, 2.0 * np.pi, num_starts)
+    push = np.stack([np.cos(heading), np.sin(heading)], 1) * rng.uniform(*KNOCKDOWN_MPS, num_starts)[:, None]
+    act = jax.jit(jax.vmap(lambda obs: jnp.tanh(joystick.loc(obs))))
+    reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
+    state = reset(jax.random.split(jax.random.PRNGKey(seed), num_starts))
+    found = np.zeros(num_starts, bool)
+    qpos, qvel = np.zeros((num_starts, env.mj_model.nq)), np.zeros((num_starts, env.mj_model.nv))
+    for tick in range(int(knock_tick.max() + round(MAX_FALL_S / env.dt))):
+        due = jnp.asarray(knock_tick == tick)[:, None]
+        state = state.replace(data=state.data.replace(
+            qvel=state.data.qvel.at[:, :2].add(jnp.where(due, jnp.asarray(push, jnp.float32), 0.0))))
+        state = step(state, act(state.obs[STUDENT_OBS_KEY]))
+        new = ~found & (tick >= knock_tick) & (np.asarray(state.info["waist_height"]) < WAIST_SWITCH_HEIGHT_M)
+        qpos[new], qvel[new] = np.asarray(state.data.qpos)[new], np.asarray(state.data.qvel)[new]
+        found |= new
+    if not found.any():
+        raise ValueError(f"{joystick_policy}: no knockdown of {KNOCKDOWN_MPS} m/s brought the waist below "
+                         f"{WAIST_SWITCH_HEIGHT_M} m within {MAX_FALL_S} s in {num_starts} starts")
+    return qpos[found].astype(np.float32), qvel[found].astype(np.float32)
 
 
 def place(qpos, qvel, xy, yaw):

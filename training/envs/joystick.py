@@ -186,10 +186,15 @@ class Joystick(base.T1Env):
         info["command"] = jnp.where(resample, self.sample_command(k_cmd), info["command"])
         info["command_step"] = jnp.where(resample, 0, info["command_step"])
 
+    def _push_magnitude(self, rng):
+        """Base speed change of one push [m/s]."""
+        lo, hi = self._config.push.magnitude_range_mps
+        return jax.random.uniform(rng, minval=lo, maxval=hi)
+
     def _apply_push(self, data, info, k_theta, k_mag):
         p = self._config.push
         theta = jax.random.uniform(k_theta, maxval=2 * jnp.pi)
-        mag = jax.random.uniform(k_mag, minval=p.magnitude_range_mps[0], maxval=p.magnitude_range_mps[1])
+        mag = self._push_magnitude(k_mag)
         due = jnp.mod(info["push_step"] + 1, info["push_interval_steps"]) == 0
         push = jnp.array([jnp.cos(theta), jnp.sin(theta)]) * mag * due * float(p.enable)
         info["push"] = push

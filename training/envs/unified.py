@@ -6,7 +6,10 @@ The seed's student is distilled on the whole task, so one episode mixes everythi
   envs.fallen_states (getup.GetupBase's sampler, reused);
 * joystick commands sampled and resampled exactly as the joystick env (Playground T1 ranges, zero with
   zero_command_prob 0.1, resampled every command_resample_steps 500 ticks) and the same random pushes
-  (joystick.Joystick's sample_command / _apply_push, reused);
+  (joystick.Joystick's sample_command / _apply_push, reused); with knockdown.prob, a push is instead as hard as
+  the loop's push test (handover.KNOCKDOWN_MPS), so the student also sees falls with momentum, the hand-over
+  to the getup expert mid-fall and getups from where such a fall lands (0 by default: the seed's unified env
+  has only the joystick env's pushes);
 * 1000-step episodes, no termination on falls (only on non-finite physics): the student must get up;
 * actor observation TERMS_UNION (82) with the gait clock advanced by observation.advance_gait_phase, and
   uniform observation noise at noise.level as in the joystick env (0 for exact teacher labels);
@@ -29,7 +32,7 @@ from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
 from training import observation as obsdef
-from training.envs import base
+from training.envs import base, handover
 from training.envs import joystick_rewards as R
 from training.envs.getup import GetupBase, getup_common_config
 from training.envs.joystick import Joystick
@@ -57,6 +60,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.command_resample_steps = joy.command_resample_steps
     cfg.zero_command_prob = joy.zero_command_prob
     cfg.push = config_dict.create(**joy.push.to_dict())
+    cfg.knockdown = config_dict.create(prob=0.0, magnitude_range_mps=list(handover.KNOCKDOWN_MPS))  # per push
     cfg.reward = config_dict.create(
         scales=config_dict.create(alive=0.25, height=1.0, tracking_lin_vel=1.0, tracking_ang_vel=0.5),
         tracking_sigma=joy.reward.tracking_sigma,
@@ -73,6 +77,7 @@ class Unified(GetupBase):
     sample_command = Joystick.sample_command
     _push_interval_steps = Joystick._push_interval_steps
     _apply_push = Joystick._apply_push
+    _walking_push_magnitude = Joystick._push_magnitude
     _advance_clock_and_command = Joystick._advance_clock_and_command
 
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
@@ -116,6 +121,13 @@ class Unified(GetupBase):
         metrics["standing"] = standing.astype(jnp.float32)
         done = self.invalid(data).astype(jnp.float32)  # falls do not end the episode
         return state.replace(data=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
+
+    def _push_magnitude(self, rng):
+        """A joystick-env push [m/s], or with probability knockdown.prob a knockdown (module docstring)."""
+        k_walk, k_hard, k_pick = jax.random.split(rng, 3)
+        kd = self._config.knockdown
+        hard = jax.random.uniform(k_hard, minval=kd.magnitude_range_mps[0], maxval=kd.magnitude_range_mps[1])
+        return jnp.where(jax.random.bernoulli(k_pick, kd.prob), hard, self._walking_push_magnitude(k_walk))
 
     def _reward_terms(self, data, info):
         """(scaled terms, standing flag) for the state after the step."""
