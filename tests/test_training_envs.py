@@ -273,3 +273,6 @@ def test_unified_knockdown_pushes(env_by_task):
     hard = mixed > walk_hi
     assert np.all((mixed >= walk_lo) & (mixed <= hi)) and np.all(mixed[hard] >= lo)
     assert 0.22 < hard.mean() < 0.28       # 1000 ± 27 (1 σ) of 4000 draws
+    for bad in ({"knockdown.prob": 1.5}, {"knockdown.magnitude_range_mps": [1.6, 1.0]}):
+        with pytest.raises(ValueError, match="knockdown"):
+            _make("unified", **bad)

@@ -82,6 +82,10 @@ class Unified(GetupBase):
 
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
         super().__init__(config if config is not None else default_config(), config_overrides)
+        kd = self._config.knockdown
+        if not (0.0 <= kd.prob <= 1.0 and 0.0 <= kd.magnitude_range_mps[0] <= kd.magnitude_range_mps[1]):
+            raise ValueError(f"knockdown: prob must be in [0, 1] and magnitude_range_mps an ordered pair of speeds "
+                             f"[m/s] >= 0, got {kd.prob} and {list(kd.magnitude_range_mps)}")
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_cmd, k_push, k_obs = jax.random.split(rng, 5)
