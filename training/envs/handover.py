@@ -24,6 +24,7 @@ knockdown_starts) replaces a share of its fallen starts with these.
 """
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import jax
@@ -88,10 +89,12 @@ def handover_bank(getup_policy: str, num_starts: int, seed: int) -> HandoverBank
                         targets[found][keep].astype(np.float32))
 
 
+@functools.lru_cache(maxsize=4)
 def knockdown_bank(joystick_policy: str, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) where the teacher hands `joystick_policy` (artifact or checkpoint), knocked over from
     `num_starts` seeded standing starts (random commands, half of them zero; full-body collision, CPU
-    physics), to the getup expert: the first control tick with the waist below the switch height."""
+    physics), to the getup expert: the first control tick with the waist below the switch height. Cached
+    (read-only arrays): a second env asking for the same bank pays nothing."""
     from training import envs
     env = envs.make("joystick", config_overrides={"backend": "cpu", "collision": "full_body", "push.enable": False,
                                                   "zero_command_prob": 0.5, "noise.level": 0.0})
@@ -118,7 +121,10 @@ def knockdown_bank(joystick_policy: str, num_starts: int, seed: int) -> tuple[np
     if not found.any():
         raise ValueError(f"{joystick_policy}: no knockdown of {KNOCKDOWN_MPS} m/s brought the waist below "
                          f"{WAIST_SWITCH_HEIGHT_M} m within {MAX_FALL_S} s in {num_starts} starts")
-    return qpos[found].astype(np.float32), qvel[found].astype(np.float32)
+    bank = qpos[found].astype(np.float32), qvel[found].astype(np.float32)
+    for array in bank:
+        array.flags.writeable = False
+    return bank
 
 
 def place(qpos, qvel, xy, yaw):
