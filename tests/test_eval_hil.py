@@ -67,6 +67,23 @@ def test_scenario_one_trial_writes_report(scenario, baseline, tmp_path, netns):
         assert results["trials"][0]["spec"]["faults"].startswith("push:x=")
 
 
+@pytest.mark.slow
+def test_failed_recording_fails_its_trial_and_lists_no_video(baseline, tmp_path, netns):
+    """No GL backend (glfw without a display): the recorded trial fails with a message that names --record,
+    the other trial is still reported, and no video is claimed."""
+    out = tmp_path / "push"
+    env = {k: v for k, v in _env().items() if k not in ("DISPLAY", "PYOPENGL_PLATFORM")}
+    env["MUJOCO_GL"] = "glfw"
+    cmd = [sys.executable, "-m", "sim_hil.eval", "push", "--policy", str(STUDENT),
+           "--baseline", f"{baseline[0]},{baseline[1]}", "--trials", "1", "--seconds", str(SECONDS["push"]),
+           "--no-log", "--out", str(out)]
+    run = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=150)
+    assert run.returncode == 1, run.stdout[-3000:] + run.stderr[-3000:]
+    assert "trial FAILED: student" in run.stderr and "--record" in run.stderr, run.stderr[-3000:]
+    assert not (out / "video.mp4").exists() and "video" not in run.stdout
+    assert [t["controller"] for t in json.loads((out / "results.json").read_text())["trials"]] == ["baseline"]
+
+
 def test_fig51_is_the_seeds_figure_setup():
     plan = plans.PLANS["fig5.1"]
     [spec] = plan.specs(plan.default_trials, plan.default_seconds, plan.seed0)

@@ -107,7 +107,7 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
     plain = json.loads(json.dumps(dump, default=str), parse_constant=lambda _c: None)
     (out / "results.json").write_text(json.dumps(plain, indent=1))
     paths = {"report": report, "plot": plot, "results": out / "results.json"}
-    if video is not None:
+    if video is not None and video.exists():  # a failed recording is reported with its trial, not listed
         paths["video"] = video
     if logs:
         paths["logs"] = logs[0].parent
