@@ -124,3 +124,27 @@ def test_getup_env_starts_fallen_episodes_from_the_knockdown_bank(knock_bank):
     q = np.asarray(state.data.qpos)
     assert np.min(np.abs(knock_bank[0] - q).sum(axis=1)) < 1e-5
     assert int(state.info["start_kind"]) == 0                      # counted with the fallen starts
+
+
+@pytest.mark.slow
+def test_evaluate_from_knockdown_landings(knock_bank, tmp_path):
+    """`evaluate --starts knockdown`: one episode per landing of the same (cached) bank, counted from the landing;
+    the report names the starts and drops the seed's fallen-start figures."""
+    from training.evaluate import evaluate
+    seed = int(envs.default_config("getup").knockdown_starts.seed)
+    report = evaluate(GETUP, tmp_path, seeds=KNOCK_STARTS, seconds=0.2, first_seed=seed, backend="cpu",
+                      starts="knockdown", knockdown_joystick=JOYSTICK).read_text()
+    landings = knock_bank[0].shape[0]
+    assert f"{landings} knockdown landings (of {KNOCK_STARTS} pushed standing starts" in report
+    assert "| lay without a rise to the end (share) |" in report and "seed: policy" not in report
+    rows = (tmp_path / "per_env.csv").read_text().splitlines()[1:]
+    assert [int(r.split(",")[1]) for r in rows] == list(range(landings))
+
+
+@pytest.mark.parametrize("over, why", [({"starts": "kneeling"}, "starts 'kneeling'"),
+                                       ({"starts": "knockdown"}, "knockdown joystick policy goes with"),
+                                       ({"knockdown_joystick": JOYSTICK}, "knockdown joystick policy goes with")])
+def test_evaluate_refuses_bad_starts(over, why, tmp_path):
+    from training.evaluate import evaluate
+    with pytest.raises(ValueError, match=why):
+        evaluate(GETUP, tmp_path, seeds=1, seconds=0.2, backend="cpu", **over)

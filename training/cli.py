@@ -115,14 +115,21 @@ def _cmd_export_phase(args, command: str) -> int:
 BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported: parsing needs no JAX)
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
+KNOCKDOWN_JOYSTICK = "policies/joystick.safetensors"   # evaluate --starts knockdown: the shipped joystick expert
 
 
 def _cmd_evaluate(args, command: str) -> int:
     seconds = EVAL_SECONDS[args.task] if args.seconds is None else args.seconds
     out = args.out or f"out/eval_{args.task}"
+    if args.knockdown_joystick and args.starts != "knockdown":
+        raise ValueError("--knockdown-joystick goes with --starts knockdown")
+    if args.starts == "knockdown" and not args.knockdown_joystick:
+        args.knockdown_joystick = KNOCKDOWN_JOYSTICK
     if args.task == "joystick":
         if args.baseline:
             raise ValueError("--baseline: the joystick evaluation takes one policy")
+        if args.starts != "fallen":
+            raise ValueError("--starts: the joystick evaluation starts standing")
         from training import evaluate_joystick
         report = evaluate_joystick.evaluate(args.policy, out, episodes=args.seeds, seconds=seconds,
                                             first_seed=args.first_seed, command=command, backend=args.backend)
@@ -130,7 +137,8 @@ def _cmd_evaluate(args, command: str) -> int:
         from training import evaluate
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
-                                   command=command, backend=args.backend)
+                                   command=command, backend=args.backend, starts=args.starts,
+                                   knockdown_joystick=args.knockdown_joystick)
     print(report.read_text())
     return 0
 
@@ -214,6 +222,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seeds", type=int, default=32,
                    help="episodes: seeded fallen starts (getup) or seeded joystick episodes")
     p.add_argument("--first-seed", type=int, default=0)
+    p.add_argument("--starts", choices=("fallen", "knockdown"), default="fallen",
+                   help="getup: fallen = settled after the runtime's PREPARE (the loop's getup test); knockdown = "
+                   "mid-fall, where the stitched teacher hands over after a push (as the loop's push test): "
+                   "--knockdown-joystick is pushed over from SEEDS standing starts, the ones it caught are left out")
+    p.add_argument("--knockdown-joystick", metavar="ARTIFACT",
+                   help="with --starts knockdown: the joystick expert that walks and is pushed over "
+                   f"(default {KNOCKDOWN_JOYSTICK})")
     p.add_argument("--seconds", type=float, help="episode length [s] (default: getup 10, joystick 20)")
     p.add_argument("--out", help="folder for the report (default: out/eval_<task>)")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)

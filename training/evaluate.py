@@ -154,11 +154,14 @@ def summarize(rows: list[dict]) -> dict:
     falls_total = sum(1 + r["falls"] for r in rows)
     return {"episodes": len(rows), "success_rate": float(np.mean([r["success"] for r in rows])),
             "attempts_per_fall": sum(r["attempts"] for r in rows) / falls_total,
+            "never_rose": float(np.mean([r["attempts"] == 0 and not r["success"] for r in rows])),
             "time_to_stand_s": mean("time_to_stand_s"), "through_kneel_gate": mean("through_kneel_gate"),
             **{k: mean(k) for k in EFFORT_KEYS}}
 
 
+START_KINDS = ("fallen", "knockdown")   # fallen: the loop's fallen starts; knockdown: mid-fall after a push
 ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attempts_per_fall", "{:.2f}"),
+        ("lay without a rise to the end (share)", "never_rose", "{:.3f}"),
         ("time to stand [s]", "time_to_stand_s", "{:.2f}"),
         ("through the kneel gate before standing (share of those that stood)", "through_kneel_gate", "{:.2f}"),
         ("energy Σ\\|τ·q̇\\|·dt [J]", "energy_J", "{:.1f}"),
@@ -179,23 +182,31 @@ def _fmt(fmt, value):
 
 def markdown_report(results: dict, meta: dict) -> str:
     names = list(results)
-    lines = [f"# Getup evaluation ({meta['seeds']} seeded fallen starts from seed {meta['first_seed']}, "
-             f"{meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]
+    knockdown = meta.get("starts", "fallen") == "knockdown"
+    if knockdown:
+        title = (f"{meta['episodes']} knockdown landings (of {meta['seeds']} pushed standing starts, bank seed "
+                 f"{meta['first_seed']}, knocked over by `{meta['knockdown_joystick']}`)")
+    else:
+        title = f"{meta['seeds']} seeded fallen starts from seed {meta['first_seed']}"
+    lines = [f"# Getup evaluation ({title}, {meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]
     for role, res in results.items():
         lines.append(f"- {role}: {res['policy'].describe()}")
     lines += ["", "Means over episodes (time to stand and energy until the first stand-up: over episodes that "
-              "stood up). Seed = the seed thesis's reported figure where one exists.", ""]
-    header = ["metric"] + [f"{n}" for n in names] + [f"seed: {n}" for n in names]
+              "stood up)." + ("" if knockdown else " Seed = the seed thesis's reported figure where one exists."),
+              ""]
+    seed_names = [] if knockdown else names   # the seed's figures are from fallen starts only
+    header = ["metric"] + [f"{n}" for n in names] + [f"seed: {n}" for n in seed_names]
     lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for label, key, fmt in ROWS:
         cells = [_fmt(fmt, results[n]["summary"][key]) for n in names]
-        cells += [_fmt("{:.1f}", table_4_3.SEED_REPORTED.get(key, {}).get(n)) for n in names]
+        cells += [_fmt("{:.1f}", table_4_3.SEED_REPORTED.get(key, {}).get(n)) for n in seed_names]
         lines.append("| " + " | ".join([label] + cells) + " |")
-    if {"policy", "baseline"} <= set(results):
+    if {"policy", "baseline"} <= set(results) and not knockdown:
         lines += ["", "Direction against the seed's Table 4.3 (the seed compares its keyframe expert with its "
                   "baseline getup: the comparison is the seed's where `policy` is a keyframe getup; "
                   "`table_4_3.png`; definitions in training/table_4_3.py):", ""]
         lines += table_4_3.direction_rows({n: r["summary"] for n, r in results.items()})
+    if {"policy", "baseline"} <= set(results):
         ratio, both = paired_energy_to_stand(results["policy"]["run"]["rows"], results["baseline"]["run"]["rows"])
         lines += ["", f"Energy until the first stand-up, paired by seed over the {both} seeds where both stood: "
                   f"policy / baseline = {_fmt('{:.2f}', ratio)} (the getup's own energy: the whole-episode "
@@ -235,17 +246,28 @@ def plot_heights(results: dict, png: Path) -> None:
 
 
 def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 32, seconds: float = 10.0,
-             first_seed: int = 0, command: str = "", backend: str | None = None) -> Path:
-    """Run the evaluation; returns the path of report.md."""
+             first_seed: int = 0, command: str = "", backend: str | None = None, starts: str = "fallen",
+             knockdown_joystick: str | None = None) -> Path:
+    """Run the evaluation; returns the path of report.md. starts="knockdown": instead of fallen starts, the
+    states where `knockdown_joystick`, knocked over from `seeds` standing starts (bank seed `first_seed`),
+    hands over to the getup policy mid-fall (training/envs/handover.py); the ones it caught are left out."""
     from training import checkpoints, envs
     from training.train import default_backend
     checkpoints.jax_setup()
     if task != "getup":
         raise ValueError(f"--task {task!r}: only the getup evaluation exists so far")
+    if starts not in START_KINDS:
+        raise ValueError(f"starts {starts!r}: one of {START_KINDS}")
+    if (starts == "knockdown") != (knockdown_joystick is not None):
+        raise ValueError("a knockdown joystick policy goes with knockdown starts, and only with them")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     env = envs.make(task, config_overrides={"backend": backend or default_backend()})
-    qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
+    if starts == "fallen":
+        qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
+    else:
+        from training.envs import handover
+        qpos, qvel = handover.knockdown_bank(str(knockdown_joystick), seeds, first_seed)
     policies = {role: load_policy(path) for role, path in (("policy", policy_path), ("baseline", baseline))
                 if path is not None}   # both checked before either runs
     for policy in policies.values():
@@ -256,7 +278,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         run = run_policy(env, policy, qpos, qvel, seconds)
         results[role] = {"policy": policy, "run": run, "summary": summarize(run["rows"])}
     meta = {"seeds": seeds, "first_seed": first_seed, "seconds": seconds, "command": command or "evaluate()",
-            "backend": env.backend}
+            "backend": env.backend, "starts": starts, "episodes": len(qpos), "knockdown_joystick": knockdown_joystick}
     report = out / "report.md"
     report.write_text(markdown_report(results, meta))
     with (out / "per_env.csv").open("w", newline="") as f:
@@ -265,7 +287,8 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         writer.writeheader()
         for role, res in results.items():
             for i, row in enumerate(res["run"]["rows"]):
-                writer.writerow({"role": role, "seed": first_seed + i, "trained": res["policy"].trained, **row})
+                seed = first_seed + i if starts == "fallen" else i   # knockdown: the landing's row in the bank
+                writer.writerow({"role": role, "seed": seed, "trained": res["policy"].trained, **row})
     plot_heights(results, out / "heights.png")
     if baseline is not None:
         table_4_3.plot_ratios({n: r["summary"] for n, r in results.items()}, out / "table_4_3.png")
