@@ -196,9 +196,38 @@ def test_resume_continues_step_count_and_curve(toy_runs):
 
 
 @pytest.mark.slow
+def test_a_killed_run_keeps_its_call_record(tmp_path):
+    """The call's record (command, steps, minutes) is written with every checkpoint: a run killed mid-call
+    (a session cut off) still says what made its newest checkpoint, and --resume continues from it."""
+    import sys
+    import time
+    run_dir = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, "-m", "training", "train", "joystick", "--steps", str(10_000 * TOY_STEPS),
+                             "--out", str(run_dir), "--toy", "--no-progress"], cwd=ROOT, env=TOY_ENV,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 600
+        while time.monotonic() < deadline and proc.poll() is None:
+            state_file = run_dir / checkpoints.RUN_STATE
+            if state_file.exists() and json.loads(state_file.read_text())["env_steps"] > 0:
+                break
+            time.sleep(0.5)
+        assert proc.poll() is None, "the run ended before its first checkpoint"
+    finally:
+        proc.kill()
+        proc.wait()
+    state = json.loads((run_dir / checkpoints.RUN_STATE).read_text())
+    (call,) = state["calls"]
+    assert "train joystick" in call["command"] and call["finished"] is False
+    assert call["to_steps"] == state["env_steps"] == checkpoints.checkpoint_steps(run_dir) > 0
+    assert state["minutes"] == pytest.approx(call["minutes"], abs=0.01) and call["minutes"] > 0
+
+
+@pytest.mark.slow
 def test_max_minutes_stops_at_a_checkpoint(toy_runs):
     state = json.loads((toy_runs["boxed"] / checkpoints.RUN_STATE).read_text())
     assert 0 < state["env_steps"] < state["target_steps"] and state["calls"][-1]["stopped_by_max_minutes"]
+    assert state["calls"][-1]["finished"]
     assert checkpoints.checkpoint_steps(toy_runs["boxed"]) == state["env_steps"]
     assert read_artifact(_artifact(toy_runs["boxed"]))[3]["provenance"]["steps"] == state["env_steps"]
 

@@ -228,6 +228,12 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     clock = {"last_epoch_end": time.monotonic(), "epoch_s": 0.0, "sps": []}
     latest = {"params": restore, "steps": offset}
     phase = {"offset": offset}   # env steps before the running ppo.train call (which counts from 0)
+    # this call's record is written with every checkpoint, so a run killed mid-call still says what made it
+    minutes_before = float(state["minutes"])
+    call = {"date": checkpoints.utc_now(), "command": command, "from_steps": offset, "to_steps": offset,
+            "minutes": 0.0, "device": checkpoints.device_description(), "backend": env_cfg.backend,
+            "finished": False}
+    state["calls"].append(call)
 
     def progress_fn(step, metrics):
         total = phase["offset"] + int(step)
@@ -249,6 +255,8 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
         checkpoints.save_checkpoint(run_dir, total, params, net_cfg)
         latest.update(params=params, steps=total)
         state["env_steps"] = total
+        call.update(to_steps=total, minutes=round((now - t_start) / 60.0, 2))
+        state["minutes"] = minutes_before + (now - t_start) / 60.0
         checkpoints.save_run_state(run_dir, state)
         if max_minutes is not None and now - t_start + clock["epoch_s"] > 60.0 * max_minutes:
             raise _StopAtCheckpoint()
@@ -291,12 +299,9 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     steady = clock["sps"][1:]  # the first epoch includes jit compilation
     done_now = latest["steps"] - offset
     sps = sorted(steady)[len(steady) // 2] if steady else (done_now / (60 * minutes) if minutes else 0.0)
-    state["minutes"] = float(state["minutes"]) + minutes
-    state["calls"].append({"date": checkpoints.utc_now(), "command": command, "from_steps": offset,
-                           "to_steps": latest["steps"], "minutes": round(minutes, 2),
-                           "env_steps_per_s": round(sps, 1), "device": checkpoints.device_description(),
-                           "backend": env_cfg.backend,
-                           "stopped_by_max_minutes": stopped})
+    state["minutes"] = minutes_before + minutes
+    call.update(to_steps=latest["steps"], minutes=round(minutes, 2), env_steps_per_s=round(sps, 1),
+                stopped_by_max_minutes=stopped, finished=True)
     state["env_steps_per_s"] = round(sps, 1)
     checkpoints.save_run_state(run_dir, state)
     log.close()
