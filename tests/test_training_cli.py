@@ -281,6 +281,38 @@ def test_distill_goes_on_from_a_run(toy_runs, tmp_path, capsys):
     assert "already holds DAgger checkpoints" in capsys.readouterr().err
 
 
+@pytest.mark.slow
+def test_a_killed_distillation_goes_on_from_its_newest_checkpoint(toy_runs, tmp_path):
+    """A DAgger run killed mid-call (a session cut off) has written its state when it started: --from
+    continues the phase and step count from its newest checkpoint."""
+    import sys
+    import time
+    from training.distill import STATE_FILE, prior_progress
+    first = json.loads((toy_runs["student"] / STATE_FILE).read_text())
+    run_dir = tmp_path / "killed"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "training", "distill", "--getup", str(toy_runs["getup"] / "getup_stage2.safetensors"),
+         "--joystick", str(toy_runs["joystick"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)", "--config",
+         "bc.dagger_steps=2000", "--config", "bc.num_evals=1001", "--toy", "--no-progress",
+         "--from", str(toy_runs["student"]), "--out", str(run_dir)],
+        cwd=ROOT, env=TOY_ENV, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 600
+        while time.monotonic() < deadline and proc.poll() is None and len(checkpoints.list_checkpoints(run_dir)) < 2:
+            time.sleep(0.5)
+        assert proc.poll() is None, "the run ended before its second checkpoint"
+    finally:
+        proc.kill()
+        proc.wait()
+    state = json.loads((run_dir / STATE_FILE).read_text())
+    assert state["finished"] is False and "distill" in state["command"]
+    assert state["phases_before"] == first["phases"] and state["steps_before"] == first["steps"]
+    newest = checkpoints.list_checkpoints(run_dir)[-1]
+    at = prior_progress(run_dir)
+    assert at["checkpoint"] == str(newest.resolve()) and at["phases"] == first["phases"] + int(newest.name) > first["phases"]
+    assert at["steps"] == first["steps"] + int(newest.name) * state["steps_per_phase"]
+
+
 def test_dagger_beta_is_the_seeds_step_function():
     from training.distill import bc_config, beta_schedule
     beta = beta_schedule(bc_config().beta_teacher_phases)

@@ -64,7 +64,7 @@ class _Stop(Exception):
     pass
 
 
-STATE_FILE = "distill_state.json"   # a finished run's totals: phases and env steps, from which run it went on
+STATE_FILE = "distill_state.json"   # a run's totals: phases and env steps, from which run it went on
 
 
 def prior_progress(from_checkpoint) -> dict:
@@ -79,12 +79,21 @@ def prior_progress(from_checkpoint) -> dict:
         raise FileNotFoundError(f"{state_path}: the run of {ckpt} has no {STATE_FILE} (it says how many "
                                 "phases and env steps came before); write one or start without --from")
     state = json.loads(state_path.read_text())
-    own_phases = int(state["phases"]) - int(state["phases_before"])
-    if own_phases <= 0:
-        raise ValueError(f"{state_path}: the run made no DAgger phase of its own")
-    per_phase = (int(state["steps"]) - int(state["steps_before"])) // own_phases
+    per_phase = state.get("steps_per_phase")   # written when the run starts (older state files lack it)
+    if per_phase is None:
+        own_phases = int(state["phases"]) - int(state["phases_before"])
+        if own_phases <= 0:
+            raise ValueError(f"{state_path}: the run made no DAgger phase of its own")
+        per_phase = (int(state["steps"]) - int(state["steps_before"])) // own_phases
     return {"checkpoint": str(ckpt), "phases": int(state["phases_before"]) + int(ckpt.name),
             "steps": int(state["steps_before"]) + int(ckpt.name) * per_phase}
+
+
+def _write_state(run_dir: Path, before: dict, steps_per_phase: int, phases: int, steps: int, **fields) -> None:
+    """STATE_FILE: the campaign's totals so far (`before` = prior_progress of the run it went on from)."""
+    (run_dir / STATE_FILE).write_text(json.dumps(
+        {"phases": phases, "steps": steps, "phases_before": before["phases"], "steps_before": before["steps"],
+         "steps_per_phase": steps_per_phase, "from": before["checkpoint"], **fields}, indent=1) + "\n")
 
 
 def beta_schedule(teacher_phases: int):
@@ -209,6 +218,9 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
         if max_minutes is not None and step > 0 and time.monotonic() - t_start > 60.0 * max_minutes:
             raise _Stop()
 
+    # written now, so that a run killed mid-call (a session cut off) can still be continued with --from
+    _write_state(run_dir, before, phase_env_steps, before["phases"], before["steps"], artifact=f"{name}.safetensors",
+                 command=command or "unknown", date=checkpoints.utc_now(), finished=False)
     ckpt_root = (run_dir / checkpoints.CHECKPOINT_DIR).resolve()
     params, stopped = None, False
     try:
@@ -247,12 +259,9 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
                   "stopped_by_max_minutes": stopped}
     artifact = run_dir / f"{name}.safetensors"
     trained = provenance["dagger_phases"] > 0 and preset != "toy"
-    (run_dir / STATE_FILE).write_text(json.dumps(
-        {"phases": provenance["dagger_phases"], "steps": provenance["steps"], "phases_before": before["phases"],
-         "steps_before": before["steps"], "from": before["checkpoint"], "artifact": artifact.name,
-         "command": provenance["command"], "date": provenance["date"], "minutes": provenance["minutes"],
-         "stopped_by_max_minutes": stopped},
-        indent=1) + "\n")
+    _write_state(run_dir, before, phase_env_steps, provenance["dagger_phases"], provenance["steps"],
+                 artifact=artifact.name, command=provenance["command"], date=provenance["date"],
+                 minutes=provenance["minutes"], stopped_by_max_minutes=stopped, finished=True)
     rule = export_student(params, env, artifact, name, cfg.tanh_squash, trained, provenance)
     if ship and not stopped:
         from training.train import ship_artifact
