@@ -115,6 +115,7 @@ def _cmd_export_phase(args, command: str) -> int:
 BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported: parsing needs no JAX)
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
+START_CHOICES = ("fallen", "knockdown")   # = training.evaluate.START_KINDS (not imported: parsing needs no JAX)
 KNOCKDOWN_JOYSTICK = "policies/joystick.safetensors"   # evaluate --starts knockdown: the shipped joystick expert
 
 
@@ -222,7 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seeds", type=int, default=32,
                    help="episodes: seeded fallen starts (getup) or seeded joystick episodes")
     p.add_argument("--first-seed", type=int, default=0)
-    p.add_argument("--starts", choices=("fallen", "knockdown"), default="fallen",
+    p.add_argument("--starts", choices=START_CHOICES, default="fallen",
                    help="getup: fallen = settled after the runtime's PREPARE (the loop's getup test); knockdown = "
                    "mid-fall, where the stitched teacher hands over after a push (as the loop's push test): "
                    "--knockdown-joystick is pushed over from SEEDS standing starts, the ones it caught are left out")
