@@ -105,6 +105,23 @@ TOY_ENV = {**os.environ, "XLA_FLAGS": "--xla_backend_optimization_level=0",
 MAX_PARALLEL = 2  # the CI machine has 2 cores; XLA compilation is mostly single-threaded
 
 
+def run_until_killed(args: list, ready, timeout_s: float = 600.0) -> None:
+    """Start `python -m training ARGS`, kill it (SIGKILL, as a session cut off) once `ready()` holds; fails if
+    it ended before that."""
+    import sys
+    import time
+    proc = subprocess.Popen([sys.executable, "-m", "training", *args], cwd=ROOT, env=TOY_ENV,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline and proc.poll() is None and not ready():
+            time.sleep(0.5)
+        assert proc.poll() is None, f"{args[:2]} ended before it was ready to be killed"
+    finally:
+        proc.kill()
+        proc.wait()
+
+
 def _run_parallel(commands: dict) -> dict:
     """Run `python -m training ...` command lists, MAX_PARALLEL at a time; name → stdout. Fails loudly."""
     import sys
@@ -196,34 +213,6 @@ def test_resume_continues_step_count_and_curve(toy_runs):
 
 
 @pytest.mark.slow
-def test_a_killed_run_keeps_its_call_record(tmp_path):
-    """The call's record (command, steps, minutes) is written with every checkpoint: a run killed mid-call
-    (a session cut off) still says what made its newest checkpoint, and --resume continues from it."""
-    import sys
-    import time
-    run_dir = tmp_path / "killed"
-    proc = subprocess.Popen([sys.executable, "-m", "training", "train", "joystick", "--steps", str(10_000 * TOY_STEPS),
-                             "--out", str(run_dir), "--toy", "--no-progress"], cwd=ROOT, env=TOY_ENV,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 600
-        while time.monotonic() < deadline and proc.poll() is None:
-            state_file = run_dir / checkpoints.RUN_STATE
-            if state_file.exists() and json.loads(state_file.read_text())["env_steps"] > 0:
-                break
-            time.sleep(0.5)
-        assert proc.poll() is None, "the run ended before its first checkpoint"
-    finally:
-        proc.kill()
-        proc.wait()
-    state = json.loads((run_dir / checkpoints.RUN_STATE).read_text())
-    (call,) = state["calls"]
-    assert "train joystick" in call["command"] and call["finished"] is False
-    assert call["to_steps"] == state["env_steps"] == checkpoints.checkpoint_steps(run_dir) > 0
-    assert state["minutes"] == pytest.approx(call["minutes"], abs=0.01) and call["minutes"] > 0
-
-
-@pytest.mark.slow
 def test_max_minutes_stops_at_a_checkpoint(toy_runs):
     state = json.loads((toy_runs["boxed"] / checkpoints.RUN_STATE).read_text())
     assert 0 < state["env_steps"] < state["target_steps"] and state["calls"][-1]["stopped_by_max_minutes"]
@@ -285,25 +274,14 @@ def test_distill_goes_on_from_a_run(toy_runs, tmp_path, capsys):
 def test_a_killed_distillation_goes_on_from_its_newest_checkpoint(toy_runs, tmp_path):
     """A DAgger run killed mid-call (a session cut off) has written its state when it started: --from
     continues the phase and step count from its newest checkpoint."""
-    import sys
-    import time
     from training.distill import STATE_FILE, prior_progress
     first = json.loads((toy_runs["student"] / STATE_FILE).read_text())
     run_dir = tmp_path / "killed"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "training", "distill", "--getup", str(toy_runs["getup"] / "getup_stage2.safetensors"),
-         "--joystick", str(toy_runs["joystick"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)", "--config",
-         "bc.dagger_steps=2000", "--config", "bc.num_evals=1001", "--toy", "--no-progress",
-         "--from", str(toy_runs["student"]), "--out", str(run_dir)],
-        cwd=ROOT, env=TOY_ENV, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 600
-        while time.monotonic() < deadline and proc.poll() is None and len(checkpoints.list_checkpoints(run_dir)) < 2:
-            time.sleep(0.5)
-        assert proc.poll() is None, "the run ended before its second checkpoint"
-    finally:
-        proc.kill()
-        proc.wait()
+    run_until_killed(["distill", "--getup", str(toy_runs["getup"] / "getup_stage2.safetensors"), "--joystick",
+                      str(toy_runs["joystick"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)", "--config",
+                      "bc.dagger_steps=2000", "--config", "bc.num_evals=1001", "--toy", "--no-progress",
+                      "--from", str(toy_runs["student"]), "--out", str(run_dir)],
+                     ready=lambda: len(checkpoints.list_checkpoints(run_dir)) >= 2)
     state = json.loads((run_dir / STATE_FILE).read_text())
     assert state["finished"] is False and "distill" in state["command"]
     assert state["phases_before"] == first["phases"] and state["steps_before"] == first["steps"]
