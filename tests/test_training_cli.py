@@ -251,6 +251,19 @@ def test_export_phase_writes_an_earlier_checkpoint(toy_runs, capsys):
 
 
 @pytest.mark.slow
+def test_export_checkpoint_writes_an_earlier_epoch(toy_runs, capsys):
+    from training.train import export_checkpoint
+    run, first = toy_runs["joystick"], toy_runs["joystick_first"]   # resumed: checkpoints at two step counts
+    final_layers, _, _, final = read_artifact(run / "joystick.safetensors")
+    layers, _, _, early = read_artifact(export_checkpoint(run, first, "joystick_early"))
+    assert early["name"] == "joystick_early" and early["provenance"]["steps"] == first < final["provenance"]["steps"]
+    assert early["obs_terms"] == final["obs_terms"] and early["trained"] is False     # a toy run stays untrained
+    assert not all(np.array_equal(w, v) for (w, _), (v, _) in zip(layers, final_layers))
+    assert cli.main(["export-checkpoint", "--run", str(run), "--steps", "7", "--name", "x"]) == 2
+    assert "no checkpoint at 7 env steps" in capsys.readouterr().err
+
+
+@pytest.mark.slow
 def test_distill_goes_on_from_a_run(toy_runs, tmp_path, capsys):
     """--from: a new run starts from the old run's newest checkpoint; phases, steps and curve continue."""
     from training.distill import STATE_FILE

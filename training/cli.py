@@ -1,4 +1,4 @@
-"""`python -m training {train,teacher,distill,export-phase,evaluate}`: the command line of the training side.
+"""`python -m training {train,teacher,distill,export-phase,export-checkpoint,evaluate}`: the command line of the training side.
 
 Heavy imports (jax, brax, the MJX envs) happen inside the subcommands, so `--help` is instant.
 """
@@ -112,6 +112,13 @@ def _cmd_export_phase(args, command: str) -> int:
     return 0
 
 
+def _cmd_export_checkpoint(args, command: str) -> int:
+    from training import train
+    path = train.export_checkpoint(args.run, args.steps, args.name)
+    print(f"{path}: the checkpoint at {args.steps} env steps of {args.run}")
+    return 0
+
+
 BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported: parsing needs no JAX)
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
@@ -213,6 +220,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--like", help="the run's final artifact, whose manifest is reused (default: the one "
                    "RUN/distill_state.json names)")
     p.set_defaults(func=_cmd_export_phase)
+
+    p = sub.add_parser("export-checkpoint", help="export a PPO run's kept checkpoint at an earlier epoch "
+                       "(the run keeps its last few)")
+    p.add_argument("--run", required=True, help="train run directory")
+    p.add_argument("--steps", type=int, required=True, help="env steps of a checkpoint in RUN/checkpoints")
+    p.add_argument("--name", required=True, help="policy name: RUN/NAME.safetensors")
+    p.set_defaults(func=_cmd_export_checkpoint)
 
     p = sub.add_parser("evaluate", help="batched rollouts of an artifact: getup from seeded fallen "
                        "starts, or joystick command tracking")

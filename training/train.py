@@ -342,6 +342,29 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     return path
 
 
+def export_checkpoint(run_dir, env_steps: int, name: str) -> Path:
+    """A run's kept checkpoint at `env_steps` → run_dir/<name>.safetensors, with the manifest of the run's
+    newest export (same env and network) and that checkpoint's steps: a campaign evaluates its last epochs'
+    checkpoints and keeps the best one (e.g. the cheapest getup that still stands up every time)."""
+    from training.artifact import read_artifact
+    from training.export import export_brax_ppo
+    run_dir = Path(run_dir)
+    state = checkpoints.load_run_state(run_dir)
+    ckpt = run_dir / checkpoints.CHECKPOINT_DIR / f"{int(env_steps):0{checkpoints.STEP_DIGITS}d}"
+    if not ckpt.is_dir():
+        found = [int(p.name) for p in checkpoints.list_checkpoints(run_dir)]
+        raise FileNotFoundError(f"{ckpt}: no checkpoint at {env_steps} env steps (the run keeps {found})")
+    like = run_dir / f"{state['name']}.safetensors"
+    manifest = {k: v for k, v in read_artifact(like)[3].items() if k != "content_hash"}
+    manifest["provenance"] = {**manifest["provenance"], "steps": int(env_steps),
+                              "exported_from": f"{ckpt} (checkpoint of the run that made {like.name})"}
+    manifest.update(name=name, trained=exported_as_trained(int(env_steps), state["preset"], state["env_config"]))
+    path = run_dir / f"{name}.safetensors"
+    export_brax_ppo(tuple(checkpoints.load_checkpoint(ckpt)), manifest, path,
+                    observations_normalized=bool(state["ppo_config"]["normalize_observations"]))
+    return path
+
+
 def ship_artifact(artifact: Path, state: dict, provenance_table=checkpoints.PROVENANCE_TABLE,
                   policies_dir: Path | None = None) -> Path:
     """Copy the artifact into policies/ and append its provenance row."""
