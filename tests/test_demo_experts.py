@@ -5,7 +5,7 @@ POLICIES = demo.ROOT / "policies"
 
 
 def test_a_student_is_followed_by_its_teachers_getup_expert():
-    assert demo._teacher_getup(POLICIES / "student.safetensors") == POLICIES / "getup_keyframe_energy.safetensors"
+    assert demo._teacher_getup(POLICIES / "student.safetensors") == POLICIES / "getup_kd_bank.safetensors"
     assert demo._teacher_getup(POLICIES / "student_baseline_teacher.safetensors") == demo.BASELINE_GETUP
 
 

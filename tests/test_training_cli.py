@@ -255,7 +255,9 @@ def test_export_checkpoint_writes_an_earlier_epoch(toy_runs, capsys):
     from training.train import export_checkpoint
     run, first = toy_runs["joystick"], toy_runs["joystick_first"]   # resumed: checkpoints at two step counts
     final_layers, _, _, final = read_artifact(run / "joystick.safetensors")
-    layers, _, _, early = read_artifact(export_checkpoint(run, first, "joystick_early"))
+    path = export_checkpoint(run, first, "joystick_early")
+    layers, _, _, early = read_artifact(path)
+    path.unlink()   # the shared toy run keeps one artifact (test_runtime_accepts_exported_artifacts)
     assert early["name"] == "joystick_early" and early["provenance"]["steps"] == first < final["provenance"]["steps"]
     assert early["obs_terms"] == final["obs_terms"] and early["trained"] is False     # a toy run stays untrained
     assert not all(np.array_equal(w, v) for (w, _), (v, _) in zip(layers, final_layers))
