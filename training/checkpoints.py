@@ -69,7 +69,21 @@ def save_checkpoint(run_dir, env_steps: int, params, network_config) -> Path:
     brax_checkpoint.save(root, int(env_steps), tuple(params), network_config, "network_config.json")
     for old in list_checkpoints(run_dir)[:-KEEP_CHECKPOINTS]:
         shutil.rmtree(old, ignore_errors=True)
-    return root / f"{int(env_steps):0{STEP_DIGITS}d}"
+    return checkpoint_path(run_dir, env_steps)
+
+
+def checkpoint_path(run_dir, count: int) -> Path:
+    """The folder of the checkpoint at `count` (PPO: env steps; DAgger: phases), as brax names it."""
+    return Path(run_dir) / CHECKPOINT_DIR / f"{int(count):0{STEP_DIGITS}d}"
+
+
+def kept_checkpoint(run_dir, count: int, what: str) -> Path:
+    """checkpoint_path, or an error that names the counts the run still keeps (`what`: e.g. "phase 3")."""
+    path = checkpoint_path(run_dir, count)
+    if not path.is_dir():
+        found = [int(p.name) for p in list_checkpoints(run_dir)]
+        raise FileNotFoundError(f"{path}: no checkpoint at {what} (the run keeps {found})")
+    return path
 
 
 def list_checkpoints(run_dir) -> list[Path]:

@@ -1,4 +1,5 @@
-"""`python -m training {train,teacher,distill,export-phase,export-checkpoint,evaluate}`: the command line of the training side.
+"""`python -m training {train,teacher,distill,export-phase,export-checkpoint,evaluate}`: the command line of the
+training side.
 
 Heavy imports (jax, brax, the MJX envs) happen inside the subcommands, so `--help` is instant.
 """

@@ -279,10 +279,7 @@ def export_phase(run_dir, phase: int, name: str, like=None) -> Path:
     from training.artifact import read_artifact
     from training.export import export_brax_ppo
     run_dir = Path(run_dir)
-    ckpt = run_dir / checkpoints.CHECKPOINT_DIR / f"{int(phase):012d}"
-    if not ckpt.is_dir():
-        found = [int(p.name) for p in checkpoints.list_checkpoints(run_dir)]
-        raise FileNotFoundError(f"{ckpt}: no checkpoint at phase {phase} (the run has phases {found})")
+    ckpt = checkpoints.kept_checkpoint(run_dir, phase, f"phase {phase}")
     at = prior_progress(ckpt)    # the campaign's phases and env steps at this checkpoint
     if like is None:
         like = run_dir / json.loads((run_dir / STATE_FILE).read_text())["artifact"]

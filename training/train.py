@@ -350,10 +350,7 @@ def export_checkpoint(run_dir, env_steps: int, name: str) -> Path:
     from training.export import export_brax_ppo
     run_dir = Path(run_dir)
     state = checkpoints.load_run_state(run_dir)
-    ckpt = run_dir / checkpoints.CHECKPOINT_DIR / f"{int(env_steps):0{checkpoints.STEP_DIGITS}d}"
-    if not ckpt.is_dir():
-        found = [int(p.name) for p in checkpoints.list_checkpoints(run_dir)]
-        raise FileNotFoundError(f"{ckpt}: no checkpoint at {env_steps} env steps (the run keeps {found})")
+    ckpt = checkpoints.kept_checkpoint(run_dir, env_steps, f"{env_steps} env steps")
     like = run_dir / f"{state['name']}.safetensors"
     manifest = {k: v for k, v in read_artifact(like)[3].items() if k != "content_hash"}
     manifest["provenance"] = {**manifest["provenance"], "steps": int(env_steps),
