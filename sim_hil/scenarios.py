@@ -61,16 +61,17 @@ class ScenarioInfo:
     description: str = ""
 
 
-def _add_walls(spec: mujoco.MjSpec) -> str:
-    for i in range(WALL_COUNT):
-        x = WALL_FIRST_X_M + i * WALL_SPACING_M
+def add_low_walls(spec: mujoco.MjSpec, first_x_m: float = WALL_FIRST_X_M) -> str:
+    """The seed's low-wall course, its first wall's centre plane at x = first_x_m [m] (the evaluation's at
+    WALL_FIRST_X_M; the training worlds put theirs far from the origin, training/envs/wall_course.py)."""
+    xs = [first_x_m + i * WALL_SPACING_M for i in range(WALL_COUNT)]
+    for i, x in enumerate(xs):
         spec.worldbody.add_geom(
             name=f"wall_{i}", type=mujoco.mjtGeom.mjGEOM_BOX,
             size=[WALL_THICKNESS_M / 2, WALL_LENGTH_M / 2, WALL_HEIGHT_M / 2],
             pos=[x, 0.0, WALL_HEIGHT_M / 2], rgba=[0.7, 0.5, 0.3, 1.0])
-    xs = ", ".join(f"{WALL_FIRST_X_M + i * WALL_SPACING_M:g}" for i in range(WALL_COUNT))
     return (f"{WALL_COUNT} low walls {WALL_HEIGHT_M} m tall, {WALL_THICKNESS_M} m thick, "
-            f"{WALL_LENGTH_M} m long along y, centred at x = {xs} m")
+            f"{WALL_LENGTH_M} m long along y, centred at x = {', '.join(f'{x:g}' for x in xs)} m")
 
 
 def puddle_layout(seed: int) -> list[tuple[float, float, float, float]]:
@@ -131,7 +132,7 @@ def build_spec(name: str, seed: int = 0) -> tuple[mujoco.MjSpec, ScenarioInfo]:
     if name == "flat":
         description = "flat floor, μ 0.6"
     elif name == "walls":
-        description = _add_walls(spec)
+        description = add_low_walls(spec)
     elif name == "puddles":
         description = _add_puddles(spec, seed)
     else:

@@ -133,7 +133,7 @@ def test_evaluate_from_knockdown_landings(knock_bank, tmp_path):
     from training.evaluate import evaluate
     seed = int(envs.default_config("getup").knockdown_starts.seed)
     report = evaluate(GETUP, tmp_path, seeds=KNOCK_STARTS, seconds=0.2, first_seed=seed, backend="cpu",
-                      starts="knockdown", knockdown_joystick=JOYSTICK).read_text()
+                      starts="knockdown", start_joystick=JOYSTICK).read_text()
     landings = knock_bank[0].shape[0]
     assert f"{landings} knockdown landings (of {KNOCK_STARTS} pushed standing starts" in report
     assert "| lay without a rise to the end (share) |" in report and "seed: policy" not in report
@@ -142,8 +142,8 @@ def test_evaluate_from_knockdown_landings(knock_bank, tmp_path):
 
 
 @pytest.mark.parametrize("over, why", [({"starts": "kneeling"}, "starts 'kneeling'"),
-                                       ({"starts": "knockdown"}, "knockdown joystick policy goes with"),
-                                       ({"knockdown_joystick": JOYSTICK}, "knockdown joystick policy goes with")])
+                                       ({"starts": "knockdown"}, "start joystick policy goes with"),
+                                       ({"start_joystick": JOYSTICK}, "start joystick policy goes with")])
 def test_evaluate_refuses_bad_starts(over, why, tmp_path):
     from training.evaluate import evaluate
     with pytest.raises(ValueError, match=why):

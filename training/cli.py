@@ -123,17 +123,17 @@ def _cmd_export_checkpoint(args, command: str) -> int:
 BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported: parsing needs no JAX)
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
-START_CHOICES = ("fallen", "knockdown")   # = training.evaluate.START_KINDS (not imported: parsing needs no JAX)
-KNOCKDOWN_JOYSTICK = "policies/joystick.safetensors"   # evaluate --starts knockdown: the shipped joystick expert
+START_CHOICES = ("fallen", "knockdown", "wall")   # = training.evaluate.START_KINDS (not imported: parsing needs no JAX)
+START_JOYSTICK = "policies/joystick.safetensors"   # evaluate --starts knockdown|wall: the shipped joystick expert
 
 
 def _cmd_evaluate(args, command: str) -> int:
     seconds = EVAL_SECONDS[args.task] if args.seconds is None else args.seconds
     out = args.out or f"out/eval_{args.task}"
-    if args.knockdown_joystick and args.starts != "knockdown":
-        raise ValueError("--knockdown-joystick goes with --starts knockdown")
-    if args.starts == "knockdown" and not args.knockdown_joystick:
-        args.knockdown_joystick = KNOCKDOWN_JOYSTICK
+    if args.start_joystick and args.starts == "fallen":
+        raise ValueError("--start-joystick goes with --starts knockdown or wall")
+    if args.starts != "fallen" and not args.start_joystick:
+        args.start_joystick = START_JOYSTICK
     if args.task == "joystick":
         if args.baseline:
             raise ValueError("--baseline: the joystick evaluation takes one policy")
@@ -147,7 +147,7 @@ def _cmd_evaluate(args, command: str) -> int:
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
                                    command=command, backend=args.backend, starts=args.starts,
-                                   knockdown_joystick=args.knockdown_joystick)
+                                   start_joystick=args.start_joystick)
     print(report.read_text())
     return 0
 
@@ -241,10 +241,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--starts", choices=START_CHOICES, default="fallen",
                    help="getup: fallen = settled after the runtime's PREPARE (the loop's getup test); knockdown = "
                    "mid-fall, where the stitched teacher hands over after a push (as the loop's push test): "
-                   "--knockdown-joystick is pushed over from SEEDS standing starts, the ones it caught are left out")
-    p.add_argument("--knockdown-joystick", metavar="ARTIFACT",
-                   help="with --starts knockdown: the joystick expert that walks and is pushed over "
-                   f"(default {KNOCKDOWN_JOYSTICK})")
+                   "--start-joystick is pushed over from SEEDS standing starts, the ones it caught are left out; "
+                   "wall = the same after --start-joystick walked into the low-wall course from SEEDS approaches "
+                   "(training/envs/wall_course.py), those that stepped over it left out")
+    p.add_argument("--start-joystick", "--knockdown-joystick", metavar="ARTIFACT", dest="start_joystick",
+                   help="with --starts knockdown or wall: the joystick expert that walks and is pushed over or "
+                   f"trips (default {START_JOYSTICK})")
     p.add_argument("--seconds", type=float, help="episode length [s] (default: getup 10, joystick 20)")
     p.add_argument("--out", help="folder for the report (default: out/eval_<task>)")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)

@@ -159,7 +159,8 @@ def summarize(rows: list[dict]) -> dict:
             **{k: mean(k) for k in EFFORT_KEYS}}
 
 
-START_KINDS = ("fallen", "knockdown")   # fallen: the loop's fallen starts; knockdown: mid-fall after a push
+START_KINDS = ("fallen", "knockdown", "wall")   # fallen: the loop's fallen starts; knockdown: mid-fall after a
+# push; wall: mid-fall after walking into the low-wall course (the getup env then has the course)
 ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attempts_per_fall", "{:.2f}"),
         ("lay without a rise to the end (share)", "never_rose", "{:.3f}"),
         ("time to stand [s]", "time_to_stand_s", "{:.2f}"),
@@ -182,10 +183,14 @@ def _fmt(fmt, value):
 
 def markdown_report(results: dict, meta: dict) -> str:
     names = list(results)
-    knockdown = meta.get("starts", "fallen") == "knockdown"
-    if knockdown:
+    starts = meta.get("starts", "fallen")
+    knockdown = starts != "fallen"   # a bank of landings (knockdown or wall): the seed's figures do not apply
+    if starts == "knockdown":
         title = (f"{meta['episodes']} knockdown landings (of {meta['seeds']} pushed standing starts, bank seed "
-                 f"{meta['first_seed']}, knocked over by `{meta['knockdown_joystick']}`)")
+                 f"{meta['first_seed']}, knocked over by `{meta['start_joystick']}`)")
+    elif starts == "wall":
+        title = (f"{meta['episodes']} landings at a low wall (of {meta['seeds']} approaches, bank seed "
+                 f"{meta['first_seed']}, walked into it by `{meta['start_joystick']}`)")
     else:
         title = f"{meta['seeds']} seeded fallen starts from seed {meta['first_seed']}"
     lines = [f"# Getup evaluation ({title}, {meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]
@@ -247,10 +252,12 @@ def plot_heights(results: dict, png: Path) -> None:
 
 def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 32, seconds: float = 10.0,
              first_seed: int = 0, command: str = "", backend: str | None = None, starts: str = "fallen",
-             knockdown_joystick: str | None = None) -> Path:
+             start_joystick: str | None = None) -> Path:
     """Run the evaluation; returns the path of report.md. starts="knockdown": instead of fallen starts, the
-    states where `knockdown_joystick`, knocked over from `seeds` standing starts (bank seed `first_seed`),
-    hands over to the getup policy mid-fall (training/envs/handover.py); the ones it caught are left out."""
+    states where `start_joystick`, knocked over from `seeds` standing starts (bank seed `first_seed`),
+    hands over to the getup policy mid-fall (training/envs/handover.py); the ones it caught are left out.
+    starts="wall": the same after `start_joystick` walked into the low-wall course from `seeds` approaches
+    (the getup env then has the course in its world)."""
     from training import checkpoints, envs
     from training.train import default_backend
     checkpoints.jax_setup()
@@ -258,16 +265,21 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         raise ValueError(f"--task {task!r}: only the getup evaluation exists so far")
     if starts not in START_KINDS:
         raise ValueError(f"starts {starts!r}: one of {START_KINDS}")
-    if (starts == "knockdown") != (knockdown_joystick is not None):
-        raise ValueError("a knockdown joystick policy goes with knockdown starts, and only with them")
+    if (starts != "fallen") != (start_joystick is not None):
+        raise ValueError("a start joystick policy goes with knockdown or wall starts, and only with them")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    env = envs.make(task, config_overrides={"backend": backend or default_backend()})
+    env = envs.make(task, config_overrides={"backend": backend or default_backend(),
+                                            "wall_course.enable": starts == "wall"})
     if starts == "fallen":
         qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
     else:
         from training.envs import handover
-        qpos, qvel = handover.knockdown_bank(str(knockdown_joystick), seeds, first_seed)
+        if starts == "knockdown":
+            qpos, qvel = handover.knockdown_bank(str(start_joystick), seeds, first_seed)
+        else:
+            qpos, qvel = handover.wall_bank(str(start_joystick), seeds, first_seed,
+                                            float(env.config.wall_course.first_wall_x_m))
     policies = {role: load_policy(path) for role, path in (("policy", policy_path), ("baseline", baseline))
                 if path is not None}   # both checked before either runs
     for policy in policies.values():
@@ -278,7 +290,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         run = run_policy(env, policy, qpos, qvel, seconds)
         results[role] = {"policy": policy, "run": run, "summary": summarize(run["rows"])}
     meta = {"seeds": seeds, "first_seed": first_seed, "seconds": seconds, "command": command or "evaluate()",
-            "backend": env.backend, "starts": starts, "episodes": len(qpos), "knockdown_joystick": knockdown_joystick}
+            "backend": env.backend, "starts": starts, "episodes": len(qpos), "start_joystick": start_joystick}
     report = out / "report.md"
     report.write_text(markdown_report(results, meta))
     with (out / "per_env.csv").open("w", newline="") as f:
@@ -287,7 +299,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         writer.writeheader()
         for role, res in results.items():
             for i, row in enumerate(res["run"]["rows"]):
-                seed = first_seed + i if starts == "fallen" else i   # knockdown: the landing's row in the bank
+                seed = first_seed + i if starts == "fallen" else i   # knockdown / wall: the landing's row in the bank
                 writer.writerow({"role": role, "seed": seed, "trained": res["policy"].trained, **row})
     plot_heights(results, out / "heights.png")
     if baseline is not None:

@@ -30,7 +30,7 @@ from mujoco_playground._src import mjx_env
 
 from sim_hil import model as t1model
 from training import observation as obsdef
-from training.envs import assists, collision, cpu_backend, motor
+from training.envs import assists, collision, cpu_backend, motor, wall_course
 
 BACKENDS = ("mjx", "cpu")
 FLOOR_GEOM = "floor"
@@ -63,6 +63,7 @@ def base_config() -> config_dict.ConfigDict:
         supervisor=config_dict.create(max_target_speed_rps=25.0, joint_range_fraction=0.95),
         impl="jax",
         backend="mjx",   # physics engine: mjx (JAX, GPU) | cpu (MuJoCo C on all cores, cpu_backend.py)
+        wall_course=wall_course.config(),   # the seed's low walls far down +x (wall_course.py; cpu backend)
     )
 
 
@@ -90,6 +91,10 @@ class T1Env(mjx_env.MjxEnv):
         backend = cfg.get("backend", "mjx")
         if backend not in BACKENDS:
             raise ValueError(f"backend {backend!r}: expected one of {BACKENDS}")
+        if backend != "cpu" and self.has_wall_course():
+            # MJX sizes its contact buffers per geom pair at compile time for the floor and the robot; the
+            # walls' pairs are untested there
+            raise ValueError("the wall course (wall_course.enable or a task's wall share > 0) needs backend 'cpu'")
         self._target_step, range_fraction = self._supervisor_settings(cfg)
         mj = self._compile(self._robot_spec().compile())
         self._mjx_model = mjx.put_model(mj, impl="jax")   # cpu: the randomisation's template only
@@ -133,7 +138,15 @@ class T1Env(mjx_env.MjxEnv):
         cfg = self._config
         spec = collision.build_spec(cfg.collision, cfg.max_contacts, cfg.max_geom_pairs)
         assists.add_harness(spec, cfg)
+        if self.has_wall_course():
+            wall_course.add_to_spec(spec, cfg.wall_course)
         return spec
+
+    def has_wall_course(self) -> bool:
+        """Whether this env's world holds the low-wall course: config wall_course.enable (tasks with a wall
+        share override this to add it on their own). Runs made before the course existed have no such key."""
+        course = self._config.get("wall_course")
+        return bool(course is not None and course.enable)
 
     def _compile(self, model: mujoco.MjModel) -> mujoco.MjModel:
         """The env's copy of a compiled variant: its timestep and the ONE gain set in the PD slots."""

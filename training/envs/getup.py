@@ -97,6 +97,10 @@ def default_config() -> config_dict.ConfigDict:
     # instead where the teacher hands `joystick_policy`, knocked over by a push, to the getup expert mid-fall
     # (from `bank_starts` standing starts, seeds from `seed`); 0 = the seed's fallen starts only
     cfg.knockdown_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=200_000)
+    # wall starts (handover.wall_bank; ours): this share of the fallen starts is where the teacher hands
+    # `joystick_policy` over after it walked into the low-wall course (wall_course.py; the course is then in
+    # the world), from `bank_starts` approaches; knockdown_starts.prob + this ≤ 1
+    cfg.wall_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=400_000)
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
     # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
     # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with
@@ -227,28 +231,53 @@ class Getup(GetupBase):
             bank = start_path.path_bank(self._mj_model, np.asarray(self._home_qpos), np.asarray(self._kneel_qpos),
                                         rc.left_leg_waypoints, int(rc.bank_size))
             self._path_bank = jnp.asarray(bank[starts], jnp.float32)
-        self._knockdown = None
-        kd = self._config.get("knockdown_starts")   # runs made before knockdown starts existed have none
-        if kd is not None and not 0.0 <= kd.prob <= 1.0:
-            raise ValueError(f"knockdown_starts.prob must be in [0, 1], got {kd.prob}")
-        if kd is not None and kd.prob > 0:
-            if not kd.joystick_policy:
-                raise ValueError("knockdown_starts.prob > 0 needs knockdown_starts.joystick_policy (a joystick "
-                                 "artifact or checkpoint)")
-            bank = handover.knockdown_bank(kd.joystick_policy, int(kd.bank_starts), int(kd.seed))
-            self._knockdown = tuple(jnp.asarray(x) for x in bank)
+        self._fallen_banks = self._load_fallen_banks()
+
+    def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
+        """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn."""
+        banks = []
+        for name, make in (("knockdown_starts", handover.knockdown_bank), ("wall_starts", self._wall_bank)):
+            b = self._config.get(name)   # runs made before a bank existed have no such key
+            if b is None:
+                continue
+            if not 0.0 <= b.prob <= 1.0:
+                raise ValueError(f"{name}.prob must be in [0, 1], got {b.prob}")
+            if b.prob > 0:
+                if not b.joystick_policy:
+                    raise ValueError(f"{name}.prob > 0 needs {name}.joystick_policy (a joystick artifact or "
+                                     "checkpoint)")
+                bank = make(b.joystick_policy, int(b.bank_starts), int(b.seed))
+                banks.append((float(b.prob), tuple(jnp.asarray(x) for x in bank)))
+        if sum(p for p, _ in banks) > 1.0 + 1e-9:
+            raise ValueError(f"knockdown_starts.prob + wall_starts.prob must be at most 1, got "
+                             f"{' + '.join(str(p) for p, _ in banks)}")
+        return banks
+
+    def _wall_bank(self, joystick_policy: str, num_starts: int, seed: int):
+        return handover.wall_bank(joystick_policy, num_starts, seed, float(self._config.wall_course.first_wall_x_m))
+
+    def _wall_share(self) -> float:
+        ws = self._config.get("wall_starts")
+        return 0.0 if ws is None else float(ws.prob)
+
+    def has_wall_course(self) -> bool:
+        return super().has_wall_course() or self._wall_share() > 0
 
     def _start_state(self, rng):
         """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path; with
-        knockdown starts, a share of the fallen ones from the knockdown bank."""
-        if self._path_bank is None and self._knockdown is None:
+        knockdown or wall starts, a share of the fallen ones from those banks."""
+        if self._path_bank is None and not self._fallen_banks:
             return super()._start_state(rng)
         if self._path_bank is None:
             k_start, k_use, k_idx = jax.random.split(rng, 3)
             qpos, qvel, kind = super()._start_state(k_start)
-            use = (kind == 0) & (jax.random.uniform(k_use) < self._config.knockdown_starts.prob)
-            idx = jax.random.randint(k_idx, (), 0, self._knockdown[0].shape[0])
-            return jnp.where(use, self._knockdown[0][idx], qpos), jnp.where(use, self._knockdown[1][idx], qvel), kind
+            u, lo = jax.random.uniform(k_use), 0.0
+            for prob, (bank_qpos, bank_qvel) in self._fallen_banks:   # each bank its slice of [0, 1)
+                use = (kind == 0) & (u >= lo) & (u < lo + prob)
+                idx = jax.random.randint(k_idx, (), 0, bank_qpos.shape[0])
+                qpos, qvel = jnp.where(use, bank_qpos[idx], qpos), jnp.where(use, bank_qvel[idx], qvel)
+                lo += prob
+            return qpos, qvel, kind
         k_kneel, k_idx = jax.random.split(rng)
         at_kneel = jax.random.uniform(k_kneel) < self._config.reverse_curriculum.kneel_prob
         idx = jax.random.randint(k_idx, (), 0, self._path_bank.shape[0])

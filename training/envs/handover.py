@@ -21,6 +21,9 @@ the runtime's PREPARE ramp (limbs straightened, at rest), so a push's landing, l
 still moving, was new to it: in the loop's push test the failed getup attempts after one forward fall are
 what misses the seed's 1.16 (training/runs/student_knockdown/PROGRESS.md). The getup env (config
 knockdown_starts) replaces a share of its fallen starts with these.
+
+`wall_bank` is the same hand-over after the joystick expert walked into the low-wall course
+(training/envs/wall_course.py): the landings beside, on and across a wall (getup config wall_starts).
 """
 from __future__ import annotations
 
@@ -33,6 +36,7 @@ import numpy as np
 from brax import math as brax_math
 
 from training import observation as obsdef
+from training.envs import wall_course
 from training.teacher import STUDENT_OBS_KEY, WAIST_SWITCH_HEIGHT_M, load_expert
 
 MAX_RISE_S = 10.0   # [s] a fallen start that has not handed over by then is left out
@@ -41,6 +45,9 @@ MAX_RISE_S = 10.0   # [s] a fallen start that has not handed over by then is lef
 KNOCKDOWN_MPS = (1.0, 1.6)
 KNOCK_AT_S = (0.3, 1.0)       # [s] after a standing start: the joystick expert is walking or standing by then
 MAX_FALL_S = 3.0              # [s] after the push: a robot still up by then (it caught itself) is left out
+# A wall approach: the command is held (the joystick env resamples it after 10 s) while the robot walks
+# up to 2.5 m at ≥ 0.3 m/s (wall_course.APPROACH_*) and falls; one still up by then stepped over or stood
+MAX_WALL_WALK_S = 9.5
 
 
 class HandoverBank(NamedTuple):
@@ -89,42 +96,89 @@ def handover_bank(getup_policy: str, num_starts: int, seed: int) -> HandoverBank
                         targets[found][keep].astype(np.float32))
 
 
+def _joystick_rollout_env(joystick_policy: str, **overrides):
+    """The joystick env as the banks roll it (full-body collision, CPU physics, no pushes or noise) and
+    `joystick_policy`'s batched action function."""
+    from training import envs
+    env = envs.make("joystick", config_overrides={"backend": "cpu", "collision": "full_body", "push.enable": False,
+                                                  "noise.level": 0.0, **overrides})
+    joystick = load_expert(joystick_policy, "joystick")
+    if tuple(map(tuple, env.obs_terms)) != joystick.obs_terms:
+        raise ValueError(f"{joystick_policy}: observation terms {joystick.obs_terms} are not the joystick env's")
+    return env, jax.jit(jax.vmap(lambda obs: jnp.tanh(joystick.loc(obs))))
+
+
+def _falls(env, act, state, num_ticks: int, armed_tick: np.ndarray, before_step=None):
+    """Roll `state` for `num_ticks` control ticks; per start, (qpos, qvel) of the first tick at or after its
+    `armed_tick` with the waist below the teacher's switch height, and which starts got there.
+    before_step(tick, state) -> state changes the state before a tick's step (a push)."""
+    step = jax.jit(jax.vmap(env.step))
+    n = len(armed_tick)
+    found = np.zeros(n, bool)
+    qpos, qvel = np.zeros((n, env.mj_model.nq)), np.zeros((n, env.mj_model.nv))
+    for tick in range(num_ticks):
+        if before_step is not None:
+            state = before_step(tick, state)
+        state = step(state, act(state.obs[STUDENT_OBS_KEY]))
+        new = ~found & (tick >= armed_tick) & (np.asarray(state.info["waist_height"]) < WAIST_SWITCH_HEIGHT_M)
+        qpos[new], qvel[new] = np.asarray(state.data.qpos)[new], np.asarray(state.data.qvel)[new]
+        found |= new
+    return found, qpos, qvel
+
+
+def _frozen_bank(found, qpos, qvel) -> tuple[np.ndarray, np.ndarray]:
+    bank = qpos[found].astype(np.float32), qvel[found].astype(np.float32)
+    for array in bank:
+        array.flags.writeable = False
+    return bank
+
+
 @functools.lru_cache(maxsize=4)
 def knockdown_bank(joystick_policy: str, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) where the teacher hands `joystick_policy` (artifact or checkpoint), knocked over from
     `num_starts` seeded standing starts (random commands, half of them zero; full-body collision, CPU
     physics), to the getup expert: the first control tick with the waist below the switch height. Cached
     (read-only arrays): a second env asking for the same bank pays nothing."""
-    from training import envs
-    env = envs.make("joystick", config_overrides={"backend": "cpu", "collision": "full_body", "push.enable": False,
-                                                  "zero_command_prob": 0.5, "noise.level": 0.0})
-    joystick = load_expert(joystick_policy, "joystick")
-    if tuple(map(tuple, env.obs_terms)) != joystick.obs_terms:
-        raise ValueError(f"{joystick_policy}: observation terms {joystick.obs_terms} are not the joystick env's")
+    env, act = _joystick_rollout_env(joystick_policy, zero_command_prob=0.5)
     rng = np.random.default_rng(seed)
     knock_tick = np.round(rng.uniform(*KNOCK_AT_S, num_starts) / env.dt).astype(int)
     heading = rng.uniform(0.0, 2.0 * np.pi, num_starts)
-    push = np.stack([np.cos(heading), np.sin(heading)], 1) * rng.uniform(*KNOCKDOWN_MPS, num_starts)[:, None]
-    act = jax.jit(jax.vmap(lambda obs: jnp.tanh(joystick.loc(obs))))
-    reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
-    state = reset(jax.random.split(jax.random.PRNGKey(seed), num_starts))
-    found = np.zeros(num_starts, bool)
-    qpos, qvel = np.zeros((num_starts, env.mj_model.nq)), np.zeros((num_starts, env.mj_model.nv))
-    for tick in range(int(knock_tick.max() + round(MAX_FALL_S / env.dt))):
+    push = jnp.asarray(np.stack([np.cos(heading), np.sin(heading)], 1) * rng.uniform(*KNOCKDOWN_MPS, num_starts)[:, None],
+                       jnp.float32)
+
+    def knock(tick, state):
         due = jnp.asarray(knock_tick == tick)[:, None]
-        state = state.replace(data=state.data.replace(
-            qvel=state.data.qvel.at[:, :2].add(jnp.where(due, jnp.asarray(push, jnp.float32), 0.0))))
-        state = step(state, act(state.obs[STUDENT_OBS_KEY]))
-        new = ~found & (tick >= knock_tick) & (np.asarray(state.info["waist_height"]) < WAIST_SWITCH_HEIGHT_M)
-        qpos[new], qvel[new] = np.asarray(state.data.qpos)[new], np.asarray(state.data.qvel)[new]
-        found |= new
+        return state.replace(data=state.data.replace(qvel=state.data.qvel.at[:, :2].add(jnp.where(due, push, 0.0))))
+
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(seed), num_starts))
+    found, qpos, qvel = _falls(env, act, state, int(knock_tick.max() + round(MAX_FALL_S / env.dt)), knock_tick, knock)
     if not found.any():
         raise ValueError(f"{joystick_policy}: no knockdown of {KNOCKDOWN_MPS} m/s brought the waist below "
                          f"{WAIST_SWITCH_HEIGHT_M} m within {MAX_FALL_S} s in {num_starts} starts")
-    bank = qpos[found].astype(np.float32), qvel[found].astype(np.float32)
-    for array in bank:
-        array.flags.writeable = False
-    return bank
+    return _frozen_bank(found, qpos, qvel)
+
+
+@functools.lru_cache(maxsize=4)
+def wall_bank(joystick_policy: str, num_starts: int, seed: int,
+              first_wall_x_m: float = wall_course.FIRST_WALL_X_M) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos, qvel) where the teacher hands `joystick_policy` over to the getup expert after it walked into
+    the low-wall course (wall_course.py; first wall at `first_wall_x_m`) from `num_starts` seeded approaches
+    (wall_course.course_start): the first control tick with the waist below the switch height. Approaches
+    where it stepped over the wall or stood are left out. Positions are in the course's world frame: a
+    getup env draws them with its course at the same x. Cached as knockdown_bank."""
+    env, act = _joystick_rollout_env(joystick_policy, **{"wall_course.enable": True,
+                                                         "wall_course.first_wall_x_m": float(first_wall_x_m)})
+    keys = jax.random.split(jax.random.PRNGKey(seed), 2 * num_starts)
+    state = jax.jit(jax.vmap(env.reset))(keys[:num_starts])
+    xy, yaw, command = jax.vmap(lambda k: wall_course.course_start(k, env.config.wall_course))(keys[num_starts:])
+    upright = state.data.qpos.at[:, 3:7].set(jnp.array([1.0, 0.0, 0.0, 0.0]))   # place() turns from heading 0
+    qpos, qvel = jax.vmap(place)(upright, state.data.qvel, xy, yaw)
+    state = state.replace(data=state.data.replace(qpos=qpos, qvel=qvel), info={**state.info, "command": command})
+    found, qpos, qvel = _falls(env, act, state, int(round(MAX_WALL_WALK_S / env.dt)), np.zeros(num_starts, int))
+    if not found.any():
+        raise ValueError(f"{joystick_policy}: walking into the low walls brought the waist below "
+                         f"{WAIST_SWITCH_HEIGHT_M} m within {MAX_WALL_WALK_S} s in none of {num_starts} approaches")
+    return _frozen_bank(found, qpos, qvel)
 
 
 def place(qpos, qvel, xy, yaw):

@@ -10,6 +10,9 @@ The seed's student is distilled on the whole task, so one episode mixes everythi
   the loop's push test (handover.KNOCKDOWN_MPS), so the student also sees falls with momentum, the hand-over
   to the getup expert mid-fall and getups from where such a fall lands (0 by default: the seed's unified env
   has only the joystick env's pushes);
+* with walls.prob, that share of episodes instead starts standing before the low-wall course
+  (wall_course.py, course_start) and holds its forward command for the whole episode, so the student
+  meets the teacher at a wall too: the trip, the getup beside or across it, the walk on (0 by default);
 * 1000-step episodes, no termination on falls (only on non-finite physics): the student must get up;
 * actor observation TERMS_UNION (82) with the gait clock advanced by observation.advance_gait_phase, and
   uniform observation noise at noise.level as in the joystick env (0 for exact teacher labels);
@@ -32,9 +35,9 @@ from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
 from training import observation as obsdef
-from training.envs import base, handover
+from training.envs import base, handover, wall_course
 from training.envs import joystick_rewards as R
-from training.envs.getup import GetupBase, getup_common_config
+from training.envs.getup import START_KINDS, GetupBase, getup_common_config
 from training.envs.joystick import Joystick
 from training.envs.joystick import default_config as joystick_config
 from training.teacher import WAIST_SWITCH_HEIGHT_M
@@ -61,6 +64,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.zero_command_prob = joy.zero_command_prob
     cfg.push = config_dict.create(**joy.push.to_dict())
     cfg.knockdown = config_dict.create(prob=0.0, magnitude_range_mps=list(handover.KNOCKDOWN_MPS))  # per push
+    cfg.walls = config_dict.create(prob=0.0)   # share of episodes that walk into the low-wall course
     cfg.reward = config_dict.create(
         scales=config_dict.create(alive=0.25, height=1.0, tracking_lin_vel=1.0, tracking_ang_vel=0.5),
         tracking_sigma=joy.reward.tracking_sigma,
@@ -86,14 +90,34 @@ class Unified(GetupBase):
         if not (0.0 <= kd.prob <= 1.0 and 0.0 <= kd.magnitude_range_mps[0] <= kd.magnitude_range_mps[1]):
             raise ValueError(f"knockdown: prob must be in [0, 1] and magnitude_range_mps an ordered pair of speeds "
                              f"[m/s] >= 0, got {kd.prob} and {list(kd.magnitude_range_mps)}")
+        if not 0.0 <= self._wall_share() <= 1.0:
+            raise ValueError(f"walls.prob must be in [0, 1], got {self._wall_share()}")
+
+    def _wall_share(self) -> float:
+        walls = self._config.get("walls")   # runs made before wall episodes existed have none
+        return 0.0 if walls is None else float(walls.prob)
+
+    def has_wall_course(self) -> bool:
+        return super().has_wall_course() or self._wall_share() > 0
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_cmd, k_push, k_obs = jax.random.split(rng, 5)
         qpos, qvel, kind = self._start_state(k_start)
+        command = self.sample_command(k_cmd)
+        course = jnp.zeros((), bool)
+        if self._wall_share() > 0:   # (kept out otherwise: the random streams of runs without walls stay as they were)
+            rng, k_course, k_approach = jax.random.split(rng, 3)
+            course = jax.random.bernoulli(k_course, self._wall_share())
+            xy, yaw, course_command = wall_course.course_start(k_approach, self._config.wall_course)
+            standing_qpos, standing_qvel = handover.place(self._home_qpos, jnp.zeros_like(qvel), xy, yaw)
+            qpos, qvel = jnp.where(course, standing_qpos, qpos), jnp.where(course, standing_qvel, qvel)
+            kind = jnp.where(course, START_KINDS.index("standing"), kind)
+            command = jnp.where(course, course_command, command)
         data = self.make_data(qpos, qvel)
         info = {
             "rng": rng,
-            "command": self.sample_command(k_cmd),
+            "command": command,
+            "course": course,
             "command_step": jnp.array(0, jnp.int32),
             "last_act": jnp.zeros(base.NUM_JOINTS),
             "phase": obsdef.initial_gait_phase(jnp).astype(jnp.float32),
@@ -117,7 +141,9 @@ class Unified(GetupBase):
         scaled, standing = self._reward_terms(data, info)
         reward = sum(scaled.values()) * self.dt
 
+        course_command = info["command"]
         self._advance_clock_and_command(info, action, k_cmd)     # same tick bookkeeping as the joystick env
+        info["command"] = jnp.where(info["course"], course_command, info["command"])   # a wall approach holds it
 
         obs = self._observe(data, info, k_obs)
         metrics = dict(state.metrics)   # keep what wrappers added (brax's EvalWrapper adds "reward")

@@ -1,0 +1,125 @@
+"""The low-wall course in the training worlds (training/envs/wall_course.py): the evaluation's walls moved
+down +x, approaches to them, the landings of a joystick expert that walked into one (handover.wall_bank),
+and the getup and unified envs that start from those. The slow tests roll the shipped joystick expert on
+the CPU physics."""
+from __future__ import annotations
+
+import jax
+import mujoco
+import numpy as np
+import pytest
+
+from sim_hil import scenarios
+from training import envs
+from training.envs import handover, wall_course
+from training.teacher import WAIST_SWITCH_HEIGHT_M
+
+JOYSTICK = "policies/joystick.safetensors"
+APPROACHES = 8
+SEED = 400_000
+
+
+def _wall_xs(mj: mujoco.MjModel) -> list[float]:
+    return sorted(float(mj.geom(f"wall_{i}").pos[0]) for i in range(scenarios.WALL_COUNT))
+
+
+def test_training_course_is_the_evaluations_moved_down_x():
+    spec = mujoco.MjSpec.from_file(str(scenarios.MODEL_PATH))
+    wall_course.add_to_spec(spec, wall_course.config())
+    train = spec.compile()
+    evaluation = mujoco.MjSpec.from_file(str(scenarios.MODEL_PATH))
+    scenarios.add_low_walls(evaluation)
+    ev = evaluation.compile()
+    shift = wall_course.FIRST_WALL_X_M - scenarios.WALL_FIRST_X_M
+    np.testing.assert_allclose(_wall_xs(train), np.array(_wall_xs(ev)) + shift)
+    for i in range(scenarios.WALL_COUNT):
+        np.testing.assert_allclose(train.geom(f"wall_{i}").size, ev.geom(f"wall_{i}").size)
+
+
+def test_approaches_start_before_the_first_wall_facing_it_with_a_forward_command():
+    cfg = wall_course.config()
+    xy, yaw, cmd = jax.vmap(lambda k: wall_course.course_start(k, cfg))(jax.random.split(jax.random.PRNGKey(0), 500))
+    before = cfg.first_wall_x_m - np.asarray(xy[:, 0])
+    assert before.min() >= wall_course.APPROACH_M[0] and before.max() <= wall_course.APPROACH_M[1]
+    assert np.abs(np.asarray(xy[:, 1])).max() <= wall_course.APPROACH_LATERAL_M
+    assert np.abs(np.asarray(yaw)).max() <= wall_course.APPROACH_YAW_RAD
+    cmd = np.asarray(cmd)
+    assert np.all((cmd[:, 0] >= wall_course.APPROACH_SPEED_MPS[0]) & (cmd[:, 0] <= wall_course.APPROACH_SPEED_MPS[1]))
+    assert np.all(cmd[:, 1:] == 0.0)
+
+
+def test_envs_have_the_course_only_when_asked():
+    plain = envs.make("getup", config_overrides={"backend": "cpu", "fallen_bank_size": 2})
+    assert not plain.has_wall_course() and plain.mj_model.ngeom == envs.make(
+        "getup", config_overrides={"fallen_bank_size": 2}).mj_model.ngeom
+    walled = envs.make("unified", config_overrides={"backend": "cpu", "fallen_bank_size": 2, "walls.prob": 0.5})
+    assert walled.has_wall_course()
+    assert _wall_xs(walled.mj_model)[0] == pytest.approx(wall_course.FIRST_WALL_X_M)
+
+
+@pytest.mark.parametrize("task, over, why", [
+    ("getup", {"wall_course.enable": True}, "needs backend 'cpu'"),
+    ("getup", {"backend": "cpu", "wall_starts.prob": 0.5}, "needs wall_starts.joystick_policy"),
+    ("getup", {"backend": "cpu", "wall_starts.prob": 0.6, "wall_starts.joystick_policy": JOYSTICK,
+               "knockdown_starts.prob": 0.6, "knockdown_starts.joystick_policy": JOYSTICK}, "at most 1"),
+    ("unified", {"backend": "cpu", "walls.prob": 1.5}, r"walls.prob must be in \[0, 1\]")])
+def test_bad_wall_configs_are_refused(task, over, why):
+    with pytest.raises(ValueError, match=why):
+        envs.make(task, config_overrides={"fallen_bank_size": 2, **over})
+
+
+@pytest.fixture(scope="module")
+def wall_bank():
+    return handover.wall_bank(JOYSTICK, APPROACHES, SEED)
+
+
+@pytest.mark.slow
+def test_wall_bank_holds_falls_at_the_first_wall(wall_bank):
+    qpos, qvel = wall_bank
+    assert 1 <= qpos.shape[0] <= APPROACHES and np.all(np.isfinite(qvel))
+    env = envs.make("joystick", config_overrides={"backend": "cpu", "wall_course.enable": True})
+    mj, data = env.mj_model, mujoco.MjData(env.mj_model)
+    waist = mj.body("Waist").id
+    for q in qpos:
+        data.qpos[:] = q
+        mujoco.mj_kinematics(mj, data)
+        assert WAIST_SWITCH_HEIGHT_M - 0.1 < data.xpos[waist, 2] < WAIST_SWITCH_HEIGHT_M   # the first tick below
+    # the trunk is over or just before the wall it walked into (the walls are 0.1 m thick)
+    near = np.abs(qpos[:, 0] - wall_course.FIRST_WALL_X_M) < 1.0
+    assert near.mean() >= 0.5
+
+
+@pytest.mark.slow
+def test_getup_env_starts_fallen_episodes_from_the_wall_bank(wall_bank):
+    env = envs.make("getup", config_overrides={
+        "backend": "cpu", "start_probs": [1.0, 0.0, 0.0], "fallen_bank_size": 2, "episode_length": 20,
+        "wall_starts.prob": 1.0, "wall_starts.joystick_policy": JOYSTICK, "wall_starts.bank_starts": APPROACHES,
+        "wall_starts.seed": SEED})
+    assert env.has_wall_course()
+    state = jax.jit(env.reset)(jax.random.PRNGKey(3))
+    q = np.asarray(state.data.qpos)
+    assert np.min(np.abs(wall_bank[0] - q).sum(axis=1)) < 1e-5
+    assert int(state.info["start_kind"]) == 0                      # counted with the fallen starts
+
+
+@pytest.mark.slow
+def test_unified_wall_episodes_walk_at_the_course_and_hold_their_command():
+    env = envs.make("unified", config_overrides={"backend": "cpu", "fallen_bank_size": 2, "walls.prob": 1.0,
+                                                 "command_resample_steps": 1, "noise.level": 0.0})
+    state = jax.jit(env.reset)(jax.random.PRNGKey(5))
+    x = float(state.data.qpos[0])
+    before = wall_course.FIRST_WALL_X_M - x
+    assert wall_course.APPROACH_M[0] <= before <= wall_course.APPROACH_M[1]
+    assert bool(state.info["course"]) and int(state.info["start_kind"]) == 2   # counted with the standing ones
+    command = np.asarray(state.info["command"])
+    state = jax.jit(env.step)(state, np.zeros(env.action_size, np.float32))   # a resample is due every tick
+    np.testing.assert_array_equal(np.asarray(state.info["command"]), command)
+
+
+@pytest.mark.slow
+def test_evaluate_from_wall_landings(wall_bank, tmp_path):
+    from training.evaluate import evaluate
+    report = evaluate("policies/getup_kd_bank.safetensors", tmp_path, seeds=APPROACHES, seconds=0.2,
+                      first_seed=SEED, backend="cpu", starts="wall", start_joystick=JOYSTICK).read_text()
+    assert f"{wall_bank[0].shape[0]} landings at a low wall (of {APPROACHES} approaches" in report
+    assert "seed: policy" not in report
