@@ -117,6 +117,15 @@ def default_config() -> config_dict.ConfigDict:
 class GetupBase(base.T1Env):
     """Starts (fallen / kneeling / standing), observation and bookkeeping of the getup tasks."""
 
+    WALL_SHARE_CONFIG = ""   # the config group whose `prob` is the task's share of wall-course starts
+
+    def _wall_share(self) -> float:
+        group = self._config.get(self.WALL_SHARE_CONFIG) if self.WALL_SHARE_CONFIG else None
+        return 0.0 if group is None else float(group.prob)   # runs made before the course have no such group
+
+    def has_wall_course(self) -> bool:
+        return super().has_wall_course() or self._wall_share() > 0
+
     def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None):
         super().__init__(config, config_overrides)
         cfg = self._config
@@ -215,6 +224,8 @@ class GetupBase(base.T1Env):
 class Getup(GetupBase):
     """The keyframe-curriculum getup expert."""
 
+    WALL_SHARE_CONFIG = "wall_starts"
+
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
         super().__init__(config if config is not None else default_config(), config_overrides)
         if self._config.stage not in STAGES:
@@ -255,13 +266,6 @@ class Getup(GetupBase):
 
     def _wall_bank(self, joystick_policy: str, num_starts: int, seed: int):
         return handover.wall_bank(joystick_policy, num_starts, seed, float(self._config.wall_course.first_wall_x_m))
-
-    def _wall_share(self) -> float:
-        ws = self._config.get("wall_starts")
-        return 0.0 if ws is None else float(ws.prob)
-
-    def has_wall_course(self) -> bool:
-        return super().has_wall_course() or self._wall_share() > 0
 
     def _start_state(self, rng):
         """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path; with

@@ -83,6 +83,7 @@ class Unified(GetupBase):
     _apply_push = Joystick._apply_push
     _walking_push_magnitude = Joystick._push_magnitude
     _advance_clock_and_command = Joystick._advance_clock_and_command
+    WALL_SHARE_CONFIG = "walls"
 
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
         super().__init__(config if config is not None else default_config(), config_overrides)
@@ -92,13 +93,6 @@ class Unified(GetupBase):
                              f"[m/s] >= 0, got {kd.prob} and {list(kd.magnitude_range_mps)}")
         if not 0.0 <= self._wall_share() <= 1.0:
             raise ValueError(f"walls.prob must be in [0, 1], got {self._wall_share()}")
-
-    def _wall_share(self) -> float:
-        walls = self._config.get("walls")   # runs made before wall episodes existed have none
-        return 0.0 if walls is None else float(walls.prob)
-
-    def has_wall_course(self) -> bool:
-        return super().has_wall_course() or self._wall_share() > 0
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_cmd, k_push, k_obs = jax.random.split(rng, 5)
