@@ -96,7 +96,7 @@ EVAL_POLICY   ?= $(firstword $(wildcard policies/student.safetensors policies/st
 EVAL_BASELINE ?=
 EVAL_ARGS     ?=
 EVAL_FLAGS     = --policy $(EVAL_POLICY) $(if $(EVAL_BASELINE),--baseline $(EVAL_BASELINE)) $(EVAL_ARGS)
-.PHONY: eval-getup eval-push eval-wall eval-puddle eval-walk eval-fig51 eval-ch6
+.PHONY: eval-getup eval-push eval-wall eval-puddle eval-walk eval-fig51 eval-ch6 screen-student
 # The joystick expert's walking targets (standing starts: forward, stand, turn, forward in realtime). One
 # job: the realtime trial must not share the two cores with a lockstep one.
 WALK_POLICY ?= policies/joystick.safetensors
@@ -120,6 +120,15 @@ eval-ch6: build
 	$(NETNS) $(PY) -m sim_hil.eval getup --trials 20 $(EVAL_FLAGS) --out $(EVAL_OUT)/ch6_getup_loop
 	$(foreach sc,push wall puddle,$(NETNS) $(PY) -m sim_hil.eval $(sc) $(EVAL_FLAGS) --out $(EVAL_OUT)/ch6_$(sc) && ) true
 	$(NETNS) $(PY) -m sim_hil.eval fig5.1 --policy $(EVAL_POLICY) $(EVAL_ARGS) $(if $(EVAL_TEACHER),--teacher $(EVAL_TEACHER)) --out $(EVAL_OUT)/fig5_1
+# A quick screen of a student candidate, to pick a DAgger checkpoint before eval-ch6 (~4 min on 2 cores):
+# the wall course in the loop (5 trials), the batch from 256 knockdown landings (success, the share that lay
+# still) and from 200 fallen seeds apart from eval-ch6's 1000. Reports under SCREEN_OUT.
+SCREEN_OUT ?= out/eval/screen
+SCREEN_JOYSTICK ?= policies/joystick.safetensors
+screen-student: build
+	$(NETNS) $(PY) -m sim_hil.eval wall --policy $(EVAL_POLICY) --label student --no-log --no-video --out $(SCREEN_OUT)/wall
+	$(PY) -m training evaluate --policy $(EVAL_POLICY) --starts knockdown --start-joystick $(SCREEN_JOYSTICK) --seeds 256 --first-seed 300000 --seconds 10 --out $(SCREEN_OUT)/knockdown
+	$(PY) -m training evaluate --policy $(EVAL_POLICY) --seeds 200 --first-seed 1000 --seconds 10 --out $(SCREEN_OUT)/fallen_200
 # The seed's Fig. 5.1 in the loop: seed 62, fallen, 0.4 m/s forward; the stitched teacher beside the student
 # (default: the teacher the student was distilled from, named in its provenance).
 EVAL_TEACHER ?=
