@@ -184,7 +184,7 @@ def _fmt(fmt, value):
 def markdown_report(results: dict, meta: dict) -> str:
     names = list(results)
     starts = meta.get("starts", "fallen")
-    knockdown = starts != "fallen"   # a bank of landings (knockdown or wall): the seed's figures do not apply
+    from_bank = starts != "fallen"   # a bank of landings (knockdown or wall): the seed's figures do not apply
     if starts == "knockdown":
         title = (f"{meta['episodes']} knockdown landings (of {meta['seeds']} pushed standing starts, bank seed "
                  f"{meta['first_seed']}, knocked over by `{meta['start_joystick']}`)")
@@ -197,16 +197,16 @@ def markdown_report(results: dict, meta: dict) -> str:
     for role, res in results.items():
         lines.append(f"- {role}: {res['policy'].describe()}")
     lines += ["", "Means over episodes (time to stand and energy until the first stand-up: over episodes that "
-              "stood up)." + ("" if knockdown else " Seed = the seed thesis's reported figure where one exists."),
+              "stood up)." + ("" if from_bank else " Seed = the seed thesis's reported figure where one exists."),
               ""]
-    seed_names = [] if knockdown else names   # the seed's figures are from fallen starts only
+    seed_names = [] if from_bank else names   # the seed's figures are from fallen starts only
     header = ["metric"] + [f"{n}" for n in names] + [f"seed: {n}" for n in seed_names]
     lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for label, key, fmt in ROWS:
         cells = [_fmt(fmt, results[n]["summary"][key]) for n in names]
         cells += [_fmt("{:.1f}", table_4_3.SEED_REPORTED.get(key, {}).get(n)) for n in seed_names]
         lines.append("| " + " | ".join([label] + cells) + " |")
-    if {"policy", "baseline"} <= set(results) and not knockdown:
+    if {"policy", "baseline"} <= set(results) and not from_bank:
         lines += ["", "Direction against the seed's Table 4.3 (the seed compares its keyframe expert with its "
                   "baseline getup: the comparison is the seed's where `policy` is a keyframe getup; "
                   "`table_4_3.png`; definitions in training/table_4_3.py):", ""]
