@@ -41,3 +41,17 @@ def test_the_paired_ratio_uses_only_seeds_where_both_stood():
     assert both == 1 and math.isclose(ratio, 0.5)
     ratio, both = paired_energy_to_stand(policy[1:2], baseline[2:3])
     assert both == 0 and math.isnan(ratio)
+
+
+def test_attempts_per_fall_counts_a_mid_fall_start_once():
+    """A bank's mid-fall start (trunk still above the fallen height) is down only once it lands: that landing
+    is its one down phase, so one attempt that stands is 1.0 attempts per fall, as for a fallen start."""
+    from training.evaluate import summarize
+    t, readings, series = _episode(stand_at_s=2.0)
+    readings[:10, 0] = 0.45                                   # the hand-over tick, then landing at 0.2 m
+    mid_fall = episode_row(t, readings, series)
+    fallen = episode_row(*_episode(stand_at_s=2.0))
+    assert mid_fall["falls"] == 1 and mid_fall["down_phases"] == 1 and fallen["down_phases"] == 1
+    summary = summarize([mid_fall, fallen])
+    assert summary["attempts_per_fall"] == 1.0 and summary["attempts_per_episode"] == 1.0
+    assert summary["max_attempts"] == 1

@@ -123,15 +123,15 @@ def _cmd_export_checkpoint(args, command: str) -> int:
 BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported: parsing needs no JAX)
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
-START_CHOICES = ("fallen", "knockdown", "wall")   # = training.evaluate.START_KINDS (not imported: parsing needs no JAX)
-START_JOYSTICK = "policies/joystick.safetensors"   # evaluate --starts knockdown|wall: the shipped joystick expert
+START_CHOICES = ("fallen", "knockdown", "wall", "push")   # = training.evaluate.START_KINDS (not imported: parsing needs no JAX)
+START_JOYSTICK = "policies/joystick.safetensors"   # evaluate --starts knockdown|wall|push: the shipped joystick expert
 
 
 def _cmd_evaluate(args, command: str) -> int:
     seconds = EVAL_SECONDS[args.task] if args.seconds is None else args.seconds
     out = args.out or f"out/eval_{args.task}"
     if args.start_joystick and args.starts == "fallen":
-        raise ValueError("--start-joystick goes with --starts knockdown or wall")
+        raise ValueError("--start-joystick goes with --starts knockdown, wall or push")
     if args.starts != "fallen" and not args.start_joystick:
         args.start_joystick = START_JOYSTICK
     if args.task == "joystick":
@@ -243,9 +243,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "mid-fall, where the stitched teacher hands over after a push (as the loop's push test): "
                    "--start-joystick is pushed over from SEEDS standing starts, the ones it caught are left out; "
                    "wall = the same after --start-joystick walked into the low-wall course from SEEDS approaches "
-                   "(training/envs/wall_course.py), those that stepped over it left out")
+                   "(training/envs/wall_course.py), those that stepped over it left out; push = the same in the "
+                   "loop's push test: SEEDS standing starts shoved on the torso forward or backward (2 : 1), "
+                   "the ones it caught left out")
     p.add_argument("--start-joystick", "--knockdown-joystick", metavar="ARTIFACT", dest="start_joystick",
-                   help="with --starts knockdown or wall: the joystick expert that walks and is pushed over or "
+                   help="with --starts knockdown, wall or push: the joystick expert that walks and is pushed over or "
                    f"trips (default {START_JOYSTICK})")
     p.add_argument("--seconds", type=float, help="episode length [s] (default: getup 10, joystick 20)")
     p.add_argument("--out", help="folder for the report (default: out/eval_<task>)")

@@ -121,7 +121,7 @@ def episode_row(t, readings, series) -> dict:
     and its per-tick effort series (T,). energy_to_stand_J counts the ticks before the first stand-up only
     (nan if it never stood): the energy of getting up, which the whole episode's energy_J mixes with the
     standing that follows it under the upright policy."""
-    from sim_hil.eval.events import getup_events, through_kneel_gate
+    from sim_hil.eval.events import EventThresholds, getup_events, through_kneel_gate
     ev = getup_events(t, readings[:, 0], readings[:, 1])
     gate = through_kneel_gate(t, readings[:, 0], readings[:, 1], ev)
     stood = not math.isnan(ev.time_to_stand_s)
@@ -129,7 +129,8 @@ def episode_row(t, readings, series) -> dict:
     ctrl_dt = float(t[1] - t[0])
     return {
         "success": ev.success, "time_to_stand_s": ev.time_to_stand_s, "attempts": ev.attempts,
-        "falls": ev.falls, "through_kneel_gate": math.nan if gate is None else float(gate),
+        "falls": ev.falls, "down_phases": ev.falls + int(readings[0, 0] < EventThresholds().fallen_trunk_height_m),
+        "through_kneel_gate": math.nan if gate is None else float(gate),
         "energy_J": float(series["energy_J"].sum()),
         "energy_to_stand_J": float(series["energy_J"][:stand_tick].sum()) if stood else math.nan,
         "max_energy_J": float(series["max_energy_J"].max()),
@@ -150,18 +151,24 @@ def summarize(rows: list[dict]) -> dict:
     def mean(key, where=None):
         vals = [r[key] for r in rows if (where is None or where(r)) and not math.isnan(r[key])]
         return float(np.mean(vals)) if vals else math.nan
-    # every start is a fall (fallen starts), plus falls during the episode
-    falls_total = sum(1 + r["falls"] for r in rows)
+    # the down phases: a start lying down (every fallen start) and each fall during the episode (a bank's
+    # mid-fall start is down only once it lands: that landing is one of its falls)
+    falls_total = max(1, sum(r["down_phases"] for r in rows))
     return {"episodes": len(rows), "success_rate": float(np.mean([r["success"] for r in rows])),
             "attempts_per_fall": sum(r["attempts"] for r in rows) / falls_total,
+            "attempts_per_episode": float(np.mean([r["attempts"] for r in rows])),
+            "max_attempts": max(r["attempts"] for r in rows),
             "never_rose": float(np.mean([r["attempts"] == 0 and not r["success"] for r in rows])),
             "time_to_stand_s": mean("time_to_stand_s"), "through_kneel_gate": mean("through_kneel_gate"),
             **{k: mean(k) for k in EFFORT_KEYS}}
 
 
-START_KINDS = ("fallen", "knockdown", "wall")   # fallen: the loop's fallen starts; knockdown: mid-fall after a
-# push; wall: mid-fall after walking into the low-wall course (the getup env then has the course)
+START_KINDS = ("fallen", "knockdown", "wall", "push")   # fallen: the loop's fallen starts; knockdown: mid-fall
+# after a push; wall: mid-fall after walking into the low-wall course (the getup env then has the course);
+# push: mid-fall in the loop's push test (handover.push_test_bank: its torso shoves, forward and backward 2 : 1)
 ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attempts_per_fall", "{:.2f}"),
+        ("attempts per episode (the loop's push test counts per trial)", "attempts_per_episode", "{:.2f}"),
+        ("most attempts in one episode", "max_attempts", "{:.0f}"),
         ("lay without a rise to the end (share)", "never_rose", "{:.3f}"),
         ("time to stand [s]", "time_to_stand_s", "{:.2f}"),
         ("through the kneel gate before standing (share of those that stood)", "through_kneel_gate", "{:.2f}"),
@@ -184,10 +191,13 @@ def _fmt(fmt, value):
 def markdown_report(results: dict, meta: dict) -> str:
     names = list(results)
     starts = meta.get("starts", "fallen")
-    from_bank = starts != "fallen"   # a bank of landings (knockdown or wall): the seed's figures do not apply
+    from_bank = starts != "fallen"   # a bank of landings (knockdown, wall, push): the seed's figures do not apply
     if starts == "knockdown":
         title = (f"{meta['episodes']} knockdown landings (of {meta['seeds']} pushed standing starts, bank seed "
                  f"{meta['first_seed']}, knocked over by `{meta['start_joystick']}`)")
+    elif starts == "push":
+        title = (f"{meta['episodes']} landings in the loop's push test (of {meta['seeds']} standing starts shoved "
+                 f"on the torso, bank seed {meta['first_seed']}, `{meta['start_joystick']}` standing)")
     elif starts == "wall":
         title = (f"{meta['episodes']} landings at a low wall (of {meta['seeds']} approaches, bank seed "
                  f"{meta['first_seed']}, walked into it by `{meta['start_joystick']}`)")
@@ -257,7 +267,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     states where `start_joystick`, knocked over from `seeds` standing starts (bank seed `first_seed`),
     hands over to the getup policy mid-fall (training/envs/handover.py); the ones it caught are left out.
     starts="wall": the same after `start_joystick` walked into the low-wall course from `seeds` approaches
-    (the getup env then has the course in its world)."""
+    (the getup env then has the course in its world); starts="push": after the loop's push test shoved it."""
     from training import checkpoints, envs
     from training.train import default_backend
     checkpoints.jax_setup()
@@ -266,7 +276,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     if starts not in START_KINDS:
         raise ValueError(f"starts {starts!r}: one of {START_KINDS}")
     if (starts != "fallen") != (start_joystick is not None):
-        raise ValueError("a start joystick policy goes with knockdown or wall starts, and only with them")
+        raise ValueError("a start joystick policy goes with knockdown, wall or push starts, and only with them")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     env = envs.make(task, config_overrides={"backend": backend or default_backend(),
@@ -277,6 +287,8 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         from training.envs import handover
         if starts == "knockdown":
             qpos, qvel = handover.knockdown_bank(str(start_joystick), seeds, first_seed)
+        elif starts == "push":
+            qpos, qvel = handover.push_test_bank(str(start_joystick), seeds, first_seed)
         else:
             qpos, qvel = handover.wall_bank(str(start_joystick), seeds, first_seed,
                                             float(env.config.wall_course.first_wall_x_m))

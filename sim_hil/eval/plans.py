@@ -134,19 +134,33 @@ def getup_rows(trials: list[TrialResult]) -> dict[str, str]:
 
 
 # ---- push ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PushDraw:
+    forward: bool
+    impulse_ns: float     # [N·s] on the Trunk
+    angle_rad: float      # direction off the robot's heading (standing spawns face +x): forward ≈ 0, backward ≈ π
+    at_s: float           # [s] after the trial's start
+
+
+def push_draw(index: int, seed: int) -> PushDraw:
+    """Trial `index`'s push, drawn from `seed`: F F B repeated, so any prefix (--trials N) has both directions
+    in the 2:1 ratio of 20 forward, 10 back. Also the batch's copy of this test (training/envs/handover.py
+    push_test_bank)."""
+    forward = index % 3 != 2
+    rng = np.random.default_rng(seed)
+    impulse = PUSH_IMPULSE_NS * (1.0 + rng.uniform(-PUSH_IMPULSE_SPREAD, PUSH_IMPULSE_SPREAD))
+    angle = rng.uniform(-PUSH_ANGLE_SPREAD_RAD, PUSH_ANGLE_SPREAD_RAD) + (0.0 if forward else math.pi)
+    return PushDraw(forward, impulse, angle, PUSH_AT_S + rng.uniform(0.0, PUSH_TIME_SPREAD_S))
+
+
 def push_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
-    """F F B repeated: any prefix (--trials N) has both directions in the 2:1 ratio of 20 forward, 10 back."""
     out = []
     for i in range(trials):
-        forward = i % 3 != 2
-        rng = np.random.default_rng(seed0 + i)
-        impulse = PUSH_IMPULSE_NS * (1.0 + rng.uniform(-PUSH_IMPULSE_SPREAD, PUSH_IMPULSE_SPREAD))
-        angle = rng.uniform(-PUSH_ANGLE_SPREAD_RAD, PUSH_ANGLE_SPREAD_RAD) + (0.0 if forward else math.pi)
-        at = PUSH_AT_S + rng.uniform(0.0, PUSH_TIME_SPREAD_S)
+        p = push_draw(i, seed0 + i)
         out.append(TrialSpec("flat", seed0 + i, "standing", seconds, prepare_s=STANDING_PREPARE_S,
-                             faults=f"push:x={impulse * math.cos(angle):.2f},y={impulse * math.sin(angle):.2f},"
-                                    f"z=0@{at:.3f}",
-                             tag="forward" if forward else "backward"))
+                             faults=f"push:x={p.impulse_ns * math.cos(p.angle_rad):.2f},"
+                                    f"y={p.impulse_ns * math.sin(p.angle_rad):.2f},z=0@{p.at_s:.3f}",
+                             tag="forward" if p.forward else "backward"))
     return out
 
 

@@ -99,8 +99,12 @@ def default_config() -> config_dict.ConfigDict:
     cfg.knockdown_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=200_000)
     # wall starts (handover.wall_bank; ours): this share of the fallen starts is where the teacher hands
     # `joystick_policy` over after it walked into the low-wall course (wall_course.py; the course is then in
-    # the world), from `bank_starts` approaches; knockdown_starts.prob + this ≤ 1
+    # the world), from `bank_starts` approaches
     cfg.wall_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=400_000)
+    # push-test starts (handover.push_test_bank; ours): this share of the fallen starts is where the teacher
+    # hands `joystick_policy` over after the loop's push test shoved it (a torso impulse, forward or backward),
+    # from `bank_starts` standing starts. The three shares sum to at most 1
+    cfg.push_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=500_000)
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
     # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
     # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with
@@ -247,7 +251,8 @@ class Getup(GetupBase):
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
         """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn."""
         banks = []
-        for name, make in (("knockdown_starts", handover.knockdown_bank), ("wall_starts", self._wall_bank)):
+        for name, make in (("knockdown_starts", handover.knockdown_bank), ("wall_starts", self._wall_bank),
+                           ("push_starts", handover.push_test_bank)):
             b = self._config.get(name)   # runs made before a bank existed have no such key
             if b is None:
                 continue
@@ -260,8 +265,8 @@ class Getup(GetupBase):
                 bank = make(b.joystick_policy, int(b.bank_starts), int(b.seed))
                 banks.append((float(b.prob), tuple(jnp.asarray(x) for x in bank)))
         if sum(p for p, _ in banks) > 1.0 + 1e-9:
-            raise ValueError(f"knockdown_starts.prob + wall_starts.prob must be at most 1, got "
-                             f"{' + '.join(str(p) for p, _ in banks)}")
+            raise ValueError(f"knockdown_starts.prob + wall_starts.prob + push_starts.prob must be at most 1, "
+                             f"got {' + '.join(str(p) for p, _ in banks)}")
         return banks
 
     def _wall_bank(self, joystick_policy: str, num_starts: int, seed: int):
@@ -269,7 +274,7 @@ class Getup(GetupBase):
 
     def _start_state(self, rng):
         """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path; with
-        knockdown or wall starts, a share of the fallen ones from those banks."""
+        knockdown, wall or push-test starts, a share of the fallen ones from those banks."""
         if self._path_bank is None and not self._fallen_banks:
             return super()._start_state(rng)
         if self._path_bank is None:

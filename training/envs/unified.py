@@ -7,9 +7,9 @@ The seed's student is distilled on the whole task, so one episode mixes everythi
 * joystick commands sampled and resampled exactly as the joystick env (Playground T1 ranges, zero with
   zero_command_prob 0.1, resampled every command_resample_steps 500 ticks) and the same random pushes
   (joystick.Joystick's sample_command / _apply_push, reused); with knockdown.prob, a push is instead as hard as
-  the loop's push test (handover.KNOCKDOWN_MPS), so the student also sees falls with momentum, the hand-over
-  to the getup expert mid-fall and getups from where such a fall lands (0 by default: the seed's unified env
-  has only the joystick env's pushes);
+  the loop's push test (handover.KNOCKDOWN_MPS, or with knockdown.shove "torso" the test's own torso shove), so
+  the student also sees falls with momentum, the hand-over to the getup expert mid-fall and getups from where
+  such a fall lands (0 by default: the seed's unified env has only the joystick env's pushes);
 * with walls.prob, that share of episodes instead starts standing before the low-wall course
   (wall_course.py, course_start) and holds its forward command for the whole episode, so the student
   meets the teacher at a wall too: the trip, the getup beside or across it, the walk on (0 by default);
@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
@@ -63,7 +64,10 @@ def default_config() -> config_dict.ConfigDict:
     cfg.command_resample_steps = joy.command_resample_steps
     cfg.zero_command_prob = joy.zero_command_prob
     cfg.push = config_dict.create(**joy.push.to_dict())
-    cfg.knockdown = config_dict.create(prob=0.0, magnitude_range_mps=list(handover.KNOCKDOWN_MPS))  # per push
+    # knockdown.prob of the pushes are knockdowns (module docstring). shove "velocity": the base speed changes by
+    # magnitude_range_mps in a random direction; "torso": the loop's push test itself, its torso impulse
+    # forward or backward (2 : 1) off the heading (handover.push_test_bank, torso_shove_response)
+    cfg.knockdown = config_dict.create(prob=0.0, magnitude_range_mps=list(handover.KNOCKDOWN_MPS), shove="velocity")
     cfg.walls = config_dict.create(prob=0.0)   # share of episodes that walk into the low-wall course
     cfg.reward = config_dict.create(
         scales=config_dict.create(alive=0.25, height=1.0, tracking_lin_vel=1.0, tracking_ang_vel=0.5),
@@ -80,8 +84,8 @@ class Unified(GetupBase):
     # draw commands and pushes from exactly the joystick env's distributions.
     sample_command = Joystick.sample_command
     _push_interval_steps = Joystick._push_interval_steps
-    _apply_push = Joystick._apply_push
     _walking_push_magnitude = Joystick._push_magnitude
+    SHOVES = ("velocity", "torso")
     _advance_clock_and_command = Joystick._advance_clock_and_command
     WALL_SHARE_CONFIG = "walls"
 
@@ -93,6 +97,15 @@ class Unified(GetupBase):
                              f"[m/s] >= 0, got {kd.prob} and {list(kd.magnitude_range_mps)}")
         if not 0.0 <= self._wall_share() <= 1.0:
             raise ValueError(f"walls.prob must be in [0, 1], got {self._wall_share()}")
+        shove = kd.get("shove", "velocity")   # runs made before torso shoves have no such key
+        if shove not in self.SHOVES:
+            raise ValueError(f"knockdown.shove {shove!r}: one of {', '.join(self.SHOVES)}")
+        self._torso_response = None
+        if shove == "torso":
+            from sim_hil.eval import plans   # the loop's push test (imported here: it brings the LCM types along)
+            self._push_test = plans
+            self._torso_response = jnp.asarray(handover.torso_shove_response(self._mj_model,
+                                                                             np.asarray(self._home_qpos)))
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_cmd, k_push, k_obs = jax.random.split(rng, 5)
@@ -146,9 +159,41 @@ class Unified(GetupBase):
         done = self.invalid(data).astype(jnp.float32)  # falls do not end the episode
         return state.replace(data=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
 
+    def _apply_push(self, data, info, k_theta, k_mag):
+        """The joystick env's push (with knockdown.shove "velocity", knockdown.prob of them knockdowns); with
+        "torso", that share of the pushes is instead the loop's push-test shove."""
+        if self._torso_response is None:
+            return Joystick._apply_push(self, data, info, k_theta, k_mag)
+        k_pick, k_walk, k_shove = jax.random.split(k_mag, 3)
+        due = jnp.mod(info["push_step"] + 1, info["push_interval_steps"]) == 0
+        walked = Joystick._apply_push(self, data, info, k_theta, k_walk)   # counts the push step, sets info["push"]
+        shoved = due & jax.random.bernoulli(k_pick, self._config.knockdown.prob) & bool(self._config.push.enable)
+        dqvel = self._torso_shove(data.qpos, k_shove)
+        info["push"] = jnp.where(shoved, dqvel[:2], info["push"])
+        return data.replace(qvel=jnp.where(shoved, data.qvel + dqvel, walked.qvel))
+
+    def _torso_shove(self, qpos, rng):
+        """Δqvel of one push-test shove (plans.push_draw's distribution) off the robot's heading."""
+        p = self._push_test
+        k_back, k_size, k_angle = jax.random.split(rng, 3)
+        backward = jax.random.bernoulli(k_back, 1.0 / 3.0)   # F F B, as the test
+        impulse = p.PUSH_IMPULSE_NS * (1.0 + jax.random.uniform(k_size, minval=-p.PUSH_IMPULSE_SPREAD,
+                                                                maxval=p.PUSH_IMPULSE_SPREAD))
+        angle = jax.random.uniform(k_angle, minval=-p.PUSH_ANGLE_SPREAD_RAD,
+                                   maxval=p.PUSH_ANGLE_SPREAD_RAD) + jnp.pi * backward
+        local = impulse * (jnp.cos(angle) * self._torso_response[0] + jnp.sin(angle) * self._torso_response[1])
+        w, x, y, z = qpos[3], qpos[4], qpos[5], qpos[6]
+        heading = jnp.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        c, s = jnp.cos(heading), jnp.sin(heading)
+        vx, vy = local[0], local[1]
+        return local.at[0].set(c * vx - s * vy).at[1].set(s * vx + c * vy)
+
     def _push_magnitude(self, rng):
-        """A joystick-env push [m/s], or with probability knockdown.prob a knockdown (module docstring)."""
+        """A joystick-env push [m/s], or with probability knockdown.prob a knockdown (module docstring); with
+        torso shoves (_apply_push) the joystick env's only."""
         k_walk, k_hard, k_pick = jax.random.split(rng, 3)
+        if self._torso_response is not None:
+            return self._walking_push_magnitude(k_walk)
         kd = self._config.knockdown
         hard = jax.random.uniform(k_hard, minval=kd.magnitude_range_mps[0], maxval=kd.magnitude_range_mps[1])
         return jnp.where(jax.random.bernoulli(k_pick, kd.prob), hard, self._walking_push_magnitude(k_walk))
