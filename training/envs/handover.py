@@ -44,6 +44,7 @@ import mujoco
 import numpy as np
 from brax import math as brax_math
 
+from sim_hil.eval.events import heading_from_quat
 from sim_hil.scenarios import TORSO_BODY
 from training import observation as obsdef
 from training.envs import wall_course
@@ -209,9 +210,7 @@ def push_test_bank(joystick_policy: str, num_starts: int, seed: int) -> tuple[np
             return state
         qpos, qvel = np.asarray(state.data.qpos), np.array(state.data.qvel)
         for i in due:
-            w, x, y, z = qpos[i, 3:7]
-            heading = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-            angle = heading + draws[i].angle_rad
+            angle = heading_from_quat(qpos[i, 3:7]) + draws[i].angle_rad
             impulse = draws[i].impulse_ns * np.array([math.cos(angle), math.sin(angle), 0.0])
             qvel[i] += torso_impulse_dqvel(model, scratch, qpos[i], impulse)
         return state.replace(data=state.data.replace(qvel=jnp.asarray(qvel, state.data.qvel.dtype)))

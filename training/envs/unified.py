@@ -85,9 +85,9 @@ class Unified(GetupBase):
     sample_command = Joystick.sample_command
     _push_interval_steps = Joystick._push_interval_steps
     _walking_push_magnitude = Joystick._push_magnitude
-    SHOVES = ("velocity", "torso")
     _advance_clock_and_command = Joystick._advance_clock_and_command
     WALL_SHARE_CONFIG = "walls"
+    SHOVES = ("velocity", "torso")   # knockdown.shove
 
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
         super().__init__(config if config is not None else default_config(), config_overrides)
@@ -103,7 +103,7 @@ class Unified(GetupBase):
         self._torso_response = None
         if shove == "torso":
             from sim_hil.eval import plans   # the loop's push test (imported here: it brings the LCM types along)
-            self._push_test = plans
+            self._shove_ns = (plans.PUSH_IMPULSE_NS, plans.PUSH_IMPULSE_SPREAD, plans.PUSH_ANGLE_SPREAD_RAD)
             self._torso_response = jnp.asarray(handover.torso_shove_response(self._mj_model,
                                                                              np.asarray(self._home_qpos)))
 
@@ -174,13 +174,11 @@ class Unified(GetupBase):
 
     def _torso_shove(self, qpos, rng):
         """Δqvel of one push-test shove (plans.push_draw's distribution) off the robot's heading."""
-        p = self._push_test
+        impulse_ns, impulse_spread, angle_spread_rad = self._shove_ns
         k_back, k_size, k_angle = jax.random.split(rng, 3)
         backward = jax.random.bernoulli(k_back, 1.0 / 3.0)   # F F B, as the test
-        impulse = p.PUSH_IMPULSE_NS * (1.0 + jax.random.uniform(k_size, minval=-p.PUSH_IMPULSE_SPREAD,
-                                                                maxval=p.PUSH_IMPULSE_SPREAD))
-        angle = jax.random.uniform(k_angle, minval=-p.PUSH_ANGLE_SPREAD_RAD,
-                                   maxval=p.PUSH_ANGLE_SPREAD_RAD) + jnp.pi * backward
+        impulse = impulse_ns * (1.0 + jax.random.uniform(k_size, minval=-impulse_spread, maxval=impulse_spread))
+        angle = jax.random.uniform(k_angle, minval=-angle_spread_rad, maxval=angle_spread_rad) + jnp.pi * backward
         local = impulse * (jnp.cos(angle) * self._torso_response[0] + jnp.sin(angle) * self._torso_response[1])
         w, x, y, z = qpos[3], qpos[4], qpos[5], qpos[6]
         heading = jnp.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
