@@ -137,6 +137,17 @@ def _falls(env, act, state, num_ticks: int, armed_tick: np.ndarray, before_step=
     return found, qpos, qvel
 
 
+def _pushed_over(env, act, seed: int, push_tick: np.ndarray, push, none_fell: str) -> tuple[np.ndarray, np.ndarray]:
+    """The bank of len(push_tick) seeded standing starts, each pushed by push(tick, state) at its tick: the
+    first tick within MAX_FALL_S after it with the waist below the switch height (ValueError none_fell if
+    no start got there)."""
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(seed), len(push_tick)))
+    found, qpos, qvel = _falls(env, act, state, int(push_tick.max() + round(MAX_FALL_S / env.dt)), push_tick, push)
+    if not found.any():
+        raise ValueError(none_fell)
+    return _frozen_bank(found, qpos, qvel)
+
+
 def _frozen_bank(found, qpos, qvel) -> tuple[np.ndarray, np.ndarray]:
     bank = qpos[found].astype(np.float32), qvel[found].astype(np.float32)
     for array in bank:
@@ -161,12 +172,9 @@ def knockdown_bank(joystick_policy: str, num_starts: int, seed: int) -> tuple[np
         due = jnp.asarray(knock_tick == tick)[:, None]
         return state.replace(data=state.data.replace(qvel=state.data.qvel.at[:, :2].add(jnp.where(due, push, 0.0))))
 
-    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(seed), num_starts))
-    found, qpos, qvel = _falls(env, act, state, int(knock_tick.max() + round(MAX_FALL_S / env.dt)), knock_tick, knock)
-    if not found.any():
-        raise ValueError(f"{joystick_policy}: no knockdown of {KNOCKDOWN_MPS} m/s brought the waist below "
-                         f"{WAIST_SWITCH_HEIGHT_M} m within {MAX_FALL_S} s in {num_starts} starts")
-    return _frozen_bank(found, qpos, qvel)
+    return _pushed_over(env, act, seed, knock_tick, knock,
+                        f"{joystick_policy}: no knockdown of {KNOCKDOWN_MPS} m/s brought the waist below "
+                        f"{WAIST_SWITCH_HEIGHT_M} m within {MAX_FALL_S} s in {num_starts} starts")
 
 
 def torso_impulse_dqvel(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.ndarray,
@@ -215,12 +223,9 @@ def push_test_bank(joystick_policy: str, num_starts: int, seed: int) -> tuple[np
             qvel[i] += torso_impulse_dqvel(model, scratch, qpos[i], impulse)
         return state.replace(data=state.data.replace(qvel=jnp.asarray(qvel, state.data.qvel.dtype)))
 
-    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(seed), num_starts))
-    found, qpos, qvel = _falls(env, act, state, int(push_tick.max() + round(MAX_FALL_S / env.dt)), push_tick, shove)
-    if not found.any():
-        raise ValueError(f"{joystick_policy}: the push test's torso shoves brought the waist below "
-                         f"{WAIST_SWITCH_HEIGHT_M} m within {MAX_FALL_S} s in none of {num_starts} standing starts")
-    return _frozen_bank(found, qpos, qvel)
+    return _pushed_over(env, act, seed, push_tick, shove,
+                        f"{joystick_policy}: the push test's torso shoves brought the waist below "
+                        f"{WAIST_SWITCH_HEIGHT_M} m within {MAX_FALL_S} s in none of {num_starts} standing starts")
 
 
 @functools.lru_cache(maxsize=4)
