@@ -25,9 +25,9 @@ knockdown_starts) replaces a share of its fallen starts with these.
 `push_test_bank` is the loop's push test itself (sim_hil/eval/plans.py push_draw): the joystick expert standing
 at zero command, shoved on the torso forward or backward (2 : 1) by the test's impulse. The loop delivers it as
 a force on the Trunk over one physics step, which tips the robot over its feet; knockdown_bank's change of
-the base velocity moves the whole robot at once and is far easier to catch: the shipped teacher caught 93 of
-128 such knockdowns forward but 13 of 128 torso shoves, and needs as many getup attempts on the shoves' landings
-(1.53 per landing) as in the loop's forward pushes (1.65; the seed's 1.16).
+the base velocity moves the whole robot at once and is far easier to catch: the teacher's joystick expert
+caught 93 of 128 such knockdowns forward but 13 of 128 forward torso shoves, and its getup expert needs as many
+attempts on the shoves' landings (1.53 per landing) as in the loop's forward pushes (1.65; the seed's 1.16).
 
 `wall_bank` is the same hand-over after the joystick expert walked into the low-wall course
 (training/envs/wall_course.py): the landings beside, on and across a wall (getup config wall_starts).
