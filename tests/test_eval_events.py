@@ -38,7 +38,7 @@ def test_standing_all_along_is_success_without_falls():
 def test_fallen_start_one_clean_getup():
     # lie 1 s, rise through kneeling to standing in 2 s, stand 2 s
     ev = events((LIE_M, LIE_M, 1.0), (LIE_M, KNEEL_M, 1.0), (KNEEL_M, STAND_M, 1.0), (STAND_M, STAND_M, 2.0))
-    assert ev.success and ev.attempts == 1 and ev.falls == 0 and ev.fall_times_s == []
+    assert ev.success and ev.attempts == 1 and ev.falls == 0 and ev.fall_times_s == [] and ev.started_down
     # stands at the first sample >= 0.6 m: 2 s + (0.6 - 0.45) / 0.21 m/s into the last ramp
     expected = 2.0 + (0.6 - KNEEL_M) / (STAND_M - KNEEL_M) * 1.0
     assert ev.time_to_stand_s == pytest.approx(expected, abs=DT_S)

@@ -121,7 +121,7 @@ def episode_row(t, readings, series) -> dict:
     and its per-tick effort series (T,). energy_to_stand_J counts the ticks before the first stand-up only
     (nan if it never stood): the energy of getting up, which the whole episode's energy_J mixes with the
     standing that follows it under the upright policy."""
-    from sim_hil.eval.events import EventThresholds, getup_events, through_kneel_gate
+    from sim_hil.eval.events import getup_events, through_kneel_gate
     ev = getup_events(t, readings[:, 0], readings[:, 1])
     gate = through_kneel_gate(t, readings[:, 0], readings[:, 1], ev)
     stood = not math.isnan(ev.time_to_stand_s)
@@ -129,7 +129,7 @@ def episode_row(t, readings, series) -> dict:
     ctrl_dt = float(t[1] - t[0])
     return {
         "success": ev.success, "time_to_stand_s": ev.time_to_stand_s, "attempts": ev.attempts,
-        "falls": ev.falls, "down_phases": ev.falls + int(readings[0, 0] < EventThresholds().fallen_trunk_height_m),
+        "falls": ev.falls, "down_phases": ev.falls + int(ev.started_down),
         "through_kneel_gate": math.nan if gate is None else float(gate),
         "energy_J": float(series["energy_J"].sum()),
         "energy_to_stand_J": float(series["energy_J"][:stand_tick].sum()) if stood else math.nan,

@@ -79,6 +79,7 @@ class GetupEvents:
     attempts: int
     falls: int
     fall_times_s: list[float] = field(default_factory=list)
+    started_down: bool = False        # down from t[0] (a fallen start): a down phase that is not a fall
 
 
 def heading_from_quat(quat_wxyz) -> float:
@@ -213,4 +214,4 @@ def getup_events(t, trunk_height, up_z, th: EventThresholds = EventThresholds())
                 attempts += 1
                 attempts_this_phase += 1
     return GetupEvents(success=not down, time_to_stand_s=time_to_stand, attempts=attempts,
-                       falls=len(falls), fall_times_s=falls)
+                       falls=len(falls), fall_times_s=falls, started_down=bool(lying[0]))
