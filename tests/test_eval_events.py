@@ -53,6 +53,19 @@ def test_three_attempts_two_failed():
     assert ev.success and ev.attempts == 3 and ev.falls == 0
 
 
+def test_failed_attempts_after_the_switch_height_are_counted_with_a_waist_series():
+    """Two failed rises: the first stays below the switch, the second passes it (waist 0.1 m below the
+    trunk here), then a stand-up. Without a waist series the count is None."""
+    t, h, up = script((LIE_M, LIE_M, 0.5),
+                      (LIE_M, KNEEL_M, 0.5), (KNEEL_M, LIE_M, 0.5),
+                      (LIE_M, STAND_M, 0.7), (STAND_M, LIE_M, 0.5),
+                      (LIE_M, STAND_M, 1.0), (STAND_M, STAND_M, 1.5))
+    ev = getup_events(t, h, up, waist_height=h - 0.1, switch_height_m=0.5)
+    assert ev.success and ev.attempts == 3 and ev.failed_after_switch == 1
+    assert getup_events(t, h, up).failed_after_switch is None
+    assert getup_events(t, h, up, waist_height=h - 0.1, switch_height_m=0.6).failed_after_switch == 0
+
+
 def test_wobble_below_attempt_rise_is_not_an_attempt():
     wobble = [(LIE_M, LIE_M + 0.1, 0.2), (LIE_M + 0.1, LIE_M, 0.2)] * 5
     ev = events((LIE_M, LIE_M, 0.5), *wobble)

@@ -30,6 +30,7 @@ import numpy as np
 from training import observation as obsdef
 from training import table_4_3
 from training.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
+from training.teacher import WAIST_SWITCH_HEIGHT_M
 
 
 def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
@@ -122,7 +123,8 @@ def episode_row(t, readings, series) -> dict:
     (nan if it never stood): the energy of getting up, which the whole episode's energy_J mixes with the
     standing that follows it under the upright policy."""
     from sim_hil.eval.events import getup_events, through_kneel_gate
-    ev = getup_events(t, readings[:, 0], readings[:, 1])
+    ev = getup_events(t, readings[:, 0], readings[:, 1], waist_height=readings[:, 2],
+                      switch_height_m=WAIST_SWITCH_HEIGHT_M)
     gate = through_kneel_gate(t, readings[:, 0], readings[:, 1], ev)
     stood = not math.isnan(ev.time_to_stand_s)
     stand_tick = int(np.searchsorted(t, t[0] + ev.time_to_stand_s - 1e-9)) if stood else 0
@@ -130,6 +132,7 @@ def episode_row(t, readings, series) -> dict:
     return {
         "success": ev.success, "time_to_stand_s": ev.time_to_stand_s, "attempts": ev.attempts,
         "falls": ev.falls, "down_phases": ev.falls + int(ev.started_down),
+        "failed_after_switch": ev.failed_after_switch,
         "through_kneel_gate": math.nan if gate is None else float(gate),
         "energy_J": float(series["energy_J"].sum()),
         "energy_to_stand_J": float(series["energy_J"][:stand_tick].sum()) if stood else math.nan,
@@ -158,6 +161,7 @@ def summarize(rows: list[dict]) -> dict:
             "attempts_per_fall": sum(r["attempts"] for r in rows) / falls_total,
             "attempts_per_episode": float(np.mean([r["attempts"] for r in rows])),
             "max_attempts": max(r["attempts"] for r in rows),
+            "failed_after_switch_per_episode": float(np.mean([r["failed_after_switch"] for r in rows])),
             "never_rose": float(np.mean([r["attempts"] == 0 and not r["success"] for r in rows])),
             "time_to_stand_s": mean("time_to_stand_s"), "through_kneel_gate": mean("through_kneel_gate"),
             **{k: mean(k) for k in EFFORT_KEYS}}
@@ -169,6 +173,8 @@ START_KINDS = ("fallen", "knockdown", "wall", "push")   # fallen: the loop's fal
 ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attempts_per_fall", "{:.2f}"),
         ("attempts per episode (the loop's push test counts per trial)", "attempts_per_episode", "{:.2f}"),
         ("most attempts in one episode", "max_attempts", "{:.0f}"),
+        ("failed attempts per episode after the waist passed the composite's switch height",
+         "failed_after_switch_per_episode", "{:.2f}"),
         ("lay without a rise to the end (share)", "never_rose", "{:.3f}"),
         ("time to stand [s]", "time_to_stand_s", "{:.2f}"),
         ("through the kneel gate before standing (share of those that stood)", "through_kneel_gate", "{:.2f}"),

@@ -80,6 +80,9 @@ class GetupEvents:
     falls: int
     fall_times_s: list[float] = field(default_factory=list)
     started_down: bool = False        # down from t[0] (a fallen start): a down phase that is not a fall
+    # failed attempts during which the waist reached the composite's switch height (the upright policy had
+    # the robot when it dropped back); None when getup_events got no waist series
+    failed_after_switch: int | None = None
 
 
 def heading_from_quat(quat_wxyz) -> float:
@@ -162,8 +165,10 @@ def _stand_up_onsets(t: np.ndarray, standing: np.ndarray, hold_s: float) -> np.n
     return onset
 
 
-def getup_events(t, trunk_height, up_z, th: EventThresholds = EventThresholds()) -> GetupEvents:
-    """Falls, getup attempts, success and time to stand of one episode (definitions: module docstring)."""
+def getup_events(t, trunk_height, up_z, th: EventThresholds = EventThresholds(), waist_height=None,
+                 switch_height_m: float = math.inf) -> GetupEvents:
+    """Falls, getup attempts, success and time to stand of one episode (definitions: module docstring). With
+    a waist height series [m], also the failed attempts during which it reached switch_height_m."""
     t = _series("t", t)
     n = t.shape[0]
     if n == 0:
@@ -172,6 +177,7 @@ def getup_events(t, trunk_height, up_z, th: EventThresholds = EventThresholds())
         raise ValueError("getup_events: t must be strictly increasing")
     h = _series("trunk_height", trunk_height, n)
     u = _series("up_z", up_z, n)
+    above = None if waist_height is None else (_series("waist_height", waist_height, n) >= switch_height_m).tolist()
 
     can_stand_up = _stand_up_onsets(t, standing_mask(h, u, th), th.stand_hold_s)
     lying = h < th.fallen_trunk_height_m
@@ -184,6 +190,7 @@ def getup_events(t, trunk_height, up_z, th: EventThresholds = EventThresholds())
     low = high = 0.0          # lowest height while waiting for a rise / highest during an attempt [m]
     in_attempt = False
     attempts_this_phase = 0
+    failed_after_switch, switched = 0, False
     t_list, h, lying, can_stand_up = t.tolist(), h.tolist(), lying.tolist(), can_stand_up.tolist()
     for k in range(n):
         if not down:
@@ -205,13 +212,16 @@ def getup_events(t, trunk_height, up_z, th: EventThresholds = EventThresholds())
             continue
         if in_attempt:
             high = max(high, h[k])
+            switched = switched or bool(above and above[k])
             if h[k] <= high - th.attempt_rise_m:
                 in_attempt, low = False, h[k]
+                failed_after_switch += switched
         else:
             low = min(low, h[k])
             if h[k] >= low + th.attempt_rise_m:
-                in_attempt, high = True, h[k]
+                in_attempt, high, switched = True, h[k], bool(above and above[k])
                 attempts += 1
                 attempts_this_phase += 1
     return GetupEvents(success=not down, time_to_stand_s=time_to_stand, attempts=attempts,
-                       falls=len(falls), fall_times_s=falls, started_down=bool(lying[0]))
+                       falls=len(falls), fall_times_s=falls, started_down=bool(lying[0]),
+                       failed_after_switch=None if above is None else failed_after_switch)

@@ -50,7 +50,7 @@ from mujoco_playground._src import mjx_env
 from training import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
-from training.envs import handover, start_path
+from training.envs import handover, start_path, upright
 from sim_hil.config import FALLEN_TRUNK_HEIGHT_M
 from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import PREPARE_S, fallen_states
@@ -105,6 +105,9 @@ def default_config() -> config_dict.ConfigDict:
     # hands `joystick_policy` over after the loop's push test shoved it (a torso impulse, forward or backward),
     # from `bank_starts` standing starts. The three shares sum to at most 1
     cfg.push_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=500_000)
+    # the composite's upright member in the world (training/envs/upright.py; ours): a joystick artifact that
+    # drives whenever the waist is at or above the teacher's switch height; "" = the getup expert alone
+    cfg.upright_policy = ""
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
     # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
     # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with
@@ -206,11 +209,17 @@ class GetupBase(base.T1Env):
     def _physics(self, state, action):
         info = dict(state.info)
         info["rng"], k_obs = jax.random.split(info["rng"])
-        data, info["runtime_target"] = self.physics_step(state.data, self.motor_targets(action),
+        data, info["runtime_target"] = self.physics_step(state.data, self._joint_targets(state, action, info),
                                                          info["runtime_target"])
         info.update(self.body_readings(data))
         info["up"] = self.up_vector(data)
         return data, info, k_obs
+
+    def _joint_targets(self, state, action, info):
+        """The joint targets [rad] applied this tick (the keyframe expert's env may hand some to its upright
+        member, updating info)."""
+        del state, info
+        return self.motor_targets(action)
 
     def _privileged_extra(self, info):
         """Critic extras of the getup tasks: gate met, ‖u − e_z‖."""
@@ -247,6 +256,8 @@ class Getup(GetupBase):
                                         rc.left_leg_waypoints, int(rc.bank_size))
             self._path_bank = jnp.asarray(bank[starts], jnp.float32)
         self._fallen_banks = self._load_fallen_banks()
+        path = self._config.get("upright_policy", "")   # runs made before it have none
+        self._upright = upright.UprightMember(path, self) if path else None
 
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
         """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn."""
@@ -297,12 +308,24 @@ class Getup(GetupBase):
     def _start_info(self, rng, data, kind) -> dict:
         info = super()._start_info(rng, data, kind)
         info["gate"] = self.gate_state(info, jnp.zeros((), dtype=bool))
+        if self._upright is not None:
+            info["upright_last_act"] = self._upright.initial_last_action()
         return info
+
+    def _joint_targets(self, state, action, info):
+        q_des = self.motor_targets(action)
+        if self._upright is None:
+            return q_des
+        q_des, info["upright_last_act"] = self._upright.targets(
+            self, state.data, state.info["waist_height"], q_des, state.info["upright_last_act"])
+        return q_des
 
     def gate_state(self, info, was_on) -> jax.Array:
         """The gate the full task's rewards use: §4.8's per-step condition, latched from the step it first
         holds until the trunk is down (config.gate_latches; the module docstring says why)."""
         now = G.gate(info["trunk_height"], info["up"])
+        if self._upright is not None:   # the upright member's stand counts as past the kneel (upright.py)
+            now = now | self._upright.holds_standing(info["waist_height"], self.standing(info))
         if not self._config.get("gate_latches", True):
             return now
         return (now | was_on) & (info["trunk_height"] >= FALLEN_TRUNK_HEIGHT_M)
