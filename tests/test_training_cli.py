@@ -266,6 +266,31 @@ def test_export_checkpoint_writes_an_earlier_epoch(toy_runs, capsys):
 
 
 @pytest.mark.slow
+def test_export_checkpoint_mid_run_takes_env_fields_from_the_from_run(toy_runs, tmp_path):
+    """A run still going has no export yet: the manifest's env fields come from its --from run's export,
+    the provenance from its own state."""
+    import shutil
+    from training.train import export_checkpoint
+    parent = toy_runs["joystick"]
+    child = tmp_path / "child"
+    shutil.copytree(parent / checkpoints.CHECKPOINT_DIR, child / checkpoints.CHECKPOINT_DIR)
+    state = json.loads((parent / checkpoints.RUN_STATE).read_text())
+    steps = toy_runs["joystick_first"]
+    state.update(name="child", init=str(checkpoints.checkpoint_path(parent, steps)),
+                 calls=[{**state["calls"][-1], "command": "the child's command"}])
+    checkpoints.save_run_state(child, state)
+    _, _, _, mid = read_artifact(export_checkpoint(child, steps, "child_mid"))
+    _, _, _, like = read_artifact(parent / "joystick.safetensors")
+    assert mid["name"] == "child_mid" and mid["obs_terms"] == like["obs_terms"]
+    assert mid["default_pose"] == like["default_pose"] and mid["action_scale"] == like["action_scale"]
+    assert mid["provenance"]["steps"] == steps and mid["provenance"]["command"] == "the child's command"
+    state["init"] = ""
+    checkpoints.save_run_state(child, state)
+    with pytest.raises(FileNotFoundError, match="no export of the run"):
+        export_checkpoint(child, steps, "child_mid2")
+
+
+@pytest.mark.slow
 def test_distill_goes_on_from_a_run(toy_runs, tmp_path, capsys):
     """--from: a new run starts from the old run's newest checkpoint; phases, steps and curve continue."""
     from training.distill import STATE_FILE
