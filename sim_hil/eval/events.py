@@ -20,6 +20,8 @@ Definitions (one sample = one control tick; the series is read causally, left to
   rise of attempt_rise_m from the new low. A stand-up ends the attempt in progress; if the down phase
   had no counted rise yet (a series too coarse to see it), the stand-up itself counts as one. Hysteresis of one attempt_rise_m both ways is what keeps
   wobbling and settling from counting as attempts.
+- failed after the switch (with a waist height series): a failed attempt during which the waist reached
+  the composite's switch height, so the upright policy had the robot when it dropped back.
 - success: the series does not end down (every down phase ended with a stand-up). A series that never
   went down is a success; one whose last stand-up has less than stand_hold_s of data after it is not.
 - time_to_stand_s: from the start of the FIRST down phase (t[0] for a fallen start, else the first fall

@@ -20,6 +20,10 @@ within 0.573° of vertical, and the joystick expert stands 1.6° off it (‖u �
 it the gate held in 1.5 steps of a 500-step eval episode (getup_kd_bank's own stand: 363) and a stand
 after the hand-over paid less than kneeling. While the upright member drives and the robot stands (events'
 definition: trunk ≥ 0.6 m, up_z ≥ 0.9) the gate counts as met: the robot is past the kneel by construction.
+
+Measured (training/runs/getup_upright, _g099): fine-tuned this way from getup_kd_bank, the hand-overs got
+WORSE (push landings 1.48 → 1.62 attempts at 11.5 M; at discount 0.99, 1.68 at 5 M). Keep it off until the
+policy loss can leave out the steps whose action the member overrides (that run's PROGRESS.md).
 """
 from __future__ import annotations
 
