@@ -15,6 +15,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from messages import contract
+from training import checkpoints
 from training import observation as obsdef
 from training.artifact import CONTROL_DT_S, SCHEMA_VERSION, read_artifact, write_artifact  # noqa: F401 (API)
 
@@ -215,3 +216,50 @@ def write_golden(directory) -> list[Path]:
     vectors_path = directory / GOLDEN_VECTORS
     vectors_path.write_text(json.dumps(document, indent=1) + "\n")
     return [artifact_path, vectors_path]
+
+
+def run_provenance(state: dict, steps: int, preset: str) -> dict:
+    """The manifest's provenance of a run's params at `steps`: its calls so far (a run still going has its
+    current call recorded at every checkpoint)."""
+    last = state["calls"][-1] if state["calls"] else {}
+    return {"git_commit": checkpoints.git_commit(), "steps": int(steps), "date": checkpoints.utc_now(),
+            "command": " ; ".join(c["command"] for c in state["calls"] if c["command"]) or "unknown",
+            "device": last.get("device", "unknown"), "minutes": round(float(state["minutes"]), 2),
+            "env_steps_per_s": state.get("env_steps_per_s", 0.0), "algorithm": "brax ppo",
+            "preset": preset, "init": state.get("init") or ""}
+
+
+def _env_fields_artifact(run_dir: Path, state: dict) -> Path:
+    """An artifact with the run's env and network fields: its own newest export, or, mid-run (no export
+    yet), the export of the run it was started --from (same model, observation and network)."""
+    own = run_dir / f"{state['name']}.safetensors"
+    init = Path(state.get("init") or "")
+    if own.exists() or init.parent.name != checkpoints.CHECKPOINT_DIR:
+        return own
+    parent = init.parent.parent
+    try:
+        return parent / f"{checkpoints.load_run_state(parent)['name']}.safetensors"
+    except (OSError, ValueError, KeyError):
+        return own     # named in the error below
+
+
+def export_checkpoint(run_dir, env_steps: int, name: str) -> Path:
+    """A run's kept checkpoint at `env_steps` → run_dir/<name>.safetensors: the env and network fields of
+    the run's export (mid-run: its --from run's), this run's provenance at that checkpoint's steps. A
+    campaign screens its checkpoints and keeps the best one (e.g. the cheapest getup that still stands)."""
+    from training.train import exported_as_trained
+    run_dir = Path(run_dir)
+    state = checkpoints.load_run_state(run_dir)
+    ckpt = checkpoints.kept_checkpoint(run_dir, env_steps, f"{env_steps} env steps")
+    like = _env_fields_artifact(run_dir, state)
+    if not like.exists():
+        raise FileNotFoundError(f"{like}: no export of the run (nor of a --from run) to take the manifest's "
+                                "env fields from")
+    manifest = {k: v for k, v in read_artifact(like)[3].items() if k not in ("content_hash", "provenance")}
+    manifest["provenance"] = {**run_provenance(state, env_steps, state["preset"]),
+                              "exported_from": f"{ckpt} (env fields from {like})"}
+    manifest.update(name=name, trained=exported_as_trained(int(env_steps), state["preset"], state["env_config"]))
+    path = run_dir / f"{name}.safetensors"
+    export_brax_ppo(tuple(checkpoints.load_checkpoint(ckpt)), manifest, path,
+                    observations_normalized=bool(state["ppo_config"]["normalize_observations"]))
+    return path
