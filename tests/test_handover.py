@@ -11,7 +11,7 @@ import pytest
 
 from sim_hil import model as t1model
 from training import envs
-from training.envs import handover
+from training.envs import handover, joystick
 from training.teacher import WAIST_SWITCH_HEIGHT_M
 
 GETUP = "policies/getup_keyframe.safetensors"
@@ -41,7 +41,10 @@ def test_place_turns_the_root_and_its_world_velocity_only():
 
 
 @pytest.mark.parametrize("over, why", [({"handover.prob": 0.5}, "needs handover.getup_policy"),
-                                       ({"handover.prob": 1.5, "handover.getup_policy": GETUP}, r"in \[0, 1\]")])
+                                       ({"handover.prob": 1.5, "handover.getup_policy": GETUP}, r"in \[0, 1\]"),
+                                       ({"handover.prob": 0.5, "handover.getup_policy": GETUP,
+                                         "handover.push_prob": 0.3}, "needs handover.joystick_policy"),
+                                       ({"handover.zero_command_prob": 1.5}, r"zero_command_prob must be in \[0, 1\]")])
 def test_joystick_env_refuses_a_bad_handover_config(over, why):
     with pytest.raises(ValueError, match=why):
         envs.make("joystick", config_overrides=over)
@@ -73,7 +76,8 @@ def test_bank_holds_the_states_where_the_waist_passes_the_switch(bank):
 @pytest.mark.slow
 def test_joystick_env_starts_from_the_bank(bank):
     env = envs.make("joystick", config_overrides={"handover.prob": 1.0, "handover.getup_policy": GETUP,
-                                                  "handover.bank_starts": BANK_STARTS, "episode_length": 20})
+                                                  "handover.bank_starts": BANK_STARTS, "episode_length": 20,
+                                                  "handover.zero_command_prob": 1.0})
     state = jax.jit(env.reset)(jax.random.PRNGKey(3))
     q = np.asarray(state.data.qpos)
     row = int(np.argmin(np.abs(bank.qpos[:, 7:] - q[7:]).sum(axis=1)))
@@ -81,6 +85,7 @@ def test_joystick_env_starts_from_the_bank(bank):
     np.testing.assert_allclose(q[2], bank.qpos[row, 2], atol=1e-6)             # its height
     expected = np.clip((bank.joint_targets[row] - np.asarray(env._default_pose)) / 0.5, -1.0, 1.0)
     np.testing.assert_allclose(np.asarray(state.info["last_act"]), expected, atol=1e-6)
+    np.testing.assert_array_equal(np.asarray(state.info["command"]), 0.0)      # stand, as in the push test
 
 
 # ------------------------------------------------------------------ knockdown starts (the other hand-over)
@@ -148,3 +153,21 @@ def test_evaluate_refuses_bad_starts(over, why, tmp_path):
     from training.evaluate import evaluate
     with pytest.raises(ValueError, match=why):
         evaluate(GETUP, tmp_path, seeds=1, seconds=0.2, backend="cpu", **over)
+
+
+@pytest.mark.slow
+def test_handover_bank_rises_from_knockdown_landings(bank, knock_bank):
+    config = envs.default_config("joystick").handover
+    config.update(prob=1.0, getup_policy=GETUP, knockdown_prob=1.0, joystick_policy=JOYSTICK)
+    landings = joystick._landing_overrides(config)
+    assert landings == {"knockdown_starts.prob": 1.0, "knockdown_starts.joystick_policy": JOYSTICK}
+    landed = handover.handover_bank(GETUP, BANK_STARTS, handover_seed(),
+                                    {**landings, "knockdown_starts.bank_starts": KNOCK_STARTS})
+    mj = t1model.load_model()
+    data = mujoco.MjData(mj)
+    for qpos in landed.qpos:
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(mj, data)
+        assert WAIST_SWITCH_HEIGHT_M <= data.xpos[mj.body("Waist").id, 2] < WAIST_SWITCH_HEIGHT_M + 0.1
+    # the rises began at the knockdown landings, not at the fallen starts of the same seeds
+    assert not any(np.allclose(q, p, atol=1e-4) for q in landed.qpos for p in bank.qpos)

@@ -67,13 +67,16 @@ class HandoverBank(NamedTuple):
     joint_targets: np.ndarray   # (n, 23) the getup expert's last joint targets [rad]
 
 
-def handover_bank(getup_policy: str, num_starts: int, seed: int) -> HandoverBank:
+def handover_bank(getup_policy: str, num_starts: int, seed: int, landing_overrides: dict | None = None
+                  ) -> HandoverBank:
     """Hand-over states of `getup_policy` (artifact or checkpoint) from `num_starts` random draws of a bank of
-    `num_starts` seeded fallen starts (seed, seed + 1, …); identical states (a start drawn twice) kept once."""
+    `num_starts` seeded fallen starts (seed, seed + 1, …); identical states (a start drawn twice) kept once.
+    `landing_overrides` (getup config keys such as "push_starts.prob") replace shares of those fallen starts
+    with the getup env's landing banks, so that the rises begin where a push or knockdown left the robot."""
     from training import envs
     env = envs.make("getup", config_overrides={"backend": "cpu", "start_probs": [1.0, 0.0, 0.0],
                                                "fallen_bank_size": int(num_starts), "fallen_seed": int(seed),
-                                               "obs_noise_scale": 0.0})
+                                               "obs_noise_scale": 0.0, **(landing_overrides or {})})
     getup = load_expert(getup_policy, "getup")
     if tuple(map(tuple, env.obs_terms)) != getup.obs_terms:
         raise ValueError(f"{getup_policy}: observation terms {getup.obs_terms} are not the getup env's")

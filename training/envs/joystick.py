@@ -40,8 +40,14 @@ def default_config() -> config_dict.ConfigDict:
     cfg.push = config_dict.create(enable=True, interval_range_s=[5.0, 10.0], magnitude_range_mps=[0.1, 1.0])
     # hand-over starts (training/envs/handover.py; ours): this share of episodes starts in the state where the
     # stitched teacher hands the getup expert `getup_policy`'s rise over, from `bank_starts` fallen starts
-    # (seeds from `seed`, apart from the evaluations' 0 …); 0 = standing starts only, as Playground's
-    cfg.handover = config_dict.create(prob=0.0, getup_policy="", bank_starts=256, seed=100_000)
+    # (seeds from `seed`, apart from the evaluations' 0 …); 0 = standing starts only, as Playground's.
+    # push_prob / knockdown_prob of those rises begin instead where `joystick_policy` landed after the loop's
+    # push test / a knockdown (the getup env's push_starts / knockdown_starts banks), not at a fallen start.
+    # zero_command_prob: a hand-over episode's command is zero with this probability (the loop's push and
+    # getup tests stand the risen robot at zero command), else drawn as any episode's
+    cfg.handover = config_dict.create(prob=0.0, getup_policy="", bank_starts=256, seed=100_000,
+                                      push_prob=0.0, knockdown_prob=0.0, joystick_policy="",
+                                      zero_command_prob=0.0)
     cfg.reward = config_dict.create(
         scales=config_dict.create(
             tracking_lin_vel=1.0, tracking_ang_vel=0.5, lin_vel_z=0.0, ang_vel_xy=-0.15, orientation=-1.0,
@@ -51,6 +57,17 @@ def default_config() -> config_dict.ConfigDict:
         tracking_sigma=0.25,
         max_foot_height_m=0.12)
     return cfg
+
+
+def _landing_overrides(h: config_dict.ConfigDict) -> dict:
+    """The getup env's config overrides that start `h.push_prob` / `h.knockdown_prob` of the hand-over bank's
+    rises from push-test / knockdown landings (runs made before these keys existed have none: fallen only)."""
+    shares = {"push_starts": h.get("push_prob", 0.0), "knockdown_starts": h.get("knockdown_prob", 0.0)}
+    if any(p > 0 for p in shares.values()) and not h.get("joystick_policy"):
+        raise ValueError("handover.push_prob or handover.knockdown_prob > 0 needs handover.joystick_policy "
+                         "(the joystick artifact or checkpoint that is pushed over)")
+    return {f"{group}.{key}": value for group, prob in shares.items() if prob > 0
+            for key, value in (("prob", float(prob)), ("joystick_policy", h.joystick_policy))}
 
 
 class Joystick(base.T1Env):
@@ -67,12 +84,13 @@ class Joystick(base.T1Env):
         self._pose_weights = jnp.array(POSE_WEIGHTS)
         self._handover = None
         h = self._config.get("handover")   # runs made before hand-over starts existed have none
-        if h is not None and not 0.0 <= h.prob <= 1.0:
-            raise ValueError(f"handover.prob must be in [0, 1], got {h.prob}")
+        for key in ("prob", "push_prob", "knockdown_prob", "zero_command_prob"):
+            if h is not None and not 0.0 <= h.get(key, 0.0) <= 1.0:
+                raise ValueError(f"handover.{key} must be in [0, 1], got {h[key]}")
         if h is not None and h.prob > 0:
             if not h.getup_policy:
                 raise ValueError("handover.prob > 0 needs handover.getup_policy (a getup artifact or checkpoint)")
-            bank = handover.handover_bank(h.getup_policy, int(h.bank_starts), int(h.seed))
+            bank = handover.handover_bank(h.getup_policy, int(h.bank_starts), int(h.seed), _landing_overrides(h))
             self._handover = jax.tree.map(jnp.asarray, bank)
 
     # ------------------------------------------------------------------ commands
@@ -101,14 +119,15 @@ class Joystick(base.T1Env):
         qvel = jnp.zeros(self._mj_model.nv).at[0:6].set(
             jax.random.uniform(k_v, (6,), minval=-cfg.root_vel_range, maxval=cfg.root_vel_range))
         last_act = jnp.zeros(base.NUM_JOINTS)
+        command = self.sample_command(k_cmd)
         if self._handover is not None:
             rng, k_hand = jax.random.split(rng)
-            qpos, qvel, last_act = self._maybe_handover_start(k_hand, qpos, qvel, last_act, yaw)
+            qpos, qvel, last_act, command = self._maybe_handover_start(k_hand, qpos, qvel, last_act, yaw, command)
         data = self.make_data(qpos, qvel)
 
         info = {
             "rng": rng,
-            "command": self.sample_command(k_cmd),
+            "command": command,
             "command_step": jnp.array(0, jnp.int32),
             "last_act": last_act,
             "motor_targets": self._default_pose,
@@ -128,16 +147,19 @@ class Joystick(base.T1Env):
         metrics["swing_peak"] = jnp.zeros(())
         return mjx_env.State(data, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
 
-    def _maybe_handover_start(self, rng, qpos, qvel, last_act, yaw):
+    def _maybe_handover_start(self, rng, qpos, qvel, last_act, yaw, command):
         """With probability handover.prob, a hand-over state instead of the standing start, at the standing
-        start's place and heading; its last action = the getup expert's last targets in this env's map."""
-        k_use, k_idx = jax.random.split(rng)
+        start's place and heading; its last action = the getup expert's last targets in this env's map; its
+        command zero with probability handover.zero_command_prob."""
+        k_use, k_idx, k_zero = jax.random.split(rng, 3)
         bank = self._handover
         idx = jax.random.randint(k_idx, (), 0, bank.qpos.shape[0])
         hq, hv = handover.place(bank.qpos[idx], bank.qvel[idx], qpos[0:2], yaw)
         h_act = obsdef.targets_to_action(self._default_pose, self._action_scale, bank.joint_targets[idx], jnp)
         use = jax.random.uniform(k_use) < self._config.handover.prob
-        return jnp.where(use, hq, qpos), jnp.where(use, hv, qvel), jnp.where(use, h_act, last_act)
+        zero = use & jax.random.bernoulli(k_zero, self._config.handover.get("zero_command_prob", 0.0))
+        return (jnp.where(use, hq, qpos), jnp.where(use, hv, qvel), jnp.where(use, h_act, last_act),
+                jnp.where(zero, jnp.zeros(3), command))
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         info = dict(state.info)
