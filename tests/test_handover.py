@@ -155,12 +155,23 @@ def test_evaluate_refuses_bad_starts(over, why, tmp_path):
         evaluate(GETUP, tmp_path, seeds=1, seconds=0.2, backend="cpu", **over)
 
 
+def _landings(**shares) -> dict:
+    config = envs.default_config("joystick").handover
+    config.update(prob=1.0, getup_policy=GETUP, joystick_policy=JOYSTICK, **shares)
+    return joystick._landing_overrides(config)
+
+
+def test_landing_shares_become_the_getup_envs_bank_overrides():
+    assert _landings() == {}
+    assert _landings(knockdown_prob=1.0) == {"knockdown_starts.prob": 1.0, "knockdown_starts.joystick_policy": JOYSTICK}
+    assert _landings(push_prob=0.4, knockdown_prob=0.2) == {
+        "push_starts.prob": 0.4, "push_starts.joystick_policy": JOYSTICK,
+        "knockdown_starts.prob": 0.2, "knockdown_starts.joystick_policy": JOYSTICK}
+
+
 @pytest.mark.slow
 def test_handover_bank_rises_from_knockdown_landings(bank, knock_bank):
-    config = envs.default_config("joystick").handover
-    config.update(prob=1.0, getup_policy=GETUP, knockdown_prob=1.0, joystick_policy=JOYSTICK)
-    landings = joystick._landing_overrides(config)
-    assert landings == {"knockdown_starts.prob": 1.0, "knockdown_starts.joystick_policy": JOYSTICK}
+    landings = _landings(knockdown_prob=1.0)
     landed = handover.handover_bank(GETUP, BANK_STARTS, handover_seed(),
                                     {**landings, "knockdown_starts.bank_starts": KNOCK_STARTS})
     mj = t1model.load_model()

@@ -84,8 +84,8 @@ class Joystick(base.T1Env):
         self._pose_weights = jnp.array(POSE_WEIGHTS)
         self._handover = None
         h = self._config.get("handover")   # runs made before hand-over starts existed have none
-        for key in ("prob", "push_prob", "knockdown_prob", "zero_command_prob"):
-            if h is not None and not 0.0 <= h.get(key, 0.0) <= 1.0:
+        for key in ("prob", "push_prob", "knockdown_prob", "zero_command_prob") if h is not None else ():
+            if not 0.0 <= h.get(key, 0.0) <= 1.0:
                 raise ValueError(f"handover.{key} must be in [0, 1], got {h[key]}")
         if h is not None and h.prob > 0:
             if not h.getup_policy:

@@ -71,11 +71,13 @@ def main() -> None:
     features = {"trunk vz [m/s]": bank.qvel[:, 2], "trunk |v_xy| [m/s]": np.hypot(bank.qvel[:, 0], bank.qvel[:, 1]),
                 "|ω| [rad/s]": np.linalg.norm(bank.qvel[:, 3:6], axis=1), "tilt [deg]": tilt_deg(bank.qpos[:, 3:7]),
                 "|q̇| joints [rad/s]": np.linalg.norm(bank.qvel[:, 6:], axis=1)}
-    print(f"{bank.qpos.shape[0]} distinct hand-overs of {args.getup} from push-test landings of {args.landing_joystick}")
+    print(f"{bank.qpos.shape[0]} distinct hand-overs of {args.getup} from push-test landings of "
+          f"{args.landing_joystick}")
     for path in args.joystick:
         held = held_after_handover(env, bank, path)
         print(f"\n{path}: fell (waist < {FALLEN_WAIST_M} m within {HOLD_TICKS} ticks) after "
-              f"{(~held).sum()} of {held.size} hand-overs\n| at the hand-over, 10 / 50 / 90 % | held | fell |\n|---|---|---|")
+              f"{(~held).sum()} of {held.size} hand-overs\n"
+              "| at the hand-over, 10 / 50 / 90 % | held | fell |\n|---|---|---|")
         for name, value in features.items():
             row = [np.percentile(value[mask], [10, 50, 90]).round(2) if mask.any() else "—" for mask in (held, ~held)]
             print(f"| {name} | {' / '.join(map(str, row[0]))} | {' / '.join(map(str, row[1]))} |")
