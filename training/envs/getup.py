@@ -17,7 +17,8 @@ Stages (config.stage), rewards from getup_rewards.py (formulas there):
   a per-step-gated fine-tune unlearned the stand-up within 2 M steps (success from the kneel 181 → 0,
   gate 14 → 1 steps per episode: every small tilt paid the kneel reward, so it stayed kneeling). Latched,
   the kneel keyframe (trunk 0.405 m, upright) is where the standing phase begins, as §4.8 describes it.
-reward per control step = Height + Pose − energy_weight·energy (then × ctrl_dt, as every task here).
+reward per control step = Height + Pose − energy_weight·energy − rise_pace.weight·pace (× ctrl_dt, as every
+task here); the pace cost (ours, off by default) is getup_rewards.rise_pace_cost.
 Fine-tunes: energy_weight > 0 (the energy fine-tune; 0 before it, §4.7), obs_noise_scale > 0 (the
 robustness fine-tune: U(−1, 1)·obs_noise_scale added to EVERY observation entry, §4.6; the seed's is 1).
 Kneel targets: the model's `kneel` keyframe (trunk 0.405 m, waist from its kinematics), q_kneel its joints;
@@ -108,6 +109,9 @@ def default_config() -> config_dict.ConfigDict:
     # the composite's upright member in the world (training/envs/upright.py; ours): a joystick artifact that
     # drives whenever the waist is at or above the teacher's switch height; "" = the getup expert alone
     cfg.upright_policy = ""
+    # the hand-over's pace (getup_rewards.rise_pace_cost; ours): weight × trunk ‖v_xy‖² [m²/s²] while the
+    # waist is at or above waist_from_m [m]; 0 = off
+    cfg.rise_pace = config_dict.create(weight=0.0, waist_from_m=0.4)
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
     # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
     # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with
@@ -258,6 +262,10 @@ class Getup(GetupBase):
         self._fallen_banks = self._load_fallen_banks()
         path = self._config.get("upright_policy", "")   # runs made before it have none
         self._upright = upright.UprightMember(path, self) if path else None
+        pace = self._config.get("rise_pace")   # runs made before it have none: off
+        self._pace_weight, self._pace_waist_m = (pace.weight, pace.waist_from_m) if pace else (0.0, 0.0)
+        if self._pace_weight < 0.0:
+            raise ValueError(f"rise_pace.weight must be >= 0 (a cost), got {self._pace_weight}")
 
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
         """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn."""
@@ -348,8 +356,8 @@ class Getup(GetupBase):
 
     @staticmethod
     def metric_names():
-        return ("reward/height", "reward/pose", "reward/energy", "gate", "success", "success_from_kneel",
-                "success_from_fallen")
+        return ("reward/height", "reward/pose", "reward/energy", "reward/pace", "gate", "success",
+                "success_from_kneel", "success_from_fallen")
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
         """Height Reward, Pose Reward (the stage's form) and the energy cost of the state after the step."""
@@ -366,15 +374,16 @@ class Getup(GetupBase):
             height, pose = stand_h, stand_p
         else:
             height, pose = G.gated_height_reward(ok, kneel_h, stand_h), G.gated_pose_reward(ok, kneel_p, stand_p)
-        return {"height": height, "pose": pose, "gate": ok,
-                "energy": self.energy_cost(data)}
+        pace = G.rise_pace_cost(data.qvel[0:2], info["waist_height"], self._pace_waist_m)
+        return {"height": height, "pose": pose, "gate": ok, "energy": self.energy_cost(data), "pace": pace}
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         data, info, k_obs = self._physics(state, action)
         info["gate"] = self.gate_state(info, state.info["gate"])
         terms = self.reward_terms(data, info)
         scaled = {"height": terms["height"], "pose": terms["pose"],
-                  "energy": -self._config.energy_weight * terms["energy"]}
+                  "energy": -self._config.energy_weight * terms["energy"],
+                  "pace": -self._pace_weight * terms["pace"]}
         reward = sum(scaled.values()) * self.dt
         info["last_act"] = action
         obs = self._observe(data, info, k_obs, self._privileged_extra(info))

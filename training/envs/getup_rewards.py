@@ -7,6 +7,8 @@ Height & orientation (§4.7), per body part p ∈ {torso, waist} with desired he
     reward   = 2·r_ori·(r_height + 1) / 3
 Pose (§4.7): exp(−0.5·‖q − q_ref‖²) over the 23 joint angles [rad].
 Energy cost (§4.7): Σ_i |v_i · τ_i / τmax_i| [rad/s], used only in the energy fine-tune.
+Rise pace (ours, not the seed's; off by default): ‖v_xy‖² [m²/s²] of the trunk while the waist is at or above a
+height, so that the rise reaches the teacher's 0.5 m hand-over slow enough for the joystick expert to hold.
 Gate (§4.8), exactly as written: height  0.4 − min(h_torso, 0.4) < 0.005 m   (i.e. h_torso > 0.395 m)
                                    upright ‖u − e_z‖ < 0.01              (a tilt below 0.573°)
 Gated terms (§4.8):
@@ -52,6 +54,13 @@ def height_orientation_reward(h_torso, h_waist, up_z, torso_des, waist_des):
 
 def pose_reward(q, q_ref):
     return jnp.exp(-0.5 * jnp.sum(jnp.square(q - q_ref), axis=-1))
+
+
+def rise_pace_cost(trunk_vel_xy, waist_height, waist_from_m):
+    """‖v_xy‖² [m²/s²] of the trunk (world frame) while the waist is at or above waist_from_m [m], else 0.
+    Why: the hand-overs the joystick expert drops arrive at the switch at 1.1 m/s, the held ones at 0.35 m/s
+    (median; training/runs/joystick_landings/handover_falls.py)."""
+    return jnp.where(waist_height >= waist_from_m, jnp.sum(jnp.square(trunk_vel_xy), axis=-1), 0.0)
 
 
 def up_error(up):
