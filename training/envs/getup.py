@@ -17,8 +17,7 @@ Stages (config.stage), rewards from getup_rewards.py (formulas there):
   a per-step-gated fine-tune unlearned the stand-up within 2 M steps (success from the kneel 181 → 0,
   gate 14 → 1 steps per episode: every small tilt paid the kneel reward, so it stayed kneeling). Latched,
   the kneel keyframe (trunk 0.405 m, upright) is where the standing phase begins, as §4.8 describes it.
-reward per control step = Height + Pose − energy_weight·energy − rise_pace.weight·pace (× ctrl_dt, as every
-task here); the pace cost (ours, off by default) is getup_rewards.rise_pace_cost.
+reward per control step = (Height + Pose − energy_weight·energy − rise_pace.weight·pace) × ctrl_dt (pace: ours).
 Fine-tunes: energy_weight > 0 (the energy fine-tune; 0 before it, §4.7), obs_noise_scale > 0 (the
 robustness fine-tune: U(−1, 1)·obs_noise_scale added to EVERY observation entry, §4.6; the seed's is 1).
 Kneel targets: the model's `kneel` keyframe (trunk 0.405 m, waist from its kinematics), q_kneel its joints;
@@ -32,10 +31,9 @@ says nothing of terminations; this one is ours, and why: stage 2's rewards pay s
 posture (pose(q, q_init)) about as much as height, so without it PPO learned to fall and lie with straight
 legs (v3: 1.23 per step lying against 0.90 holding the kneel), and with a trunk-height bound of 0.30 m
 alone it learned to lean back to trunk 0.32 m, up_z 0.72, straightening its legs (v5: 1.0 per step).
-Assist stages (ours, for stage 2; never exported as trained): config.harness (an elastic rope from above)
-and config.gravity_scale (training/envs/assists.py), both off by default. Stage 2's reverse curriculum
-(config.reverse_curriculum, training/envs/start_path.py; ours, off by default) changes only where episodes
-start — part of the way up a lunge from the kneel — not the physics, so it is not an assist.
+Assist stages (ours, for stage 2; never exported as trained, off by default): config.harness (an elastic rope
+from above), config.gravity_scale (assists.py). Stage 2's reverse curriculum (config.reverse_curriculum,
+start_path.py; ours, off by default) moves only where episodes start up the lunge: not an assist.
 Stage 1 and the full task start on the floor and pay pose(q, q_kneel) before the gate, where lying
 straight earns nothing, so they keep the seed's episodes.
 """
@@ -109,8 +107,7 @@ def default_config() -> config_dict.ConfigDict:
     # the composite's upright member in the world (training/envs/upright.py; ours): a joystick artifact that
     # drives whenever the waist is at or above the teacher's switch height; "" = the getup expert alone
     cfg.upright_policy = ""
-    # the hand-over's pace (getup_rewards.rise_pace_cost; ours): weight × trunk ‖v_xy‖² [m²/s²] while the
-    # waist is at or above waist_from_m [m]; 0 = off
+    # the rise's pace (getup_rewards.rise_pace_cost; ours): weight·‖v_xy‖² [m²/s²] at waist ≥ waist_from_m [m]
     cfg.rise_pace = config_dict.create(weight=0.0, waist_from_m=0.4)
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
     # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
