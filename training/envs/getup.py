@@ -357,7 +357,7 @@ class Getup(GetupBase):
                 "success_from_kneel", "success_from_fallen")
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
-        """Height Reward, Pose Reward (the stage's form) and the energy cost of the state after the step."""
+        """Height and Pose Rewards (the stage's form), the energy and rise-pace costs of the state after the step."""
         q = data.qpos[7:]
         stage = self._config.stage
         kneel_h = self.height_orientation(info, self._kneel_targets)
