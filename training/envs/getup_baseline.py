@@ -24,7 +24,8 @@ import jax.numpy as jnp
 from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
-from training.envs.getup import GetupBase, getup_common_config
+from training.envs.getup import GetupBase
+from training.envs.getup_config import getup_common_config
 
 METRIC_NAMES = ("reward/height", "reward/energy", "success", "success_from_fallen")
 

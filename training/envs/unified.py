@@ -38,7 +38,8 @@ from mujoco_playground._src import mjx_env
 from training import observation as obsdef
 from training.envs import base, handover, wall_course
 from training.envs import joystick_rewards as R
-from training.envs.getup import START_KINDS, GetupBase, getup_common_config
+from training.envs.getup import START_KINDS, GetupBase
+from training.envs.getup_config import getup_common_config
 from training.envs.joystick import Joystick
 from training.envs.joystick import default_config as joystick_config
 from training.teacher import WAIST_SWITCH_HEIGHT_M

@@ -1,0 +1,75 @@
+"""The getup tasks' configs: what the keyframe expert and the baseline share (getup_common_config) and the
+keyframe expert's own (default_config). Why each setting is what it is: training/envs/getup.py's docstring."""
+from __future__ import annotations
+
+from ml_collections import config_dict
+
+from training import observation as obsdef
+from training.envs import base
+from training.envs import getup_rewards as G
+from training.envs.fallen import PREPARE_S
+
+GETUP_ACTION_SCALE_RAD = 2.0    # rad per unit action (see getup_common_config)
+
+
+def getup_common_config() -> config_dict.ConfigDict:
+    """Settings the getup expert and the baseline share (starts, model, observation)."""
+    cfg = base.base_config()
+    cfg.collision = "full_body"
+    # ±0.5 rad around home (the joystick's scale) cannot even reach the kneel keyframe (knee 1.9 rad vs
+    # home 0.4): with it both stage-2 runs learned to lie flat with straight legs. 2 rad per unit puts the
+    # kneel at |a| ≈ 0.75, off tanh saturation; base.py caps it per joint at the joint's range.
+    cfg.action_scale = GETUP_ACTION_SCALE_RAD
+    cfg.episode_length = 500
+    cfg.obs_terms = [list(t) for t in obsdef.TERMS_GETUP]
+    cfg.obs_noise_scale = 0.0            # U(−1, 1)·this per observation entry; 0 = off (seed's fine-tune: 1)
+    cfg.start_probs = [0.4, 0.4, 0.2]    # (fallen, kneeling, standing) for the full task
+    cfg.fallen_bank_size = 128           # distinct precomputed fallen starts
+    cfg.fallen_seed = 0
+    # fallen starts = the state after the runtime's PREPARE ramp of this length [s] (training/envs/fallen.py:
+    # the loop hands the policy that robot, not the settled fall); 0 = the settled fall itself
+    cfg.fallen_prepare_s = PREPARE_S
+    cfg.standing_targets_m = [G.STANDING_TORSO_M, G.STANDING_WAIST_M]   # (torso, waist) after the gate
+    # assist stages (training/envs/assists.py; ours, not the seed's): × the model's gravity, and the
+    # elastic harness (stiffness 0 = none)
+    cfg.gravity_scale = 1.0
+    cfg.harness = config_dict.create(stiffness_n_per_m=0.0, anchor_height_m=3.0, attach_above_trunk_m=0.3,
+                                     slack_trunk_height_m=G.STANDING_TORSO_M)
+    return cfg
+
+
+def default_config() -> config_dict.ConfigDict:
+    cfg = getup_common_config()
+    cfg.stage = "full"
+    cfg.energy_weight = 0.0
+    cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)
+    cfg.stage2_fall_trunk_height_m = 0.35   # stage 2 ends when the trunk drops below this [m] (docstring)
+    cfg.stage2_fall_up_z = 0.7              # ... or when the trunk's up_z falls below this (46° of tilt)
+    # knockdown starts (training/envs/handover.py knockdown_bank; ours): this share of the fallen starts is
+    # instead where the teacher hands `joystick_policy`, knocked over by a push, to the getup expert mid-fall
+    # (from `bank_starts` standing starts, seeds from `seed`); 0 = the seed's fallen starts only
+    cfg.knockdown_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=200_000)
+    # wall starts (handover.wall_bank; ours): this share of the fallen starts is where the teacher hands
+    # `joystick_policy` over after it walked into the low-wall course (wall_course.py; the course is then in
+    # the world), from `bank_starts` approaches
+    cfg.wall_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=400_000)
+    # push-test starts (handover.push_test_bank; ours): this share of the fallen starts is where the teacher
+    # hands `joystick_policy` over after the loop's push test shoved it (a torso impulse, forward or backward),
+    # from `bank_starts` standing starts. The three shares sum to at most 1
+    cfg.push_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=500_000)
+    # the composite's upright member in the world (training/envs/upright.py; ours): a joystick artifact that
+    # drives whenever the waist is at or above the teacher's switch height; "" = the getup expert alone
+    cfg.upright_policy = ""
+    # the rise's pace (getup_rewards.rise_pace_cost; ours): weight·‖v_xy‖² [m²/s²] at waist ≥ waist_from_m [m]
+    cfg.rise_pace = config_dict.create(weight=0.0, waist_from_m=0.4)
+    # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
+    # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
+    # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with
+    # kneel_prob. min_progress > 0 spends the starts on the part still to learn (the swing, p 1 … 2).
+    # left_leg_waypoints: (progress, left hip pitch, knee, ankle pitch [rad]); 1.0 is the half kneel, the rest
+    # swing the leg back with the knee lifted (start_path.py's docstring)
+    cfg.reverse_curriculum = config_dict.create(
+        max_progress=0.0, min_progress=0.0, kneel_prob=0.25, bank_size=41,
+        left_leg_waypoints=[[1.0, -1.5, 2.2, -0.7], [1.3, -1.4, 2.3, -0.87], [1.5, -1.2, 2.34, -0.87],
+                            [1.6, -0.9, 2.34, -0.87], [1.68, -0.75, 2.34, -0.87], [1.75, -0.5, 2.3, -0.05]])
+    return cfg
