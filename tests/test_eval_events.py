@@ -62,6 +62,11 @@ def test_failed_attempts_after_the_switch_height_are_counted_with_a_waist_series
                       (LIE_M, STAND_M, 1.0), (STAND_M, STAND_M, 1.5))
     ev = getup_events(t, h, up, waist_height=h - 0.1, switch_height_m=0.5)
     assert ev.success and ev.attempts == 3 and ev.failed_after_switch == 1
+    log = ev.attempt_log
+    assert [a.outcome for a in log] == ["failed", "failed", "stood"]
+    assert [a.switched for a in log] == [False, True, False]
+    assert log[0].peak_trunk_m == pytest.approx(KNEEL_M, abs=0.02) and log[1].peak_trunk_m > 0.6
+    assert all(a.start_s < a.end_s for a in log) and log[0].end_s <= log[1].start_s
     assert getup_events(t, h, up).failed_after_switch is None
     assert getup_events(t, h, up, waist_height=h - 0.1, switch_height_m=0.6).failed_after_switch == 0
 
@@ -69,8 +74,15 @@ def test_failed_attempts_after_the_switch_height_are_counted_with_a_waist_series
 def test_wobble_below_attempt_rise_is_not_an_attempt():
     wobble = [(LIE_M, LIE_M + 0.1, 0.2), (LIE_M + 0.1, LIE_M, 0.2)] * 5
     ev = events((LIE_M, LIE_M, 0.5), *wobble)
-    assert not ev.success and ev.attempts == 0 and ev.falls == 0
+    assert not ev.success and ev.attempts == 0 and ev.falls == 0 and ev.attempt_log == []
     assert math.isnan(ev.time_to_stand_s)
+
+
+def test_an_attempt_still_rising_at_the_end_is_logged_open():
+    ev = events((LIE_M, LIE_M, 0.5), (LIE_M, KNEEL_M, 0.5))
+    assert not ev.success and ev.attempts == 1
+    (attempt,) = ev.attempt_log
+    assert attempt.outcome == "open" and math.isnan(attempt.end_s) and not attempt.switched
 
 
 def test_fall_during_walking_then_getup_counts_fall_time():

@@ -239,3 +239,62 @@ def test_only_stage2_ends_when_the_trunk_falls_below_the_fall_height(full_env):
         info = {"trunk_height": jnp.float32(h), "up_z": jnp.float32(u)}
         assert bool(s2.fell_from_kneel(info)) is ends, (h, u)
         assert not bool(s1.fell_from_kneel(info)) and not bool(full_env.fell_from_kneel(info))
+
+
+# ------------------------------------------------------------------ the failed-rise tracker
+def _failed_rises(h, up_z, hold_ticks):
+    """Failed attempts the tracker counts over a trunk height series (standing as events.py's)."""
+    from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
+
+    def tick(track, x):
+        return G.rise_track_step(track, x[0], (x[0] >= STANDING_TRUNK_HEIGHT_M) & (x[1] >= UPRIGHT_UP_Z),
+                                 hold_ticks)
+
+    _, failed = jax.lax.scan(tick, G.rise_track_start(h[0]), (jnp.asarray(h[1:]), jnp.asarray(up_z[1:])))
+    return int(np.sum(np.asarray(failed)))
+
+
+@pytest.mark.parametrize("segments", [
+    # fallen start: two rises to kneeling that collapse, then a stand-up (2 failed)
+    [(0.15, 0.15, 0.5), (0.15, 0.45, 0.5), (0.45, 0.15, 0.5), (0.15, 0.45, 0.5), (0.45, 0.2, 0.5),
+     (0.2, 0.66, 1.0), (0.66, 0.66, 1.5)],
+    # a stand shorter than the hold that drops back is a failed attempt, then a fall after a held stand is none
+    [(0.15, 0.15, 0.5), (0.15, 0.66, 0.7), (0.66, 0.66, 0.5), (0.66, 0.15, 0.5), (0.15, 0.66, 1.0),
+     (0.66, 0.66, 1.5), (0.66, 0.15, 0.3), (0.15, 0.15, 0.5)],
+    # standing start, a fall, a wobble below the attempt rise, one clean getup
+    [(0.66, 0.66, 1.0), (0.66, 0.15, 0.4), (0.15, 0.25, 0.2), (0.25, 0.15, 0.2), (0.15, 0.66, 1.0),
+     (0.66, 0.66, 1.5)],
+])
+def test_failed_rises_count_as_the_events_definition(segments):
+    """The reward's tracker and sim_hil/eval/events.py count the same failed attempts on scripted series."""
+    from sim_hil.eval.events import STAND_HOLD_S, getup_events
+    dt = 0.02
+    h = np.concatenate([np.linspace(a, b, int(round(s / dt)), endpoint=False) for a, b, s in segments])
+    up_z, t = np.ones_like(h), np.arange(len(h)) * dt
+    expected = sum(a.outcome == "failed" for a in getup_events(t, h, up_z).attempt_log)
+    assert expected > 0 or segments[0][0] > 0.6
+    assert _failed_rises(h, up_z, int(round(STAND_HOLD_S / dt))) == expected
+
+
+def test_failed_rise_cost_is_off_by_default_and_refused_negative(full_env):
+    assert full_env.config.failed_rise.cost == 0.0
+    assert "failed_rises" in full_env.metric_names()
+    with pytest.raises(ValueError, match="failed_rise.cost"):
+        envs.make("getup", config_overrides={"fallen_bank_size": 2, "failed_rise.cost": -1.0})
+
+
+def test_a_failed_rise_costs_its_cost_once_in_the_step_reward():
+    """One step of the CPU-backend getup env from a state whose tracker holds an attempt that peaked 1 m up:
+    the trunk is far below peak − 0.15 m, so the attempt fails and the reward is lower by the cost."""
+    rewards = []
+    for cost in (0.0, 5.0):
+        env = envs.make("getup", config_overrides={"backend": "cpu", "fallen_bank_size": 2, "episode_length": 20,
+                                                   "failed_rise.cost": cost})
+        state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+        track = dict(state.info["rise_track"], down=jnp.asarray(True), rising=jnp.asarray(True),
+                     high=jnp.asarray(1.0, jnp.float32))
+        state = state.replace(info={**state.info, "rise_track": track})
+        after = jax.jit(env.step)(state, jnp.zeros(23))
+        assert float(after.metrics["failed_rises"]) == 1.0 and not bool(after.info["rise_track"]["rising"])
+        rewards.append(float(after.reward))
+    assert rewards[0] - rewards[1] == pytest.approx(5.0, abs=1e-4)

@@ -18,10 +18,11 @@ import numpy as np
 from training import observation as obsdef
 
 
-def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int) -> dict:
+def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int, keep_qpos: bool = False) -> dict:
     """(N,) fallen starts → dict of numpy series: readings (N, T + 1, 3) [trunk, up_z, waist], and per tick
     (N, T): energy_J, max_energy_J, max_torque_Nm, torque_integral, max_qacc, qacc_integral,
-    contact_force_N, contact_force_z_N."""
+    contact_force_N, contact_force_z_N; with keep_qpos also qpos (N, T + 1, nq) at each reading (to look at
+    or render the rollout afterwards)."""
     import jax
     import jax.numpy as jnp
     from training.envs.cpu_backend import HostData
@@ -56,11 +57,14 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
     series = {k: np.zeros((n, num_ticks), np.float32)
               for k in ("energy_J", "max_energy_J", "max_torque_Nm", "torque_integral", "max_qacc", "qacc_integral",
                         "contact_force_N", "contact_force_z_N")}
+    kept_qpos = np.zeros((n, num_ticks + 1, m.nq), np.float32) if keep_qpos else None
     first = jnp.asarray(policy.initial_last_action())     # (23,), or (2, 23) for a composite
     last_action = jnp.broadcast_to(first, (n,) + first.shape)
     for tick in range(num_ticks):
         last_action, q_des, r = act(policy.params, host_data(), last_action)
         readings[:, tick] = np.asarray(r)
+        if keep_qpos:
+            kept_qpos[:, tick] = b.qpos
         physics.write_targets(b, np.asarray(q_des))
         for _ in range(env.n_substeps):
             dq0 = b.qvel[:, 6:].copy()
@@ -85,4 +89,7 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int)
             series["contact_force_N"][i, tick] = normal
             series["contact_force_z_N"][i, tick] = vertical
     readings[:, num_ticks] = np.asarray(act(policy.params, host_data(), last_action)[2])
+    if keep_qpos:
+        kept_qpos[:, num_ticks] = b.qpos
+        series["qpos"] = kept_qpos
     return {"readings": readings, **series}

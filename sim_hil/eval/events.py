@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -74,6 +75,15 @@ class EventThresholds:
             raise ValueError(f"EventThresholds.upright_up_z must lie in [-1, 1], got {self.upright_up_z}")
 
 
+class Attempt(NamedTuple):
+    """One getup attempt of GetupEvents.attempt_log (definitions: module docstring)."""
+    start_s: float        # the sample at which the trunk had risen attempt_rise_m [s]
+    end_s: float          # where it failed or stood up [s]; nan while still open at the series' end
+    outcome: str          # "failed", "stood" or "open"
+    peak_trunk_m: float   # the highest trunk height during the attempt [m]
+    switched: bool        # the waist reached the switch height during it (False without a waist series)
+
+
 @dataclass(frozen=True)
 class GetupEvents:
     success: bool
@@ -85,6 +95,7 @@ class GetupEvents:
     # failed attempts during which the waist reached the composite's switch height (the upright policy had
     # the robot when it dropped back); None when getup_events got no waist series
     failed_after_switch: int | None = None
+    attempt_log: list[Attempt] = field(default_factory=list)   # one entry per counted attempt, in order
 
 
 def heading_from_quat(quat_wxyz) -> float:
@@ -193,6 +204,8 @@ def getup_events(t, trunk_height, up_z, th: EventThresholds = EventThresholds(),
     in_attempt = False
     attempts_this_phase = 0
     failed_after_switch, switched = 0, False
+    log: list[Attempt] = []
+    start_s = math.nan
     t_list, h, lying, can_stand_up = t.tolist(), h.tolist(), lying.tolist(), can_stand_up.tolist()
     for k in range(n):
         if not down:
@@ -208,6 +221,10 @@ def getup_events(t, trunk_height, up_z, th: EventThresholds = EventThresholds(),
             if attempts_this_phase == 0:
                 attempts += 1         # stood up between two samples (coarse series): still one attempt
                 attempts_this_phase = 1
+                log.append(Attempt(t_list[k], t_list[k], "stood", h[k], bool(above and above[k])))
+            elif in_attempt:
+                log.append(Attempt(start_s, t_list[k], "stood", max(high, h[k]), switched))
+            in_attempt = False
             down = False
             if math.isnan(time_to_stand):
                 time_to_stand = t_list[k] - first_down_t
@@ -218,12 +235,16 @@ def getup_events(t, trunk_height, up_z, th: EventThresholds = EventThresholds(),
             if h[k] <= high - th.attempt_rise_m:
                 in_attempt, low = False, h[k]
                 failed_after_switch += switched
+                log.append(Attempt(start_s, t_list[k], "failed", high, switched))
         else:
             low = min(low, h[k])
             if h[k] >= low + th.attempt_rise_m:
                 in_attempt, high, switched = True, h[k], bool(above and above[k])
+                start_s = t_list[k]
                 attempts += 1
                 attempts_this_phase += 1
+    if in_attempt and down:
+        log.append(Attempt(start_s, math.nan, "open", high, switched))
     return GetupEvents(success=not down, time_to_stand_s=time_to_stand, attempts=attempts,
                        falls=len(falls), fall_times_s=falls, started_down=bool(lying[0]),
-                       failed_after_switch=None if above is None else failed_after_switch)
+                       failed_after_switch=None if above is None else failed_after_switch, attempt_log=log)

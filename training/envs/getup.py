@@ -17,7 +17,9 @@ Stages (config.stage), rewards from getup_rewards.py (formulas there):
   a per-step-gated fine-tune unlearned the stand-up within 2 M steps (success from the kneel 181 → 0,
   gate 14 → 1 steps per episode: every small tilt paid the kneel reward, so it stayed kneeling). Latched,
   the kneel keyframe (trunk 0.405 m, upright) is where the standing phase begins, as §4.8 describes it.
-reward per control step = (Height + Pose − energy_weight·energy − rise_pace.weight·pace) × ctrl_dt (pace: ours).
+reward per control step = (Height + Pose − energy_weight·energy − rise_pace.weight·pace) × ctrl_dt
+− failed_rise.cost·[a getup attempt failed this step] (pace and failed rise: ours; metric failed_rises counts
+them per episode whatever the cost).
 Fine-tunes: energy_weight > 0 (the energy fine-tune; 0 before it, §4.7), obs_noise_scale > 0 (the
 robustness fine-tune: U(−1, 1)·obs_noise_scale added to EVERY observation entry, §4.6; the seed's is 1).
 Kneel targets: the model's `kneel` keyframe (trunk 0.405 m, waist from its kinematics), q_kneel its joints;
@@ -51,7 +53,7 @@ from training.envs import base
 from training.envs import getup_rewards as G
 from training.envs import handover, start_path, upright
 from sim_hil.config import FALLEN_TRUNK_HEIGHT_M
-from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
+from sim_hil.eval.events import STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import PREPARE_S, fallen_states
 from training.envs.getup_config import default_config   # envs.make's config of this task
 
@@ -200,6 +202,11 @@ class Getup(GetupBase):
         self._pace_weight, self._pace_waist_m = (pace.weight, pace.waist_from_m) if pace else (0.0, 0.0)
         if self._pace_weight < 0.0:
             raise ValueError(f"rise_pace.weight must be >= 0 (a cost), got {self._pace_weight}")
+        failed_rise = self._config.get("failed_rise")   # runs made before it have none: off
+        self._failed_rise_cost = float(failed_rise.cost) if failed_rise else 0.0
+        if self._failed_rise_cost < 0.0:
+            raise ValueError(f"failed_rise.cost must be >= 0, got {self._failed_rise_cost}")
+        self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
 
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
         """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn."""
@@ -250,6 +257,7 @@ class Getup(GetupBase):
     def _start_info(self, rng, data, kind) -> dict:
         info = super()._start_info(rng, data, kind)
         info["gate"] = self.gate_state(info, jnp.zeros((), dtype=bool))
+        info["rise_track"] = G.rise_track_start(info["trunk_height"])
         if self._upright is not None:
             info["upright_last_act"] = self._upright.initial_last_action()
         return info
@@ -290,7 +298,7 @@ class Getup(GetupBase):
 
     @staticmethod
     def metric_names():
-        return ("reward/height", "reward/pose", "reward/energy", "reward/pace", "gate", "success",
+        return ("reward/height", "reward/pose", "reward/energy", "reward/pace", "failed_rises", "gate", "success",
                 "success_from_kneel", "success_from_fallen")
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
@@ -318,12 +326,15 @@ class Getup(GetupBase):
         scaled = {"height": terms["height"], "pose": terms["pose"],
                   "energy": -self._config.energy_weight * terms["energy"],
                   "pace": -self._pace_weight * terms["pace"]}
-        reward = sum(scaled.values()) * self.dt
+        info["rise_track"], failed = G.rise_track_step(state.info["rise_track"], info["trunk_height"],
+                                                       self.standing(info), self._stand_hold_ticks)
+        reward = sum(scaled.values()) * self.dt - self._failed_rise_cost * failed
         info["last_act"] = action
         obs = self._observe(data, info, k_obs, self._privileged_extra(info))
         metrics = dict(state.metrics)   # keep what wrappers added (brax's EvalWrapper adds "reward")
         metrics.update({f"reward/{k}": v.astype(jnp.float32) for k, v in scaled.items()})
         metrics["gate"] = terms["gate"].astype(jnp.float32)
+        metrics["failed_rises"] = failed.astype(jnp.float32)
         metrics["success"] = (terms["gate"] if self._config.stage == "stage1"
                               else self.standing(info)).astype(jnp.float32)
         # standing in an episode that started at the kneel (with the reverse curriculum, the share that counts)

@@ -62,6 +62,9 @@ def default_config() -> config_dict.ConfigDict:
     cfg.upright_policy = ""
     # the rise's pace (getup_rewards.rise_pace_cost; ours): weight·‖v_xy‖² [m²/s²] at waist ≥ waist_from_m [m]
     cfg.rise_pace = config_dict.create(weight=0.0, waist_from_m=0.4)
+    # a failed getup attempt (getup_rewards.rise_track_step, events.py's definition; ours): this cost [in
+    # return units, i.e. after the per-step rewards' × ctrl_dt] once per failed attempt; 0 = off
+    cfg.failed_rise = config_dict.create(cost=0.0)
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
     # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
     # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with

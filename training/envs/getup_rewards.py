@@ -9,6 +9,11 @@ Pose (§4.7): exp(−0.5·‖q − q_ref‖²) over the 23 joint angles [rad].
 Energy cost (§4.7): Σ_i |v_i · τ_i / τmax_i| [rad/s], used only in the energy fine-tune.
 Rise pace (ours, not the seed's; off by default): ‖v_xy‖² [m²/s²] of the trunk while the waist is at or above a
 height, so that the rise reaches the teacher's 0.5 m hand-over slow enough for the joystick expert to hold.
+Failed rise (ours, not the seed's; off by default): a one-off cost when a getup attempt fails, by
+sim_hil/eval/events.py's definitions (the trunk rose ATTEMPT_RISE_M from its low while down, then dropped
+ATTEMPT_RISE_M below the attempt's peak before a stand-up held STAND_HOLD_S), so that the count the loop's push
+test reports is in the reward: at γ 0.97 the standing reward a fall back delays by 1–2 s barely reaches the
+pop-up that caused it (training/runs/getup_pace5/prerise_falls.py).
 Gate (§4.8), exactly as written: height  0.4 − min(h_torso, 0.4) < 0.005 m   (i.e. h_torso > 0.395 m)
                                    upright ‖u − e_z‖ < 0.01              (a tilt below 0.573°)
 Gated terms (§4.8):
@@ -61,6 +66,34 @@ def rise_pace_cost(trunk_vel_xy, waist_height, waist_from_m):
     Why: the hand-overs the joystick expert drops arrive at the switch at 1.1 m/s, the held ones at 0.35 m/s
     (median; training/runs/joystick_landings/handover_falls.py)."""
     return jnp.where(waist_height >= waist_from_m, jnp.sum(jnp.square(trunk_vel_xy), axis=-1), 0.0)
+
+
+def rise_track_start(h_torso):
+    """The failed-rise tracker's state at an episode start, events.py's (down, in attempt, low, high [m],
+    ticks standing): down from the start when the trunk is below the fallen height."""
+    h = jnp.asarray(h_torso, jnp.float32)
+    return {"down": h < events.FALLEN_TRUNK_HEIGHT_M, "rising": jnp.zeros((), bool), "low": h, "high": h,
+            "stand_ticks": jnp.zeros((), jnp.int32)}
+
+
+def rise_track_step(track, h_torso, standing, hold_ticks):
+    """(next track, failed) after one control tick with trunk height h_torso [m] and `standing` (events'
+    standing condition); a stand-up ends the down phase once it held hold_ticks ticks. While standing no
+    attempt can fail (standing is above any peak − ATTEMPT_RISE_M), so ending it after the hold counts the
+    same failures as events.getup_events' stand-up at the run's first sample."""
+    rise_m = events.ATTEMPT_RISE_M
+    down, rising = track["down"], track["rising"]
+    stand_ticks = jnp.where(standing, track["stand_ticks"] + 1, 0)
+    high = jnp.where(rising, jnp.maximum(track["high"], h_torso), track["high"])
+    failed = down & rising & (h_torso <= high - rise_m)
+    low = jnp.where(rising, jnp.where(failed, h_torso, track["low"]), jnp.minimum(track["low"], h_torso))
+    start = down & ~rising & (h_torso >= low + rise_m)
+    high = jnp.where(start, h_torso, high)
+    enter = ~down & (h_torso < events.FALLEN_TRUNK_HEIGHT_M)
+    stood = down & (stand_ticks >= hold_ticks)
+    track = {"down": (down | enter) & ~stood, "rising": (rising | start) & ~failed & ~enter & ~stood,
+             "low": jnp.where(enter, h_torso, low), "high": high, "stand_ticks": stand_ticks}
+    return track, failed
 
 
 def up_error(up):
