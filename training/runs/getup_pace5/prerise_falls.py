@@ -100,7 +100,9 @@ def main() -> None:
     failed_after = [r for r in attempts if r["outcome"] == "failed" and r["switched"]]
     first_stood = [r for r in attempts if r["number"] == 1 and r["outcome"] == "stood"]
     first_failed_before = [r for r in failed_before if r["number"] == 1]
-    lines = [f"{args.policy}: {len(qpos)} push-test landings, {len(attempts)} attempts", "",
+    per_landing = np.bincount([r["episode"] for r in attempts], minlength=len(qpos))
+    lines = [f"{args.policy}: {len(qpos)} push-test landings, {len(attempts)} attempts "
+             f"({per_landing.mean():.2f} per landing, most {per_landing.max()})", "",
              "| attempts | n | start [s after landing] 10/50/90 % | up_z at start | shove | "
              "peak trunk [m] | peak waist [m] | through the kneel gate |", "|---|---|---|---|---|---|---|---|",
              summary("failed before the switch", failed_before),
