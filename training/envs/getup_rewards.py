@@ -91,7 +91,7 @@ def rise_track_step(track, h_torso, standing, hold_ticks):
     high = jnp.where(start, h_torso, high)
     enter = ~down & (h_torso < events.FALLEN_TRUNK_HEIGHT_M)
     stood = down & (stand_ticks >= hold_ticks)
-    track = {"down": (down | enter) & ~stood, "rising": (rising | start) & ~failed & ~enter & ~stood,
+    track = {"down": (down | enter) & ~stood, "rising": (rising | start) & ~failed & ~stood,
              "low": jnp.where(enter, h_torso, low), "high": high, "stand_ticks": stand_ticks}
     return track, failed
 
