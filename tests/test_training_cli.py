@@ -179,6 +179,16 @@ def _artifact(run_dir: Path) -> Path:
     return found[0]
 
 
+def test_the_epoch_after_a_calls_first_is_estimated_from_its_throughput():
+    """A call's first epoch holds the compilation: --max-minutes must not take it for the next epoch's length
+    (a 7-minute GPU call stopped after 5 M of its 40 M steps that way), but never estimate longer than it."""
+    from training.train import FIRST_EPOCH_MARGIN, next_epoch_estimate_s
+    assert next_epoch_estimate_s(300.0, 5_000_000, 100_000.0, first_of_call=True) == FIRST_EPOCH_MARGIN * 50.0
+    assert next_epoch_estimate_s(30.0, 5_000_000, 100_000.0, first_of_call=True) == 30.0
+    assert next_epoch_estimate_s(300.0, 5_000_000, None, first_of_call=True) == 300.0       # no throughput yet
+    assert next_epoch_estimate_s(60.0, 5_000_000, 100_000.0, first_of_call=False) == 60.0    # measured
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("task", ["joystick", "getup", "getup_baseline"])
 def test_toy_ppo_run_exports_an_artifact(toy_runs, task):

@@ -142,6 +142,7 @@ def build_configs(task: str, preset: str, stage: str | None, overrides: Sequence
 
 # What --config may change on --resume: how the run is computed and logged, not what it learns (a
 # different task or learner is a new run: --from CHECKPOINT). num_envs has its own flag (--envs).
+FIRST_EPOCH_MARGIN = 1.5   # next_epoch_estimate_s: the share an evaluation may add to an epoch's training time
 RESUME_OVERRIDABLE = ("checkpoint_every_steps", "run_evals", "num_eval_envs", "training_metrics_steps")
 
 
@@ -162,6 +163,16 @@ def _check_batch_shape(cfg):
 def _epochs(cfg, steps: int) -> int:
     """num_evals for ppo.train: one epoch (= one checkpoint) per checkpoint_every_steps."""
     return max(2, math.ceil(steps / max(1, cfg.checkpoint_every_steps)) + 1)
+
+
+def next_epoch_estimate_s(epoch_s: float, epoch_steps: int, sps: float | None, first_of_call: bool) -> float:
+    """How long the next epoch (checkpoint to checkpoint) will take [s], for --max-minutes. A call's first
+    epoch also holds the JIT compilation and the first evaluation (3–4 min of a GPU call's first 5 M steps,
+    which then take 50 s): its successor is estimated from the measured throughput instead, with a margin for
+    the evaluation, so a short call does not stop after one epoch."""
+    if first_of_call and sps:
+        return min(epoch_s, FIRST_EPOCH_MARGIN * epoch_steps / sps)
+    return epoch_s
 
 
 def run_name(task: str, env_cfg) -> str:
@@ -226,7 +237,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     log = curves.MetricsLog(run_dir)
     bar = tqdm.tqdm(total=target, initial=offset, unit="step", unit_scale=True, disable=not progress,
                     desc=state["name"], dynamic_ncols=True)
-    clock = {"last_epoch_end": time.monotonic(), "epoch_s": 0.0, "sps": []}
+    clock = {"last_epoch_end": time.monotonic(), "epoch_s": 0.0, "sps": [], "last_total": offset}
     latest = {"params": restore, "steps": offset}
     phase = {"offset": offset}   # env steps before the running ppo.train call (which counts from 0)
     # this call's record is written with every checkpoint, so a run killed mid-call still says what made it
@@ -259,7 +270,11 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
         call.update(to_steps=total, minutes=round((now - t_start) / 60.0, 2))
         state["minutes"] = minutes_before + (now - t_start) / 60.0
         checkpoints.save_run_state(run_dir, state)
-        if max_minutes is not None and now - t_start + clock["epoch_s"] > 60.0 * max_minutes:
+        epoch_steps = total - clock["last_total"]
+        next_s = next_epoch_estimate_s(clock["epoch_s"], epoch_steps, clock["sps"][-1] if clock["sps"] else None,
+                                       first_of_call=clock["last_total"] == offset)
+        clock["last_total"] = total
+        if max_minutes is not None and now - t_start + next_s > 60.0 * max_minutes:
             raise _StopAtCheckpoint()
 
     def run_ppo(num_steps: int, network_factory):

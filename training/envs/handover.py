@@ -196,10 +196,37 @@ def torso_impulse_dqvel(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.nda
 
 def torso_shove_response(model: mujoco.MjModel, home_qpos: np.ndarray) -> np.ndarray:
     """(2, nv): the change of qvel per N·s of torso impulse along the robot's x and y, standing in `home_qpos`
-    (heading +x). The unified env's knockdowns turn it to the robot's heading (free joint: linear part in world
+    (heading +x). TorsoShove turns it to the robot's heading (free joint: linear part in world
     axes, angular part in the body's): exact for a robot standing upright, close for one walking."""
     data = mujoco.MjData(model)
     return np.stack([torso_impulse_dqvel(model, data, home_qpos, axis) for axis in np.eye(3)[:2]])
+
+
+class TorsoShove:
+    """The loop's push-test shove drawn in JAX (plans.push_draw's distribution: forward or backward 2 : 1
+    off the heading, impulse and angle spread as the test's), as the change of qvel it makes: the unified
+    env's torso knockdowns and the joystick env's push.torso_shove_prob use it."""
+
+    def __init__(self, model: mujoco.MjModel, home_qpos: np.ndarray):
+        from sim_hil.eval import plans   # the loop's push test (imported here: it brings the LCM types along)
+        self._impulse_ns, self._impulse_spread = plans.PUSH_IMPULSE_NS, plans.PUSH_IMPULSE_SPREAD
+        self._angle_spread_rad = plans.PUSH_ANGLE_SPREAD_RAD
+        self._response = jnp.asarray(torso_shove_response(model, np.asarray(home_qpos)))
+
+    def dqvel(self, qpos: jax.Array, rng: jax.Array) -> jax.Array:
+        """Δqvel [nv] of one shove of the robot at `qpos`, turned to its heading."""
+        k_back, k_size, k_angle = jax.random.split(rng, 3)
+        backward = jax.random.bernoulli(k_back, 1.0 / 3.0)   # F F B, as the test
+        spread = self._impulse_spread
+        impulse = self._impulse_ns * (1.0 + jax.random.uniform(k_size, minval=-spread, maxval=spread))
+        angle = (jax.random.uniform(k_angle, minval=-self._angle_spread_rad, maxval=self._angle_spread_rad)
+                 + jnp.pi * backward)
+        local = impulse * (jnp.cos(angle) * self._response[0] + jnp.sin(angle) * self._response[1])
+        w, x, y, z = qpos[3], qpos[4], qpos[5], qpos[6]
+        heading = jnp.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        c, s = jnp.cos(heading), jnp.sin(heading)
+        vx, vy = local[0], local[1]
+        return local.at[0].set(c * vx - s * vy).at[1].set(s * vx + c * vy)
 
 
 @functools.lru_cache(maxsize=4)

@@ -37,7 +37,11 @@ def default_config() -> config_dict.ConfigDict:
     cfg.zero_command_prob = 0.1
     cfg.reset = config_dict.create(xy_range_m=0.5, yaw_range_rad=3.14, joint_scale=[0.5, 1.5],
                                    root_vel_range=0.5)
-    cfg.push = config_dict.create(enable=True, interval_range_s=[5.0, 10.0], magnitude_range_mps=[0.1, 1.0])
+    cfg.push = config_dict.create(enable=True, interval_range_s=[5.0, 10.0], magnitude_range_mps=[0.1, 1.0],
+                                  torso_shove_prob=0.0)
+    # torso_shove_prob (ours): this share of the pushes is instead the loop's push-test shove on the Trunk
+    # (handover.TorsoShove), which tips the robot over its feet where a base-speed push moves it whole: the
+    # teacher's joystick expert caught 13 of 128 forward shoves, and every one it drops is a getup attempt
     # hand-over starts (training/envs/handover.py; ours): this share of episodes starts in the state where the
     # stitched teacher hands the getup expert `getup_policy`'s rise over, from `bank_starts` fallen starts
     # (seeds from `seed`, apart from the evaluations' 0 …); 0 = standing starts only, as Playground's.
@@ -87,6 +91,10 @@ class Joystick(base.T1Env):
         for key in ("prob", "push_prob", "knockdown_prob", "zero_command_prob") if h is not None else ():
             if not 0.0 <= h.get(key, 0.0) <= 1.0:
                 raise ValueError(f"handover.{key} must be in [0, 1], got {h[key]}")
+        shove_prob = self._config.push.get("torso_shove_prob", 0.0)   # runs made before shoves have none
+        if not 0.0 <= shove_prob <= 1.0:
+            raise ValueError(f"push.torso_shove_prob must be in [0, 1], got {shove_prob}")
+        self._push_shove = handover.TorsoShove(mj, self._home_qpos) if shove_prob > 0 else None
         if h is not None and h.prob > 0:
             if not h.getup_policy:
                 raise ValueError("handover.prob > 0 needs handover.getup_policy (a getup artifact or checkpoint)")
@@ -219,9 +227,16 @@ class Joystick(base.T1Env):
         mag = self._push_magnitude(k_mag)
         due = jnp.mod(info["push_step"] + 1, info["push_interval_steps"]) == 0
         push = jnp.array([jnp.cos(theta), jnp.sin(theta)]) * mag * due * float(p.enable)
-        info["push"] = push
         info["push_step"] = info["push_step"] + 1
-        return data.replace(qvel=data.qvel.at[:2].add(push))
+        qvel = data.qvel.at[:2].add(push)
+        if self._push_shove is not None:   # (kept out otherwise: the random streams of earlier runs stay)
+            k_pick, k_shove = jax.random.split(jax.random.fold_in(k_mag, 1))
+            shoved = due & jax.random.bernoulli(k_pick, p.torso_shove_prob) & bool(p.enable)
+            dqvel = self._push_shove.dqvel(data.qpos, k_shove)
+            qvel = jnp.where(shoved, data.qvel + dqvel, qvel)
+            push = jnp.where(shoved, dqvel[:2], push)
+        info["push"] = push
+        return data.replace(qvel=qvel)
 
     # ------------------------------------------------------------------ observation / reward
     def _observe(self, data, info, contact, rng) -> dict[str, jax.Array]:

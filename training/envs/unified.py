@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
@@ -67,7 +66,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.push = config_dict.create(**joy.push.to_dict())
     # knockdown.prob of the pushes are knockdowns (module docstring). shove "velocity": the base speed changes by
     # magnitude_range_mps in a random direction; "torso": the loop's push test itself, its torso impulse
-    # forward or backward (2 : 1) off the heading (handover.push_test_bank, torso_shove_response)
+    # forward or backward (2 : 1) off the heading (handover.push_test_bank, TorsoShove)
     cfg.knockdown = config_dict.create(prob=0.0, magnitude_range_mps=list(handover.KNOCKDOWN_MPS), shove="velocity")
     cfg.walls = config_dict.create(prob=0.0)   # share of episodes that walk into the low-wall course
     cfg.reward = config_dict.create(
@@ -101,12 +100,11 @@ class Unified(GetupBase):
         shove = kd.get("shove", "velocity")   # runs made before torso shoves have no such key
         if shove not in self.SHOVES:
             raise ValueError(f"knockdown.shove {shove!r}: one of {', '.join(self.SHOVES)}")
-        self._torso_response = None
-        if shove == "torso":
-            from sim_hil.eval import plans   # the loop's push test (imported here: it brings the LCM types along)
-            self._shove_ns = (plans.PUSH_IMPULSE_NS, plans.PUSH_IMPULSE_SPREAD, plans.PUSH_ANGLE_SPREAD_RAD)
-            self._torso_response = jnp.asarray(handover.torso_shove_response(self._mj_model,
-                                                                             np.asarray(self._home_qpos)))
+        if self._config.push.get("torso_shove_prob", 0.0) > 0:
+            raise ValueError("push.torso_shove_prob is the joystick env's: the unified env's shoves are "
+                             "knockdown.prob with knockdown.shove \"torso\"")
+        self._push_shove = None    # (the joystick env's push.torso_shove_prob; Joystick._apply_push reads it)
+        self._torso_shove = handover.TorsoShove(self._mj_model, self._home_qpos) if shove == "torso" else None
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_cmd, k_push, k_obs = jax.random.split(rng, 5)
@@ -163,35 +161,21 @@ class Unified(GetupBase):
     def _apply_push(self, data, info, k_theta, k_mag):
         """The joystick env's push (with knockdown.shove "velocity", knockdown.prob of them knockdowns); with
         "torso", that share of the pushes is instead the loop's push-test shove."""
-        if self._torso_response is None:
+        if self._torso_shove is None:
             return Joystick._apply_push(self, data, info, k_theta, k_mag)
         k_pick, k_walk, k_shove = jax.random.split(k_mag, 3)
         due = jnp.mod(info["push_step"] + 1, info["push_interval_steps"]) == 0
         walked = Joystick._apply_push(self, data, info, k_theta, k_walk)   # counts the push step, sets info["push"]
         shoved = due & jax.random.bernoulli(k_pick, self._config.knockdown.prob) & bool(self._config.push.enable)
-        dqvel = self._torso_shove(data.qpos, k_shove)
+        dqvel = self._torso_shove.dqvel(data.qpos, k_shove)
         info["push"] = jnp.where(shoved, dqvel[:2], info["push"])
         return data.replace(qvel=jnp.where(shoved, data.qvel + dqvel, walked.qvel))
-
-    def _torso_shove(self, qpos, rng):
-        """Δqvel of one push-test shove (plans.push_draw's distribution) off the robot's heading."""
-        impulse_ns, impulse_spread, angle_spread_rad = self._shove_ns
-        k_back, k_size, k_angle = jax.random.split(rng, 3)
-        backward = jax.random.bernoulli(k_back, 1.0 / 3.0)   # F F B, as the test
-        impulse = impulse_ns * (1.0 + jax.random.uniform(k_size, minval=-impulse_spread, maxval=impulse_spread))
-        angle = jax.random.uniform(k_angle, minval=-angle_spread_rad, maxval=angle_spread_rad) + jnp.pi * backward
-        local = impulse * (jnp.cos(angle) * self._torso_response[0] + jnp.sin(angle) * self._torso_response[1])
-        w, x, y, z = qpos[3], qpos[4], qpos[5], qpos[6]
-        heading = jnp.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-        c, s = jnp.cos(heading), jnp.sin(heading)
-        vx, vy = local[0], local[1]
-        return local.at[0].set(c * vx - s * vy).at[1].set(s * vx + c * vy)
 
     def _push_magnitude(self, rng):
         """A joystick-env push [m/s], or with probability knockdown.prob a knockdown (module docstring); with
         torso shoves (_apply_push) the joystick env's only."""
         k_walk, k_hard, k_pick = jax.random.split(rng, 3)
-        if self._torso_response is not None:
+        if self._torso_shove is not None:
             return self._walking_push_magnitude(k_walk)
         kd = self._config.knockdown
         hard = jax.random.uniform(k_hard, minval=kd.magnitude_range_mps[0], maxval=kd.magnitude_range_mps[1])
