@@ -224,9 +224,7 @@ class TorsoShove:
         local = impulse * (jnp.cos(angle) * self._response[0] + jnp.sin(angle) * self._response[1])
         w, x, y, z = qpos[3], qpos[4], qpos[5], qpos[6]
         heading = jnp.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-        c, s = jnp.cos(heading), jnp.sin(heading)
-        vx, vy = local[0], local[1]
-        return local.at[0].set(c * vx - s * vy).at[1].set(s * vx + c * vy)
+        return place(jnp.zeros_like(qpos), local, qpos[0:2], heading)[1]   # turns only the linear part
 
 
 @functools.lru_cache(maxsize=4)
