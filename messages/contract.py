@@ -1,4 +1,4 @@
-"""Joint order, channel names and the default LCM URL, read from messages/contract.json (the one source;
+"""Joint order, channel names, the default LCM URL and the composite's waist switch height, read from messages/contract.json (the one source;
 C++ gets the same values in a header generated at build time)."""
 from __future__ import annotations
 
@@ -15,6 +15,8 @@ CHANNELS: dict[str, str] = dict(_DATA["channels"])
 # channel name -> LCM type name (messages/t1/<type>.lcm), e.g. "T1_IMU" -> "imu_t"
 CHANNEL_TYPES: dict[str, str] = {CHANNELS[key]: type_name for key, type_name in _DATA["channel_types"].items()}
 DEFAULT_LCM_URL: str = _DATA["lcm_url"]
+# The composite's switch [m]: getup member below this Waist height, upright member at or above it.
+WAIST_SWITCH_HEIGHT_M: float = float(_DATA["waist_switch_height_m"])
 # The real T1's DDS interface: domain_id, state_topic, command_topic, cmd_type_serial, motor_mode, motor_weight.
 DDS: dict = {k: v for k, v in _DATA["dds"].items() if not k.startswith("_")}
 

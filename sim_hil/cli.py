@@ -16,7 +16,7 @@ EXIT_OK, EXIT_USAGE, EXIT_RUNTIME = 0, 2, 3
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from sim_hil.scenarios import SCENARIOS
+    from common.scenarios import SCENARIOS
     p = argparse.ArgumentParser(prog="python -m sim_hil", description=__doc__,
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--scenario", default="flat", choices=SCENARIOS)

@@ -1,15 +1,15 @@
 """Simulator constants (one place; the CLI overrides some)."""
 from pathlib import Path
 
-CONTROL_DT_S = 0.002            # bus cycle = state/command period: the runtime's 500 Hz tick
+from common.artifact import RUNTIME_LOOP_DT_S
+
+CONTROL_DT_S = RUNTIME_LOOP_DT_S   # bus cycle = state/command period: the runtime's 500 Hz tick
 DEFAULT_PHYSICS_DT_S = 0.002    # MuJoCo step; must divide CONTROL_DT_S
 STATUS_RATE_HZ = 10.0           # T1_SIM_STATUS rate (sim time)
 LOCKSTEP_TIMEOUT_S = 0.5        # wall time to wait for the command answering state k before going on
 LOCKSTEP_FIRST_COMMAND_TIMEOUT_S = 30.0   # the client may still be starting: wait longer for the first one
-FALLEN_TRUNK_HEIGHT_M = 0.35    # Trunk origin below this = lying on the ground (standing: 0.665 m)
 VIDEO_FPS = 20
 GL_PROBE_SIZE_PX = 16          # --record checks the GL backend with a renderer this small at start-up
 VIDEO_SIZE = (360, 480)         # (height, width) [px]; software GL renders ~0.1 s per frame here
 STATS_WINDOW_S = 1.0            # real-time factor averaging window [s of sim time]
-GETUP_SWITCH_WAIST_HEIGHT_M = 0.5   # the teacher's switch: getup expert below this waist height [m]
 SIM_LOG_DIR = Path(__file__).resolve().parents[1] / "out" / "sim"   # `python -m sim_hil`'s default LCM logs

@@ -22,7 +22,7 @@ from messages import contract
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop, stop_cleanly_on_sigterm
 from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.plots import plot_heights_and_velocity
-from training.artifact import read_artifact, stitched_teacher
+from common.artifact import read_artifact, stitched_teacher
 
 POLICIES = (ROOT / "policies" / "student.safetensors", ROOT / "policies" / "student_baseline_teacher.safetensors",
             ROOT / "policies" / "student_untrained.safetensors")

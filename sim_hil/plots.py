@@ -9,7 +9,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from sim_hil import config  # noqa: E402
+from common import events  # noqa: E402
+from messages import contract  # noqa: E402
 
 
 def plot_heights_and_velocity(series: dict[str, dict[str, list[float]]], path: Path, title: str,
@@ -28,8 +29,8 @@ def plot_heights_and_velocity(series: dict[str, dict[str, list[float]]], path: P
         if side_by_side:
             axes[0].set_title(label)
     for axes in grid.T:
-        axes[0].axhline(config.FALLEN_TRUNK_HEIGHT_M, color="grey", ls=":", lw=1, label="fallen below")
-        axes[1].axhline(config.GETUP_SWITCH_WAIST_HEIGHT_M, color="grey", ls="--", lw=1,
+        axes[0].axhline(events.FALLEN_TRUNK_HEIGHT_M, color="grey", ls=":", lw=1, label="fallen below")
+        axes[1].axhline(contract.WAIST_SWITCH_HEIGHT_M, color="grey", ls="--", lw=1,
                         label="teacher switch (getup below)")
         if command_vx:
             ts, vs = map(list, zip(*command_vx))

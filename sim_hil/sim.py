@@ -23,7 +23,10 @@ import mujoco
 import numpy as np
 from t1 import sim_status_t
 
-from sim_hil import config, model as t1model
+from common import model as t1model
+from common import scenarios
+from common import events
+from sim_hil import config
 from sim_hil.faults import FaultSchedule, parse_faults
 from sim_hil.imu import Imu
 from sim_hil.lcm_bridge import LcmBridge
@@ -80,7 +83,7 @@ class Simulator:
         faults = parse_faults(cfg.faults)      # raises FaultSpecError with the bad part named
         self.cfg = cfg
         self.substeps = int(round(substeps))
-        self.model, self.scenario = t1model.build_model(cfg.scenario, cfg.seed)
+        self.model, self.scenario = scenarios.build(cfg.scenario, cfg.seed)
         self.model.opt.timestep = cfg.physics_dt_s
         self.data = mujoco.MjData(self.model)
         qpos, qvel = t1model.spawn_state(self.model, spawn_kind, spawn_seed)
@@ -153,7 +156,7 @@ class Simulator:
         s.active_faults = self.faults.describe(self.data.time)
         s.trunk_height = float(t1model.trunk_height(self.data))
         s.waist_height = float(t1model.waist_height(self.data))
-        s.fallen = s.trunk_height < config.FALLEN_TRUNK_HEIGHT_M
+        s.fallen = s.trunk_height < events.FALLEN_TRUNK_HEIGHT_M
         s.base_pos = self.data.qpos[:3].tolist()
         s.base_lin_vel = self.data.qvel[:3].tolist()
         w, x, y, z = self.data.qpos[3:7]

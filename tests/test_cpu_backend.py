@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from sim_hil import model as t1model
+from common import model as t1model
 from training import envs
 
 VEL_TOL = 5e-3        # [rad/s] joint velocity / gyro terms of the observation

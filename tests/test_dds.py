@@ -17,7 +17,7 @@ from sim_hil.dds_bridge import rpy_from_quat
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop
 from tests.dds_peer import DdsRobotPeer, low_state
 from tests.runtime_peer import LATCHED_FAULT_MASK, MODE
-from training.artifact import read_artifact
+from common.artifact import read_artifact
 
 UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained.safetensors"
 N = contract.NUM_JOINTS

@@ -1,10 +1,10 @@
-"""sim_hil.eval.events on scripted trajectories: known height sequences give known falls and attempts."""
+"""common.events on scripted trajectories: known height sequences give known falls and attempts."""
 import math
 
 import numpy as np
 import pytest
 
-from sim_hil.eval.events import (EventThresholds, GetupEvents, getup_events, kneel_gate_mask, standing_mask,
+from common.events import (EventThresholds, GetupEvents, getup_events, kneel_gate_mask, standing_mask,
                                  through_kneel_gate, up_z_from_quat)
 
 DT_S = 0.02                 # 50 Hz series: the events must not depend on the tick rate

@@ -14,9 +14,9 @@ import pytest
 from sim_hil.eval import plans
 from sim_hil.eval.plans import PUSH_AT_S
 from sim_hil.launch import ROOT, _env
-from training import observation as obsdef
-from training.artifact import write_artifact
-from training.export import base_manifest, random_policy
+from common import observation as obsdef
+from common.artifact import write_artifact
+from common.golden import base_manifest, random_policy
 
 STUDENT = ROOT / "policies" / "student_untrained.safetensors"
 SECONDS = {"getup": 3.0, "wall": 3.0, "puddle": 3.0, "push": PUSH_AT_S + 1.0}   # sim s; PREPARE takes 2 s
@@ -95,7 +95,7 @@ def _lying_then_standing_log(n: int = 3000, policy_from: int = 100, up_from: int
     """A scripted trial log (2 ms ticks): POLICY from tick policy_from, lying and sliding back, standing
     and walking at 0.4 m/s from tick up_from."""
     from t1 import joint_command_t
-    from sim_hil import model as t1model
+    from common import model as t1model
     from sim_hil.eval.metrics import TickLog
     log = TickLog(t1model.load_model(), n)
     log.t[:] = np.arange(n) * 0.002
@@ -117,7 +117,7 @@ def test_fig51_forward_velocity_counts_only_once_standing():
 @pytest.mark.parametrize("name", sorted(plans.PLANS))
 def test_every_seed_figure_names_a_row_of_its_report(name):
     """The seed's figures are keyed by our row labels: a renamed row must not silently lose its seed value."""
-    from sim_hil.eval.seed_figures import SEED_FIGURES
+    from common.seed_figures import SEED_FIGURES
     from sim_hil.eval.trial import summarise
     plan = plans.PLANS[name]
     log = _lying_then_standing_log()
@@ -186,7 +186,7 @@ def test_push_and_wall_trials_differ_by_seed_within_their_spreads():
 def test_course_operator_steers_back_down_the_course_only_while_upright():
     """Walls and puddles: the robot may rise from a fall facing anywhere; the operator turns it back to +x."""
     import math
-    from sim_hil.eval.events import heading_from_quat
+    from common.events import heading_from_quat
     from sim_hil.eval.trial import STEER_MAX_RPS, STEER_MIN_UP_Z, operator_yaw_rate
     assert operator_yaw_rate(0.0, 0.0, 1.0) == 0.0
     assert 0.0 < operator_yaw_rate(0.0, -0.1, 1.0) < STEER_MAX_RPS       # facing right of the course: turn left

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from t1 import joint_command_t
 
-from sim_hil import model as t1model
+from common import model as t1model
 from sim_hil.eval import plans
 from sim_hil.eval.metrics import TickLog
 from sim_hil.eval.trial import TrialSpec, summarise

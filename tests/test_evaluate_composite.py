@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training import observation as obsdef
+from common import observation as obsdef
 from training.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
-from training.teacher import WAIST_SWITCH_HEIGHT_M
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 ROOT = Path(__file__).resolve().parents[1]
 GETUP = ROOT / "policies" / "getup_baseline.safetensors"

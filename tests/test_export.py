@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from messages import contract
-from training import artifact, export
-from training import observation as ob
+from common import artifact
+from common import golden as export
+from training import export as training_export
+from common import observation as ob
 
 GOLDEN = Path(__file__).resolve().parent / "golden" / export.GOLDEN_ARTIFACT
 N = contract.NUM_JOINTS
@@ -196,7 +198,7 @@ def test_export_brax_ppo_matches_brax_deterministic_policy(tmp_path):
     params = (normalizer, networks.policy_network.init(key_policy), networks.value_network.init(key_value))
 
     path = tmp_path / "brax.safetensors"
-    export.export_brax_ppo(params, {"name": "brax_parity", "activation": "swish"}, path)
+    training_export.export_brax_ppo(params, {"name": "brax_parity", "activation": "swish"}, path)
     layers, mean, std, manifest = artifact.read_artifact(path)
     assert [w.shape for w, _ in layers] == [(64, obs_size), (32, 64), (32, 32), (2 * N, 32)]
 

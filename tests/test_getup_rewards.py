@@ -74,7 +74,7 @@ def test_gate_exactly_as_written(h, up, ok):
 
 
 def test_gate_is_the_evaluations_kneel_gate():
-    from sim_hil.eval.events import kneel_gate_mask
+    from common.events import kneel_gate_mask
     for h in (0.3, 0.3949, 0.3951, 0.67):
         for deg in (0.0, 0.5, 0.6, 10.0):
             up = _tilted(deg)
@@ -244,7 +244,7 @@ def test_only_stage2_ends_when_the_trunk_falls_below_the_fall_height(full_env):
 # ------------------------------------------------------------------ the failed-rise tracker
 def _failed_rises(h, up_z, hold_ticks):
     """Failed attempts the tracker counts over a trunk height series (standing as events.py's)."""
-    from sim_hil.eval.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
+    from common.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 
     def tick(track, x):
         return G.rise_track_step(track, x[0], (x[0] >= STANDING_TRUNK_HEIGHT_M) & (x[1] >= UPRIGHT_UP_Z),
@@ -266,8 +266,8 @@ def _failed_rises(h, up_z, hold_ticks):
      (0.66, 0.66, 1.5)],
 ])
 def test_failed_rises_count_as_the_events_definition(segments):
-    """The reward's tracker and sim_hil/eval/events.py count the same failed attempts on scripted series."""
-    from sim_hil.eval.events import STAND_HOLD_S, getup_events
+    """The reward's tracker and common/events.py count the same failed attempts on scripted series."""
+    from common.events import STAND_HOLD_S, getup_events
     dt = 0.02
     h = np.concatenate([np.linspace(a, b, int(round(s / dt)), endpoint=False) for a, b, s in segments])
     up_z, t = np.ones_like(h), np.arange(len(h)) * dt

@@ -11,7 +11,7 @@ import pytest
 from training import envs
 from training.envs import getup_rewards as G
 from training.artifact_policy import ArtifactPolicy
-from training.teacher import WAIST_SWITCH_HEIGHT_M
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 JOYSTICK = "policies/joystick.safetensors"
 GETUP = "policies/getup_kd_bank.safetensors"

@@ -9,10 +9,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from sim_hil import model as t1model
+from common import model as t1model
 from training import envs
 from training.envs import handover, joystick
-from training.teacher import WAIST_SWITCH_HEIGHT_M
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 GETUP = "policies/getup_keyframe.safetensors"
 BANK_STARTS = 6
@@ -52,7 +52,7 @@ def test_joystick_env_refuses_a_bad_handover_config(over, why):
 
 @pytest.fixture(scope="module")
 def bank():
-    return handover.handover_bank(GETUP, BANK_STARTS, seed=handover_seed())
+    return handover.handover_bank(envs.make, GETUP, BANK_STARTS, seed=handover_seed())
 
 
 def handover_seed():
@@ -102,7 +102,7 @@ def test_getup_env_refuses_a_bad_knockdown_config(over, why):
 
 @pytest.fixture(scope="module")
 def knock_bank():
-    return handover.knockdown_bank(JOYSTICK, KNOCK_STARTS, seed=int(envs.default_config("getup").knockdown_starts.seed))
+    return handover.knockdown_bank(envs.make, JOYSTICK, KNOCK_STARTS, seed=int(envs.default_config("getup").knockdown_starts.seed))
 
 
 @pytest.mark.slow
@@ -172,7 +172,7 @@ def test_landing_shares_become_the_getup_envs_bank_overrides():
 @pytest.mark.slow
 def test_handover_bank_rises_from_knockdown_landings(bank, knock_bank):
     landings = _landings(knockdown_prob=1.0)
-    landed = handover.handover_bank(GETUP, BANK_STARTS, handover_seed(),
+    landed = handover.handover_bank(envs.make, GETUP, BANK_STARTS, handover_seed(),
                                     {**landings, "knockdown_starts.bank_starts": KNOCK_STARTS})
     mj = t1model.load_model()
     data = mujoco.MjData(mj)

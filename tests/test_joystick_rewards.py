@@ -2,7 +2,7 @@
 import jax.numpy as jnp
 import numpy as np
 
-from training import observation as obsdef
+from common import observation as obsdef
 from training.envs import joystick_rewards as R
 
 SWING_HEIGHT_M = 0.08

@@ -16,7 +16,7 @@ from messages import contract
 from sim_hil.launch import ROOT, _env
 from sim_hil.lcmlog.eventlog import Event, LogProblems, open_log, read_events, write_events
 from sim_hil.lcmlog.plot import parse_joints, plot_log
-from training.artifact import read_artifact, write_artifact
+from common.artifact import read_artifact, write_artifact
 
 STUDENT = ROOT / "policies" / "student_untrained.safetensors"
 N = contract.NUM_JOINTS

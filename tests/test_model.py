@@ -1,4 +1,4 @@
-"""Acceptance tests for the T1 model (sim_hil/models/t1.xml) and sim_hil/model.py."""
+"""Acceptance tests for the T1 model (common/models/t1.xml) and common/model.py."""
 import itertools
 
 import mujoco
@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from messages import contract
-from sim_hil import model as t1
+from common import model as t1
+from common import scenarios
 
 TOTAL_MASS_KG = 31.614357
 SOLE_FLAT_TOL_M = 1e-3
@@ -19,7 +20,7 @@ KNEEL_GROUND_GEOMS = {"left_thigh", "right_thigh", "left_shank", "right_shank", 
 
 @pytest.fixture(scope="module")
 def model():
-    m, _ = t1.build_model("flat")
+    m, _ = scenarios.build("flat")
     return m
 
 
@@ -134,7 +135,7 @@ def test_spawn_states(model):
 
 def test_unknown_scenario_is_rejected():
     with pytest.raises(ValueError, match="valid: flat"):
-        t1.build_model("ice_rink")
+        scenarios.build("ice_rink")
 
 
 def test_fallen_state_deterministic_and_lying(model):

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from messages import contract
-from training import export
-from training import observation as ob
-from training.artifact import read_artifact
+from common import golden as export
+from common import observation as ob
+from common.artifact import read_artifact
 
 GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
 N = contract.NUM_JOINTS

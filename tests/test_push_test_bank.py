@@ -10,12 +10,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from sim_hil import model as t1model
+from common import model as t1model
 from sim_hil.eval import plans
 from sim_hil.faults import parse_faults
 from training import envs
 from training.envs import handover
-from training.teacher import WAIST_SWITCH_HEIGHT_M
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 JOYSTICK = "policies/joystick.safetensors"
 STARTS = 6
@@ -65,7 +65,7 @@ def test_getup_env_refuses_a_bad_push_start_config(over, why):
 
 @pytest.fixture(scope="module")
 def push_bank():
-    return handover.push_test_bank(JOYSTICK, STARTS, seed=int(envs.default_config("getup").push_starts.seed))
+    return handover.push_test_bank(envs.make, JOYSTICK, STARTS, seed=int(envs.default_config("getup").push_starts.seed))
 
 
 @pytest.mark.slow

@@ -1,7 +1,7 @@
 """The video's tracking camera follows the robot wherever it walks (sim_hil/recorder.py)."""
 import numpy as np
 
-from sim_hil import model as t1
+from common import model as t1
 from sim_hil.recorder import render_frames, tracking_camera
 
 FRAME_PX = 32

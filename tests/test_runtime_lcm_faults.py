@@ -15,7 +15,7 @@ from messages import contract
 from sim_hil import firmware as fw
 from sim_hil.launch import ROOT, start_runtime
 from tests.runtime_peer import LATCHED_FAULT_MASK, MODE, RuntimePeer
-from training.artifact import _serialize_container, _tensors_from, content_hash, read_artifact
+from common.artifact import _serialize_container, _tensors_from, content_hash, read_artifact
 
 STUDENT = ROOT / "policies" / "student_untrained.safetensors"
 FAST_PREPARE = ("--prepare-s", "0.02")   # 10-tick ramp: keeps the ladder short

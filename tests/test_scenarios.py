@@ -1,11 +1,11 @@
-"""Acceptance tests for sim_hil/scenarios.py: every scenario builds, walls are where they should be,
+"""Acceptance tests for common/scenarios.py: every scenario builds, walls are where they should be,
 puddles really have μ 0.4 (measured by sliding a box), push schedules are seeded."""
 import mujoco
 import numpy as np
 import pytest
 
-from sim_hil import model as t1
-from sim_hil import scenarios as sc
+from common import model as t1
+from common import scenarios as sc
 
 GRAVITY_MPS2 = 9.81
 FLOOR_FRICTION = 0.6
@@ -13,7 +13,7 @@ FLOOR_FRICTION = 0.6
 
 @pytest.mark.parametrize("name", sc.SCENARIOS)
 def test_each_scenario_builds_and_robot_stands_on_ground(name):
-    model, info = t1.build_model(name, seed=1)
+    model, info = sc.build(name, seed=1)
     assert info.name == name and info.seed == 1 and info.description
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
@@ -24,11 +24,11 @@ def test_each_scenario_builds_and_robot_stands_on_ground(name):
 
 def test_unknown_scenario_names_the_valid_ones():
     with pytest.raises(ValueError, match="flat.*walls.*puddles.*pushes"):
-        t1.build_model("lava")
+        sc.build("lava")
 
 
 def test_walls_positions_and_sizes():
-    model, _ = t1.build_model("walls")
+    model, _ = sc.build("walls")
     walls = [model.geom(f"wall_{i}") for i in range(sc.WALL_COUNT)]
     assert len(walls) == 3
     xs = sorted(float(w.pos[0]) for w in walls)
@@ -45,9 +45,9 @@ def _puddle_geoms(model):
 
 
 def test_puddle_layout_is_seeded_and_on_the_path():
-    a, _ = t1.build_model("puddles", seed=4)
-    b, _ = t1.build_model("puddles", seed=4)
-    c, _ = t1.build_model("puddles", seed=5)
+    a, _ = sc.build("puddles", seed=4)
+    b, _ = sc.build("puddles", seed=4)
+    c, _ = sc.build("puddles", seed=5)
     pa, pb, pc = _puddle_geoms(a), _puddle_geoms(b), _puddle_geoms(c)
     assert len(pa) == sc.PUDDLE_COUNT
     np.testing.assert_array_equal([g.pos for g in pa], [g.pos for g in pb])
@@ -98,9 +98,9 @@ def test_puddle_friction_is_really_lower_than_floor():
 
 
 def test_push_schedule_seeded_forward_and_backward():
-    _, a = t1.build_model("pushes", seed=7)
-    _, b = t1.build_model("pushes", seed=7)
-    _, c = t1.build_model("pushes", seed=8)
+    _, a = sc.build("pushes", seed=7)
+    _, b = sc.build("pushes", seed=7)
+    _, c = sc.build("pushes", seed=8)
     assert a.pushes == b.pushes and a.pushes != c.pushes
     assert len(a.pushes) >= 5
     times = [t for t, _ in a.pushes]
@@ -110,7 +110,7 @@ def test_push_schedule_seeded_forward_and_backward():
     assert np.all(xs[:, 1:] == 0.0)
     all_x = np.concatenate([[imp[0] for _, imp in info.pushes] for info in (a, c)])
     assert (all_x > 0).any() and (all_x < 0).any()
-    _, flat = t1.build_model("flat", seed=7)
+    _, flat = sc.build("flat", seed=7)
     assert flat.pushes == []
 
 

@@ -8,12 +8,14 @@ import pytest
 from t1 import imu_t, joint_command_t, joint_state_t
 
 from messages import contract
-from sim_hil import firmware as fw, model as t1model
+from common import model as t1model
+from common import scenarios
+from sim_hil import firmware as fw
 from sim_hil.faults import FaultSpecError, parse_faults
 from sim_hil.motor_bus import NO_REPLY
 from tests.sim_harness import hold_pose, run_with_client
 
-MODEL, _ = t1model.build_model("flat", 0)
+MODEL, _ = scenarios.build("flat", 0)
 KP, KD = t1model.pd_gains(MODEL)
 HOME = t1model.default_pose(MODEL)
 BASE = ["--clock", "lockstep", "--spawn", "standing", "--lockstep-timeout", "0.005"]

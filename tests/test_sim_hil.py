@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 from t1 import joint_state_t
 
-from sim_hil import firmware as fw, model as t1model
+from common import model as t1model
+from common import scenarios
+from sim_hil import firmware as fw
 from tests.sim_harness import hold_pose, run_with_client, start_sim
 
-MODEL, _ = t1model.build_model("flat", 0)
+MODEL, _ = scenarios.build("flat", 0)
 KP, KD = t1model.pd_gains(MODEL)
 HOME = t1model.default_pose(MODEL)
 DT = 0.002

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from training import observation as obsdef
+from common import observation as obsdef
 from training.teacher import STUDENT_OBS_KEY, WAIST_OBS_KEY, Expert, make_teacher
 
 N = obsdef.NUM_JOINTS

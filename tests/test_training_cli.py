@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from ml_collections import config_dict
 
-from training import checkpoints, cli, curves
-from training.artifact import read_artifact
+from training import checkpoints, cli, curves, overrides
+from common.artifact import read_artifact
 
 ROOT = Path(__file__).resolve().parent.parent
 RUNTIME = Path(os.environ.get("T1_BUILD", ROOT / "build")) / "runtime" / "t1-runtime"
@@ -28,24 +28,24 @@ TOY_STEPS = 80          # one toy PPO training step: 8 envs × 5 unroll × 2 min
 def test_config_overrides_prefixed_bare_and_errors():
     ppo = config_dict.create(learning_rate=3e-4, hidden=(8, 8))
     env = config_dict.create(episode_length=1000, noise=config_dict.create(level=1.0))
-    cli.apply_overrides({"ppo": ppo, "env": env}, ["learning_rate=1e-4", "env.noise.level=0.5",
+    overrides.apply_overrides({"ppo": ppo, "env": env}, ["learning_rate=1e-4", "env.noise.level=0.5",
                                                    "ppo.hidden=(4, 4)", "episode_length=20"])
     assert ppo.learning_rate == 1e-4 and tuple(ppo.hidden) == (4, 4)
     assert env.noise.level == 0.5 and env.episode_length == 20
     with pytest.raises(ValueError, match="no config"):
-        cli.apply_overrides({"ppo": ppo, "env": env}, ["nonexistent=1"])
+        overrides.apply_overrides({"ppo": ppo, "env": env}, ["nonexistent=1"])
     with pytest.raises(ValueError, match="key=value"):
-        cli.apply_overrides({"ppo": ppo}, ["learning_rate"])
+        overrides.apply_overrides({"ppo": ppo}, ["learning_rate"])
     with pytest.raises(ValueError, match="has no field"):
-        cli.apply_overrides({"ppo": ppo, "env": env}, ["env.missing=1"])
+        overrides.apply_overrides({"ppo": ppo, "env": env}, ["env.missing=1"])
 
 
 def test_config_overrides_take_json_booleans():
     env = config_dict.create(gate_latches=True, deterministic=False)
-    cli.apply_overrides({"env": env}, ["env.gate_latches=false", "env.deterministic=True"])
+    overrides.apply_overrides({"env": env}, ["env.gate_latches=false", "env.deterministic=True"])
     assert env.gate_latches is False and env.deterministic is True
     with pytest.raises(ValueError, match="gate_latches=maybe"):
-        cli.apply_overrides({"env": env}, ["env.gate_latches=maybe"])
+        overrides.apply_overrides({"env": env}, ["env.gate_latches=maybe"])
 
 
 def test_cli_rejects_bad_usage(capsys):
@@ -233,7 +233,7 @@ def test_max_minutes_stops_at_a_checkpoint(toy_runs):
 
 @pytest.mark.slow
 def test_toy_distill_exports_student(toy_runs):
-    from training import observation as obsdef
+    from common import observation as obsdef
     # the toy run used distill's default env: the unified walk–fall–getup task
     assert cli.build_parser().parse_args(["distill", "--getup", "g", "--joystick", "j", "--out", "o"]).task == "unified"
     layers, _, _, manifest = read_artifact(toy_runs["student"] / "student_toy.safetensors")

@@ -1,5 +1,5 @@
 """MJX training envs (training/envs): API, contact budget, PD law vs the firmware, and (slow) jit+vmap
-rollouts of every task with the observation checked against training/observation.py.
+rollouts of every task with the observation checked against common/observation.py.
 
 Fast tests never jit an env step (eval_shape only); each slow test compiles one env's reset+step
 (a minute or two on a shared 2-core CPU)."""
@@ -10,9 +10,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sim_hil import model as t1model
+from common import model as t1model
 from training import envs
-from training import observation as obsdef
+from common import observation as obsdef
 from training.envs import collision, motor
 
 OBS_SIZES = {  # actor size from the terms; critic = actor + base extras + task extras

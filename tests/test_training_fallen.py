@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sim_hil import config as sim_config
-from sim_hil import model as t1model
+from common import model as t1model
 from sim_hil.launch import ROOT
 from training.envs import base, fallen
 

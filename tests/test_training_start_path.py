@@ -3,7 +3,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from sim_hil import model as t1
+from common import model as t1
 from training.envs import start_path
 
 HALF_KNEEL_RAD = (-1.5, 2.2, -0.7)      # left hip pitch, knee, ankle pitch at progress 1

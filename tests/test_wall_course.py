@@ -9,10 +9,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from sim_hil import scenarios
+from common import scenarios
 from training import envs
 from training.envs import handover, wall_course
-from training.teacher import WAIST_SWITCH_HEIGHT_M
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 JOYSTICK = "policies/joystick.safetensors"
 APPROACHES = 8
@@ -70,7 +70,7 @@ def test_bad_wall_configs_are_refused(task, over, why):
 
 @pytest.fixture(scope="module")
 def wall_bank():
-    return handover.wall_bank(JOYSTICK, APPROACHES, SEED)
+    return handover.wall_bank(envs.make, JOYSTICK, APPROACHES, SEED)
 
 
 @pytest.mark.slow

@@ -1,3 +1,3 @@
-"""Training side of the T1 project: the one observation definition (training/observation.py), policy
-artifacts (training/artifact.py: write/read/validate), export from brax (training/export.py); MJX envs,
+"""Training side of the T1 project: the one observation definition (common/observation.py), policy
+artifacts (common/artifact.py: write/read/validate), export from brax (training/export.py); MJX envs,
 PPO, teacher and DAgger come later."""

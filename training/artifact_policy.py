@@ -1,5 +1,5 @@
 """The policy artifacts as the batch evaluations run them, in jax: one artifact (ArtifactPolicy, the file the
-runtime runs, through training/observation.py) or the runtime's composite of two (CompositePolicy,
+runtime runs, through common/observation.py) or the runtime's composite of two (CompositePolicy,
 `--policy GETUP,UPRIGHT`, the seed's chapter-6 baseline). Used by training/evaluate.py (getup) and
 training/evaluate_joystick.py (walking)."""
 from __future__ import annotations
@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from training import observation as obsdef
-from training.artifact import read_artifact
-from training.teacher import WAIST_SWITCH_HEIGHT_M
+from common import observation as obsdef
+from common.artifact import read_artifact
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 MANIFEST_MUST_MATCH_ENV = ("default_pose", "action_scale", "kp", "kd", "control_dt")
 MATCH_TOLERANCE = 1e-6
@@ -143,7 +143,7 @@ def load_policy(spec) -> ArtifactPolicy | CompositePolicy:
 
 
 def policy_action(manifest: dict, params, obs_state: obsdef.ObservationState):
-    """The artifact's per-tick computation in jax (training/observation.py with xp=jax.numpy)."""
+    """The artifact's per-tick computation in jax (common/observation.py with xp=jax.numpy)."""
     import jax.numpy as jnp
     layers, mean, std = params
     obs = obsdef.build_observation(manifest["obs_terms"], obs_state, jnp)

@@ -4,7 +4,7 @@ Defaults are the seed's Table 5.2 and Algorithm 1: 1024 envs, demo length 6, β 
 (the teacher's action is executed in the first DAgger phase only, `jp.where(step == 0, 1, 0)`), batch 256,
 lr 4e-4, 4 epochs per phase, normalised observations, no tanh squash (raw actions), scramble time = the
 episode length (1000), evaluation rollouts 1.15 × the episode length. The student sees the full term layout
-(training/observation.py TERMS_UNION) so one network can walk and get up; the env is built with
+(common/observation.py TERMS_UNION) so one network can walk and get up; the env is built with
 obs_terms = TERMS_UNION, and the privileged waist height rides along in the observation dict for the
 teacher only. The default env is `unified` (training/envs/unified.py: fallen / kneeling / standing starts,
 joystick commands and pushes, falls not terminal), so the student sees both experts' situations and the
@@ -28,7 +28,7 @@ import numpy as np
 from ml_collections import config_dict
 
 from training import checkpoints, curves
-from training import observation as obsdef
+from common import observation as obsdef
 from training.teacher import STUDENT_OBS_KEY, WAIST_OBS_KEY, load_expert, make_teacher
 
 DEFAULT_TASK = "unified"  # the whole walk–fall–getup task (training/envs/unified.py); cli.py repeats it
@@ -140,7 +140,7 @@ def loc_half(policy_params) -> dict:
 def export_student(params, env, path, name: str, tanh_squash: bool, trained: bool, provenance: dict) -> str:
     """brax bc (normalizer, policy) → artifact; returns the output rule written."""
     from training.export import export_brax_ppo
-    from training.train import ACTIVATION
+    from training.ppo_networks import ACTIVATION
     policy = params[1]
     output_rule = "tanh_normal"
     if not tanh_squash:  # act = loc
@@ -167,7 +167,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     from brax.training.agents.bc import train as bc
     from mujoco_playground import wrapper
     from training import envs
-    from training.cli import apply_overrides
+    from training.overrides import apply_overrides
 
     checkpoints.jax_setup()
     t_start = time.monotonic()
@@ -276,7 +276,7 @@ def export_phase(run_dir, phase: int, name: str, like=None) -> Path:
     seed's DAgger-400 / DAgger-1000 students of Fig. 5.1 as checkpoints of one longer run. (Not the same as
     a run of that length: brax bc resets the envs at each evaluation, every dagger_steps / (num_evals − 1)
     phases, so a shorter run resets more often.)"""
-    from training.artifact import read_artifact
+    from common.artifact import read_artifact
     from training.export import export_brax_ppo
     run_dir = Path(run_dir)
     ckpt = checkpoints.kept_checkpoint(run_dir, phase, f"phase {phase}")

@@ -7,7 +7,7 @@ N seeded fallen starts (the env's fallen_starts: the settled fall after the runt
 `make eval-getup` hands them to the policy) are rolled out in parallel with the getup env's model
 and motor law, on either physics backend (default as `train`): MJX (jax.vmap over envs, lax.scan over
 control ticks, make_rollout below) or MuJoCo C (training/evaluate_cpu.py, the same series). The policy side is the
-artifact run through training/observation.py with xp=jax.numpy (training/artifact_policy.py): the observation is
+artifact run through common/observation.py with xp=jax.numpy (training/artifact_policy.py): the observation is
 built from the physics state exactly as the runtime builds it (no noise, command 0, gait clock frozen at its initial
 phase because ‖command‖ < phase_freeze_command_norm), normalised, fed through the MLP, mapped to targets.
 A policy may also be the runtime's composite of two artifacts, `--policy GETUP,UPRIGHT` (CompositePolicy:
@@ -16,7 +16,7 @@ the getup member below waist 0.5 m, the upright one above), the seed's chapter-6
 Per env and control tick the host gets trunk height, up_z, waist height, and per-substep aggregates:
 energy Σ|τ·q̇|·dt_sim [J], the largest of one substep's Σ|τ·q̇|·dt_sim [J], max |τ| [N·m], Σ|τ|·dt_sim [N·m·s],
 max |q̈| [rad/s²], Σ|q̈|·dt_sim [rad/s]; after the tick, the total normal force [N] and the world-z force [N]
-of the robot's contacts with the world (the definitions of sim_hil/eval/metrics.py's effort_metrics). Falls / attempts / success / time to stand come from sim_hil/eval/events.py, the definitions
+of the robot's contacts with the world (the definitions of sim_hil/eval/metrics.py's effort_metrics). Falls / attempts / success / time to stand come from common/events.py, the definitions
 the HIL evaluation uses too. Output: report.md (table beside the seed's numbers), per_env.csv, plots.
 """
 from __future__ import annotations
@@ -27,10 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from training import observation as obsdef
+from common import observation as obsdef
 from training import table_4_3
 from training.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
-from training.teacher import WAIST_SWITCH_HEIGHT_M
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 
 def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
@@ -122,7 +122,7 @@ def episode_row(t, readings, series) -> dict:
     and its per-tick effort series (T,). energy_to_stand_J counts the ticks before the first stand-up only
     (nan if it never stood): the energy of getting up, which the whole episode's energy_J mixes with the
     standing that follows it under the upright policy."""
-    from sim_hil.eval.events import getup_events, through_kneel_gate
+    from common.events import getup_events, through_kneel_gate
     ev = getup_events(t, readings[:, 0], readings[:, 1], waist_height=readings[:, 2],
                       switch_height_m=WAIST_SWITCH_HEIGHT_M)
     gate = through_kneel_gate(t, readings[:, 0], readings[:, 1], ev)
@@ -292,11 +292,11 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     else:
         from training.envs import handover
         if starts == "knockdown":
-            qpos, qvel = handover.knockdown_bank(str(start_joystick), seeds, first_seed)
+            qpos, qvel = handover.knockdown_bank(envs.make, str(start_joystick), seeds, first_seed)
         elif starts == "push":
-            qpos, qvel = handover.push_test_bank(str(start_joystick), seeds, first_seed)
+            qpos, qvel = handover.push_test_bank(envs.make, str(start_joystick), seeds, first_seed)
         else:
-            qpos, qvel = handover.wall_bank(str(start_joystick), seeds, first_seed,
+            qpos, qvel = handover.wall_bank(envs.make, str(start_joystick), seeds, first_seed,
                                             float(env.config.wall_course.first_wall_x_m))
     policies = {role: load_policy(path) for role, path in (("policy", policy_path), ("baseline", baseline))
                 if path is not None}   # both checked before either runs

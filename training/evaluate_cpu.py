@@ -15,7 +15,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from training import observation as obsdef
+from common import observation as obsdef
 
 
 def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int, keep_qpos: bool = False) -> dict:

@@ -6,11 +6,11 @@
 The episodes are the joystick env's own (training/envs/joystick.py: randomised start pose and heading,
 commands drawn from the training ranges, zero with p 0.1, resampled every command_resample_steps) on flat
 ground, with the nominal model (no domain randomisation), no pushes and no observation noise: the policy
-is judged on tracking, not on robustness. Either physics backend steps them (default as `train`). Actions come from the ARTIFACT (training/observation.py's MLP
+is judged on tracking, not on robustness. Either physics backend steps them (default as `train`). Actions come from the ARTIFACT (common/observation.py's MLP
 with xp=jax.numpy on the env's clean actor observation, deterministic tanh(mean)), so this also checks
 the export.
 
-Per episode: fell (sim_hil/eval/events.py's fall: trunk below the fallen height), and while it has not
+Per episode: fell (common/events.py's fall: trunk below the fallen height), and while it has not
 fallen, the tracking errors in the trunk frame: linear ‖(vx, vy)_cmd − (vx, vy)‖ and yaw-rate |ω_cmd − ω_z|
 (the quantities the tracking rewards use). RMS over every tick of every episode ("all"), and over ticks at
 least SETTLE_S after the last command change ("settled"), since a step in the command cannot be tracked
@@ -69,7 +69,7 @@ def _clean_obs_state(env, state):
 
 def episode_rows(series: dict, ctrl_dt: float) -> list[dict]:
     """Per-episode fall flag and squared-error sums (numpy; split out for tests on synthetic series)."""
-    from sim_hil.eval.events import getup_events
+    from common.events import getup_events
     cmd, vel = np.asarray(series["cmd"]), np.asarray(series["vel"])      # (N, T, 3)
     n, t_len = cmd.shape[:2]
     t = (np.arange(t_len) + 1) * ctrl_dt

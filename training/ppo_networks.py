@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import functools
 
+ACTIVATION = "swish"  # brax's PPO/BC default (flax linen.swish); the artifact's activation must match
+
 
 def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observations_fn=None,
                                 policy_hidden_layer_sizes=(512, 256, 128), value_hidden_layer_sizes=(512, 256, 128),

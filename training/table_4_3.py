@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from sim_hil.eval.seed_figures import SEED_TABLE_4_3
+from common.seed_figures import SEED_TABLE_4_3
 
 # summary key (training/evaluate.py) -> the seed's Table 4.3 row, in the seed's order
 SEED_METRIC = {"energy_J": "Average Energy Sum", "max_torque_Nm": "Average Max Torques",

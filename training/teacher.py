@@ -1,11 +1,4 @@
-"""Experts as jax functions, the observation adapter, and the stitched teacher.
-
-An expert is loaded from a policy artifact or a PPO checkpoint (both become the artifact's numbers:
-layers, normaliser, obs terms), so the teacher runs exactly what the runtime would run. Observations are
-vectors of named terms (training/observation.py); `TermAdapter` maps one term layout onto another by
-slicing, and fills the two terms a getup env does not produce with the values they have while standing
-still: command = 0 and the gait phase frozen at its initial value (the gait clock does not advance while
-‖command‖ < phase_freeze_command_norm, policies/ARTIFACT.md).
+"""The stitched teacher of the distillation, from two experts (training/experts.py).
 
 Stitched teacher (ARCHITECTURE.md, Training): the getup expert while the waist is below
 WAIST_SWITCH_HEIGHT_M, else the joystick expert. Waist height is privileged (state.info["waist_height"]);
@@ -14,116 +7,15 @@ WAIST_OBS_KEY (training/distill.py); the student's network reads only "state".
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
-from training import observation as obsdef
+from common import observation as obsdef
+from messages.contract import WAIST_SWITCH_HEIGHT_M
+from training.experts import STUDENT_OBS_KEY, WAIST_OBS_KEY, Expert, TermAdapter, load_expert, per_joint
 
-WAIST_SWITCH_HEIGHT_M = 0.5
-WAIST_OBS_KEY = "waist_height"
-STUDENT_OBS_KEY = "state"
 CHECK_FALLEN_STARTS = 16  # host-precomputed fallen starts for the `teacher` check rollout (seconds each)
-
-
-@dataclass(frozen=True)
-class Expert:
-    name: str
-    layers: tuple            # ((W (out, in), b), ...) float32 numpy
-    obs_mean: np.ndarray
-    obs_std: np.ndarray
-    activation: str
-    obs_terms: tuple         # ((name, size), ...)
-    action_scale: np.ndarray  # (23,) rad per unit action: target = default pose + action_scale · tanh(loc)
-
-    def loc(self, obs, xp=None):
-        """The pre-tanh mean (brax tanh-normal `loc`) for raw observations in this expert's term layout."""
-        import jax.numpy as jnp
-        xp = xp or jnp
-        out = obsdef.mlp_forward(self.layers, obsdef.normalize(obs, xp.asarray(self.obs_mean), xp.asarray(self.obs_std)),
-                                 self.activation, "linear", xp=xp)
-        return out[..., :obsdef.NUM_JOINTS]
-
-
-def _terms_for_size(size: int, source) -> tuple:
-    matches = [t for t in (obsdef.TERMS_UNION, obsdef.TERMS_GETUP) if obsdef.observation_size(t) == size]
-    if not matches:
-        raise ValueError(f"{source}: policy input size {size} matches neither the joystick/student terms "
-                         f"({obsdef.observation_size(obsdef.TERMS_UNION)}) nor the getup terms "
-                         f"({obsdef.observation_size(obsdef.TERMS_GETUP)})")
-    return matches[0]
-
-
-def load_expert(path, name: str | None = None) -> Expert:
-    """A tanh_normal policy from an artifact (.safetensors) or a brax PPO checkpoint / run directory."""
-    path = Path(path)
-    if path.suffix == ".safetensors":
-        from training.artifact import read_artifact
-        layers, mean, std, manifest = read_artifact(path)
-        if manifest["output_rule"] != "tanh_normal":
-            raise ValueError(f"{path}: output_rule {manifest['output_rule']!r}; an expert must be a PPO "
-                             "tanh_normal policy (the DAgger loss compares tanh(loc))")
-        return Expert(name or manifest["name"], tuple(layers), mean, std, manifest["activation"],
-                      tuple((n, int(s)) for n, s in manifest["obs_terms"]), _per_joint(manifest["action_scale"]))
-    from training import checkpoints
-    from training.export import brax_policy_layers
-    from training.train import ACTIVATION
-    params = checkpoints.load_checkpoint(path)
-    layers = brax_policy_layers(params[1])
-    if layers[-1][0].shape[0] != 2 * obsdef.NUM_JOINTS:
-        raise ValueError(f"{path}: policy outputs {layers[-1][0].shape[0]}, a tanh_normal T1 policy has "
-                         f"{2 * obsdef.NUM_JOINTS}")
-    mean, std = params[0].mean, params[0].std
-    if isinstance(mean, dict):
-        mean, std = mean[STUDENT_OBS_KEY], std[STUDENT_OBS_KEY]
-    terms = _terms_for_size(layers[0][0].shape[1], path)
-    from training import envs      # a checkpoint has no manifest: its task's action map, from the terms
-    task = "getup" if terms == obsdef.TERMS_GETUP else "joystick"
-    scale = envs.make(task, config_overrides={"fallen_bank_size": 1} if task == "getup" else None
-                      ).manifest_fields()["action_scale"]
-    return Expert(name or path.name, tuple(layers), np.asarray(mean, np.float32), np.asarray(std, np.float32),
-                  ACTIVATION, terms, _per_joint(scale))
-
-
-def _per_joint(scale) -> np.ndarray:
-    return np.broadcast_to(np.asarray(scale, np.float32), (obsdef.NUM_JOINTS,)).copy()
-
-
-class TermAdapter:
-    """Maps observations laid out as `source_terms` to `target_terms` (a jax/numpy function)."""
-
-    FILLABLE = ("command", "phase")
-
-    def __init__(self, source_terms: Sequence, target_terms: Sequence):
-        obsdef.check_terms(target_terms)
-        self.source_terms, self.target_terms = tuple(map(tuple, source_terms)), tuple(map(tuple, target_terms))
-        self._plan = [(name, obsdef.term_slice(source_terms, name), int(size)) for name, size in target_terms]
-        self.filled = [name for name, where, _ in self._plan if where is None]
-        missing = [name for name in self.filled if name not in self.FILLABLE]
-        if missing:
-            raise ValueError(f"obs_terms: the env does not produce {missing} (env terms: "
-                             f"{[n for n, _ in source_terms]}), and only {self.FILLABLE} can be filled in")
-        self.identity = self.source_terms == self.target_terms
-
-    def __call__(self, obs, xp=None):
-        import jax.numpy as jnp
-        xp = xp or jnp
-        if self.identity:
-            return obs
-        batch = obs.shape[:-1]
-        parts = []
-        for name, where, size in self._plan:
-            if where is not None:
-                parts.append(obs[..., where])
-            elif name == "command":
-                parts.append(xp.zeros(batch + (size,), obs.dtype))
-            else:  # phase: frozen initial gait clock, [cos φL, cos φR, sin φL, sin φR]
-                phi = obsdef.initial_gait_phase(np)
-                frozen = np.concatenate([np.cos(phi), np.sin(phi)]).astype(np.float32)
-                parts.append(xp.broadcast_to(xp.asarray(frozen, dtype=obs.dtype), batch + (size,)))
-        return xp.concatenate(parts, axis=-1)
 
 
 def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, student_action_scale,
@@ -149,7 +41,7 @@ def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, stude
     import jax.numpy as jnp
     to_getup = TermAdapter(student_terms, getup.obs_terms)
     to_joystick = TermAdapter(student_terms, joystick.obs_terms)
-    s_student = _per_joint(student_action_scale)
+    s_student = per_joint(student_action_scale)
     ratios = {e.name: e.action_scale / s_student for e in (getup, joystick)}
     for e in (getup, joystick):
         if np.any(ratios[e.name] > 1.0 + 1e-6):

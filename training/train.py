@@ -20,15 +20,15 @@ from typing import Any, Sequence
 from ml_collections import config_dict
 
 from training import checkpoints, curves, ppo_networks
-from training.export import run_provenance
+from training.export import exported_as_trained, run_provenance
 from training.checkpoints import REPO_ROOT
-from training.cli import apply_overrides
+from training.overrides import apply_overrides
+from training.ppo_networks import ACTIVATION
 
 PRESETS = ("gpu", "cpu", "toy")
 # Env settings of the toy preset (applied where the task's config has the key): 0.4 s episodes and a
 # small bank of host-precomputed fallen starts.
 TOY_ENV_OVERRIDES = {"episode_length": 20, "fallen_bank_size": 2}
-ACTIVATION = "swish"  # brax's PPO/BC default (flax linen.swish); the artifact's activation must match
 
 
 def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
@@ -332,12 +332,6 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
                        complete=latest["steps"] >= target)
 
 
-def exported_as_trained(steps: int, preset: str, env_config) -> bool:
-    """Whether a run's export may say `trained: true`: real steps, a real preset and no assist stage."""
-    from training.envs import assists
-    return steps > 0 and preset != "toy" and not assists.assisted(env_config)
-
-
 def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     """The run's newest params → <run_dir>/<name>.safetensors, manifest from the env config."""
     from training.export import export_brax_ppo
@@ -355,7 +349,7 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
 def ship_artifact(artifact: Path, state: dict, provenance_table=checkpoints.PROVENANCE_TABLE,
                   policies_dir: Path | None = None) -> Path:
     """Copy the artifact into policies/ and append its provenance row."""
-    from training.artifact import read_artifact
+    from common.artifact import read_artifact
     manifest = read_artifact(artifact)[3]
     prov = manifest["provenance"]
     policies_dir = Path(policies_dir or Path(provenance_table).parent)

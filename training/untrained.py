@@ -12,8 +12,9 @@ from datetime import date
 
 import numpy as np
 
-from training import observation as obsdef
-from training.export import GOLDEN_HIDDEN, base_manifest, random_policy, write_artifact
+from common import observation as obsdef
+from common.artifact import write_artifact
+from common.golden import GOLDEN_HIDDEN, base_manifest, random_policy
 
 SEED = 1
 

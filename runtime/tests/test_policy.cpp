@@ -131,7 +131,7 @@ TEST(PeriodicTask, MissedPeriodIsCountedAndRePhasedWithoutABurst) {
   EXPECT_GE(task.wait_next() - late_wake_ns, kLoopPeriodNs);
 }
 
-// Golden vectors written by training/observation.py + training/export.py.
+// Golden vectors written by common/observation.py + training/export.py.
 TEST(Golden, ObservationAndActionMatchPython) {
   const std::filesystem::path dir = T1_GOLDEN_DIR;
   const auto json_path = dir / "golden_vectors.json";

@@ -29,7 +29,7 @@ EXIT_OK, EXIT_USAGE, EXIT_FAILED = 0, 2, 1
 def distilled_from(student: Path) -> str:
     """GETUP,JOYSTICK: the stitched teacher a distilled artifact names in its provenance (paths as given to
     `python -m training distill`, relative to the repository root)."""
-    from training.artifact import read_artifact, stitched_teacher
+    from common.artifact import read_artifact, stitched_teacher
     if not student.is_file():
         raise ValueError(f"policy artifact {student} does not exist")
     teacher = stitched_teacher(read_artifact(student)[3])

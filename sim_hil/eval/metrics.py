@@ -10,8 +10,9 @@ import math
 import mujoco
 import numpy as np
 
+from common import events
 from sim_hil import config
-from sim_hil.eval.events import heading_from_quat, up_z_from_quat
+from common.events import heading_from_quat, up_z_from_quat
 
 FOOT_BODIES = ("left_foot_link", "right_foot_link")
 # Slip: a loaded foot sliding. 50 N is a sixth of the robot's weight (31.6 kg · 9.81 = 310 N): a foot that
@@ -136,6 +137,6 @@ def ran_to_stabilise(log: TickLog, window: slice) -> bool:
     """True when the robot never fell in the window and its trunk kept >= RUN_SPEED_MPS horizontal speed
     for >= RUN_MIN_S at a stretch (it ran the push off instead of absorbing it in place)."""
     trunk = log.trunk[window]
-    if trunk.size == 0 or np.any(trunk < config.FALLEN_TRUNK_HEIGHT_M):
+    if trunk.size == 0 or np.any(trunk < events.FALLEN_TRUNK_HEIGHT_M):
         return False
     return _runs(log.speed_xy[window] >= RUN_SPEED_MPS, int(round(RUN_MIN_S / config.CONTROL_DT_S))) > 0

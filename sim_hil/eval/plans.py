@@ -9,26 +9,20 @@ from typing import Callable
 
 import numpy as np
 
-from sim_hil import scenarios as sim_scenarios
+from common import scenarios as sim_scenarios
+from common.push_test import (PUSH_ANGLE_SPREAD_RAD, PUSH_AT_S, PUSH_IMPULSE_NS, PUSH_IMPULSE_SPREAD,
+                              PUSH_TIME_SPREAD_S, push_draw)
 from sim_hil.eval.trial import STEER_GAIN_PER_S, STEER_MAX_RPS, TrialResult, TrialSpec
 
 # Standing spawns start in the default pose already: a short PREPARE hands the robot to the policy at once
 # (the trial measures the policy; PREPARE itself holds the pose with the T1's stand-up gains, see
 # runtime/include/t1rt/prepare_gains.hpp and tests/test_dds.py).
 STANDING_PREPARE_S = 0.1
-# getup: seeded fallen starts (sim_hil.model.fallen_state drops the robot from a random pose)
+# getup: seeded fallen starts (common.model.fallen_state drops the robot from a random pose)
 GETUP_TRIALS = 1000
 GETUP_SECONDS = 12.0            # 2 s PREPARE ramp + 10 s to get up
-# push: 20 forward and 10 backward torso impulses, standing, no command (the seed's Tables 6.5-6.8)
+# push: 20 forward and 10 backward torso impulses (the draw: common/push_test.py)
 PUSH_FORWARD, PUSH_BACKWARD = 20, 10
-PUSH_IMPULSE_NS = 40.0          # 1.3 m/s on 31.6 kg: enough to knock a standing T1 over (judgement)
-PUSH_AT_S = 2.0                 # 0.1 s PREPARE + ~2 s standing under the policy
-# Lockstep trials are deterministic, so the seed varies the push as a hand push varies (the seed's pushes
-# were by hand): the impulse within ± this fraction, its direction within ± this angle off the x axis
-# [rad], and its time within this window [s] after PUSH_AT_S.
-PUSH_IMPULSE_SPREAD = 0.15
-PUSH_ANGLE_SPREAD_RAD = 0.26    # ≈ 15°
-PUSH_TIME_SPREAD_S = 0.5
 PUSH_SECONDS = 16.0
 # walk: the joystick expert's in-the-loop targets (issue 13), standing starts on flat ground
 WALK_SECONDS = 20.0
@@ -134,25 +128,6 @@ def getup_rows(trials: list[TrialResult]) -> dict[str, str]:
 
 
 # ---- push ------------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class PushDraw:
-    forward: bool
-    impulse_ns: float     # [N·s] on the Trunk
-    angle_rad: float      # direction off the robot's heading (standing spawns face +x): forward ≈ 0, backward ≈ π
-    at_s: float           # [s] after the trial's start
-
-
-def push_draw(index: int, seed: int) -> PushDraw:
-    """Trial `index`'s push, drawn from `seed`: F F B repeated, so any prefix (--trials N) has both directions
-    in the 2:1 ratio of 20 forward, 10 back. Also the batch's copy of this test (training/envs/handover.py
-    push_test_bank)."""
-    forward = index % 3 != 2
-    rng = np.random.default_rng(seed)
-    impulse = PUSH_IMPULSE_NS * (1.0 + rng.uniform(-PUSH_IMPULSE_SPREAD, PUSH_IMPULSE_SPREAD))
-    angle = rng.uniform(-PUSH_ANGLE_SPREAD_RAD, PUSH_ANGLE_SPREAD_RAD) + (0.0 if forward else math.pi)
-    return PushDraw(forward, impulse, angle, PUSH_AT_S + rng.uniform(0.0, PUSH_TIME_SPREAD_S))
-
-
 def push_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
     out = []
     for i in range(trials):

@@ -9,12 +9,13 @@ from dataclasses import asdict
 from datetime import datetime, timezone
 from pathlib import Path
 
-from sim_hil.eval import events, metrics
+from common import events
+from sim_hil.eval import metrics
 from sim_hil.eval.plans import COMMON_ROWS, Plan
-from sim_hil.eval.seed_figures import SEED_FIGURES, SEED_TRIAL_TABLES, seed_cells, seed_columns
+from common.seed_figures import SEED_FIGURES, SEED_TRIAL_TABLES, seed_cells, seed_columns
 from sim_hil.eval.trial import Controller, TrialResult
 from sim_hil.plots import plot_heights_and_velocity
-from training.artifact import read_artifact
+from common.artifact import read_artifact
 
 
 def trained_flags(controllers: list[Controller]) -> dict[str, bool]:
@@ -78,7 +79,7 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
 
     th = events.EventThresholds()
     lines += ["## Definitions", "",
-              f"- Events (`sim_hil/eval/events.py`, also used by the MJX evaluator): fallen = trunk below "
+              f"- Events (`common/events.py`, also used by the MJX evaluator): fallen = trunk below "
               f"{th.fallen_trunk_height_m} m; standing = trunk ≥ {th.standing_trunk_height_m} m and up_z ≥ "
               f"{th.upright_up_z}, held {th.stand_hold_s} s; a getup attempt = a rise of {th.attempt_rise_m} m "
               "from the lowest height while down (hysteresis both ways); success = not down at the end.",

@@ -148,7 +148,7 @@ def _bench_python() -> tuple[Path | None, str]:
 
 # ------------------------------------------------------------------------------------ 1. MLP
 def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
-    from training import artifact  # project venv only (the ORT worker never imports it)
+    from common import artifact  # project venv only (the ORT worker never imports it)
 
     layers, _, _, manifest = artifact.read_artifact(policy)
     shape = "-".join([str(layers[0][0].shape[1])] + [str(w.shape[0]) for w, _ in layers])

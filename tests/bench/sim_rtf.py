@@ -10,7 +10,8 @@ import lcm
 import mujoco
 
 from messages import contract
-from sim_hil import model as t1model
+from common import model as t1model
+from common import scenarios
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop
 from tests.sim_harness import hold_pose, run_with_client
 
@@ -18,7 +19,7 @@ SIM_SECONDS = 5.0
 
 
 def physics_only_rtf(spawn: str, seconds: float = SIM_SECONDS) -> float:
-    model, _ = t1model.build_model("flat", 0)
+    model, _ = scenarios.build("flat", 0)
     data = mujoco.MjData(model)
     kind, _, seed = spawn.partition(":")
     data.qpos[:], data.qvel[:] = t1model.spawn_state(model, kind, int(seed or 0))
@@ -34,7 +35,7 @@ def physics_only_rtf(spawn: str, seconds: float = SIM_SECONDS) -> float:
 
 
 def hil_rtf(spawn: str, seconds: float = SIM_SECONDS) -> float:
-    model, _ = t1model.build_model("flat", 0)
+    model, _ = scenarios.build("flat", 0)
     kp, kd = t1model.pd_gains(model)
     kind, _, seed = spawn.partition(":")
     q0, _ = t1model.spawn_state(model, kind, int(seed or 0))

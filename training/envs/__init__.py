@@ -57,7 +57,7 @@ def make(task: str, config: config_dict.ConfigDict | None = None, config_overrid
     cfg = default_config(task) if config is None else config
     if not isinstance(cfg, config_dict.ConfigDict):
         raise TypeError(f"config for {task!r} must be an ml_collections ConfigDict, got {type(cfg).__name__}")
-    return env_class(task)(config=cfg, config_overrides=config_overrides)
+    return env_class(task)(config=cfg, config_overrides=config_overrides, make_env=make)
 
 
 __all__ = ["TASKS", "default_config", "make", "fallen_states", "domain_randomize", "env_class"]

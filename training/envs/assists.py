@@ -1,6 +1,6 @@
 """Assist stages of the getup tasks: training aids of ours, not the seed's, both changes of the model (so
 both physics backends get them with no code of their own), both off by default, and a policy trained with
-either is never exported as trained (`assisted`, used by train.exported_as_trained).
+either is never exported as trained (`assisted`, used by export.exported_as_trained).
 
 * gravity_scale: gravity × a fraction in (0, 1] (T1Env._compile).
 * the elastic harness (config.harness): a spatial tendon from a world site above the start (x = y = 0,

@@ -1,13 +1,13 @@
 """T1 base env over mujoco_playground's MjxEnv (impl='jax'), shared by joystick, getup and baseline.
 
 What every task shares (ARCHITECTURE.md, Training):
-* the ONE robot file, sim_hil/models/t1.xml, in a collision variant (training/envs/collision.py);
+* the ONE robot file, common/models/t1.xml, in a collision variant (training/envs/collision.py);
 * PD at the motor, recomputed EVERY physics substep (n_substeps = ctrl_dt / sim_dt = 10) with the
   firmware's law and clamps (training/envs/motor.py), ONE gain set (the model's pd_kp / pd_kd), on the
   target the deployed runtime's supervisor would send at that 2 ms tick (rule R6: rate, torque, range;
   motor.supervised_target), its last value carried in info["runtime_target"];
 * actions: q_des = default pose (home) + action_scale · action;
-* the actor observation from training/observation.py (xp=jax.numpy) plus uniform noise U(−1, 1)·scale
+* the actor observation from common/observation.py (xp=jax.numpy) plus uniform noise U(−1, 1)·scale
   per term; a privileged critic observation;
 * info["trunk_height"], info["waist_height"], info["up_z"] in every state.
 
@@ -18,7 +18,7 @@ which swaps in a per-world mjx.Model, can then vary kp per world like Playground
 from __future__ import annotations
 
 import copy
-from typing import Any
+from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
@@ -28,8 +28,8 @@ from ml_collections import config_dict
 from mujoco import mjx
 from mujoco_playground._src import mjx_env
 
-from sim_hil import model as t1model
-from training import observation as obsdef
+from common import model as t1model
+from common import observation as obsdef
 from training.envs import assists, collision, cpu_backend, motor, wall_course
 
 BACKENDS = ("mjx", "cpu")
@@ -76,11 +76,22 @@ def contacts_between(data: mjx.Data, geom_a, geom_b) -> jax.Array:
     return jnp.any(hit & (con.dist[None, :] < 0.0), axis=-1)
 
 
+def capped_action_scale(scale_rad: float, joint_ranges: np.ndarray) -> float | np.ndarray:
+    """Rad per unit action, per joint: the config's scale, but never more than the joint's whole range (the
+    runtime's artifact rule); one number when that leaves every joint the same (the joystick's 0.5)."""
+    scale = np.minimum(float(scale_rad), joint_ranges[:, 1] - joint_ranges[:, 0])
+    return float(scale[0]) if np.all(scale == scale[0]) else scale
+
+
 class T1Env(mjx_env.MjxEnv):
     """Shared model, PD, observation and bookkeeping. Subclasses implement reset/step and rewards."""
 
-    def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None) -> None:
+    def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None,
+                 make_env: Callable | None = None) -> None:
         super().__init__(config, config_overrides)
+        # the task registry's envs.make: the landing banks roll another task's env (handover.py), which this
+        # package's modules cannot import without an import circle; None: no bank can be built
+        self._make_env = make_env
         cfg = self._config
         if cfg.impl != "jax":
             raise ValueError(f"impl {cfg.impl!r}: only 'jax' is supported (mujoco-mjx 3.17, no warp here)")
@@ -114,10 +125,7 @@ class T1Env(mjx_env.MjxEnv):
         self._tau_limit = jnp.asarray(t1model.torque_limits(mj))
         ranges = t1model.joint_ranges(mj)
         self._q_min, self._q_max = jnp.asarray(ranges[:, 0]), jnp.asarray(ranges[:, 1])
-        # rad per unit action, per joint: the config's scale, but never more than the joint's whole range (the
-        # runtime's artifact rule); one number when that leaves every joint the same (the joystick's 0.5)
-        scale = np.minimum(float(cfg.action_scale), ranges[:, 1] - ranges[:, 0])
-        self._action_scale_np = float(scale[0]) if np.all(scale == scale[0]) else scale
+        self._action_scale_np = capped_action_scale(cfg.action_scale, ranges)
         self._action_scale = jnp.asarray(self._action_scale_np, jnp.float32)
         self._d_safe = jnp.asarray(motor.D_SAFE_NMS)
         mid, half = 0.5 * (ranges[:, 0] + ranges[:, 1]), 0.5 * (ranges[:, 1] - ranges[:, 0]) * range_fraction
@@ -217,7 +225,7 @@ class T1Env(mjx_env.MjxEnv):
 
     # ------------------------------------------------------------------ physics
     def motor_targets(self, action: jax.Array) -> jax.Array:
-        """q_des [rad] = default pose + action_scale · action (training/observation.action_to_targets)."""
+        """q_des [rad] = default pose + action_scale · action (common/observation.action_to_targets)."""
         return obsdef.action_to_targets(self._default_pose, self._action_scale, action)
 
     def pd_torque(self, q_des: jax.Array, q: jax.Array, dq: jax.Array) -> jax.Array:

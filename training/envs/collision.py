@@ -1,4 +1,4 @@
-"""Collision variants of the ONE robot file (sim_hil/models/t1.xml) for MJX, built with MjSpec.
+"""Collision variants of the ONE robot file (common/models/t1.xml) for MJX, built with MjSpec.
 
 MJX's JAX backend allocates a fixed contact slot for every geom pair that *could* collide (pair count ×
 the pair function's contact count) and 4 constraint rows per pyramidal condim-3 contact, whatever the
@@ -11,7 +11,7 @@ compile time. Two levers cut it, both applied here, neither changing what the ro
   and keeps every body pair that comes within `margin` of contact at least once;
 * the MJX custom numerics `max_contact_points` (contacts kept per condim group, the deepest ones) and
   `max_geom_pairs` (broad-phase cull per pair-function group) cap the buffers at
-  sim_hil.model.MJX_NCONMAX contacts → MJX_NJMAX rows. `mjx.make_data`'s naconmax/njmax arguments only
+  common.model.MJX_NCONMAX contacts → MJX_NJMAX rows. `mjx.make_data`'s naconmax/njmax arguments only
   apply to the warp backend in mujoco-mjx 3.17; the JAX backend reads these numerics instead.
 
 Variants:
@@ -26,7 +26,7 @@ import functools
 import mujoco
 import numpy as np
 
-from sim_hil import model as t1model
+from common import model as t1model
 
 VARIANTS = ("full_body", "feet_only")
 FOOT_GEOMS = ("left_foot", "right_foot")

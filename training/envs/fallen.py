@@ -1,6 +1,6 @@
 """Seeded fallen start states for the getup tasks, precomputed on the host in C MuJoCo.
 
-`sim_hil.model.fallen_state(model, seed)` drops the robot from a random pose and returns the settled
+`common.model.fallen_state(model, seed)` drops the robot from a random pose and returns the settled
 lying state; it is deterministic per seed, so a bank of starts is (seed, seed + 1, ...). Results are
 cached in memory per seed, so a second env (or a test) asking for the same seeds pays nothing.
 
@@ -22,8 +22,8 @@ import functools
 import mujoco
 import numpy as np
 
-from sim_hil import config as sim_config
-from sim_hil import model as t1model
+from common.artifact import RUNTIME_LOOP_DT_S
+from common import model as t1model
 
 # runtime/include/t1rt/prepare_gains.hpp kPrepareKp [N·m/rad] / kPrepareKd [N·m·s/rad], joint order of the
 # contract (tests/test_training_fallen.py reads them back from that header).
@@ -101,9 +101,9 @@ def after_prepare(qpos: np.ndarray, qvel: np.ndarray, prepare_s: float,
 
     mj = _prepare_physics()
     tick_s = mj.opt.timestep                             # one physics step = one 2 ms runtime tick
-    if abs(tick_s - sim_config.CONTROL_DT_S) > 1e-12:
+    if abs(tick_s - RUNTIME_LOOP_DT_S) > 1e-12:
         raise ValueError(f"after_prepare: the model's timestep {tick_s} s is not the runtime tick "
-                         f"{sim_config.CONTROL_DT_S} s")
+                         f"{RUNTIME_LOOP_DT_S} s")
     ticks = int(round(prepare_s / tick_s))
     speed, fraction = supervisor
     physics = cpu_backend.CpuPhysics(mj, 1, supervisor=(speed * tick_s, fraction))

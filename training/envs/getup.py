@@ -25,7 +25,7 @@ robustness fine-tune: U(−1, 1)·obs_noise_scale added to EVERY observation ent
 Kneel targets: the model's `kneel` keyframe (trunk 0.405 m, waist from its kinematics), q_kneel its joints;
 q_init = the standing default pose. Actor obs = Table 4.2, TERMS_GETUP: gyro, gravity, joint offsets,
 joint velocities (52; no last action: the seed's observation, and nothing here shows it would help).
-"success" = standing by sim_hil/eval/events.py's definition (trunk ≥ 0.6 m, up_z ≥ 0.9), the one the
+"success" = standing by common/events.py's definition (trunk ≥ 0.6 m, up_z ≥ 0.9), the one the
 evaluations use. Episodes run their whole length (10 s) and end early only on non-finite physics, and —
 in stage 2 alone — when the robot leaves the kneel downward: trunk below config.stage2_fall_trunk_height_m
 (0.35 m; the kneel start is at 0.405 m) or tilted past config.stage2_fall_up_z (up_z 0.7, 46°). The seed
@@ -48,12 +48,12 @@ import numpy as np
 from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
-from training import observation as obsdef
+from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
 from training.envs import handover, start_path, upright
-from sim_hil.config import FALLEN_TRUNK_HEIGHT_M
-from sim_hil.eval.events import STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
+from common.events import FALLEN_TRUNK_HEIGHT_M
+from common.events import STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import PREPARE_S, fallen_states
 from training.envs.getup_config import default_config   # envs.make's config of this task
 
@@ -73,8 +73,8 @@ class GetupBase(base.T1Env):
     def has_wall_course(self) -> bool:
         return super().has_wall_course() or self._wall_share() > 0
 
-    def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None):
-        super().__init__(config, config_overrides)
+    def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None, make_env=None):
+        super().__init__(config, config_overrides, make_env)
         cfg = self._config
         probs = jnp.asarray(self.start_probabilities(), dtype=jnp.float32)
         if probs.shape != (3,) or bool(jnp.any(probs < 0)) or abs(float(probs.sum()) - 1.0) > 1e-6:
@@ -179,8 +179,9 @@ class Getup(GetupBase):
 
     WALL_SHARE_CONFIG = "wall_starts"
 
-    def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
-        super().__init__(config if config is not None else default_config(), config_overrides)
+    def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
+                 make_env=None):
+        super().__init__(config if config is not None else default_config(), config_overrides, make_env)
         if self._config.stage not in STAGES:
             raise ValueError(f"getup stage {self._config.stage!r} unknown; valid: {', '.join(STAGES)}")
         self._kneel_pose = self._kneel_qpos[7:]
@@ -222,15 +223,16 @@ class Getup(GetupBase):
                 if not b.joystick_policy:
                     raise ValueError(f"{name}.prob > 0 needs {name}.joystick_policy (a joystick artifact or "
                                      "checkpoint)")
-                bank = make(b.joystick_policy, int(b.bank_starts), int(b.seed))
+                bank = make(self._make_env, b.joystick_policy, int(b.bank_starts), int(b.seed))
                 banks.append((float(b.prob), tuple(jnp.asarray(x) for x in bank)))
         if sum(p for p, _ in banks) > 1.0 + 1e-9:
             raise ValueError(f"knockdown_starts.prob + wall_starts.prob + push_starts.prob must be at most 1, "
                              f"got {' + '.join(str(p) for p, _ in banks)}")
         return banks
 
-    def _wall_bank(self, joystick_policy: str, num_starts: int, seed: int):
-        return handover.wall_bank(joystick_policy, num_starts, seed, float(self._config.wall_course.first_wall_x_m))
+    def _wall_bank(self, make_env, joystick_policy: str, num_starts: int, seed: int):
+        return handover.wall_bank(make_env, joystick_policy, num_starts, seed,
+                                  float(self._config.wall_course.first_wall_x_m))
 
     def _start_state(self, rng):
         """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path; with

@@ -4,7 +4,7 @@ Same model (full-body collision), gains, action map and observation (TERMS_GETUP
 fallen starts by default (issue 15: it rises straight from the ground); no keyframe, no curriculum, no gate. Its
 reward is the seed's height & orientation reward toward standing (getup_rewards.py), per control step
 (× ctrl_dt):  HO(h_torso, h_waist, u_z; torso 0.67 m, waist 0.55 m).
-"success" is the expert's: standing by sim_hil/eval/events.py's definition, so both are compared on one;
+"success" is the expert's: standing by common/events.py's definition, so both are compared on one;
 "success_from_fallen" counts it only in episodes that started fallen.
 
 `start_probs` (fallen, kneeling, standing) may mix in standing starts (ours, not the seed's, which says
@@ -40,8 +40,9 @@ def default_config() -> config_dict.ConfigDict:
 class GetupBaseline(GetupBase):
     """Reward-only standing policy."""
 
-    def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
-        super().__init__(config if config is not None else default_config(), config_overrides)
+    def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
+                 make_env=None):
+        super().__init__(config if config is not None else default_config(), config_overrides, make_env)
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_obs = jax.random.split(rng, 3)

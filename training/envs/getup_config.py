@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ml_collections import config_dict
 
-from training import observation as obsdef
+from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
 from training.envs.fallen import PREPARE_S

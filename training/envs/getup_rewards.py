@@ -10,7 +10,7 @@ Energy cost (§4.7): Σ_i |v_i · τ_i / τmax_i| [rad/s], used only in the ener
 Rise pace (ours, not the seed's; off by default): ‖v_xy‖² [m²/s²] of the trunk while the waist is at or above a
 height, so that the rise reaches the teacher's 0.5 m hand-over slow enough for the joystick expert to hold.
 Failed rise (ours, not the seed's; off by default): a one-off cost when a getup attempt fails, by
-sim_hil/eval/events.py's definitions (the trunk rose ATTEMPT_RISE_M from its low while down, then dropped
+common/events.py's definitions (the trunk rose ATTEMPT_RISE_M from its low while down, then dropped
 ATTEMPT_RISE_M below the attempt's peak before a stand-up held STAND_HOLD_S), so that the count the loop's push
 test reports is in the reward: at γ 0.97 the standing reward a fall back delays by 1–2 s barely reaches the
 pop-up that caused it (training/runs/getup_pace5/prerise_falls.py).
@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from sim_hil.eval import events
+from common import events
 
 # the gate's numbers live with the event definitions, so the evaluations count gate passes the same way
 GATE_HEIGHT_M = events.KNEEL_GATE_HEIGHT_M            # torso height the gate checks [m]

@@ -22,7 +22,7 @@ still moving, was new to it: in the loop's push test the failed getup attempts a
 what misses the seed's 1.16 (training/runs/student_knockdown/PROGRESS.md). The getup env (config
 knockdown_starts) replaces a share of its fallen starts with these.
 
-`push_test_bank` is the loop's push test itself (sim_hil/eval/plans.py push_draw): the joystick expert standing
+`push_test_bank` is the loop's push test itself (common/push_test.py): the joystick expert standing
 at zero command, shoved on the torso forward or backward (2 : 1) by the test's impulse. The loop delivers it as
 a force on the Trunk over one physics step, which tips the robot over its feet; knockdown_bank's change of
 the base velocity moves the whole robot at once and is far easier to catch: the teacher's joystick expert
@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -44,14 +44,16 @@ import mujoco
 import numpy as np
 from brax import math as brax_math
 
-from sim_hil.eval.events import heading_from_quat
-from sim_hil.scenarios import TORSO_BODY
-from training import observation as obsdef
+from common.events import heading_from_quat
+from common import push_test
+from common.scenarios import TORSO_BODY
+from common import observation as obsdef
 from training.envs import wall_course
-from training.teacher import STUDENT_OBS_KEY, WAIST_SWITCH_HEIGHT_M, load_expert
+from messages.contract import WAIST_SWITCH_HEIGHT_M
+from training.experts import STUDENT_OBS_KEY, load_expert
 
 MAX_RISE_S = 10.0   # [s] a fallen start that has not handed over by then is left out
-# A knockdown: a base speed change [m/s] as hard as the loop's push test (sim_hil/eval/plans.py: 40 N·s ±
+# A knockdown: a base speed change [m/s] as hard as the loop's push test (common/push_test.py: 40 N·s ±
 # 15 % on the 31.6 kg robot, 1.1–1.5 m/s), the joystick env's pushes being at most 1.0 m/s
 KNOCKDOWN_MPS = (1.0, 1.6)
 KNOCK_AT_S = (0.3, 1.0)       # [s] after a standing start: the joystick expert is walking or standing by then
@@ -67,14 +69,13 @@ class HandoverBank(NamedTuple):
     joint_targets: np.ndarray   # (n, 23) the getup expert's last joint targets [rad]
 
 
-def handover_bank(getup_policy: str, num_starts: int, seed: int, landing_overrides: dict | None = None
+def handover_bank(make_env: Callable, getup_policy: str, num_starts: int, seed: int, landing_overrides: dict | None = None
                   ) -> HandoverBank:
     """Hand-over states of `getup_policy` (artifact or checkpoint) from `num_starts` random draws of a bank of
     `num_starts` seeded fallen starts (seed, seed + 1, …); identical states (a start drawn twice) kept once.
     `landing_overrides` (getup config keys such as "push_starts.prob") replace shares of those fallen starts
     with the getup env's landing banks, so that the rises begin where a push or knockdown left the robot."""
-    from training import envs
-    env = envs.make("getup", config_overrides={"backend": "cpu", "start_probs": [1.0, 0.0, 0.0],
+    env = make_env("getup", config_overrides={"backend": "cpu", "start_probs": [1.0, 0.0, 0.0],
                                                "fallen_bank_size": int(num_starts), "fallen_seed": int(seed),
                                                "obs_noise_scale": 0.0, **(landing_overrides or {})})
     getup = load_expert(getup_policy, "getup")
@@ -110,11 +111,10 @@ def handover_bank(getup_policy: str, num_starts: int, seed: int, landing_overrid
                         targets[found][keep].astype(np.float32))
 
 
-def _joystick_rollout_env(joystick_policy: str, **overrides):
+def _joystick_rollout_env(make_env: Callable, joystick_policy: str, **overrides):
     """The joystick env as the banks roll it (full-body collision, CPU physics, no pushes or noise) and
     `joystick_policy`'s batched action function."""
-    from training import envs
-    env = envs.make("joystick", config_overrides={"backend": "cpu", "collision": "full_body", "push.enable": False,
+    env = make_env("joystick", config_overrides={"backend": "cpu", "collision": "full_body", "push.enable": False,
                                                   "noise.level": 0.0, **overrides})
     joystick = load_expert(joystick_policy, "joystick")
     if tuple(map(tuple, env.obs_terms)) != joystick.obs_terms:
@@ -159,12 +159,12 @@ def _frozen_bank(found, qpos, qvel) -> tuple[np.ndarray, np.ndarray]:
 
 
 @functools.lru_cache(maxsize=4)
-def knockdown_bank(joystick_policy: str, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def knockdown_bank(make_env: Callable, joystick_policy: str, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) where the teacher hands `joystick_policy` (artifact or checkpoint), knocked over from
     `num_starts` seeded standing starts (random commands, half of them zero; full-body collision, CPU
     physics), to the getup expert: the first control tick with the waist below the switch height. Cached
     (read-only arrays): a second env asking for the same bank pays nothing."""
-    env, act = _joystick_rollout_env(joystick_policy, zero_command_prob=0.5)
+    env, act = _joystick_rollout_env(make_env, joystick_policy, zero_command_prob=0.5)
     rng = np.random.default_rng(seed)
     knock_tick = np.round(rng.uniform(*KNOCK_AT_S, num_starts) / env.dt).astype(int)
     heading = rng.uniform(0.0, 2.0 * np.pi, num_starts)
@@ -203,14 +203,13 @@ def torso_shove_response(model: mujoco.MjModel, home_qpos: np.ndarray) -> np.nda
 
 
 class TorsoShove:
-    """The loop's push-test shove drawn in JAX (plans.push_draw's distribution: forward or backward 2 : 1
+    """The loop's push-test shove drawn in JAX (push_test.push_draw's distribution: forward or backward 2 : 1
     off the heading, impulse and angle spread as the test's), as the change of qvel it makes: the unified
     env's torso knockdowns and the joystick env's push.torso_shove_prob use it."""
 
     def __init__(self, model: mujoco.MjModel, home_qpos: np.ndarray):
-        from sim_hil.eval import plans   # the loop's push test (imported here: it brings the LCM types along)
-        self._impulse_ns, self._impulse_spread = plans.PUSH_IMPULSE_NS, plans.PUSH_IMPULSE_SPREAD
-        self._angle_spread_rad = plans.PUSH_ANGLE_SPREAD_RAD
+        self._impulse_ns, self._impulse_spread = push_test.PUSH_IMPULSE_NS, push_test.PUSH_IMPULSE_SPREAD
+        self._angle_spread_rad = push_test.PUSH_ANGLE_SPREAD_RAD
         self._response = jnp.asarray(torso_shove_response(model, np.asarray(home_qpos)))
 
     def dqvel(self, qpos: jax.Array, rng: jax.Array) -> jax.Array:
@@ -228,14 +227,13 @@ class TorsoShove:
 
 
 @functools.lru_cache(maxsize=4)
-def push_test_bank(joystick_policy: str, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def push_test_bank(make_env: Callable, joystick_policy: str, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) where the teacher hands `joystick_policy` over to the getup expert in the loop's push test
     (module docstring) from `num_starts` seeded standing starts: start i is shoved as the test's trial i of
-    seed `seed + i` (plans.push_draw), relative to the robot's heading then; the first control tick with the
+    seed `seed + i` (push_test.push_draw), relative to the robot's heading then; the first control tick with the
     waist below the switch height. Shoves it caught are left out. Cached as knockdown_bank."""
-    from sim_hil.eval import plans   # (the loop's test; imported here: it brings the LCM types along)
-    env, act = _joystick_rollout_env(joystick_policy, zero_command_prob=1.0)
-    draws = [plans.push_draw(i, seed + i) for i in range(num_starts)]
+    env, act = _joystick_rollout_env(make_env, joystick_policy, zero_command_prob=1.0)
+    draws = [push_test.push_draw(i, seed + i) for i in range(num_starts)]
     push_tick = np.array([round(d.at_s / env.dt) for d in draws])
     model = env.mj_model
     scratch = mujoco.MjData(model)
@@ -257,14 +255,14 @@ def push_test_bank(joystick_policy: str, num_starts: int, seed: int) -> tuple[np
 
 
 @functools.lru_cache(maxsize=4)
-def wall_bank(joystick_policy: str, num_starts: int, seed: int,
+def wall_bank(make_env: Callable, joystick_policy: str, num_starts: int, seed: int,
               first_wall_x_m: float = wall_course.FIRST_WALL_X_M) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) where the teacher hands `joystick_policy` over to the getup expert after it walked into
     the low-wall course (wall_course.py; first wall at `first_wall_x_m`) from `num_starts` seeded approaches
     (wall_course.course_start): the first control tick with the waist below the switch height. Approaches
     where it stepped over the wall or stood are left out. Positions are in the course's world frame: a
     getup env draws them with its course at the same x. Cached as knockdown_bank."""
-    env, act = _joystick_rollout_env(joystick_policy, **{"wall_course.enable": True,
+    env, act = _joystick_rollout_env(make_env, joystick_policy, **{"wall_course.enable": True,
                                                          "wall_course.first_wall_x_m": float(first_wall_x_m)})
     keys = jax.random.split(jax.random.PRNGKey(seed), 2 * num_starts)
     state = jax.jit(jax.vmap(env.reset))(keys[:num_starts])

@@ -2,7 +2,7 @@
 
 Restated from mujoco_playground locomotion/t1/joystick.py (Apache-2.0, DeepMind). Differences, on
 purpose: the motor is the firmware PD on torque actuators (base.py), action_scale 0.5 (the shared
-artifact default, gains are stiffer than Playground's), the gait clock is training/observation.py's
+artifact default, gains are stiffer than Playground's), the gait clock is common/observation.py's
 (fixed frequency from the manifest, FROZEN while ‖command‖ < phase_freeze_command_norm instead of
 Playground's reset to π; feet_phase then asks for both feet on the floor, as Playground's π does), the actor sees TERMS_UNION (no base linear velocity: the T1's IMU cannot
 measure it), contacts are read from MJX contacts of the foot boxes (no contact sensors in the model),
@@ -17,7 +17,7 @@ import numpy as np
 from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
-from training import observation as obsdef
+from common import observation as obsdef
 from training.envs import base, handover
 from training.envs import joystick_rewards as R
 
@@ -77,8 +77,9 @@ def _landing_overrides(h: config_dict.ConfigDict) -> dict:
 class Joystick(base.T1Env):
     """Track (vx, vy, yaw_rate) commands; actor obs TERMS_UNION (82), critic privileged."""
 
-    def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
-        super().__init__(config if config is not None else default_config(), config_overrides)
+    def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
+                 make_env=None):
+        super().__init__(config if config is not None else default_config(), config_overrides, make_env)
         mj = self._mj_model
         lo, hi = self._q_min, self._q_max
         centre, half = (lo + hi) / 2, (hi - lo) / 2 * self._config.soft_joint_pos_limit_factor
@@ -98,7 +99,8 @@ class Joystick(base.T1Env):
         if h is not None and h.prob > 0:
             if not h.getup_policy:
                 raise ValueError("handover.prob > 0 needs handover.getup_policy (a getup artifact or checkpoint)")
-            bank = handover.handover_bank(h.getup_policy, int(h.bank_starts), int(h.seed), _landing_overrides(h))
+            bank = handover.handover_bank(self._make_env, h.getup_policy, int(h.bank_starts), int(h.seed),
+                                          _landing_overrides(h))
             self._handover = jax.tree.map(jnp.asarray, bank)
 
     # ------------------------------------------------------------------ commands

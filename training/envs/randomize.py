@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 from mujoco import mjx
 
-FLOOR_GEOM_ID = 0   # the floor is the first geom of sim_hil/models/t1.xml
+FLOOR_GEOM_ID = 0   # the floor is the first geom of common/models/t1.xml
 TRUNK_BODY_ID = 1   # the root body
 NUM_JOINTS = 23
 FLOOR_FRICTION = (0.2, 0.6)

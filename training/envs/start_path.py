@@ -27,7 +27,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from sim_hil import model as t1model
+from common import model as t1model
 
 PATH_END = 2.0   # progress of the kneel
 LEFT_LEG = ("Left_Hip_Pitch", "Left_Knee_Pitch", "Left_Ankle_Pitch")
@@ -93,8 +93,8 @@ def bank_range(min_progress: float, max_progress: float, size: int) -> slice:
 def render_strip(out_png: str, size: int = 21, px: int = 200) -> None:
     """Side view of `size` placed starts along the path, left to right standing → kneel, as one PNG."""
     import PIL.Image
-    from sim_hil.recorder import render_frames
-    from training.envs.getup import default_config
+    from common.render import render_frames
+    from training.envs.getup_config import default_config
     model = t1model.load_model()
     bank = path_bank(model, t1model.keyframe_qpos(model, "home"), t1model.keyframe_qpos(model, "kneel"),
                      default_config().reverse_curriculum.left_leg_waypoints, size)

@@ -34,14 +34,14 @@ import jax.numpy as jnp
 from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
-from training import observation as obsdef
+from common import observation as obsdef
 from training.envs import base, handover, wall_course
 from training.envs import joystick_rewards as R
 from training.envs.getup import START_KINDS, GetupBase
 from training.envs.getup_config import getup_common_config
 from training.envs.joystick import Joystick
 from training.envs.joystick import default_config as joystick_config
-from training.teacher import WAIST_SWITCH_HEIGHT_M
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 METRIC_NAMES = ("reward/alive", "reward/height", "reward/tracking_lin_vel", "reward/tracking_ang_vel",
                 "standing")
@@ -89,8 +89,9 @@ class Unified(GetupBase):
     WALL_SHARE_CONFIG = "walls"
     SHOVES = ("velocity", "torso")   # knockdown.shove
 
-    def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):
-        super().__init__(config if config is not None else default_config(), config_overrides)
+    def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
+                 make_env=None):
+        super().__init__(config if config is not None else default_config(), config_overrides, make_env)
         kd = self._config.knockdown
         if not (0.0 <= kd.prob <= 1.0 and 0.0 <= kd.magnitude_range_mps[0] <= kd.magnitude_range_mps[1]):
             raise ValueError(f"knockdown: prob must be in [0, 1] and magnitude_range_mps an ordered pair of speeds "

@@ -30,9 +30,9 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from training import observation as obsdef
+from common import observation as obsdef
 from training.artifact_policy import ArtifactPolicy, CompositePolicy
-from training.teacher import WAIST_SWITCH_HEIGHT_M
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 
 class UprightMember:

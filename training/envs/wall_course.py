@@ -7,7 +7,7 @@ out of the course's 60 s. With the course in the world, the getup env can start 
 expert lands after walking into a wall (handover.wall_bank, getup config wall_starts) and the unified env
 can walk a share of its episodes into one (unified config walls.prob).
 
-The course is sim_hil's (sim_hil/scenarios.py add_low_walls: three walls 6 m apart, the same geoms the
+The course is sim_hil's (common/scenarios.py add_low_walls: three walls 6 m apart, the same geoms the
 evaluation builds), moved along +x to config.wall_course.first_wall_x_m (30 m): every other start lies
 within a few metres of the origin, so the walls change nothing there. An approach (course_start) is a
 standing start before the first wall, facing it within ±APPROACH_YAW_RAD, walking at a constant forward
@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import mujoco
 from ml_collections import config_dict
 
-from sim_hil import scenarios
+from common import scenarios
 
 FIRST_WALL_X_M = 30.0               # the training course's first wall [m]; the evaluation's is at 2 m
 APPROACH_M = (0.3, 2.5)             # start this far before the first wall's centre plane [m]

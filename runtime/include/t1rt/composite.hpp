@@ -8,10 +8,12 @@
 // age latches FAULT), so the sim must publish it every tick: `python -m sim_hil --status-rate 500`.
 #pragma once
 #include "t1rt/artifact.hpp"
+#include "t1_contract.hpp"
 
 namespace t1rt {
 
-inline constexpr float kGetupSwitchWaistHeightM = 0.5f;  // = sim_hil.config.GETUP_SWITCH_WAIST_HEIGHT_M
+// The switch height is the contract's (messages/contract.json waist_switch_height_m).
+inline constexpr float kGetupSwitchWaistHeightM = t1::kWaistSwitchHeightM;
 inline constexpr std::size_t kSimStatusMaxBytes = 4096;   // larger sim_status_t datagrams are dropped
                                                           // (their strings would outgrow the reserve)
 

@@ -29,7 +29,7 @@ from training import checkpoints, envs
 from training.artifact_policy import load_policy
 from training.envs import handover
 from training.evaluate_cpu import cpu_rollout
-from training.teacher import WAIST_SWITCH_HEIGHT_M
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 JOYSTICK = "training/runs/joystick_handover_gpu/joystick.safetensors"
 GETUP = "training/runs/getup_pace5/getup_pace5_3522560.safetensors"

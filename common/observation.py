@@ -13,7 +13,6 @@ yaw_rate [rad/s]).
 from __future__ import annotations
 
 import math
-import sys
 from typing import Any, NamedTuple, Sequence
 
 import numpy as np
@@ -235,20 +234,3 @@ def policy_step(terms, state: ObservationState, layers, obs_mean, obs_std, activ
     action = mlp_forward(layers, obs_n, activation, output_rule, xp=xp)
     return {"obs": obs, "obs_normalized": obs_n, "action": action,
             "q_target": action_to_targets(state.default_pose, action_scale, action)}
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    import argparse
-    parser = argparse.ArgumentParser(prog="python -m training.observation", description=__doc__.split("\n")[0])
-    parser.add_argument("--write-golden", metavar="DIR", required=True,
-                        help="write random_policy.safetensors and golden_vectors.json into DIR")
-    args = parser.parse_args(argv)
-    from training.export import write_golden  # late import: export imports this module
-    paths = write_golden(args.write_golden)
-    for p in paths:
-        print(f"wrote {p}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -35,8 +35,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sim_hil.config import FALLEN_TRUNK_HEIGHT_M
 
+# Trunk origin below this = lying on the ground [m] (standing: 0.665 m).
+FALLEN_TRUNK_HEIGHT_M = 0.35
 # Standing Trunk origin height is 0.665 m (t1_facts); 0.6 m leaves room for a bent-knee stance, yet is well
 # above kneeling, where the Trunk stays below ~0.5 m.
 STANDING_TRUNK_HEIGHT_M = 0.6

@@ -7,15 +7,11 @@ same everywhere.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from messages import contract
-
-if TYPE_CHECKING:  # scenarios imports this module; only the type is needed here
-    from sim_hil.scenarios import ScenarioInfo
 
 MODEL_PATH: Path = Path(__file__).resolve().parent / "models" / "t1.xml"
 
@@ -73,13 +69,6 @@ def _actuator_ids(model: mujoco.MjModel) -> np.ndarray:
 def load_model() -> mujoco.MjModel:
     """The bare robot file (robot + floor), without any scenario."""
     return mujoco.MjModel.from_xml_path(str(MODEL_PATH))
-
-
-def build_model(scenario: str = "flat", seed: int = 0) -> tuple[mujoco.MjModel, "ScenarioInfo"]:
-    """The robot composed with one scenario (see sim_hil/scenarios.py). Unknown name -> ValueError."""
-    from sim_hil import scenarios  # late import: scenarios uses MODEL_PATH from this module
-
-    return scenarios.build(scenario, seed)
 
 
 def keyframe_qpos(model: mujoco.MjModel, name: str) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Evaluation scenarios composed onto the T1 model (shared by MJX batch eval and HIL).
 
-Composition is done with MjSpec editing (mujoco 4.0): the base file sim_hil/models/t1.xml (robot +
+Composition is done with MjSpec editing (mujoco 4.0): the base file common/models/t1.xml (robot +
 floor) is parsed once per build, static world geoms are added, and the spec is compiled. This keeps one
 robot file, needs no XML fragment files on disk, and lets the layouts be seeded.
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from sim_hil.model import MODEL_PATH
+from common.model import MODEL_PATH
 
 SCENARIOS = ("flat", "walls", "puddles", "pushes")
 

@@ -17,7 +17,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from messages import contract
-from training import observation
+from common import observation
 
 SCHEMA_VERSION = 1
 RUNTIME_LOOP_DT_S = 0.002      # runtime tick [s] (500 Hz)
