@@ -62,7 +62,7 @@ demo: build
 
 # LCM logs (every demo, sim and eval trial writes one; sim_hil/lcmlog):
 #   make replay LOG=out/demo/demo.lcmlog                  play it into lcm-spy (xvfb-run without a display)
-#   make replay LOG=… POLICY=policies/x.safetensors       re-run t1-runtime on the logged states, lockstep,
+#   make replay LOG=… POLICY=policies/x/x.safetensors     re-run t1-runtime on the logged states, lockstep,
 #                                                          and compare its commands (POLICY=logged: the log's own)
 #   make plot-log LOG=… [JOINTS=Left_Knee_Pitch,Waist]    PNG next to the log
 replay: build
@@ -91,15 +91,15 @@ clean:
 
 # Evaluation in the loop (the seed's chapter 6; sim_hil/eval): seeded lockstep trials of the student and,
 # with EVAL_BASELINE=GETUP,JOYSTICK, the baseline composite; reports under out/eval/<scenario>/.
-# e.g. make eval-getup EVAL_ARGS="--trials 20" EVAL_BASELINE=policies/getup_baseline.safetensors,policies/joystick.safetensors
-EVAL_POLICY   ?= $(firstword $(wildcard policies/student.safetensors policies/student_baseline_teacher.safetensors) policies/student_untrained.safetensors)
+# e.g. make eval-getup EVAL_ARGS="--trials 20" EVAL_BASELINE=policies/getup_baseline/getup_baseline.safetensors,policies/joystick/joystick.safetensors
+EVAL_POLICY   ?= $(firstword $(wildcard policies/student/student.safetensors) policies/student_untrained/student_untrained.safetensors)
 EVAL_BASELINE ?=
 EVAL_ARGS     ?=
 EVAL_FLAGS     = --policy $(EVAL_POLICY) $(if $(EVAL_BASELINE),--baseline $(EVAL_BASELINE)) $(EVAL_ARGS)
 .PHONY: eval-getup eval-push eval-wall eval-puddle eval-walk eval-fig51 eval-ch6 screen-student
 # The joystick expert's walking targets (standing starts: forward, stand, turn, forward in realtime). One
 # job: the realtime trial must not share the two cores with a lockstep one.
-WALK_POLICY ?= policies/joystick.safetensors
+WALK_POLICY ?= policies/joystick/joystick.safetensors
 eval-walk: build
 	$(NETNS) $(PY) -m sim_hil.eval walk --policy $(WALK_POLICY) --label joystick --jobs 1 $(EVAL_ARGS)
 eval-getup: build
@@ -124,7 +124,7 @@ eval-ch6: build
 # the wall course in the loop (5 trials), the batch from 256 knockdown landings (success, the share that lay
 # still) and from 200 fallen seeds apart from eval-ch6's 1000. Reports under SCREEN_OUT.
 SCREEN_OUT ?= out/eval/screen
-SCREEN_JOYSTICK ?= policies/joystick.safetensors
+SCREEN_JOYSTICK ?= policies/joystick/joystick.safetensors
 screen-student: build
 	$(NETNS) $(PY) -m sim_hil.eval wall --policy $(EVAL_POLICY) --label student --no-log --no-video --out $(SCREEN_OUT)/wall
 	$(PY) -m training evaluate --policy $(EVAL_POLICY) --starts knockdown --start-joystick $(SCREEN_JOYSTICK) --seeds 256 --first-seed 300000 --seconds 10 --out $(SCREEN_OUT)/knockdown

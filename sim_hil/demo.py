@@ -1,13 +1,11 @@
 """`make demo`: the deployment path end to end. Inside the project namespace: the simulated T1 (realtime,
 spawned fallen) and the C++ runtime running the student from policies/, a short scripted joystick
 sequence, a live status line, then a video and a plot of trunk height, waist height and forward velocity.
-The student is the first shipped of POLICIES: policies/student.safetensors (distilled from the stitched
-teacher keyframe getup + joystick), else policies/student_baseline_teacher.safetensors (distilled the same
-way from the reward-only baseline getup + the joystick expert), else the untrained placeholder; the demo
-says which it runs and which teacher a student was distilled from. No shipped student meets the seed's
-targets yet, so the trained experts follow one by one: the student's getup expert (its teacher's, else the
-baseline) alone from the same fallen start, then the joystick expert walking the script from a standing
-start."""
+The student is the first shipped of POLICIES: policies/student/ (distilled from a stitched getup + joystick
+teacher), else the untrained placeholder; the demo says which it runs and which teacher a student was
+distilled from. No shipped student meets the seed's targets yet (policies/student/CARD.md), so the trained
+experts follow one by one: the student's getup expert (its teacher's, else the baseline) alone from the same
+fallen start, then the joystick expert walking the script from a standing start."""
 from __future__ import annotations
 
 import argparse
@@ -24,10 +22,10 @@ from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.plots import plot_heights_and_velocity
 from common.artifact import read_artifact, stitched_teacher
 
-POLICIES = (ROOT / "policies" / "student.safetensors", ROOT / "policies" / "student_baseline_teacher.safetensors",
-            ROOT / "policies" / "student_untrained.safetensors")
-JOYSTICK_EXPERT = ROOT / "policies" / "joystick.safetensors"
-BASELINE_GETUP = ROOT / "policies" / "getup_baseline.safetensors"
+POLICIES = (ROOT / "policies" / "student" / "student.safetensors",
+            ROOT / "policies" / "student_untrained" / "student_untrained.safetensors")
+JOYSTICK_EXPERT = ROOT / "policies" / "joystick" / "joystick.safetensors"
+BASELINE_GETUP = ROOT / "policies" / "getup_baseline" / "getup_baseline.safetensors"
 FALLEN_SPAWN, STANDING_SPAWN = "fallen:62", "standing"
 # (start time [s], vx [m/s], vy [m/s], yaw rate [rad/s]): stand still while getting up, walk, turn, stop.
 JOYSTICK_SCRIPT = ((0.0, 0.0, 0.0, 0.0), (6.0, 0.4, 0.0, 0.0), (12.0, 0.3, 0.0, 0.5), (15.0, 0.0, 0.0, 0.0))
@@ -56,28 +54,28 @@ def main(argv=None) -> int:
     if code != 0 or args.policy is not None:
         return code
     if trained:
-        print("demo: NOTE this student misses the seed's targets: see its row in policies/PROVENANCE.md. "
+        print("demo: NOTE this student misses the seed's targets: see policies/student/CARD.md. "
               "The experts of its teacher follow, one by one.")
     else:
         print("demo: NOTE the policy is untrained — this run shows the plumbing (sim, bus, runtime, safety), "
-              "not a skill. Train and ship policies/student.safetensors (training/README.md).")
+              "not a skill. Train and ship policies/student/student.safetensors (training/README.md).")
     getup = _teacher_getup(policy)
     if code == 0 and _trained(getup):
-        print(f"\ndemo: next — the trained getup expert {getup.name} (policies/PROVENANCE.md), same fallen "
+        print(f"\ndemo: next — the trained getup expert {getup.parent.name} ({getup.parent.relative_to(ROOT)}/CARD.md), same fallen "
               "start. It gets up and stands; it does not walk (it ignores the joystick)")
         code = run(getup, args.spawn, args.seconds, args.out, "demo_getup", log=not args.no_log)
     if code == 0 and _trained(JOYSTICK_EXPERT):
         print("\ndemo: next — the trained joystick expert, standing start. It walks and turns; it cannot "
-              "get up, stands on one leg, may stumble after the stop (policies/PROVENANCE.md)")
+              "get up, stands on one leg, may stumble after the stop (policies/joystick/CARD.md)")
         code = run(JOYSTICK_EXPERT, STANDING_SPAWN, args.seconds, args.out, "demo_joystick", log=not args.no_log)
     return code
 
 
 def _teacher_getup(student: Path) -> Path:
-    """The getup expert a student was distilled from (its manifest's teacher, shipped under policies/ by that
-    name), else the baseline getup."""
+    """The getup expert a student was distilled from (its manifest's teacher, a path under policies/), else the
+    baseline getup."""
     teacher = stitched_teacher(read_artifact(student)[3])
-    shipped = ROOT / "policies" / Path(teacher["getup"]).name if teacher else None
+    shipped = ROOT / teacher["getup"] if teacher else None
     return shipped if shipped is not None and shipped.exists() else BASELINE_GETUP
 
 

@@ -13,7 +13,7 @@ from t1 import controller_status_t, joint_command_t
 from messages import contract
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop
 
-UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained.safetensors"
+UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 
 SIM_SECONDS = 20.0
 

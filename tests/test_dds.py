@@ -19,7 +19,7 @@ from tests.dds_peer import DdsRobotPeer, low_state
 from tests.runtime_peer import LATCHED_FAULT_MASK, MODE
 from common.artifact import read_artifact
 
-UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained.safetensors"
+UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 N = contract.NUM_JOINTS
 PREPARE_S = 5.0                 # the robot stands this long under the PREPARE pose before the policy runs
 POLICY_S = 3.0
@@ -109,20 +109,19 @@ def test_lockstep_over_dds_runs_prepare_then_the_policy_without_fault_as_over_lc
     np.testing.assert_allclose([d for _, d in pairs], [lc for lc, _ in pairs], atol=TRUNK_MATCH_M)
 
 
-JOYSTICK_RUN_POLICY = ROOT / "training" / "runs" / "joystick" / "joystick.safetensors"   # campaign, not shipped
+JOYSTICK_POLICY = ROOT / "policies" / "joystick" / "joystick.safetensors"
 STAND_S = 5.0                   # the joystick policy holds the robot up this long, zero command
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not JOYSTICK_RUN_POLICY.is_file(), reason="no joystick campaign export in training/runs")
 def test_over_dds_a_walking_policy_keeps_the_robot_standing(netns):
     """What a PD hold with the policy's own soft gains cannot do in this model (it tips over at ~1.3 s), the
-    joystick campaign's policy does over DDS: standing start, the short PREPARE of the walk evaluation, then
+    shipped joystick expert does over DDS: standing start, the short PREPARE of the walk evaluation, then
     STAND_S with a zero command (no joystick is sent: the runtime zeroes a stale one), trunk up all the way,
     no fault."""
     from sim_hil.eval.plans import STANDING_PREPARE_S
     watch = LcmWatch()
-    runtime = start_runtime(JOYSTICK_RUN_POLICY, "--transport", "dds", "--clock", "lockstep", "--autostart",
+    runtime = start_runtime(JOYSTICK_POLICY, "--transport", "dds", "--clock", "lockstep", "--autostart",
                             "--prepare-s", str(STANDING_PREPARE_S))
     sim = start_sim("--dds", "--clock", "lockstep", "--spawn", "standing", "--status-rate", "50",
                     "--duration", str(STANDING_PREPARE_S + STAND_S))

@@ -5,9 +5,9 @@ POLICIES = demo.ROOT / "policies"
 
 
 def test_a_student_is_followed_by_its_teachers_getup_expert():
-    assert demo._teacher_getup(POLICIES / "student.safetensors") == POLICIES / "getup_kd_bank.safetensors"
-    assert demo._teacher_getup(POLICIES / "student_baseline_teacher.safetensors") == demo.BASELINE_GETUP
+    assert demo._teacher_getup(POLICIES / "student" / "student.safetensors") == \
+        POLICIES / "getup_knockdown" / "getup_knockdown.safetensors"
 
 
 def test_a_policy_without_a_teacher_falls_back_to_the_baseline_getup():
-    assert demo._teacher_getup(POLICIES / "student_untrained.safetensors") == demo.BASELINE_GETUP
+    assert demo._teacher_getup(POLICIES / "student_untrained" / "student_untrained.safetensors") == demo.BASELINE_GETUP

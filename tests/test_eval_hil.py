@@ -18,7 +18,7 @@ from common import observation as obsdef
 from common.artifact import write_artifact
 from common.golden import base_manifest, random_policy
 
-STUDENT = ROOT / "policies" / "student_untrained.safetensors"
+STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 SECONDS = {"getup": 3.0, "wall": 3.0, "puddle": 3.0, "push": PUSH_AT_S + 1.0}   # sim s; PREPARE takes 2 s
 PLACEHOLDER_HIDDEN = (64, 64)
 
@@ -151,11 +151,11 @@ def test_fig51_teacher_defaults_to_the_one_the_student_names(baseline, tmp_path)
     size = obsdef.observation_size(obsdef.TERMS_UNION)
     student = tmp_path / "student.safetensors"
     provenance = {"git_commit": "test", "steps": 0, "date": "test", "command": "test",
-                  "teacher": {"getup": str(baseline[0]), "joystick": "policies/joystick.safetensors"}}
+                  "teacher": {"getup": str(baseline[0]), "joystick": "policies/joystick/joystick.safetensors"}}
     write_artifact(student, layers, np.zeros(size, np.float32), np.ones(size, np.float32),
                    base_manifest(name="student", trained=False, obs_terms=[list(t) for t in obsdef.TERMS_UNION],
                                  provenance=provenance))
-    want = f"{baseline[0]},{ROOT / 'policies' / 'joystick.safetensors'}"
+    want = f"{baseline[0]},{ROOT / 'policies' / 'joystick' / 'joystick.safetensors'}"
     assert distilled_from(student) == want       # relative paths are the repository root's
     args, _, controllers = parse_args(["fig5.1", "--policy", str(student), "--out", str(tmp_path / "o")])
     assert args.teacher == want and [c.label for c in controllers] == ["student", "teacher"]

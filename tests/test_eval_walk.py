@@ -17,7 +17,7 @@ from sim_hil.eval.metrics import TickLog
 from sim_hil.eval.trial import TrialSpec, summarise
 from sim_hil.launch import ROOT, _env
 
-PLACEHOLDER = ROOT / "policies" / "student_untrained.safetensors"
+PLACEHOLDER = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 
 
 def test_walk_runs_every_condition_per_trial_index():

@@ -10,8 +10,8 @@ from training.artifact_policy import ArtifactPolicy, CompositePolicy, load_polic
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 ROOT = Path(__file__).resolve().parents[1]
-GETUP = ROOT / "policies" / "getup_baseline.safetensors"
-UPRIGHT = ROOT / "policies" / "joystick.safetensors"
+GETUP = ROOT / "policies" / "getup_baseline" / "getup_baseline.safetensors"
+UPRIGHT = ROOT / "policies" / "joystick" / "joystick.safetensors"
 
 
 def _obs_state(rng):

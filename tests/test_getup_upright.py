@@ -13,8 +13,8 @@ from training.envs import getup_rewards as G
 from training.artifact_policy import ArtifactPolicy
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
-JOYSTICK = "policies/joystick.safetensors"
-GETUP = "policies/getup_kd_bank.safetensors"
+JOYSTICK = "policies/joystick/joystick.safetensors"
+GETUP = "policies/getup_knockdown/getup_knockdown.safetensors"
 STANDING_ONLY = {"backend": "cpu", "start_probs": [0.0, 0.0, 1.0]}   # no fallen-start precomputation
 
 
@@ -59,7 +59,7 @@ def test_below_the_switch_the_getup_action_is_applied_and_the_member_reads_it():
 
 @pytest.mark.parametrize("path, why", [(GETUP, "reads the getup observation"),
                                        ("policies/no_such.safetensors", "no_such"),
-                                       ("training/runs/getup_kd_bank", r"\.safetensors")])
+                                       ("policies/getup_knockdown", r"\.safetensors")])
 def test_upright_policy_must_be_a_joystick_artifact(path, why):
     with pytest.raises((ValueError, FileNotFoundError, OSError), match=why):
         envs.make("getup", config_overrides={**STANDING_ONLY, "upright_policy": path})

@@ -14,7 +14,7 @@ from training import envs
 from training.envs import handover, joystick
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
-GETUP = "policies/getup_keyframe.safetensors"
+GETUP = "policies/getup_knockdown/getup_knockdown.safetensors"
 BANK_STARTS = 6
 
 
@@ -89,7 +89,7 @@ def test_joystick_env_starts_from_the_bank(bank):
 
 
 # ------------------------------------------------------------------ knockdown starts (the other hand-over)
-JOYSTICK = "policies/joystick.safetensors"
+JOYSTICK = "policies/joystick/joystick.safetensors"
 KNOCK_STARTS = 8
 
 

@@ -18,7 +18,7 @@ from sim_hil.lcmlog.eventlog import Event, LogProblems, open_log, read_events, w
 from sim_hil.lcmlog.plot import parse_joints, plot_log
 from common.artifact import read_artifact, write_artifact
 
-STUDENT = ROOT / "policies" / "student_untrained.safetensors"
+STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 N = contract.NUM_JOINTS
 TICK_US = 2000
 

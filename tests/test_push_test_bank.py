@@ -17,7 +17,7 @@ from training import envs
 from training.envs import handover
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
-JOYSTICK = "policies/joystick.safetensors"
+JOYSTICK = "policies/joystick/joystick.safetensors"
 STARTS = 6
 
 
@@ -93,7 +93,7 @@ def test_getup_env_and_evaluate_start_from_push_landings(push_bank, tmp_path):
 
     from training.evaluate import evaluate
     seed = int(envs.default_config("getup").push_starts.seed)
-    report = evaluate("policies/getup_keyframe.safetensors", tmp_path, seeds=STARTS, seconds=0.2, first_seed=seed,
+    report = evaluate("policies/getup_knockdown/getup_knockdown.safetensors", tmp_path, seeds=STARTS, seconds=0.2, first_seed=seed,
                       backend="cpu", starts="push", start_joystick=JOYSTICK).read_text()
     assert f"{push_bank[0].shape[0]} landings in the loop's push test (of {STARTS} standing starts" in report
     assert "| attempts per episode (the loop's push test counts per trial) |" in report

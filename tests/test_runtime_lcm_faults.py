@@ -17,7 +17,7 @@ from sim_hil.launch import ROOT, start_runtime
 from tests.runtime_peer import LATCHED_FAULT_MASK, MODE, RuntimePeer
 from common.artifact import _serialize_container, _tensors_from, content_hash, read_artifact
 
-STUDENT = ROOT / "policies" / "student_untrained.safetensors"
+STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 FAST_PREPARE = ("--prepare-s", "0.02")   # 10-tick ramp: keeps the ladder short
 N = contract.NUM_JOINTS
 ELBOW_YAW, HIP_PITCH = 5, 11

@@ -60,13 +60,13 @@ def test_cli_rejects_bad_usage(capsys):
     assert "only checkpoint_every_steps" in capsys.readouterr().err
 
 
-def test_provenance_table_appends_rows(tmp_path):
-    table = tmp_path / "PROVENANCE.md"
+def test_a_cards_provenance_table_appends_rows(tmp_path):
+    table = tmp_path / checkpoints.CARD
     row = {c: f"v{i}" for i, c in enumerate(checkpoints.PROVENANCE_COLUMNS)}
     checkpoints.append_provenance_row(row, table)
     checkpoints.append_provenance_row({**row, "command": "a|b"}, table)
     lines = table.read_text().splitlines()
-    assert lines[0] == "# Policy provenance"
+    assert lines[0] == f"# {row['name']}" and "## Provenance" in lines   # a new policy's card, from the template
     body = [ln for ln in lines if ln.startswith("| v0")]
     assert len(body) == 2 and "a\\|b" in body[1]
     with pytest.raises(ValueError, match="missing column"):

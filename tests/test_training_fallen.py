@@ -14,7 +14,7 @@ from sim_hil.launch import ROOT
 from training.envs import base, fallen
 
 RUNTIME_INCLUDE = ROOT / "runtime" / "include" / "t1rt"
-UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained.safetensors"
+UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 SUPERVISOR = (base.base_config().supervisor.max_target_speed_rps, base.base_config().supervisor.joint_range_fraction)
 SEEDS = 4
 MODE_POLICY = 3                      # runtime/include/t1rt/safety.hpp Mode::kPolicy

@@ -23,7 +23,6 @@ from typing import Any
 REPO_ROOT = Path(__file__).resolve().parent.parent
 RUN_STATE = "run_state.json"
 CHECKPOINT_DIR = "checkpoints"
-PROVENANCE_TABLE = REPO_ROOT / "policies" / "PROVENANCE.md"
 KEEP_CHECKPOINTS = 3  # older ones are deleted: each T1 PPO checkpoint is a few MB, GPU disks are small
 STEP_DIGITS = 12      # brax names checkpoint folders f"{step:012d}"
 
@@ -155,15 +154,21 @@ def utc_now() -> str:
     return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-# ---------------------------------------------------------------- policies/PROVENANCE.md
+# ---------------------------------------------------------------- policies/<name>/CARD.md
+POLICIES_ROOT = REPO_ROOT / "policies"
+CARD = "CARD.md"
 PROVENANCE_COLUMNS = ("date", "artifact", "name", "task", "trained", "env steps", "minutes", "env-steps/s",
                       "device", "git commit", "content hash", "command", "evaluation")
-PROVENANCE_HEADER = (
-    "# Policy provenance\n\n"
-    "One row per shipped artifact in `policies/`, appended by `python -m training train|distill ... --ship`\n"
-    "(training/checkpoints.py `append_provenance_row`). `trained` is the artifact's manifest flag: rows\n"
-    "with `trained = no` are smoke tests and say so in the task column. Evaluation figures come from\n"
-    "`python -m training evaluate` and are added to the row's last column by hand or by a later --ship.\n\n")
+# A card the first --ship of a policy creates: the sections every card has, to be filled in from the
+# evaluations before the policy counts as shipped.
+CARD_TEMPLATE = (
+    "# {name}\n\nWhat it is: (to write)\n\n## How it was made\nThe provenance rows below (recipe, commit, "
+    "command).\n\n## Measured\n(no figure yet: `python -m training evaluate` and the loop's `make eval-*`)\n\n"
+    "## Misses / known limits\n(to write)\n\n## Provenance\n")
+
+
+def policy_dir(name: str, root=POLICIES_ROOT) -> Path:
+    return Path(root) / name
 
 
 def _cell(value) -> str:
@@ -177,14 +182,15 @@ def provenance_row(fields: dict[str, Any]) -> str:
     return "| " + " | ".join(_cell(fields[c]) for c in PROVENANCE_COLUMNS) + " |\n"
 
 
-def append_provenance_row(fields: dict[str, Any], table=PROVENANCE_TABLE) -> Path:
-    """Append one row; create the table (header, column line) when the file is new or has no table."""
+def append_provenance_row(fields: dict[str, Any], table) -> Path:
+    """Append one row to a card's provenance table; create the card (CARD_TEMPLATE) when the file is new, the
+    table (header, column line) when the card has none."""
     table = Path(table)
     text = table.read_text() if table.exists() else ""
     head_line = "| " + " | ".join(PROVENANCE_COLUMNS) + " |\n"
     if head_line not in text:
         if not text:
-            text = PROVENANCE_HEADER
+            text = CARD_TEMPLATE.format(name=fields["name"])
         elif not text.endswith("\n"):
             text += "\n"
         text += head_line + "|" + "---|" * len(PROVENANCE_COLUMNS) + "\n"

@@ -12,13 +12,15 @@ from typing import Sequence
 
 TASKS = ("joystick", "getup", "getup_baseline")  # = training.envs.TASKS (checked when the envs load)
 STAGES = ("stage1", "stage2", "full")
+RUNS_DIR = "runs"   # experiments' default home (ignored by git): = training.recipe_runner.RUNS_ROOT
 
 
 # ---------------------------------------------------------------- subcommands
 def _cmd_train(args, command: str) -> int:
     from training import train
+    out = args.out or f"{RUNS_DIR}/{args.name or args.task + (f'_{args.stage}' if args.stage else '')}"
     result = train.train(
-        args.task, args.out, steps=args.steps, num_envs=args.envs, seed=args.seed, resume=args.resume,
+        args.task, out, steps=args.steps, num_envs=args.envs, seed=args.seed, resume=args.resume,
         max_minutes=args.max_minutes, overrides=args.config, stage=args.stage, from_checkpoint=args.from_,
         preset="toy" if args.toy else args.preset, ship=args.ship, name=args.name, command=command,
         progress=not args.no_progress, backend=args.backend)
@@ -39,7 +41,7 @@ def _cmd_teacher(args, command: str) -> int:
 def _cmd_distill(args, command: str) -> int:
     from training import distill
     result = distill.distill(
-        args.getup, args.joystick, args.out, task=args.task, overrides=args.config,
+        args.getup, args.joystick, args.out or f"{RUNS_DIR}/{args.name}", task=args.task, overrides=args.config,
         preset="toy" if args.toy else "gpu", seed=args.seed, num_envs=args.envs, ship=args.ship,
         command=command, progress=not args.no_progress, max_minutes=args.max_minutes, backend=args.backend,
         name=args.name, from_checkpoint=args.from_)
@@ -62,11 +64,31 @@ def _cmd_export_checkpoint(args, command: str) -> int:
     return 0
 
 
+def _cmd_recipe(args, command: str) -> int:
+    from pathlib import Path
+    from training import recipe_runner
+    if args.list:
+        print(recipe_runner.describe())
+        return 0
+    if not args.name:
+        raise ValueError("name a recipe, or --list")
+    root = Path(args.out) if args.out else recipe_runner.RUNS_ROOT
+    if args.save_campaign:
+        for path in recipe_runner.save_campaign(args.name, root):
+            print(f"saved {path}")
+        return 0
+    if args.toy and args.ship:
+        raise ValueError("--toy runs train nothing to ship")
+    recipe_runner.run(args.name, stage=args.stage, root=root, resume=args.resume, max_minutes=args.max_minutes,
+                      backend=args.backend, toy=args.toy, ship=args.ship, progress=not args.no_progress)
+    return 0
+
+
 BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported: parsing needs no JAX)
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
 START_CHOICES = ("fallen", "knockdown", "wall", "push")   # = training.evaluate.START_KINDS (not imported: parsing needs no JAX)
-START_JOYSTICK = "policies/joystick.safetensors"   # evaluate --starts knockdown|wall|push: the shipped joystick expert
+START_JOYSTICK = "policies/joystick/joystick.safetensors"   # evaluate --starts knockdown|wall|push: the shipped joystick expert
 
 
 def _cmd_evaluate(args, command: str) -> int:
@@ -105,7 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="PPO run (brax ppo.train), resumable, time-boxed")
     p.add_argument("task", choices=TASKS)
-    p.add_argument("--out", required=True, help="run directory (checkpoints, curves, artifact)")
+    p.add_argument("--out", help="run directory (checkpoints, curves, artifact); default runs/<name>")
     p.add_argument("--steps", type=int, help="target env steps in total (default: the task config's)")
     p.add_argument("--envs", type=int, help="parallel envs (default: the preset's, 8192 on GPU)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
@@ -121,7 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     p.add_argument("--name", help="policy name (default: task, or getup_<stage>)")
     p.add_argument("--ship", action="store_true",
-                   help="when complete: copy the artifact to policies/ and append to policies/PROVENANCE.md")
+                   help="when complete: copy the artifact to policies/<name>/ and append a row to its CARD.md")
     common(p)
     p.set_defaults(func=_cmd_train)
 
@@ -136,7 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("distill", help="DAgger (brax bc) student from the stitched teacher")
     p.add_argument("--getup", required=True)
     p.add_argument("--joystick", required=True)
-    p.add_argument("--out", required=True)
+    p.add_argument("--out", help="run directory; default runs/<name>")
     p.add_argument("--task", choices=(*TASKS, "unified"), default="unified",
                    help="env the student is rolled out in (default unified: fallen/kneeling/standing starts, "
                         "joystick commands, pushes, falls)")
@@ -195,6 +217,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="folder for the report (default: out/eval_<task>)")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     p.set_defaults(func=_cmd_evaluate)
+
+    p = sub.add_parser("recipe", help="run a named recipe (training/recipes/): a shipped policy's chain of stages")
+    p.add_argument("name", nargs="?", help="recipe name (see --list)")
+    p.add_argument("--list", action="store_true", help="list the recipes, their policies and stages")
+    p.add_argument("--stage", help="run only this stage (the stages it starts from must be complete)")
+    p.add_argument("--resume", action="store_true", help="go on with an unfinished stage (from runs/, else from "
+                   "the campaign in training/campaigns/<name>/)")
+    p.add_argument("--max-minutes", type=float, help="stop at the last checkpoint that fits in this wall time")
+    p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
+    p.add_argument("--out", help="runs root (default runs/): stage S of recipe N runs in OUT/N/S")
+    p.add_argument("--toy", action="store_true", help="every stage at toy size (smoke test; nothing is trained)")
+    p.add_argument("--ship", action="store_true", help="when the last stage is complete: copy the artifact to "
+                   "policies/<policy>/ and append a row to its CARD.md")
+    p.add_argument("--save-campaign", action="store_true", help="copy each stage's newest checkpoint, run state "
+                   "and curve into training/campaigns/<name>/ (no training)")
+    p.add_argument("--no-progress", action="store_true", help="no tqdm bar (logs, CI)")
+    p.set_defaults(func=_cmd_recipe)
     return ap
 
 

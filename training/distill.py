@@ -155,8 +155,8 @@ def export_student(params, env, path, name: str, tanh_squash: bool, trained: boo
 def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides: Sequence[str] = (),
             preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
             command: str = "", progress: bool = True, max_minutes: float | None = None,
-            name: str = "student", provenance_table=checkpoints.PROVENANCE_TABLE,
-            backend: str | None = None, from_checkpoint=None) -> DistillResult:
+            name: str = "student", backend: str | None = None, from_checkpoint=None,
+            recipe: dict | None = None) -> DistillResult:
     """One DAgger run; with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
     student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
     and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
@@ -256,7 +256,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
                   "dagger_phases_before": before["phases"], "from": before["checkpoint"], "preset": preset,
                   "backend": env_cfg.backend,
                   "teacher": {"getup": str(getup_path), "joystick": str(joystick_path)},
-                  "stopped_by_max_minutes": stopped}
+                  "stopped_by_max_minutes": stopped, **({"recipe": recipe} if recipe else {})}
     artifact = run_dir / f"{name}.safetensors"
     trained = provenance["dagger_phases"] > 0 and preset != "toy"
     _write_state(run_dir, before, phase_env_steps, provenance["dagger_phases"], provenance["steps"],
@@ -265,7 +265,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     rule = export_student(params, env, artifact, name, cfg.tanh_squash, trained, provenance)
     if ship and not stopped:
         from training.train import ship_artifact
-        ship_artifact(artifact, {"task": f"distill ({task} env)"}, provenance_table)
+        ship_artifact(artifact, {"task": f"distill ({task} env)"})
     return DistillResult(run_dir, artifact, phases, rule, minutes)
 
 

@@ -1,6 +1,6 @@
 """Batched getup evaluation of policy ARTIFACTS (the files the runtime runs), seed's chapter 6.
 
-    python -m training evaluate --policy policies/getup.safetensors --baseline policies/getup_baseline.safetensors \
+    python -m training evaluate --policy policies/getup.safetensors --baseline policies/getup_baseline/getup_baseline.safetensors \
         --task getup --seeds 32 --seconds 10 --out out/eval_getup [--backend cpu|mjx]
 
 N seeded fallen starts (the env's fallen_starts: the settled fall after the runtime's PREPARE ramp, as

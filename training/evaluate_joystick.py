@@ -1,6 +1,6 @@
 """Batched evaluation of a joystick ARTIFACT: fall rate and command tracking (issue 13's targets).
 
-    python -m training evaluate --task joystick --policy policies/joystick.safetensors --seeds 256 \
+    python -m training evaluate --task joystick --policy policies/joystick/joystick.safetensors --seeds 256 \
         --seconds 20 --out out/eval_joystick [--backend cpu|mjx]
 
 The episodes are the joystick env's own (training/envs/joystick.py: randomised start pose and heading,

@@ -63,7 +63,8 @@ def run_provenance(state: dict, steps: int, preset: str) -> dict:
             "command": " ; ".join(c["command"] for c in state["calls"] if c["command"]) or "unknown",
             "device": last.get("device", "unknown"), "minutes": round(float(state["minutes"]), 2),
             "env_steps_per_s": state.get("env_steps_per_s", 0.0), "algorithm": "brax ppo",
-            "preset": preset, "init": state.get("init") or ""}
+            "preset": preset, "init": state.get("init") or "",
+            **({"recipe": state["recipe"]} if state.get("recipe") else {})}
 
 
 def _env_fields_artifact(run_dir: Path, state: dict) -> Path:

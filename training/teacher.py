@@ -29,9 +29,8 @@ def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, stude
     The observation's last action is mapped back the same way: an expert that reads `last_action` gets
     clip(a_s · s_s / s_e, −1, 1), the previous joint targets in ITS map, so while it drives it reads its own
     previous action, as when it was trained and in the runtime. (Read in the student's map, the joystick
-    expert saw a quarter of its own action and fell 6.6× as often: 519 falls against 79 in 128 standing
-    starts × 20 s with pushes; training/runs/student_own_map_teacher/PROGRESS.md.) The clip matters only on
-    the first tick after the getup expert or the student acted with targets outside the expert's range.
+    expert saw a quarter of its own action and fell several times as often: training/LESSONS.md.) The clip
+    matters only on the first tick after the getup expert or the student acted with targets outside the expert's range.
 
     The label is what the student must output to execute a_s. brax bc's loss is
     ‖tanh(loc_student) − tanh(label)‖² whatever the student's output rule, so it is minimised at

@@ -1,11 +1,12 @@
 """PPO training runs (brax ppo.train on the MJX envs of training/envs), resumable and time-boxed.
 
     python -m training train joystick --steps 200_000_000 --out runs/joystick --max-minutes 9 [--resume]
+(a policy that ships comes from a recipe: `python -m training recipe NAME`, training/recipe_runner.py)
 
 One call trains until the target env-step count or until --max-minutes would be overrun by the next
 epoch, checkpointing after every epoch (brax's `policy_params_fn` hook: params arrive on the host there,
 between two jitted epochs, so stopping there is clean). Every call exports the newest policy to
-<out>/<name>.safetensors; --ship also copies it to policies/ and appends a row to policies/PROVENANCE.md.
+<out>/<name>.safetensors; --ship also copies it to policies/<name>/ and appends a row to its CARD.md.
 """
 from __future__ import annotations
 
@@ -183,7 +184,9 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
           resume: bool = False, max_minutes: float | None = None, overrides: Sequence[str] = (),
           stage: str | None = None, from_checkpoint=None, preset: str = "gpu", ship: bool = False,
           name: str | None = None, command: str = "", progress: bool = True,
-          provenance_table=checkpoints.PROVENANCE_TABLE, backend: str | None = None) -> TrainResult:
+          backend: str | None = None, recipe: dict | None = None) -> TrainResult:
+    """One PPO run (or a call that resumes one). `recipe` ({"name", "stage", "sha256"}) is recorded in the run
+    state and the artifact's provenance when a recipe runs it (training/recipe_runner.py)."""
     from brax.training.agents.ppo import train as ppo
     from mujoco_playground import wrapper
     import tqdm
@@ -216,7 +219,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
         state = {"task": task, "name": name or run_name(task, env_cfg), "preset": preset, "seed": seed,
                  "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
                  "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
-                 "env_steps": 0, "minutes": 0.0, "calls": []}
+                 "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {})}
         run_dir.mkdir(parents=True, exist_ok=True)
         checkpoints.save_run_state(run_dir, state)
     if num_envs is not None:
@@ -327,7 +330,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
         raise RuntimeError(f"{run_dir}: no parameters to export (zero steps trained and no --from)")
     artifact = export_run(run_dir, env, state, latest["params"], preset)
     if ship and latest["steps"] >= target:
-        ship_artifact(artifact, state, provenance_table)
+        ship_artifact(artifact, state)
     return TrainResult(run_dir, artifact, latest["steps"], target, state["minutes"], sps,
                        complete=latest["steps"] >= target)
 
@@ -346,27 +349,29 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     return path
 
 
-def ship_artifact(artifact: Path, state: dict, provenance_table=checkpoints.PROVENANCE_TABLE,
-                  policies_dir: Path | None = None) -> Path:
-    """Copy the artifact into policies/ and append its provenance row."""
+def ship_artifact(artifact: Path, state: dict, policies_root=checkpoints.POLICIES_ROOT) -> Path:
+    """Copy the artifact to policies/<name>/<name>.safetensors and append its provenance row to that folder's
+    CARD.md (created from the card template for a new policy)."""
     from common.artifact import read_artifact
     manifest = read_artifact(artifact)[3]
     prov = manifest["provenance"]
-    policies_dir = Path(policies_dir or Path(provenance_table).parent)
-    policies_dir.mkdir(parents=True, exist_ok=True)
-    shipped = policies_dir / artifact.name
-    if shipped.resolve() != artifact.resolve():
+    folder = checkpoints.policy_dir(manifest["name"], policies_root)
+    folder.mkdir(parents=True, exist_ok=True)
+    shipped = folder / f"{manifest['name']}.safetensors"
+    if shipped.resolve() != Path(artifact).resolve():
         shutil.copyfile(artifact, shipped)
     task = state["task"] + ("" if manifest["trained"] else " (SMOKE TEST, NOT TRAINED)")
     try:
         shown = shipped.resolve().relative_to(REPO_ROOT)
     except ValueError:
         shown = shipped
+    recipe = prov.get("recipe")
     checkpoints.append_provenance_row({
         "date": prov["date"], "artifact": f"`{shown}`", "name": manifest["name"], "task": task,
         "trained": "yes" if manifest["trained"] else "no", "env steps": prov["steps"],
         "minutes": prov.get("minutes", ""), "env-steps/s": prov.get("env_steps_per_s", ""),
         "device": prov.get("device", ""), "git commit": prov["git_commit"],
-        "content hash": manifest["content_hash"][:12], "command": f"`{prov['command']}`", "evaluation": ""},
-        provenance_table)
+        "content hash": manifest["content_hash"][:12],
+        "command": f"`{prov['command']}`" + (f" (recipe {recipe['name']} {recipe['sha256'][:12]})" if recipe else ""),
+        "evaluation": ""}, folder / checkpoints.CARD)
     return shipped

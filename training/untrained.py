@@ -2,7 +2,7 @@
 the student's shape (82 → 512 → 256 → 128 → 2·23, swish, tanh_normal) with seeded random-init weights and
 an identity normaliser, manifest `trained: false`, so every report and the demo can say it is untrained.
 
-    python -m training.untrained policies/student_untrained.safetensors
+    python -m training.untrained policies/student_untrained/student_untrained.safetensors
 """
 from __future__ import annotations
 

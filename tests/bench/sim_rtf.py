@@ -50,7 +50,7 @@ def runtime_hil_rtf(spawn: str, seconds: float = SIM_SECONDS) -> float:
     lc = lcm.LCM(contract.lcm_url())
     wall: list[float] = []
     lc.subscribe(contract.CH_JOINT_STATE, lambda _c, _d: wall.append(time.perf_counter()))
-    runtime = start_runtime(ROOT / "policies" / "student_untrained.safetensors", "--clock", "lockstep",
+    runtime = start_runtime(ROOT / "policies" / "student_untrained" / "student_untrained.safetensors", "--clock", "lockstep",
                             "--autostart")
     sim = start_sim("--clock", "lockstep", "--spawn", spawn, "--duration", str(seconds))
     while sim.poll() is None:

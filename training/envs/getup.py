@@ -7,7 +7,7 @@ Stages (config.stage), rewards from getup_rewards.py (formulas there):
   weight belong to the gate, which §4.8 introduces "to train the full getup controller"; without a gate
   they are wrong here: taking the gate as always met (this project's first stage-2 runs) pays
   0.6 + 100·pose for standing-like joint angles in ANY posture, and PPO learned to lie on the floor with
-  straight legs (5 M steps: pose term 97 per step, height term flat, success 0; runs/getup_stage2).
+  straight legs (training/LESSONS.md).
 * "full" (fine-tuned from the stage-2 checkpoint, §4.5): starts fallen / kneeling / standing with
   config.start_probs = (0.4, 0.4, 0.2); Height and Pose gated (§4.8). The gate is the seed's per-step
   condition, latched (config.gate_latches, ours: the seed is silent on it): once met it stays on until the

@@ -9,13 +9,12 @@ reward is the seed's height & orientation reward toward standing (getup_rewards.
 
 `start_probs` (fallen, kneeling, standing) may mix in standing starts (ours, not the seed's, which says
 nothing of the baseline's starts): a policy trained from fallen starts only never visits a quiet stance
-except by rising into one, and the 15 M-step fine-tune (`training/runs/getup_baseline_quiet`) hopped and
-fell from 16 of 16 standing starts; the seed's own full getup uses a 0.2 standing share.
+except by rising into one, and hops from standing starts (training/LESSONS.md); the seed's own full getup
+uses a 0.2 standing share.
 `energy_weight` > 0 subtracts that multiple of the seed's energy cost Σ|v·τ/τmax| (§4.7, per control step),
 a fine-tune of ours: the seed uses it to tame the keyframe policy's high-effort motions, and here it is
-what breaks the baseline's squat-jump cycle (measured at 9.5 M steps: hopping costs 36 per step, standing
-15, the rise 62; a weight of 0.01 leaves standing the best state by far). It lowers the baseline's energy
-in Table 4.3, so the comparison with the keyframe policy says so.
+what breaks the baseline's squat-jump cycle (hopping costs more energy than standing still). It lowers the
+baseline's energy in Table 4.3, so the comparison with the keyframe policy says so.
 """
 from __future__ import annotations
 

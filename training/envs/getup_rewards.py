@@ -13,7 +13,7 @@ Failed rise (ours, not the seed's; off by default): a one-off cost when a getup 
 common/events.py's definitions (the trunk rose ATTEMPT_RISE_M from its low while down, then dropped
 ATTEMPT_RISE_M below the attempt's peak before a stand-up held STAND_HOLD_S), so that the count the loop's push
 test reports is in the reward: at γ 0.97 the standing reward a fall back delays by 1–2 s barely reaches the
-pop-up that caused it (training/runs/getup_pace5/prerise_falls.py).
+pop-up that caused it.
 Gate (§4.8), exactly as written: height  0.4 − min(h_torso, 0.4) < 0.005 m   (i.e. h_torso > 0.395 m)
                                    upright ‖u − e_z‖ < 0.01              (a tilt below 0.573°)
 Gated terms (§4.8):
@@ -63,8 +63,8 @@ def pose_reward(q, q_ref):
 
 def rise_pace_cost(trunk_vel_xy, waist_height, waist_from_m):
     """‖v_xy‖² [m²/s²] of the trunk (world frame) while the waist is at or above waist_from_m [m], else 0.
-    Why: the hand-overs the joystick expert drops arrive at the switch at 1.1 m/s, the held ones at 0.35 m/s
-    (median; training/runs/joystick_landings/handover_falls.py)."""
+    Why: the hand-overs the joystick expert drops arrive at the switch faster than the ones it holds
+    (training/LESSONS.md)."""
     return jnp.where(waist_height >= waist_from_m, jnp.sum(jnp.square(trunk_vel_xy), axis=-1), 0.0)
 
 

@@ -2,10 +2,9 @@
 
 The teacher (training/teacher.py) switches from the getup expert to the joystick expert when the waist
 rises past WAIST_SWITCH_HEIGHT_M (0.5 m). The joystick expert was trained from standing starts only, and the
-getup expert arrives there mid-lunge: with the keyframe expert, trunk at 0.62 m rising at 0.8 m/s (median)
-in the hand-overs it holds, at 1.25 m/s in the 32 % it drops within 3 s
-(training/runs/joystick_handover/PROGRESS.md). Fine-tuning the joystick expert from these states teaches it
-to catch the lunge (ours, not the seed's: the seed's teacher stitches two experts as trained).
+getup expert arrives there mid-lunge, rising fast; the joystick expert drops a share of those hand-overs
+(training/LESSONS.md). Fine-tuning the joystick expert from these states teaches it to catch the lunge (ours,
+not the seed's: the seed's teacher stitches two experts as trained).
 
 `handover_bank` rolls a getup artifact from fallen starts in the getup env (full-body collision, CPU
 physics: a one-off host computation, whatever backend trains) and keeps, per episode, the state of the
@@ -19,15 +18,14 @@ hard as the loop's push test, and the state of the first control tick with the w
 height is where the getup expert takes over, mid-fall. The getup expert was trained from fallen starts after
 the runtime's PREPARE ramp (limbs straightened, at rest), so a push's landing, limbs in a walking pose and
 still moving, was new to it: in the loop's push test the failed getup attempts after one forward fall are
-what misses the seed's 1.16 (training/runs/student_knockdown/PROGRESS.md). The getup env (config
-knockdown_starts) replaces a share of its fallen starts with these.
+what misses the seed's 1.16 (training/LESSONS.md). The getup env (config knockdown_starts) replaces a share
+of its fallen starts with these.
 
 `push_test_bank` is the loop's push test itself (common/push_test.py): the joystick expert standing
 at zero command, shoved on the torso forward or backward (2 : 1) by the test's impulse. The loop delivers it as
 a force on the Trunk over one physics step, which tips the robot over its feet; knockdown_bank's change of
-the base velocity moves the whole robot at once and is far easier to catch: the teacher's joystick expert
-caught 93 of 128 such knockdowns forward but 13 of 128 forward torso shoves, and its getup expert needs as many
-attempts on the shoves' landings (1.53 per landing) as in the loop's forward pushes (1.65; the seed's 1.16).
+the base velocity moves the whole robot at once and is far easier to catch, so only the shove's own landings
+reproduce the loop's forward-push attempts (figures: training/LESSONS.md).
 
 `wall_bank` is the same hand-over after the joystick expert walked into the low-wall course
 (training/envs/wall_course.py): the landings beside, on and across a wall (getup config wall_starts).

@@ -45,7 +45,7 @@ def feet_phase(foot_z, phase, max_foot_height, command, clock_freeze_command_nor
     is below the clock's freeze threshold. Why: our clock freezes there wherever it stopped (the
     observation contract), where Playground resets it to π, i.e. both feet in stance. Tracking a frozen
     mid-swing reference taught the policy to stand on one leg at zero command, and to fall after stopping
-    from a walk (training/runs/joystick/PROGRESS.md, session 6)."""
+    from a walk (training/LESSONS.md)."""
     standing = jnp.linalg.norm(command) < clock_freeze_command_norm
     rz = jnp.where(standing, 0.0, gait.get_rz(phase, swing_height=max_foot_height))
     return jnp.exp(-jnp.sum(jnp.square(foot_z - rz)) / FEET_PHASE_SIGMA_M2)

@@ -1,7 +1,7 @@
 """Reverse curriculum for getup stage 2 (ours, not the seed's): starts along a path from standing to the kneel.
 
-Why: stage 2 from the kneel alone (the seed's start) held the kneel for 25 M steps here (v4–v8, see
-training/runs/getup_stage2/PROGRESS.md). Standing up from this model's kneel (both knees and both toe tips
+Why: stage 2 from the kneel alone (the seed's start) learned to hold the kneel and never stood
+(training/LESSONS.md). Standing up from this model's kneel (both knees and both toe tips
 on the floor, feet behind) needs a lunge — one foot brought forward flat, then a push up over it — and
 every exploratory move toward it that tips the robot ends the episode. Starting some episodes part of the
 way up lets PPO learn the end of the motion first and extend it backward (Florensa et al. 2017, "Reverse

@@ -3,10 +3,8 @@
 The stitched teacher, the runtime's composite and the student all hand the robot to the joystick expert
 when the waist rises past WAIST_SWITCH_HEIGHT_M (0.5 m). The getup expert was trained alone, to stand by
 itself, so it arrives there mid-lunge, and the joystick expert drops part of those hand-overs: on the loop's
-push-test landings (handover.push_test_bank, 180 of 192 starts, seed 510000) the composite of getup_kd_bank
-and joystick_handover_gpu needs 1.48 attempts per landing, of which 0.30 are rises that failed AFTER the
-waist passed the switch and 0.23 before it; from fallen starts 0.09 and 0.20. Fine-tuning the joystick
-expert on hand-over states did not move its hand-over falls (training/runs/joystick_handover_gpu).
+push-test landings a good share of the composite's failed rises fail AFTER the waist passed the switch, and
+fine-tuning the joystick expert on hand-over states did not move them (training/LESSONS.md).
 
 With `upright_policy` set, that joystick artifact drives the robot whenever the waist is at or above the
 switch height, exactly as the composite does (artifact_policy.CompositePolicy: zero command, the gait clock
@@ -17,13 +15,11 @@ the joystick expert keeps up. Its observation and network are unchanged.
 
 One change to the rewards' gate (§4.8), which this world needs: the seed's per-step gate wants the trunk
 within 0.573° of vertical, and the joystick expert stands 1.6° off it (‖u − e_z‖ = 0.028 at rest), so under
-it the gate held in 1.5 steps of a 500-step eval episode (getup_kd_bank's own stand: 363) and a stand
-after the hand-over paid less than kneeling. While the upright member drives and the robot stands (events'
+it the gate almost never held and a stand after the hand-over paid less than kneeling. While the upright member drives and the robot stands (events'
 definition: trunk ≥ 0.6 m, up_z ≥ 0.9) the gate counts as met: the robot is past the kneel by construction.
 
-Measured (training/runs/getup_upright, _g099): fine-tuned this way from getup_kd_bank, the hand-overs got
-WORSE (push landings 1.48 → 1.62 attempts at 11.5 M; at discount 0.99, 1.68 at 5 M). Keep it off until the
-policy loss can leave out the steps whose action the member overrides (that run's PROGRESS.md).
+Fine-tuned this way, the hand-overs got worse (training/LESSONS.md, getup_upright): keep it off until the
+policy loss can leave out the steps whose action the member overrides.
 """
 from __future__ import annotations
 

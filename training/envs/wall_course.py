@@ -2,8 +2,7 @@
 
 Why: in the loop's wall test (sim_hil/eval, Tables 6.1–6.2) the robot trips over a 0.2 m wall and must get
 up beside it, on it or with its legs across it. The getup expert had only ever risen on open floor, and
-each wall cost the student 2.5 getup attempts (training/runs/student_kd_bank/ch6_wall): 3 of 5 trials ran
-out of the course's 60 s. With the course in the world, the getup env can start from where the joystick
+each wall cost the student several getup attempts (training/LESSONS.md). With the course in the world, the getup env can start from where the joystick
 expert lands after walking into a wall (handover.wall_bank, getup config wall_starts) and the unified env
 can walk a share of its episodes into one (unified config walls.prob).
 

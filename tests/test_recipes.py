@@ -1,0 +1,117 @@
+"""Every recipe (training/recipes/) runs end to end at toy size on every CI run, so none rots: its stages chain
+(init from the stage before, @RECIPE/STAGE references into the same runs root), its config diffs apply to
+today's task configs, and its provenance names the recipe and its hash. Also the recipe CLI's errors and
+the campaign round trip (save → a fresh runs root → --resume restores and goes on)."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from common.artifact import read_artifact
+from training import checkpoints, cli, recipe as R, recipe_runner
+
+ROOT = Path(__file__).resolve().parents[1]
+TOY_ENV = {**os.environ, "XLA_FLAGS": "--xla_backend_optimization_level=0",
+           "PYTHONPATH": f"{ROOT}:{ROOT / 'build' / 'gen' / 'python'}"}
+WORKERS = 2   # the CI machine's cores; XLA compilation is mostly single-threaded
+
+
+def _waves(names: list[str]) -> list[list[str]]:
+    """The recipes in waves: each wave reads stage artifacts only of recipes of earlier waves."""
+    waves, done = [], set()
+    pending = R.in_dependency_order(names)
+    while pending:
+        wave = [n for n in pending if R.load(n).depends_on() <= done]
+        waves.append(wave)
+        done |= set(wave)
+        pending = [n for n in pending if n not in wave]
+    return waves
+
+
+@pytest.fixture(scope="module")
+def toy_root(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("recipes")
+    for wave in _waves(R.names()):
+        # split a wave over the workers, each running its recipes one after the other (one JAX process each)
+        groups = [wave[i::WORKERS] for i in range(WORKERS) if wave[i::WORKERS]]
+        procs = [subprocess.Popen(
+            [sys.executable, "-c", "import sys; from training import cli\n"
+             "for n in sys.argv[2:]:\n    assert cli.main(['recipe', n, '--toy', '--no-progress', '--out', sys.argv[1]]) == 0",
+             str(root), *group], cwd=ROOT, env=TOY_ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+            for group in groups]
+        for group, proc in zip(groups, procs):
+            text = proc.communicate(timeout=1200)[0]
+            assert proc.returncode == 0, f"toy recipes {group}: exit {proc.returncode}\n{text[-4000:]}"
+    return root
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", R.names())
+def test_every_recipe_runs_to_its_policy_at_toy_size(toy_root, name):
+    recipe = R.load(name)
+    for stage in recipe.stages:
+        assert recipe_runner.stage_complete(toy_root, recipe, stage), f"{name}: stage {stage.name} incomplete"
+    final = recipe_runner.stage_dirs(toy_root, recipe, recipe.stages[-1])[-1]
+    manifest = read_artifact(final / f"{recipe.policy}.safetensors")[3]
+    assert manifest["name"] == recipe.policy and manifest["trained"] is False     # toy: never trained
+    if recipe.stages[-1].kind != "random_init":
+        assert manifest["provenance"]["recipe"] == {"name": name, "stage": recipe.stages[-1].name,
+                                                    "sha256": R.content_hash(name)}
+
+
+@pytest.mark.slow
+def test_a_fine_tune_starts_from_the_stage_before(toy_root):
+    recipe = R.load("joystick")
+    state = json.loads((toy_root / "joystick" / "yaw" / checkpoints.RUN_STATE).read_text())
+    assert Path(state["init"]).parent.parent == toy_root / "joystick" / "walk"
+    assert state["env_config"]["reward"]["scales"]["tracking_ang_vel"] == \
+        recipe.stage("yaw").config["env.reward.scales.tracking_ang_vel"]
+
+
+@pytest.mark.slow
+def test_a_campaign_goes_on_from_training_campaigns_on_a_fresh_machine(toy_root, tmp_path):
+    campaigns, fresh = tmp_path / "campaigns", tmp_path / "runs"
+    saved = recipe_runner.save_campaign("joystick", toy_root, campaigns)
+    assert {p.name for p in saved} == {"walk", "yaw", "sharp"}
+    kept = sorted(p.name for p in (campaigns / "joystick" / "sharp").iterdir())
+    assert kept == ["checkpoints", "learning_curve.png", "metrics.csv", "run_state.json"]
+    assert len(list((campaigns / "joystick" / "sharp" / "checkpoints").iterdir())) == 1   # the newest only
+    recipe = R.load("joystick")
+    stage = recipe.stage("sharp")
+    recipe_runner.restore_campaign(recipe, stage, fresh, campaigns)
+    assert recipe_runner.stage_complete(fresh, recipe, stage)
+
+
+def test_recipes_are_listed_with_their_policies(capsys):
+    assert cli.main(["recipe", "--list"]) == 0
+    out = capsys.readouterr().out
+    for name in R.names():
+        assert f"{name}: policies/{R.load(name).policy}/" in out
+
+
+def test_every_shipped_policy_has_a_recipe_and_a_card():
+    shipped = sorted(p.name for p in (ROOT / "policies").iterdir() if p.is_dir())
+    policies = {R.load(n).policy for n in R.names()}
+    for name in shipped:
+        assert name in policies, f"policies/{name}/ has no recipe in training/recipes/"
+        assert (ROOT / "policies" / name / f"{name}.safetensors").exists()
+        assert (ROOT / "policies" / name / checkpoints.CARD).exists(), f"policies/{name}/ has no CARD.md"
+
+
+def test_recipe_errors_name_the_problem(capsys, tmp_path):
+    assert cli.main(["recipe", "no_such_recipe", "--out", str(tmp_path)]) == 2
+    assert "unknown recipe 'no_such_recipe'" in capsys.readouterr().err
+    assert cli.main(["recipe", "joystick", "--stage", "nope", "--out", str(tmp_path)]) == 2
+    assert "recipe joystick has no stage 'nope'" in capsys.readouterr().err
+    assert cli.main(["recipe", "joystick", "--stage", "yaw", "--out", str(tmp_path)]) == 2
+    assert "walk: not run under" in capsys.readouterr().err
+    assert cli.main(["recipe"]) == 2
+    with pytest.raises(ValueError, match="init 'later' is not an earlier stage"):
+        R.Recipe("x", "x", "", (R.Stage("a", init="later"), R.Stage("later")))
+    with pytest.raises(ValueError, match="needs teacher getup and joystick"):
+        R.Recipe("x", "x", "", (R.Stage("a", kind="distill"),))

@@ -1,0 +1,106 @@
+"""Named training recipes (training/recipes/<name>.py): a shipped policy's whole chain of stages, each a small
+diff of its task's base config, so that `python -m training recipe NAME` makes the policy and its
+provenance names the recipe and a hash of its content.
+
+A stage is one PPO run (`train`), one DAgger run (`distill`) or the seeded random init of the untrained
+placeholder. `init` names the stage of the same recipe whose newest checkpoint it starts from (a fine-tune);
+`init` may also be `@RECIPE/STAGE`: that stage of another recipe, run into the same runs root. Policy
+references in a stage (`teacher`, or config values) are paths under policies/ or `@RECIPE/STAGE`, the
+artifact that stage exported.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib
+import pkgutil
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+KINDS = ("ppo", "distill", "random_init")
+REF_PREFIX = "@"
+
+
+@dataclass(frozen=True)
+class Stage:
+    name: str
+    kind: str = "ppo"
+    task: str = ""                 # ppo: joystick | getup | getup_baseline; distill: the env (default unified)
+    steps: int = 0                 # ppo: env steps of this stage; distill: DAgger phases
+    getup_stage: str | None = None    # getup: the keyframe curriculum's stage (stage1 | stage2 | full)
+    init: str | None = None        # the stage to fine-tune from (this recipe's, or @RECIPE/STAGE); None = scratch
+    config: Mapping[str, Any] = field(default_factory=dict)   # {"env.x": v, "ppo.y": v, "bc.z": v}: the diff
+    teacher: Mapping[str, str] = field(default_factory=dict)  # distill: {"getup": ref, "joystick": ref}
+    envs: int | None = None        # parallel envs where the stage needs other than its preset's
+
+    def references(self) -> list[str]:
+        """Every `@RECIPE/STAGE` this stage reads."""
+        values = [*self.teacher.values(), *self.config.values(), self.init]
+        return [v for v in values if isinstance(v, str) and v.startswith(REF_PREFIX)]
+
+
+@dataclass(frozen=True)
+class Recipe:
+    name: str
+    policy: str                    # the artifact's name: policies/<policy>/<policy>.safetensors
+    summary: str
+    stages: tuple[Stage, ...]
+
+    def __post_init__(self):
+        names = [s.name for s in self.stages]
+        if len(set(names)) != len(names):
+            raise ValueError(f"recipe {self.name}: stage names repeat: {names}")
+        for i, s in enumerate(self.stages):
+            if s.kind not in KINDS:
+                raise ValueError(f"recipe {self.name}, stage {s.name}: kind {s.kind!r} is not one of {KINDS}")
+            if s.init is not None and not s.init.startswith(REF_PREFIX) and s.init not in names[:i]:
+                raise ValueError(f"recipe {self.name}, stage {s.name}: init {s.init!r} is not an earlier stage")
+            if s.kind == "distill" and set(s.teacher) != {"getup", "joystick"}:
+                raise ValueError(f"recipe {self.name}, stage {s.name}: a distill stage needs teacher getup and "
+                                 "joystick")
+
+    def stage(self, name: str) -> Stage:
+        for s in self.stages:
+            if s.name == name:
+                return s
+        raise ValueError(f"recipe {self.name} has no stage {name!r}; stages: "
+                         f"{', '.join(s.name for s in self.stages)}")
+
+    def depends_on(self) -> set[str]:
+        """The other recipes whose stage artifacts this one reads (`@RECIPE/STAGE`)."""
+        return {ref[1:].split("/")[0] for s in self.stages for ref in s.references()} - {self.name}
+
+
+def _module_file(name: str) -> Path:
+    return Path(importlib.import_module(f"training.recipes.{name}").__file__)
+
+
+def names() -> list[str]:
+    from training import recipes
+    return sorted(m.name for m in pkgutil.iter_modules(recipes.__path__) if not m.name.startswith("_"))
+
+
+def load(name: str) -> Recipe:
+    if name not in names():
+        raise ValueError(f"unknown recipe {name!r}; recipes: {', '.join(names())}")
+    recipe = importlib.import_module(f"training.recipes.{name}").RECIPE
+    if recipe.name != name:
+        raise ValueError(f"training/recipes/{name}.py defines recipe {recipe.name!r}, not {name!r}")
+    return recipe
+
+
+def content_hash(name: str) -> str:
+    """sha256 of the recipe's file: what provenance records beside the recipe's name."""
+    return hashlib.sha256(_module_file(name).read_bytes()).hexdigest()
+
+
+def in_dependency_order(recipe_names) -> list[str]:
+    """The recipes ordered so that each comes after those it reads stage artifacts from."""
+    pending, done = list(recipe_names), []
+    while pending:
+        ready = [n for n in pending if load(n).depends_on() & set(recipe_names) <= set(done)]
+        if not ready:
+            raise ValueError(f"recipes {pending} read each other's stages in a circle")
+        done.extend(ready)
+        pending = [n for n in pending if n not in ready]
+    return done

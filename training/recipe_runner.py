@@ -1,0 +1,245 @@
+"""`python -m training recipe NAME`: runs a recipe's stages in order into RUNS_ROOT/NAME/<stage>, skipping the
+ones already complete, and keeps a campaign across machines in training/campaigns/NAME/ (the newest
+checkpoint, run state and curve of each stage; nothing else from runs/ is tracked).
+
+    recipe --list                                  the recipes, their policies and stages
+    recipe NAME [--stage S] [--resume] [--max-minutes M] [--backend cpu|mjx] [--ship]
+    recipe NAME --save-campaign                    copy each stage's newest checkpoint, state, curve
+    recipe NAME --toy --out DIR                    every stage at toy size (CI: no recipe rots)
+"""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import time
+from pathlib import Path
+
+from training import checkpoints, recipe as R
+
+RUNS_ROOT = checkpoints.REPO_ROOT / "runs"
+CAMPAIGNS_ROOT = checkpoints.REPO_ROOT / "training" / "campaigns"
+DISTILL_STATE = "distill_state.json"   # = training.distill.STATE_FILE (not imported: it brings JAX along)
+CURVE_FILES = ("metrics.csv", "learning_curve.png")
+TOY_PPO_STEPS = 80        # one toy PPO update: 8 envs × 5 unroll × 2 minibatches
+TOY_BANK_STARTS = 4       # landing banks of a toy stage (their rollouts dominate a toy run otherwise)
+
+
+def describe() -> str:
+    lines = []
+    for name in R.names():
+        r = R.load(name)
+        stages = " → ".join(f"{s.name} ({s.kind}{', ' + format(s.steps, ',') if s.steps else ''})" for s in r.stages)
+        lines.append(f"{name}: policies/{r.policy}/  {r.summary}\n    {stages}")
+    return "\n".join(lines)
+
+
+def stage_dirs(root: Path, recipe: R.Recipe, stage: R.Stage) -> list[Path]:
+    """The stage's run directories: <stage>, then <stage>.2, .3 … where a DAgger stage went on after a stop."""
+    base = root / recipe.name / stage.name
+    found = [base] if base.exists() else []
+    k = 2
+    while (root / recipe.name / f"{stage.name}.{k}").exists():
+        found.append(root / recipe.name / f"{stage.name}.{k}")
+        k += 1
+    return found
+
+
+def artifact_name(recipe: R.Recipe, stage: R.Stage) -> str:
+    return recipe.policy if stage is recipe.stages[-1] else f"{recipe.policy}_{stage.name}"
+
+
+def stage_complete(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
+    dirs = stage_dirs(root, recipe, stage)
+    if not dirs:
+        return False
+    last = dirs[-1]
+    if stage.kind == "random_init":
+        return (last / f"{artifact_name(recipe, stage)}.safetensors").exists()
+    if stage.kind == "distill":
+        state = _json(last / DISTILL_STATE)
+        return bool(state.get("finished")) and not state.get("stopped_by_max_minutes")
+    state = _json(last / checkpoints.RUN_STATE)
+    return bool(state) and int(state["env_steps"]) >= int(state["target_steps"])
+
+
+def superseded(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
+    """Whether a complete later stage of the recipe starts, through its chain of inits, from `stage` (a
+    campaign may keep only the newest stage of a chain)."""
+    for later in recipe.stages[recipe.stages.index(stage) + 1:]:
+        chain, s = set(), later
+        while s.init and not s.init.startswith(R.REF_PREFIX):
+            chain.add(s.init)
+            s = recipe.stage(s.init)
+        if stage.name in chain and stage_complete(root, recipe, later):
+            return True
+    return False
+
+
+def _json(path: Path) -> dict:
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def _run_dir(init: str, recipe: R.Recipe, root: Path) -> Path:
+    """The newest run directory of `init` (a stage of `recipe`, or @RECIPE/STAGE)."""
+    if init.startswith(R.REF_PREFIX):
+        name, _, stage_name = init[1:].partition("/")
+        recipe = R.load(name)
+    else:
+        stage_name = init
+    dirs = stage_dirs(root, recipe, recipe.stage(stage_name))
+    if not dirs:
+        raise FileNotFoundError(f"{init}: not run under {root}; run `python -m training recipe {recipe.name} "
+                                f"--stage {stage_name}` first (with the same --out)")
+    return dirs[-1]
+
+
+def resolve_ref(value, root: Path, shipped: bool = False):
+    """A `@RECIPE/STAGE` reference → the artifact that stage exported into `root` (with `shipped`: that
+    recipe's shipped policy instead); other values unchanged."""
+    if not (isinstance(value, str) and value.startswith(R.REF_PREFIX)):
+        return value
+    name, _, stage_name = value[1:].partition("/")
+    recipe = R.load(name)
+    if shipped:
+        return str(checkpoints.policy_dir(recipe.policy) / f"{recipe.policy}.safetensors")
+    stage = recipe.stage(stage_name)
+    dirs = stage_dirs(root, recipe, stage)
+    path = dirs[-1] / f"{artifact_name(recipe, stage)}.safetensors" if dirs else None
+    if path is None or not path.exists():
+        raise FileNotFoundError(f"{value}: no artifact under {root / name}; run `python -m training recipe {name} "
+                                f"--stage {stage_name}` first (with the same --out)")
+    return str(path)
+
+
+def _overrides(config: dict, toy: bool) -> list[str]:
+    """A stage's config diff as `key=value`; at toy size the PPO/DAgger sizes stay the toy preset's and the
+    landing banks are small."""
+    if not toy:
+        return [f"{k}={v!r}" for k, v in config.items()]
+    out = [f"{k}={v!r}" for k, v in config.items() if not k.startswith(("ppo.", "bc."))]
+    for k, v in config.items():
+        if k.endswith(".prob") and isinstance(v, float) and v > 0 and k[:-len(".prob")] in BANKED:
+            out.append(f"{k[:-len('.prob')]}.bank_starts={TOY_BANK_STARTS}")
+    return out
+
+
+BANKED = ("env.knockdown_starts", "env.wall_starts", "env.push_starts", "env.handover")
+
+
+def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: bool = False,
+        max_minutes: float | None = None, backend: str | None = None, toy: bool = False, ship: bool = False,
+        progress: bool = True) -> bool:
+    """Run the recipe (or one stage of it); True when its last stage is complete."""
+    recipe = R.load(name)
+    provenance = {"name": name, "sha256": R.content_hash(name)}
+    todo = recipe.stages if stage is None else (recipe.stage(stage),)
+    t0 = time.monotonic()
+    for s in todo:
+        if stage_complete(root, recipe, s):
+            print(f"recipe {name}: stage {s.name} complete ({stage_dirs(root, recipe, s)[-1]})")
+            continue
+        if stage is None and superseded(root, recipe, s):
+            print(f"recipe {name}: stage {s.name} skipped (a later stage that starts from it is complete)")
+            continue
+        if resume and not stage_dirs(root, recipe, s):
+            restore_campaign(recipe, s, root)
+        left = None if max_minutes is None else max_minutes - (time.monotonic() - t0) / 60.0
+        if left is not None and left <= 0:
+            break
+        print(f"recipe {name}: stage {s.name} ({s.kind}) → {root / name / s.name}", flush=True)
+        _run_stage(recipe, s, root, resume=resume, max_minutes=left, backend=backend, toy=toy,
+                   progress=progress, provenance={**provenance, "stage": s.name})
+        if not stage_complete(root, recipe, s):
+            print(f"recipe {name}: stage {s.name} stopped before its end; go on with --resume")
+            return False
+    final = recipe.stages[-1]
+    complete = stage_complete(root, recipe, final)
+    if complete and ship:
+        from training.train import ship_artifact
+        artifact = stage_dirs(root, recipe, final)[-1] / f"{recipe.policy}.safetensors"
+        print(f"recipe {name}: shipped {ship_artifact(artifact, {'task': f'recipe {name}'})}")
+    return complete
+
+
+def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_minutes, backend, toy, progress,
+               provenance: dict) -> None:
+    dirs = stage_dirs(root, recipe, s)
+    init = _run_dir(s.init, recipe, root) if s.init else None
+    command = (f"python -m training recipe {recipe.name} --stage {s.name}"
+               f"{' --toy' if toy else ''} (recipe sha256 {provenance['sha256'][:12]})")
+    # a toy stage's landing banks roll the policies its config names, which must be trained experts (a toy
+    # one never rises or falls as a bank needs): there a reference stands for that recipe's shipped policy
+    overrides = _overrides({k: resolve_ref(v, root, shipped=toy) for k, v in s.config.items()}, toy)
+    name = artifact_name(recipe, s)
+    if s.kind == "random_init":
+        from training import untrained
+        out = root / recipe.name / s.name
+        out.mkdir(parents=True, exist_ok=True)
+        untrained.main([str(out / f"{name}.safetensors")])
+        return
+    if s.kind == "ppo":
+        from training import train
+        out = root / recipe.name / s.name
+        again = bool(dirs) and (out / checkpoints.RUN_STATE).exists()
+        if again and not resume:
+            raise FileExistsError(f"{out} holds an unfinished run of stage {s.name}: pass --resume to go on")
+        preset = "toy" if toy else ("gpu" if (backend or train.default_backend()) == "mjx" else "cpu")
+        train.train(s.task, out, steps=TOY_PPO_STEPS if toy else s.steps, num_envs=None if toy else s.envs,
+                    resume=again, max_minutes=max_minutes, overrides=() if again else overrides,
+                    stage=s.getup_stage, from_checkpoint=None if again else init, preset=preset, name=name,
+                    command=command, progress=progress, backend=backend, recipe=provenance)
+        return
+    from training import distill
+    teacher = {k: resolve_ref(v, root) for k, v in s.teacher.items()}
+    phases = 0 if toy else int(s.steps)
+    if dirs:   # a stopped DAgger stage goes on from its newest checkpoint into the next directory
+        if not resume:
+            raise FileExistsError(f"{dirs[-1]} holds an unfinished DAgger stage {s.name}: pass --resume to go on")
+        start, done_phases = dirs[-1], _json(dirs[-1] / DISTILL_STATE).get("phases", 0)
+        before = _json(init / DISTILL_STATE).get("phases", 0) if init else 0
+        phases = max(phases - (int(done_phases) - int(before)), 1)
+        evals = int(s.config.get("bc.num_evals", 11)) - 1
+        overrides = [o for o in overrides if not o.startswith(("bc.dagger_steps=", "bc.num_evals="))]
+        overrides += [f"bc.num_evals={math.gcd(phases, evals) + 1}"]
+        out = root / recipe.name / f"{s.name}.{len(dirs) + 1}"
+    else:
+        start, out = init, root / recipe.name / s.name
+    if phases:
+        overrides = [o for o in overrides if not o.startswith("bc.dagger_steps=")] + [f"bc.dagger_steps={phases}"]
+    distill.distill(teacher["getup"], teacher["joystick"], out, task=s.task or distill.DEFAULT_TASK,
+                    overrides=overrides, preset="toy" if toy else "gpu", num_envs=None if toy else s.envs,
+                    command=command, progress=progress, max_minutes=max_minutes, name=name, backend=backend,
+                    from_checkpoint=start, recipe=provenance)
+
+
+# ---------------------------------------------------------------- campaigns (training/campaigns/<recipe>/)
+def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS_ROOT) -> list[Path]:
+    """Copy each run stage's newest checkpoint, run state and curve into campaigns/NAME/<stage dir>/
+    (replacing what was there): what a campaign needs to go on on another machine."""
+    recipe = R.load(name)
+    saved = []
+    for s in recipe.stages:
+        for run_dir in stage_dirs(root, recipe, s):
+            dest = campaigns / name / run_dir.name
+            if dest.exists():
+                shutil.rmtree(dest)
+            dest.mkdir(parents=True)
+            for f in (checkpoints.RUN_STATE, DISTILL_STATE, *CURVE_FILES):
+                if (run_dir / f).exists():
+                    shutil.copy2(run_dir / f, dest / f)
+            kept = checkpoints.list_checkpoints(run_dir)
+            if kept:
+                shutil.copytree(kept[-1], dest / checkpoints.CHECKPOINT_DIR / kept[-1].name)
+            saved.append(dest)
+    return saved
+
+
+def restore_campaign(recipe: R.Recipe, stage: R.Stage, root: Path, campaigns: Path = CAMPAIGNS_ROOT) -> None:
+    """A stage absent from `root` but kept in the campaign is copied back, so --resume goes on from it."""
+    base = campaigns / recipe.name
+    for src in sorted(base.glob(f"{stage.name}")) + sorted(base.glob(f"{stage.name}.*")):
+        dest = root / recipe.name / src.name
+        if not dest.exists():
+            shutil.copytree(src, dest)
+            print(f"recipe {recipe.name}: stage {src.name} restored from {src}")

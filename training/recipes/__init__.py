@@ -1,0 +1,1 @@
+"""One file per recipe: `RECIPE = Recipe(...)` (training/recipe.py). `python -m training recipe --list`."""
