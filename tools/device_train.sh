@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# Training on the lent GPU machine (training/README.md, "Device workflow"). Its python3 (3.12) has JAX
-# with CUDA; the rest of the project's training dependencies travel as cp312 wheels in .whl/.
+# Training on the lent GPU machine (docs/device.md). Its python3 (3.12) has JAX with CUDA; the rest of the
+# project's training dependencies travel as cp312 wheels in .whl/.
 #
-#   tools/device_train.sh start NAME -- TRAIN_ARGS...   install wheels, start `python -m training
-#        train TRAIN_ARGS --out $RUNS/NAME` detached (setsid), log $RUNS/NAME.log (RUNS=/root/t1runs)
+#   tools/device_train.sh start NAME -- ARGS...   install wheels, start `python -m training ARGS
+#        --out $RUNS/NAME` detached (setsid), log $RUNS/NAME.log (RUNS=/root/t1runs). ARGS is a subcommand:
+#        `train TASK ...` (NAME is the run) or `recipe RECIPE --resume ...` (NAME is the runs root: the
+#        stages run in $RUNS/NAME/RECIPE/STAGE, a campaign's in training/campaigns/ restored there)
 #   tools/device_train.sh seed NAME RUN.tgz            unpack a carried run (e.g. runs/NAME.tgz) into
 #        $RUNS so that `start NAME -- ... --resume` continues it
 #   tools/device_train.sh wait NAME SECONDS          follow the log until the run ends or SECONDS pass
@@ -26,15 +28,15 @@ install_wheels() {
   python3 -c "import jax, mujoco, brax; print('jax', jax.__version__, jax.devices(), 'mujoco', mujoco.__version__)"
 }
 
-running() { pgrep -f "training train" >/dev/null; }
+running() { pgrep -f "python3 -m training (train|recipe|distill)" >/dev/null; }
 
 case "${1:-}" in
   start)
     name=$2; shift 3  # NAME --
     install_wheels
     mkdir -p "$RUNS"
-    setsid nohup python3 -m training train "$@" --out "$RUNS/$name" >> "$RUNS/$name.log" 2>&1 < /dev/null &
-    echo "started $name: python -m training train $* --out $RUNS/$name" ;;
+    setsid nohup python3 -m training "$@" --out "$RUNS/$name" >> "$RUNS/$name.log" 2>&1 < /dev/null &
+    echo "started $name: python -m training $* --out $RUNS/$name" ;;
   seed)
     mkdir -p "$RUNS"; tar -C "$RUNS" -xzf "$3"; ls "$RUNS/$2" ;;
   wait)
@@ -48,5 +50,5 @@ case "${1:-}" in
     tar -C "$RUNS" --exclude tensorboard -czf "$out/$name.tgz" "$name"
     cp "$RUNS/$name.log" "$out/"; ls -la "$out" ;;
   *)
-    echo "usage: $0 start NAME -- TRAIN_ARGS... | seed NAME RUN.tgz | wait NAME SECONDS | collect NAME" >&2; exit 2 ;;
+    echo "usage: $0 start NAME -- train|recipe ARGS... | seed NAME RUN.tgz | wait NAME SECONDS | collect NAME" >&2; exit 2 ;;
 esac
