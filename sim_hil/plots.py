@@ -9,7 +9,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from common import events  # noqa: E402
+from common.events import FALLEN_TRUNK_HEIGHT_M  # noqa: E402
 from messages import contract  # noqa: E402
 
 
@@ -29,7 +29,7 @@ def plot_heights_and_velocity(series: dict[str, dict[str, list[float]]], path: P
         if side_by_side:
             axes[0].set_title(label)
     for axes in grid.T:
-        axes[0].axhline(events.FALLEN_TRUNK_HEIGHT_M, color="grey", ls=":", lw=1, label="fallen below")
+        axes[0].axhline(FALLEN_TRUNK_HEIGHT_M, color="grey", ls=":", lw=1, label="fallen below")
         axes[1].axhline(contract.WAIST_SWITCH_HEIGHT_M, color="grey", ls="--", lw=1,
                         label="teacher switch (getup below)")
         if command_vx:

@@ -25,7 +25,7 @@ from t1 import sim_status_t
 
 from common import model as t1model
 from common import scenarios
-from common import events
+from common.events import FALLEN_TRUNK_HEIGHT_M
 from sim_hil import config
 from sim_hil.faults import FaultSchedule, parse_faults
 from sim_hil.imu import Imu
@@ -156,7 +156,7 @@ class Simulator:
         s.active_faults = self.faults.describe(self.data.time)
         s.trunk_height = float(t1model.trunk_height(self.data))
         s.waist_height = float(t1model.waist_height(self.data))
-        s.fallen = s.trunk_height < events.FALLEN_TRUNK_HEIGHT_M
+        s.fallen = s.trunk_height < FALLEN_TRUNK_HEIGHT_M
         s.base_pos = self.data.qpos[:3].tolist()
         s.base_lin_vel = self.data.qvel[:3].tolist()
         w, x, y, z = self.data.qpos[3:7]

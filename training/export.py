@@ -7,11 +7,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from messages import contract
+from common.artifact import read_artifact, write_artifact
+from common.golden import base_manifest
 from training import checkpoints
-from common import observation as obsdef
-from common.artifact import CONTROL_DT_S, SCHEMA_VERSION, read_artifact, write_artifact  # noqa: F401 (API)
-from common.golden import base_manifest, pd_gains_from_model  # noqa: F401 (API)
+
 
 # ---------------------------------------------------------------- brax PPO
 def brax_policy_layers(policy_params: Mapping[str, Any]) -> list[tuple[np.ndarray, np.ndarray]]:

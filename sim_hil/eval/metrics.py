@@ -10,7 +10,7 @@ import math
 import mujoco
 import numpy as np
 
-from common import events
+from common.events import FALLEN_TRUNK_HEIGHT_M
 from sim_hil import config
 from common.events import heading_from_quat, up_z_from_quat
 
@@ -137,6 +137,6 @@ def ran_to_stabilise(log: TickLog, window: slice) -> bool:
     """True when the robot never fell in the window and its trunk kept >= RUN_SPEED_MPS horizontal speed
     for >= RUN_MIN_S at a stretch (it ran the push off instead of absorbing it in place)."""
     trunk = log.trunk[window]
-    if trunk.size == 0 or np.any(trunk < events.FALLEN_TRUNK_HEIGHT_M):
+    if trunk.size == 0 or np.any(trunk < FALLEN_TRUNK_HEIGHT_M):
         return False
     return _runs(log.speed_xy[window] >= RUN_SPEED_MPS, int(round(RUN_MIN_S / config.CONTROL_DT_S))) > 0

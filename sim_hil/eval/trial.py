@@ -21,9 +21,8 @@ import numpy as np
 from t1 import joint_command_t, joystick_t
 
 from messages import contract
-from common import events
 from sim_hil import config
-from common.events import GetupEvents, getup_events, heading_from_quat, through_kneel_gate, up_z_from_quat
+from common.events import FALLEN_TRUNK_HEIGHT_M, GetupEvents, getup_events, heading_from_quat, through_kneel_gate, up_z_from_quat
 from sim_hil.eval.metrics import TickLog, effort_metrics, ran_to_stabilise, slip_events
 from sim_hil.launch import start_runtime, stop, wait_until_listening
 
@@ -189,7 +188,7 @@ def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | Non
         sl = slice(start, None)
         events = getup_events(log.t[sl], log.trunk[sl], log.up_z[sl])
         gate = through_kneel_gate(log.t[sl], log.trunk[sl], log.up_z[sl], events)
-        starts_down = bool(log.trunk[start] < events.FALLEN_TRUNK_HEIGHT_M)
+        starts_down = bool(log.trunk[start] < FALLEN_TRUNK_HEIGHT_M)
         fall_ticks = [int(np.searchsorted(log.t, ft)) for ft in events.fall_times_s]
         fall_x = [float(log.base_x[i]) for i in ([start] if starts_down else []) + fall_ticks]
         # Table 4.3 window: the first time down, from going down (or POLICY start) to the stand-up; the
@@ -213,7 +212,7 @@ def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | Non
             idx = start + np.flatnonzero((x >= lo) & (x < hi))
             seg = getup_events(log.t[idx], log.trunk[idx], log.up_z[idx]) if idx.size else None
             seg_attempts.append(seg.attempts if seg else 0)
-            seg_falls.append(seg.falls + int(log.trunk[idx[0]] < events.FALLEN_TRUNK_HEIGHT_M and idx[0] > start)
+            seg_falls.append(seg.falls + int(log.trunk[idx[0]] < FALLEN_TRUNK_HEIGHT_M and idx[0] > start)
                              if seg else 0)
     sl = slice(start if start is not None else log.n, None)
     drift, turned = np.nan, np.nan
