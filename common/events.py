@@ -144,6 +144,13 @@ def kneel_gate_mask(trunk_height, up_z) -> np.ndarray:
         (up_error < KNEEL_GATE_UP_ERROR)
 
 
+def reached_kneel(trunk_height, up_z, th: EventThresholds = EventThresholds()) -> bool:
+    """Whether the trunk met the kneel gate at a sample that does not count as standing: the kneeling posture
+    of the seed's stage 1 (fallen → kneel), whatever came after."""
+    h, u = np.asarray(trunk_height, dtype=np.float64), np.asarray(up_z, dtype=np.float64)
+    return bool(np.any(kneel_gate_mask(h, u) & ~standing_mask(h, u, th)))
+
+
 def through_kneel_gate(t, trunk_height, up_z, events: GetupEvents,
                        th: EventThresholds = EventThresholds()) -> bool | None:
     """Whether the trunk met the kneel gate on its way up: at a sample that does not count as standing,

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from common.events import (EventThresholds, GetupEvents, getup_events, kneel_gate_mask, standing_mask,
-                                 through_kneel_gate, up_z_from_quat)
+from common.events import (EventThresholds, GetupEvents, getup_events, kneel_gate_mask, reached_kneel,
+                           standing_mask, through_kneel_gate, up_z_from_quat)
 
 DT_S = 0.02                 # 50 Hz series: the events must not depend on the tick rate
 STAND_M, KNEEL_M, LIE_M = 0.66, 0.45, 0.15
@@ -188,3 +188,12 @@ def test_through_kneel_gate_before_the_stand_up():
     assert through_kneel_gate(t, h, tilted_up, getup_events(t, h, tilted_up)) is False
     stays_down = script((LIE_M, LIE_M, 2.0))
     assert through_kneel_gate(*stays_down, getup_events(*stays_down)) is None
+
+
+def test_reached_kneel_is_stage_ones_aim_whatever_follows():
+    kneels = script((LIE_M, LIE_M, 0.5), (LIE_M, KNEEL_M, 0.5), (KNEEL_M, KNEEL_M, 1.0))   # rises and holds it
+    assert reached_kneel(kneels[1], kneels[2]) is True
+    t, h, up = kneels
+    assert reached_kneel(h, np.full_like(h, math.cos(math.radians(10.0)))) is False   # tilted: not the gate
+    standing = script((STAND_M, STAND_M, 2.0))   # an upright stand meets the gate's numbers but is no kneel
+    assert reached_kneel(standing[1], standing[2]) is False

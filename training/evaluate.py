@@ -122,7 +122,7 @@ def episode_row(t, readings, series) -> dict:
     and its per-tick effort series (T,). energy_to_stand_J counts the ticks before the first stand-up only
     (nan if it never stood): the energy of getting up, which the whole episode's energy_J mixes with the
     standing that follows it under the upright policy."""
-    from common.events import getup_events, through_kneel_gate
+    from common.events import getup_events, reached_kneel, through_kneel_gate
     ev = getup_events(t, readings[:, 0], readings[:, 1], waist_height=readings[:, 2],
                       switch_height_m=WAIST_SWITCH_HEIGHT_M)
     gate = through_kneel_gate(t, readings[:, 0], readings[:, 1], ev)
@@ -134,6 +134,7 @@ def episode_row(t, readings, series) -> dict:
         "falls": ev.falls, "down_phases": ev.falls + int(ev.started_down),
         "failed_after_switch": ev.failed_after_switch,
         "through_kneel_gate": math.nan if gate is None else float(gate),
+        "reached_kneel": float(reached_kneel(readings[:, 0], readings[:, 1])),
         "energy_J": float(series["energy_J"].sum()),
         "energy_to_stand_J": float(series["energy_J"][:stand_tick].sum()) if stood else math.nan,
         "max_energy_J": float(series["max_energy_J"].max()),
@@ -164,6 +165,7 @@ def summarize(rows: list[dict]) -> dict:
             "failed_after_switch_per_episode": float(np.mean([r["failed_after_switch"] for r in rows])),
             "never_rose": float(np.mean([r["attempts"] == 0 and not r["success"] for r in rows])),
             "time_to_stand_s": mean("time_to_stand_s"), "through_kneel_gate": mean("through_kneel_gate"),
+            "reached_kneel": mean("reached_kneel"),
             **{k: mean(k) for k in EFFORT_KEYS}}
 
 
@@ -178,6 +180,8 @@ ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attem
         ("lay without a rise to the end (share)", "never_rose", "{:.3f}"),
         ("time to stand [s]", "time_to_stand_s", "{:.2f}"),
         ("through the kneel gate before standing (share of those that stood)", "through_kneel_gate", "{:.2f}"),
+        ("reached the kneel: the gate met while not standing (share of episodes; stage 1's aim)", "reached_kneel",
+         "{:.2f}"),
         ("energy Σ\\|τ·q̇\\|·dt [J]", "energy_J", "{:.1f}"),
         ("energy until the first stand-up [J] (episodes that stood)", "energy_to_stand_J", "{:.1f}"),
         ("max energy in one physics step [J]", "max_energy_J", "{:.2f}"),
