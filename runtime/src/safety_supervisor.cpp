@@ -21,6 +21,20 @@
 //     Each step picks the point of the allowed interval nearest to the wanted target, so with q outside
 //     the range the target moves toward the range at full allowed torque and never away from it.
 //  R7 A fault also rewrites the status info ("FAULT: <reason>"), so the info never names a stale mode.
+// Rules added by issue 48, counted once per joint state in every mode; FAULT naming the motor in
+// PREPARE/POLICY, in PASSIVE/DAMPING a warning that blocks PREPARE (as R4). Figures: tools/motor_watchdog_figures.py.
+//  R8 Silent motor: > kMotorSilentMaxCycles (10) consecutive states with NO_REPLY (no reply that bus cycle;
+//     on DDS MotorState_.lost changed). At 5 % random loss a run of 11 has odds 0.05^11 = 5e-15 per
+//     motor-cycle, one false trip in ~600 years of 23 motors at 500 Hz (longest run measured: 3). A dead
+//     motor trips 22 ms after its last reply, before its own 50 ms watchdog.
+//  R9 Frozen encoder: q bit-identical on consecutive replies while the last command's PD torque
+//     kp (q_des - q) - kd dq stays above kFrozenEncoderTorqueFraction (0.75) of the motor's limit for longer
+//     than kFrozenEncoderMaxS (100 ms). Standing encoders do sit still under load: with the shipped student
+//     (20 s standing and walking, getups from fallen seeds 3/5/62 with their PREPARE, pushes, 5 % drop,
+//     10 ms delay; the placeholder's 5 s PREPARE) the most torque held 100 ms on a still encoder is 0.52 of
+//     the limit (16.4 N·m, hip pitch, getup); over 50 ms 0.60, over 20 ms 1.0, hence 100 ms. A knee frozen
+//     while walking at 0.4 m/s passes 0.75 of its limit 0.74 s later: FAULT at 0.84 s. A frame without a
+//     reply is no reading: it neither advances nor resets R9.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -198,6 +212,10 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
       (s.have_joint && (!all_finite(s.q, kJoints) || !all_finite(s.dq, kJoints))))
     fault(fault_bit::kNonFiniteState, "non-finite value in imu_t or joint_state_t");
 
+  int32_t watch_bit = 0;
+  char watch_why[128] = "";
+  const int watched = watch_motors(s, &watch_bit, watch_why, sizeof(watch_why));  // rules R8, R9
+
   bool motor_fault = false;
   int motor_index = -1;
   for (std::size_t i = 0; s.have_joint && i < kJoints; ++i) {
@@ -228,7 +246,12 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
       // In DAMPING the command already equals the firmware's own fault reaction: warn, but block PREPARE.
       if (commanding(mode_)) fault(fault_bit::kMotorFault, why);
       else warning_bits_ |= fault_bit::kMotorWarning;
+    } else if (watched >= 0) {
+      if (commanding(mode_)) fault(watch_bit, watch_why);
+      else warning_bits_ |= fault_bit::kMotorWarning;
     }
+  } else if (mode_ == Mode::kPassive && watched >= 0) {
+    warning_bits_ |= fault_bit::kMotorWarning;
   }
 
   autostart_request(s);
@@ -243,6 +266,7 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
       case Mode::kPrepare:
         if (!fresh) set_info("set_mode prepare refused: state not fresh");
         else if (motor_fault) set_info("set_mode prepare refused: motor fault bits set");
+        else if (watched >= 0) std::snprintf(last_info_.data(), last_info_.size(), "set_mode prepare refused: %s", watch_why);
         else if (mode_ == Mode::kPassive) set_info("set_mode prepare refused: go to DAMPING first");
         else enter(Mode::kPrepare, s);
         break;
@@ -258,6 +282,57 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
   }
   holding_ = !(imu_fresh && joint_fresh && sim_fresh);
   return mode_ == Mode::kPolicy && !holding_;
+}
+
+// Rules R8 and R9, advanced once per new joint state (a tick that reuses the state counts nothing).
+// Returns the first motor that breaks one (-1: none), with its fault bit and the reason naming it.
+int Supervisor::watch_motors(const StateView& s, int32_t* bit, char* why, std::size_t why_size) {
+  if (s.have_joint && s.joint_time_s != watched_joint_time_s_) {
+    watched_joint_time_s_ = s.joint_time_s;
+    for (std::size_t i = 0; i < kJoints; ++i) {
+      MotorWatch& w = watch_[i];
+      if (s.motor_status[i] & T1_STATUS_NO_REPLY) {  // no reading this cycle: R9 waits for one
+        ++w.silent_cycles;
+        continue;
+      }
+      w.silent_cycles = 0;
+      const float tau = cmd_kp_[i] * (cmd_q_[i] - s.q[i]) - cmd_kd_[i] * s.dq[i];  // dq_des = tau_ff = 0
+      const bool loaded = std::fabs(tau) > kFrozenEncoderTorqueFraction * T1_MOTORS[i].torque_limit_nm;
+      const bool same = w.have_q && std::memcmp(&w.last_q, &s.q[i], sizeof(float)) == 0;
+      if (!(same && loaded)) w.frozen = false;
+      else if (!w.frozen) {
+        w.frozen = true;
+        w.frozen_since_s = w.last_q_time_s;  // the encoder has read this q since then
+      }
+      w.have_q = true;
+      w.last_q = s.q[i];
+      w.last_q_time_s = s.joint_time_s;
+    }
+  }
+  for (std::size_t i = 0; s.have_joint && i < kJoints; ++i) {
+    const MotorWatch& w = watch_[i];
+    const double frozen_s = w.frozen ? s.joint_time_s - w.frozen_since_s : 0.0;
+    const int motor = static_cast<int>(i);
+    if (w.silent_cycles > kMotorSilentMaxCycles) {
+      *bit = fault_bit::kMotorSilent;
+      std::snprintf(why, why_size, "motor %d (%s) silent: no reply for %d bus cycles (> %d)", motor,
+                    T1_MOTORS[i].name, static_cast<int>(w.silent_cycles), kMotorSilentMaxCycles);
+      return motor;
+    }
+    if (frozen_s > kFrozenEncoderMaxS) {
+      *bit = fault_bit::kEncoderFrozen;
+      std::snprintf(why, why_size, "motor %d (%s) encoder frozen: q bit-identical %.0f ms under |PD torque| > %.1f N*m",
+                    motor, T1_MOTORS[i].name, frozen_s * 1e3, kFrozenEncoderTorqueFraction * T1_MOTORS[i].torque_limit_nm);
+      return motor;
+    }
+  }
+  return -1;
+}
+
+void Supervisor::remember_command(const t1::joint_command_t& out) {
+  std::copy(out.q_des, out.q_des + kJoints, cmd_q_.begin());
+  std::copy(out.kp, out.kp + kJoints, cmd_kp_.begin());
+  std::copy(out.kd, out.kd + kJoints, cmd_kd_.begin());
 }
 
 // Rule R6: rate, then torque, then range; each limit narrows the interval left by the ones before it.
@@ -308,6 +383,7 @@ void Supervisor::finish_tick(const StateView& s, const PolicyArtifact& a, const 
   if (mode_ == Mode::kPassive) {
     for (std::size_t i = 0; i < kJoints; ++i) out.kp[i] = out.kd[i] = 0.0f;
     have_last_target_ = false;
+    remember_command(out);
     return;
   }
   if (!commanding(mode_)) {  // DAMPING and FAULT: kp 0, the firmware's safe damping
@@ -316,6 +392,7 @@ void Supervisor::finish_tick(const StateView& s, const PolicyArtifact& a, const 
       out.kd[i] = T1_MOTORS[i].d_safe_nms;
     }
     have_last_target_ = false;
+    remember_command(out);
     return;
   }
   JointArray target = last_target_;  // holding: the last target
@@ -340,6 +417,7 @@ void Supervisor::finish_tick(const StateView& s, const PolicyArtifact& a, const 
     out.kp[i] = kp[i];
     out.kd[i] = kd[i];
   }
+  remember_command(out);
 }
 
 }  // namespace t1rt
