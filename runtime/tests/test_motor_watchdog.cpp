@@ -134,7 +134,8 @@ TEST(SilentMotor, InDampingAndPassiveItIsAWarningThatBlocksPrepare) {
 TEST(FrozenEncoder, BitIdenticalUnderTorqueAboveTheThresholdFaultsAfterTheTimeNamingTheMotor) {
   Robot r;
   r.to_policy();
-  r.q_[kKnee] += 0.35f;  // target 0.35 rad away at kp 150: |PD torque| 52.5 N·m > 0.75 x 60 N·m
+  r.q_[kKnee] += 0.35f;  // target 0.35 rad away at kp 150: |PD torque| 52.5 N·m > 0.65 x 60 N·m
+  ASSERT_GT(0.35f * 150.0f, frozen_encoder_torque_nm(60.0f));
   const int ticks_allowed = static_cast<int>(kFrozenEncoderMaxS / 0.002);
   r.ticks(ticks_allowed);
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
@@ -147,15 +148,21 @@ TEST(FrozenEncoder, BitIdenticalUnderTorqueAboveTheThresholdFaultsAfterTheTimeNa
 TEST(FrozenEncoder, AStillEncoderUnderStandingLoadsOrAMovingOneUnderFullTorqueNeverTrips) {
   Robot r;
   r.to_policy();
-  r.q_[kKnee] += 0.29f;  // 43.5 N·m, just below the threshold, for 10 s: a robot standing still
+  const float below = 0.95f * frozen_encoder_torque_nm(60.0f) / 150.0f;
+  r.q_[kKnee] += below;  // just below the threshold, for 10 s: a robot standing or lying still
   r.ticks(5000);
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
-  const float q = r.q_[kKnee] + 0.06f;  // 52.5 N·m, but the encoder moves by one float step each tick
+  const float q = r.artifact_.default_pose[kKnee] + 0.35f;  // 52.5 N·m, but the encoder moves a float step each tick
   for (int k = 0; k < 5000; ++k) {
     r.q_[kKnee] = k % 2 ? std::nextafter(q, 1.0f) : q;
     r.tick();
   }
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+}
+
+TEST(FrozenEncoder, TheThresholdIsAFractionOfTheLimitWithAFloor) {
+  EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(60.0f), 39.0f);                 // knee
+  EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(7.0f), kFrozenEncoderMinTorqueNm);  // head: gravity alone is 0.6 of it
 }
 
 TEST(FrozenEncoder, MissedRepliesAreNoReadingAndAQuietTickRestartsTheClock) {

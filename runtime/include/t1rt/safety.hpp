@@ -52,8 +52,14 @@ static_assert(kSimStatusHold > kLatchedMask && kNonFiniteSimStatus <= kLatchedMa
 // Motor reply watchdog and encoder plausibility (rules R8, R9 of src/safety_supervisor.cpp, which says
 // why these values; tools/motor_watchdog_figures.py measures the figures behind them).
 inline constexpr int kMotorSilentMaxCycles = 10;             // more consecutive NO_REPLY states: FAULT
-inline constexpr float kFrozenEncoderTorqueFraction = 0.75f; // |PD torque| above this x the motor's limit...
+inline constexpr float kFrozenEncoderTorqueFraction = 0.65f; // |PD torque| above this x the motor's limit
+inline constexpr float kFrozenEncoderMinTorqueNm = 10.0f;    // and above this [N·m]...
 inline constexpr double kFrozenEncoderMaxS = 0.100;          // ...on a bit-identical encoder for longer: FAULT
+// The torque threshold of R9 for motor i [N·m].
+inline constexpr float frozen_encoder_torque_nm(float torque_limit_nm) {
+  return torque_limit_nm * kFrozenEncoderTorqueFraction > kFrozenEncoderMinTorqueNm
+             ? torque_limit_nm * kFrozenEncoderTorqueFraction : kFrozenEncoderMinTorqueNm;
+}
 
 struct SafetyConfig {
   double hold_age_s = 0.010;         // state older than this: hold the last target
