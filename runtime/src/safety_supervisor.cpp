@@ -56,6 +56,7 @@ namespace {
 constexpr int32_t kMotorFaultMask = T1_STATUS_NOT_FOLLOWING | T1_STATUS_BAD_FRAME | T1_STATUS_BAD_SENSOR;
 constexpr int32_t kMotorInfoMask = T1_STATUS_OVER_LIMIT;
 constexpr double kNever = std::numeric_limits<double>::infinity();
+constexpr double kStateTimeEpsS = 1e-7;  // state times are whole microseconds; their differences carry float noise
 
 bool all_finite(const float* v, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i)
@@ -321,7 +322,7 @@ int Supervisor::watch_motors(const StateView& s, int32_t* bit, char* why, std::s
                     T1_MOTORS[i].name, static_cast<int>(w.silent_cycles), kMotorSilentMaxCycles);
       return motor;
     }
-    if (frozen_s > kFrozenEncoderMaxS) {
+    if (frozen_s > kFrozenEncoderMaxS + kStateTimeEpsS) {
       *bit = fault_bit::kEncoderFrozen;
       std::snprintf(why, why_size, "motor %d (%s) encoder frozen: q bit-identical %.0f ms under |PD torque| > %.1f N*m",
                     motor, T1_MOTORS[i].name, frozen_s * 1e3, frozen_encoder_torque_nm(T1_MOTORS[i].torque_limit_nm));
