@@ -94,10 +94,16 @@ def main() -> None:
             b = sim.bus
             rows.append(np.concatenate([b.q, b.dq, b.status, c.q_des, c.kp, c.kd]))
     Simulator.tick = tick
+    runs = []
     for name in args.runs:
         base, _, policy = name.partition("+")
+        try:
+            runs.append((name, spec(base), POLICIES[policy]))
+        except (KeyError, ValueError) as exc:
+            ap.error(f"run '{name}': not understood ({exc!r}); see the list under 'runs'")
+    for name, trial, controller in runs:
         rows.clear()
-        result = run_trial(spec(base), POLICIES[policy], trial_lcm_url(7))
+        result = run_trial(trial, controller, trial_lcm_url(7))
         print(f"{name}: runtime fault [{result.runtime_faults or 'none'}]; {analyse(rows, threshold, width)}", flush=True)
 
 
