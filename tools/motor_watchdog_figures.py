@@ -35,7 +35,7 @@ DT = 0.002
 def r9_constants() -> tuple[float, float, int]:
     text = (ROOT / "runtime/include/t1rt/safety.hpp").read_text()
     get = lambda name: float(re.search(rf"{name} = ([0-9.]+)", text).group(1))   # noqa: E731
-    return get("kFrozenEncoderTorqueFraction"), get("kFrozenEncoderMinTorqueNm"), int(round(get("kFrozenEncoderMaxS") / DT))
+    return get("kFrozenEncoderTorqueFraction"), get("kFrozenEncoderMinTorqueNm"), int(get("kFrozenEncoderMaxCycles"))
 
 
 def spec(name: str) -> TrialSpec:

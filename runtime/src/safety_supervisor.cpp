@@ -28,8 +28,9 @@
 //     motor-cycle, one false trip in ~600 years of 23 motors at 500 Hz (longest run measured: 3). A dead
 //     motor trips 22 ms after its last reply, before its own 50 ms watchdog.
 //  R9 Frozen encoder: q bit-identical on consecutive replies while the last command's PD torque
-//     kp (q_des - q) - kd dq stays above max(0.65 x the motor's limit, 10 N·m) (kFrozenEncoder*) for longer
-//     than 100 ms. Still encoders under load are normal: lying, getting up and standing. Over 29 lockstep
+//     kp (q_des - q) - kd dq stays above max(0.65 x the motor's limit, 10 N·m) (kFrozenEncoder*) for more than
+//     50 replies in a row (100 ms; counted in states, like R8, so a slow simulator in realtime mode does not
+//     shorten it). Still encoders under load are normal: lying, getting up and standing. Over 29 lockstep
 //     runs without fault (20 s standing and walking, getups from fallen seeds 0-9 and 62, 6 push-test
 //     pushes, 5 % drop, 10 ms delay; the placeholder policy and the baseline composite too) the most load
 //     held 100 ms on a still encoder is 0.78 of that threshold (7.8 N·m, ankle roll, getup; 22.7 N·m on a
@@ -56,7 +57,6 @@ namespace {
 constexpr int32_t kMotorFaultMask = T1_STATUS_NOT_FOLLOWING | T1_STATUS_BAD_FRAME | T1_STATUS_BAD_SENSOR;
 constexpr int32_t kMotorInfoMask = T1_STATUS_OVER_LIMIT;
 constexpr double kNever = std::numeric_limits<double>::infinity();
-constexpr double kStateTimeEpsS = 1e-7;  // state times are whole microseconds; their differences carry float noise
 
 bool all_finite(const float* v, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i)
@@ -302,19 +302,13 @@ int Supervisor::watch_motors(const StateView& s, int32_t* bit, char* why, std::s
       const float tau = cmd_kp_[i] * (cmd_q_[i] - s.q[i]) - cmd_kd_[i] * s.dq[i];  // dq_des = tau_ff = 0
       const bool loaded = std::fabs(tau) > frozen_encoder_torque_nm(T1_MOTORS[i].torque_limit_nm);
       const bool same = w.have_q && std::memcmp(&w.last_q, &s.q[i], sizeof(float)) == 0;
-      if (!(same && loaded)) w.frozen = false;
-      else if (!w.frozen) {
-        w.frozen = true;
-        w.frozen_since_s = w.last_q_time_s;  // the encoder has read this q since then
-      }
+      w.frozen_cycles = same && loaded ? w.frozen_cycles + 1 : 0;
       w.have_q = true;
       w.last_q = s.q[i];
-      w.last_q_time_s = s.joint_time_s;
     }
   }
   for (std::size_t i = 0; s.have_joint && i < kJoints; ++i) {
     const MotorWatch& w = watch_[i];
-    const double frozen_s = w.frozen ? s.joint_time_s - w.frozen_since_s : 0.0;
     const int motor = static_cast<int>(i);
     if (w.silent_cycles > kMotorSilentMaxCycles) {
       *bit = fault_bit::kMotorSilent;
@@ -322,10 +316,10 @@ int Supervisor::watch_motors(const StateView& s, int32_t* bit, char* why, std::s
                     T1_MOTORS[i].name, static_cast<int>(w.silent_cycles), kMotorSilentMaxCycles);
       return motor;
     }
-    if (frozen_s > kFrozenEncoderMaxS + kStateTimeEpsS) {
+    if (w.frozen_cycles > kFrozenEncoderMaxCycles) {
       *bit = fault_bit::kEncoderFrozen;
-      std::snprintf(why, why_size, "motor %d (%s) encoder frozen: q bit-identical %.0f ms under |PD torque| > %.1f N*m",
-                    motor, T1_MOTORS[i].name, frozen_s * 1e3, frozen_encoder_torque_nm(T1_MOTORS[i].torque_limit_nm));
+      std::snprintf(why, why_size, "motor %d (%s) encoder frozen: q bit-identical for %d replies under |PD torque| > %.1f N*m",
+                    motor, T1_MOTORS[i].name, static_cast<int>(w.frozen_cycles), frozen_encoder_torque_nm(T1_MOTORS[i].torque_limit_nm));
       return motor;
     }
   }

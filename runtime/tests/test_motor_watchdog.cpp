@@ -136,10 +136,9 @@ TEST(FrozenEncoder, BitIdenticalUnderTorqueAboveTheThresholdFaultsAfterTheTimeNa
   r.to_policy();
   r.q_[kKnee] += 0.35f;  // target 0.35 rad away at kp 150: |PD torque| 52.5 N·m > 0.65 x 60 N·m
   ASSERT_GT(0.35f * 150.0f, frozen_encoder_torque_nm(60.0f));
-  const int ticks_allowed = static_cast<int>(kFrozenEncoderMaxS / 0.002);
-  r.ticks(ticks_allowed);
+  r.ticks(kFrozenEncoderMaxCycles + 1);  // the first reading of the offset q is not yet a repeat
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
-  r.ticks(3);
+  r.tick();
   ASSERT_EQ(r.sup_.mode(), Mode::kFault);
   EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kEncoderFrozen);
   EXPECT_TRUE(says(r.sup_.last_fault(), "motor 14 (Left_Knee_Pitch) encoder frozen")) << r.sup_.last_fault();
@@ -169,7 +168,7 @@ TEST(FrozenEncoder, MissedRepliesAreNoReadingAndAQuietTickRestartsTheClock) {
   Robot r;
   r.to_policy();
   r.q_[kKnee] += 0.35f;
-  const int half = static_cast<int>(kFrozenEncoderMaxS / 0.002) / 2;
+  const int half = kFrozenEncoderMaxCycles / 2;
   for (int round = 0; round < 20; ++round) {
     r.ticks(half);
     r.q_[kKnee] = r.artifact_.default_pose[kKnee];  // torque ~0 for one tick: not loaded

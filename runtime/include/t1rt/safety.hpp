@@ -54,7 +54,8 @@ static_assert(kSimStatusHold > kLatchedMask && kNonFiniteSimStatus <= kLatchedMa
 inline constexpr int kMotorSilentMaxCycles = 10;             // more consecutive NO_REPLY states: FAULT
 inline constexpr float kFrozenEncoderTorqueFraction = 0.65f; // |PD torque| above this x the motor's limit
 inline constexpr float kFrozenEncoderMinTorqueNm = 10.0f;    // and above this [N·m]...
-inline constexpr double kFrozenEncoderMaxS = 0.100;          // ...on a bit-identical encoder for longer: FAULT
+inline constexpr int kFrozenEncoderMaxCycles = 50;           // ...on a bit-identical encoder for more replies
+                                                             // in a row (100 ms of 2 ms bus cycles): FAULT
 // The torque threshold of R9 for motor i [N·m].
 inline constexpr float frozen_encoder_torque_nm(float torque_limit_nm) {
   return torque_limit_nm * kFrozenEncoderTorqueFraction > kFrozenEncoderMinTorqueNm
@@ -155,9 +156,7 @@ class Supervisor {
     int32_t silent_cycles = 0;   // consecutive states without a reply
     bool have_q = false;         // last_q holds a replied encoder value
     float last_q = 0.0f;         // [rad]
-    double last_q_time_s = 0.0;  // state time of last_q
-    bool frozen = false;         // q bit-identical under torque since frozen_since_s
-    double frozen_since_s = 0.0;
+    int32_t frozen_cycles = 0;   // consecutive replies with q bit-identical to the one before, under torque
   };
   std::array<MotorWatch, kJoints> watch_{};
   double watched_joint_time_s_ = -1e300;  // the state watch_ has seen last
