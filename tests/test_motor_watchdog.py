@@ -7,7 +7,6 @@ runtime/tests/test_motor_watchdog.cpp."""
 from __future__ import annotations
 
 import math
-import time
 
 import pytest
 from t1 import joystick_t
