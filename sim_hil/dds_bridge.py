@@ -93,6 +93,8 @@ class DdsBridge:
         self._reported = 0
         self._answer_mark = 0               # cmds_received when the newest state was written
         self._last_state = None
+        # MotorState_.lost as the runtime reads it (messages/dds/booster_low.idl): replies each motor missed
+        self._lost = np.zeros(N, dtype=np.uint32)
 
     # ---- commands in ---------------------------------------------------------------------------------
     def _take(self) -> int:
@@ -157,11 +159,13 @@ class DdsBridge:
     # ---- state out -----------------------------------------------------------------------------------
     def publish_state(self, utime: int, seq: int, quat, gyro, accel, q, dq, tau, status) -> None:
         """LowState_ from the IMU and the motor replies. utime / seq / firmware status bits have no field
-        in LowState_ (the robot sends neither): the runtime numbers samples by arrival."""
+        in LowState_ (the robot sends neither): the runtime numbers samples by arrival. The host's NO_REPLY
+        bit becomes what the robot has instead, a per-motor count of missed replies in `lost`."""
         imu = dds_types.ImuState(rpy=list(rpy_from_quat(quat)), gyro=[float(v) for v in gyro],
                                  acc=[float(v) for v in accel])
+        self._lost += (np.asarray(status) & fw.STATUS_HOST_NO_REPLY) != 0   # uint32: wraps as on the robot
         motors = [dds_types.MotorState(mode=0, q=float(q[i]), dq=float(dq[i]), ddq=0.0, tau_est=float(tau[i]),
-                                       temperature=0, lost=0, reserve=[0, 0]) for i in range(N)]
+                                       temperature=0, lost=int(self._lost[i]), reserve=[0, 0]) for i in range(N)]
         self._last_state = dds_types.LowState(imu_state=imu, motor_state_parallel=[], motor_state_serial=motors)
         self._answer_mark = self.cmds_received
         self.writer.write(self._last_state)

@@ -57,7 +57,7 @@ _U32_FIELDS = ("num_motors", "num_buses", "cmd_id_base", "reply_id_base", "cmd_d
 class _Protocol(C.Structure):  # t1_protocol_constants_t
     _fields_ = [(n, C.c_uint32) for n in _U32_FIELDS] + [
         ("q_max_rad", C.c_float), ("kp_max", C.c_float), ("kd_max", C.c_float),
-        ("soft_stop_full_torque_rad", C.c_float)]
+        ("soft_stop_full_torque_rad", C.c_float), ("status_no_reply", C.c_uint32)]
 
 
 class _Bus(C.Structure):  # t1_bus_t
@@ -89,6 +89,8 @@ STATUS_DAMPING: int = int(_P.status_damping)
 STATUS_BAD_SENSOR: int = int(_P.status_bad_sensor)
 STATUS_NOT_FOLLOWING: int = STATUS_WATCHDOG | STATUS_POWER_ON | STATUS_DAMPING
 STATUS_NO_REPLY: int = -1  # unpack_replies: the slot did not decode
+# Host bit above the reply byte: no reply frame from the motor this bus cycle (set by sim_hil/motor_bus.py).
+STATUS_HOST_NO_REPLY: int = int(_P.status_no_reply)
 
 _MOTORS = (_MotorInfo * NUM_MOTORS).in_dll(_lib, "T1_MOTORS")
 _RANGES = (_ClassRange * 6).in_dll(_lib, "T1_CLASS_RANGES")

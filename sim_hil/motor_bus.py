@@ -23,7 +23,7 @@ BUS_PERIOD_US = 2000            # one command + reply round per control tick (2 
 UDP_GROUP = "239.74.163.2"      # IPv4: the IPv6 default group delivers nothing inside the namespace
 UDP_BASE_PORT = 43113           # bus b on port 43113 + b: Linux delivers a group's datagrams to every
                                 # socket bound to the port, whatever group it joined, so ports separate buses
-NO_REPLY = 1 << 8               # host-side status bit (above the 8 firmware bits): no reply frame this cycle
+NO_REPLY = fw.STATUS_HOST_NO_REPLY   # host-side status bit (t1_motor_protocol.h §7): no reply frame this cycle
 
 
 class SimVirtualBus(VirtualBus):

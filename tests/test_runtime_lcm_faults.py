@@ -179,11 +179,13 @@ def test_final_target_keeps_the_rate_limit_and_the_torque_limit_with_q_far_outsi
     kp, kd = peer.manifest["kp"][HIP_PITCH], peer.manifest["kd"][HIP_PITCH]
     limit = fw.TORQUE_LIMIT[HIP_PITCH]
     mid, half = (fw.Q_MAX + fw.Q_MIN) / 2, (fw.Q_MAX - fw.Q_MIN) / 2 * RANGE_FRACTION
-    peer.q[HIP_PITCH] = fw.Q_MAX[HIP_PITCH] + 2.8               # reported far beyond the joint's end
+    far = fw.Q_MAX[HIP_PITCH] + 2.8                             # reported far beyond the joint's end
     prev = peer.cmds[-1].q_des[HIP_PITCH]
     prev_excess, reached = np.inf, False
-    for cmd in peer.steps(120):
-        q_des = cmd.q_des[HIP_PITCH]
+    for k in range(120):
+        # The encoder moves a count each tick: a still one under this torque is a frozen encoder (rule R9).
+        peer.q[HIP_PITCH] = far + (k % 2) * 1e-4
+        q_des = peer.step().q_des[HIP_PITCH]
         assert abs(q_des - prev) <= MAX_STEP_RAD + 1e-5, "a target step beyond the rate limit"
         tau = kp * (q_des - peer.q[HIP_PITCH]) - kd * peer.dq[HIP_PITCH]
         excess = abs(tau) - limit

@@ -94,6 +94,13 @@
  *     0x20 BAD_SENSOR    last step had a non-finite q or dq → τ = 0                recomputed every step
  *   T1_STATUS_NOT_FOLLOWING = WATCHDOG | POWER_ON | DAMPING: the motor ignores the command. OVER_LIMIT
  *   is expected during falls and getups; a controller should treat it as information, not a fault.
+ *   Host bit (above the reply byte, so no motor can send it; the host's bus driver sets it in
+ *   joint_state_t.motor_status, sim_hil/motor_bus.py):
+ *     0x100 NO_REPLY     no reply frame from this motor in this bus cycle (the motor is silent, or its   this cycle only
+ *                        frame was lost or late); q, dq, tau and the other bits are the last received
+ *   A single NO_REPLY is normal on a real bus (lost frames); the runtime faults only on a run of them
+ *   (runtime/src/safety_supervisor.cpp, rule R8). On the DDS link the robot sends no status byte: the
+ *   runtime derives NO_REPLY from MotorState_.lost (messages/dds/booster_low.idl says how).
  * ---------------------------------------------------------------------------------------------------
  */
 #ifndef T1_MOTOR_PROTOCOL_H
@@ -164,6 +171,7 @@ extern "C" {
 #define T1_STATUS_DAMPING 0x10u
 #define T1_STATUS_BAD_SENSOR 0x20u
 #define T1_STATUS_NOT_FOLLOWING (T1_STATUS_WATCHDOG | T1_STATUS_POWER_ON | T1_STATUS_DAMPING)
+#define T1_STATUS_NO_REPLY 0x100u /* host bit, never on the wire: no reply frame this bus cycle (§7) */
 
 typedef enum {
   T1_CLASS_HEAD,
@@ -239,6 +247,7 @@ typedef struct {
   uint32_t status_watchdog, status_over_limit, status_bad_frame, status_power_on, status_damping,
       status_bad_sensor;
   float q_max_rad, kp_max, kd_max, soft_stop_full_torque_rad;
+  uint32_t status_no_reply; /* host bit (§7); last, so the fields above keep their offsets */
 } t1_protocol_constants_t;
 extern const t1_protocol_constants_t T1_PROTOCOL;
 

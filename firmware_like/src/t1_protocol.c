@@ -26,6 +26,7 @@ const t1_protocol_constants_t T1_PROTOCOL = {
     T1_BUS_CYCLE_US,      T1_WATCHDOG_US,      T1_STATUS_WATCHDOG,  T1_STATUS_OVER_LIMIT,
     T1_STATUS_BAD_FRAME,  T1_STATUS_POWER_ON,  T1_STATUS_DAMPING,   T1_STATUS_BAD_SENSOR,
     T1_Q_MAX_RAD,         T1_KP_MAX,           T1_KD_MAX,           T1_SOFT_STOP_FULL_TORQUE_RAD,
+    T1_STATUS_NO_REPLY,
 };
 
 const char* t1_error_name(int code) {

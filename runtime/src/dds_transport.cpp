@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "t1_contract.hpp"
+#include "t1_motor_protocol.h"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/policy.hpp"
 #include "t1rt/safety.hpp"
@@ -38,7 +39,7 @@ const char* check_low_state(const DdsLowState& s) {
   return nullptr;
 }
 
-void low_state_to_messages(const DdsLowState& s, t1::imu_t* imu, t1::joint_state_t* joint) {
+void low_state_to_messages(const DdsLowState& s, t1::imu_t* imu, t1::joint_state_t* joint, const uint32_t* prev_lost) {
   quat_from_rpy(s.imu_state.rpy, imu->quat);
   for (int k = 0; k < 3; ++k) {
     imu->gyro[k] = s.imu_state.gyro[k];
@@ -49,7 +50,8 @@ void low_state_to_messages(const DdsLowState& s, t1::imu_t* imu, t1::joint_state
     joint->q[i] = m.q;
     joint->dq[i] = m.dq;
     joint->tau_est[i] = m.tau_est;
-    joint->motor_status[i] = 0;
+    // lost counts the motor's missed replies: a change since the last sample means none came (rule R8).
+    joint->motor_status[i] = prev_lost && m.lost != prev_lost[i] ? static_cast<int32_t>(T1_STATUS_NO_REPLY) : 0;
   }
 }
 
@@ -122,7 +124,8 @@ void DdsTransport::accept(const DdsLowState& sample) {
   }
   const int64_t seq = accepted_ + lost;  // arrival order; samples DDS lost show up as gaps
   if (supervisor_ && !(supervisor_->accept_imu_seq(seq) && supervisor_->accept_joint_seq(seq))) return;
-  low_state_to_messages(sample, &imu_->scratch, &joint_->scratch);
+  low_state_to_messages(sample, &imu_->scratch, &joint_->scratch, accepted_ > 0 ? lost_seen_.data() : nullptr);
+  for (std::size_t i = 0; i < kJoints; ++i) lost_seen_[i] = sample.motor_state_serial._buffer[i].lost;
   // Lockstep: one state per control period, so the state's own time is its number times the loop dt.
   const double stamp_s = clock_ == ClockMode::kLockstep ? static_cast<double>(accepted_) * kLoopDtS
                                                         : monotonic_s();

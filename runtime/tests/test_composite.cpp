@@ -81,7 +81,9 @@ class CompositeLcm : public ::testing::Test {
     t1::joint_state_t js{};
     js.utime = now;
     js.seq = k_;
-    std::copy(pose_.begin(), pose_.end(), js.q);
+    // The encoders move a count each tick: still ones under the getup member's torque would be a frozen
+    // encoder (rule R9 of src/safety_supervisor.cpp).
+    for (std::size_t i = 0; i < kJoints; ++i) js.q[i] = pose_[i] + static_cast<float>(k_ % 2) * 1e-4f;
     peer_.publish(t1::CH_JOINT_STATE, js);
     EXPECT_TRUE(ctrl_->step_lockstep(500));
     EXPECT_TRUE(peer_.wait_command(js.seq));

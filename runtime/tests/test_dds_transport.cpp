@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "t1_contract.hpp"
+#include "t1_motor_protocol.h"
 #include "t1rt/dds_transport.hpp"
 #include "t1rt/policy.hpp"
 
@@ -85,6 +86,21 @@ TEST(LowStateCheck, AcceptsAWellFormedSampleAndConvertsIt) {
   EXPECT_NEAR(imu.accel[2], 9.81f, kTol);
   EXPECT_NEAR(joint.q[22], 0.22f, kTol);
   EXPECT_NEAR(joint.dq[3], -0.06f, kTol);
+}
+
+TEST(LowStateCheck, AChangedLostCounterIsANoReplyForThatMotorOnly) {
+  Sample s(kJoints);
+  t1::imu_t imu{};
+  t1::joint_state_t joint{};
+  uint32_t prev[kJoints] = {};
+  s.motors[15].lost = 1;
+  low_state_to_messages(s.msg, &imu, &joint);  // first sample: nothing to compare with
+  for (std::size_t i = 0; i < kJoints; ++i) EXPECT_EQ(joint.motor_status[i], 0) << i;
+  low_state_to_messages(s.msg, &imu, &joint, prev);
+  for (std::size_t i = 0; i < kJoints; ++i) EXPECT_EQ(joint.motor_status[i], i == 15 ? int32_t(T1_STATUS_NO_REPLY) : 0) << i;
+  prev[15] = 1;
+  low_state_to_messages(s.msg, &imu, &joint, prev);
+  EXPECT_EQ(joint.motor_status[15], 0);
 }
 
 TEST(LowStateCheck, RejectsWrongLengthsAndNonFiniteValuesNamingTheProblem) {

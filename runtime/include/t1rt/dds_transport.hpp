@@ -33,9 +33,12 @@ using DdsMotorCmd = booster_interface_msg_dds__MotorCmd_;
 // Why a LowState_ sample is unusable, or nullptr when it is usable.
 const char* check_low_state(const DdsLowState& sample);
 // A usable sample into the project's state messages (seq and utime are the caller's): quaternion from rpy
-// (quat_from_rpy, policy.hpp), q / dq / tau_est from the serial motor states, motor_status 0 (the robot
-// reports no firmware fault bits in LowState_).
-void low_state_to_messages(const DdsLowState& sample, t1::imu_t* imu, t1::joint_state_t* joint);
+// (quat_from_rpy, policy.hpp), q / dq / tau_est from the serial motor states. motor_status: the robot
+// reports no firmware bits in LowState_, only T1_STATUS_NO_REPLY where MotorState_.lost differs from
+// prev_lost[i], the previous accepted sample's (nullptr: first sample); mode and temperature are not read
+// (messages/dds/booster_low.idl says why).
+void low_state_to_messages(const DdsLowState& sample, t1::imu_t* imu, t1::joint_state_t* joint,
+                           const uint32_t* prev_lost = nullptr);
 // The supervisor's command as a LowCmd_ (SERIAL, the CUSTOM-mode mode/weight of the contract) into
 // motors[kJoints]; out->motor_cmd must point at motors.
 void joint_command_to_low_cmd(const t1::joint_command_t& cmd, DdsLowCmd* out, DdsMotorCmd* motors);
@@ -72,6 +75,7 @@ class DdsTransport {
   MessageSlot<t1::joint_state_t>* joint_ = nullptr;
   bool* new_state_ = nullptr;
   int64_t accepted_ = 0;  // arrival-order number of the next accepted sample
+  std::array<uint32_t, kJoints> lost_seen_{};  // MotorState_.lost of the last accepted sample
   std::array<DdsMotorCmd, kJoints> motors_{};
   DdsLowCmd low_cmd_{};
 };

@@ -11,6 +11,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <cstddef>
 
 #include "t1/controller_status_t.hpp"
 #include "t1/joint_command_t.hpp"
@@ -32,6 +33,8 @@ inline constexpr int32_t kNonFiniteAction = 1 << 4;
 inline constexpr int32_t kMotorFault = 1 << 5;
 inline constexpr int32_t kSimStatusStale = 1 << 6;     // composite mode: T1_SIM_STATUS older than fault age
 inline constexpr int32_t kNonFiniteSimStatus = 1 << 7; // composite mode: waist height not finite
+inline constexpr int32_t kMotorSilent = 1 << 8;        // rule R8: a motor sent no reply for too many bus cycles
+inline constexpr int32_t kEncoderFrozen = 1 << 9;      // rule R9: an encoder stayed bit-identical under torque
 inline constexpr int32_t kLatchedMask = t1::controller_status_t::LATCHED_FAULT_MASK;  // the bits above: warnings
 inline constexpr int32_t kImuHold = 1 << 16;
 inline constexpr int32_t kJointHold = 1 << 17;
@@ -39,12 +42,25 @@ inline constexpr int32_t kJoystickStale = 1 << 18;
 inline constexpr int32_t kTargetClamped = 1 << 19;
 inline constexpr int32_t kRateLimited = 1 << 20;
 inline constexpr int32_t kTorqueClamped = 1 << 21;   // includes "torque bound not reachable within the rate limit"
-inline constexpr int32_t kMotorWarning = 1 << 22;    // motor fault / not-following bits seen in DAMPING (blocks PREPARE)
+inline constexpr int32_t kMotorWarning = 1 << 22;    // R4 bits, R8 or R9 seen in PASSIVE/DAMPING (blocks PREPARE)
 inline constexpr int32_t kMotorOverLimit = 1 << 23;  // OVER_LIMIT: information, never a fault
 inline constexpr int32_t kSimStatusHold = 1 << 24;   // composite mode: T1_SIM_STATUS older than hold age
 static_assert(kSimStatusHold > kLatchedMask && kNonFiniteSimStatus <= kLatchedMask,
               "fault causes in the latched low bits, warnings above them");
 }  // namespace fault_bit
+
+// Motor reply watchdog and encoder plausibility (rules R8, R9 of src/safety_supervisor.cpp, which says
+// why these values; tools/motor_watchdog_figures.py measures the figures behind them).
+inline constexpr int kMotorSilentMaxCycles = 10;             // more consecutive NO_REPLY states: FAULT
+inline constexpr float kFrozenEncoderTorqueFraction = 0.65f; // |PD torque| above this x the motor's limit
+inline constexpr float kFrozenEncoderMinTorqueNm = 10.0f;    // and above this [N·m]...
+inline constexpr int kFrozenEncoderMaxCycles = 50;           // ...on a bit-identical encoder for more replies
+                                                             // in a row (100 ms of 2 ms bus cycles): FAULT
+// The torque threshold of R9 for motor i [N·m].
+inline constexpr float frozen_encoder_torque_nm(float torque_limit_nm) {
+  return torque_limit_nm * kFrozenEncoderTorqueFraction > kFrozenEncoderMinTorqueNm
+             ? torque_limit_nm * kFrozenEncoderTorqueFraction : kFrozenEncoderMinTorqueNm;
+}
 
 struct SafetyConfig {
   double hold_age_s = 0.010;         // state older than this: hold the last target
@@ -80,7 +96,7 @@ struct StateView {
   double joint_time_s = 0.0;
   const float* q = nullptr;              // 23 [rad]
   const float* dq = nullptr;             // 23 [rad/s]
-  const int32_t* motor_status = nullptr; // 23 firmware bits
+  const int32_t* motor_status = nullptr; // 23 firmware bits + host NO_REPLY (t1_motor_protocol.h §7)
   // Composite mode only (needs_sim_status): the privileged waist height from T1_SIM_STATUS, which picks
   // the policy. Its age follows the same hold / FAULT rules as the IMU and the joint state.
   bool needs_sim_status = false;
@@ -132,6 +148,19 @@ class Supervisor {
   void enter(Mode mode, const StateView& state);
   void autostart_request(const StateView& state);
   void clamp_targets(const StateView& state, const JointArray& kp, const JointArray& kd, JointArray& target);
+  int watch_motors(const StateView& state, int32_t* bit, char* why, std::size_t why_size);
+  void remember_command(const t1::joint_command_t& out);
+
+  // Rules R8, R9: per-motor watch, advanced once per joint state.
+  struct MotorWatch {
+    int32_t silent_cycles = 0;   // consecutive states without a reply
+    bool have_q = false;         // last_q holds a replied encoder value
+    float last_q = 0.0f;         // [rad]
+    int32_t frozen_cycles = 0;   // consecutive replies with q bit-identical to the one before, under torque
+  };
+  std::array<MotorWatch, kJoints> watch_{};
+  double watched_joint_time_s_ = -1e300;  // the state watch_ has seen last
+  JointArray cmd_q_{}, cmd_kp_{}, cmd_kd_{};  // the last command sent: what the motors act on now
 
   SafetyConfig cfg_;
   Mode mode_ = Mode::kPassive;

@@ -1,0 +1,183 @@
+// Rules R8 (silent motor) and R9 (frozen encoder) of src/safety_supervisor.cpp on the Supervisor alone:
+// N cycles, random loss that must never trip, the frozen-encoder torque threshold and time, and the
+// warning that blocks PREPARE in DAMPING/PASSIVE. The out-of-process checks against the simulator are in
+// tests/test_motor_watchdog.py.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+#include <string>
+
+#include "t1_motor_protocol.h"
+#include "t1rt/safety.hpp"
+
+using namespace t1rt;
+
+namespace {
+constexpr int kKnee = 14, kAnkle = 15;  // Left_Knee_Pitch (limit 60 N·m), Left_Ankle_Pitch
+
+class Robot {
+ public:
+  Robot() : sup_(config()) {
+    for (std::size_t i = 0; i < kJoints; ++i) {
+      artifact_.default_pose[i] = 0.5f * (T1_MOTORS[i].q_min_rad + T1_MOTORS[i].q_max_rad);  // inside R6's range
+      artifact_.kp[i] = 150.0f;
+      artifact_.kd[i] = 2.0f;
+      q_[i] = artifact_.default_pose[i];
+    }
+  }
+  static SafetyConfig config() {
+    SafetyConfig c;
+    c.prepare_duration_s = 0.01;
+    return c;
+  }
+  void tick() {
+    ++k_;
+    const double now = 0.002 * static_cast<double>(k_);
+    StateView s;
+    s.now_s = s.imu_time_s = s.joint_time_s = now;
+    s.have_imu = s.have_joint = true;
+    s.quat = quat_;
+    s.gyro = gyro_;
+    s.q = q_;
+    s.dq = dq_;
+    s.motor_status = status_;
+    sup_.begin_tick(s, artifact_);
+    sup_.finish_tick(s, artifact_, artifact_.default_pose, out_);
+  }
+  void ticks(int n) {
+    for (int i = 0; i < n; ++i) tick();
+  }
+  void to_policy() {
+    sup_.set_autostart(true);
+    for (int i = 0; i < 100 && sup_.mode() != Mode::kPolicy; ++i) tick();
+    ASSERT_EQ(sup_.mode(), Mode::kPolicy) << sup_.last_info();
+  }
+  Supervisor sup_;
+  PolicyArtifact artifact_;
+  float q_[kJoints]{}, dq_[kJoints]{}, quat_[4]{1, 0, 0, 0}, gyro_[3]{};
+  int32_t status_[kJoints]{};
+  t1::joint_command_t out_{};
+  int64_t k_ = 0;
+};
+
+bool says(const char* text, const char* what) { return std::string(text).find(what) != std::string::npos; }
+}  // namespace
+
+TEST(SilentMotor, FaultsOnMoreThanTheAllowedConsecutiveMissedRepliesNamingTheMotor) {
+  Robot r;
+  r.to_policy();
+  r.status_[kAnkle] = T1_STATUS_NO_REPLY;
+  r.ticks(kMotorSilentMaxCycles);
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+  r.tick();
+  ASSERT_EQ(r.sup_.mode(), Mode::kFault);
+  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kMotorSilent);
+  EXPECT_TRUE(says(r.sup_.last_fault(), "motor 15 (Left_Ankle_Pitch) silent")) << r.sup_.last_fault();
+  for (std::size_t i = 0; i < kJoints; ++i) EXPECT_EQ(r.out_.kp[i], 0.0f);  // latched damping
+}
+
+TEST(SilentMotor, AReplyRestartsTheCount) {
+  Robot r;
+  r.to_policy();
+  for (int round = 0; round < 50; ++round) {
+    r.status_[kAnkle] = T1_STATUS_NO_REPLY;
+    r.ticks(kMotorSilentMaxCycles);
+    r.status_[kAnkle] = 0;
+    r.tick();
+  }
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+}
+
+TEST(SilentMotor, FivePercentRandomFrameLossNeverTrips) {
+  // 5 % loss of every reply, independently per motor and cycle, for 400 s at 500 Hz: the longest run of
+  // missed replies stays far below the limit (odds of a run of 11: 0.05^11 per motor-cycle).
+  Robot r;
+  r.to_policy();
+  std::mt19937 rng(48);
+  std::bernoulli_distribution lost(0.05);
+  int run[kJoints]{}, longest = 0;
+  for (int k = 0; k < 200000 && r.sup_.mode() == Mode::kPolicy; ++k) {
+    for (std::size_t i = 0; i < kJoints; ++i) {
+      r.status_[i] = lost(rng) ? static_cast<int32_t>(T1_STATUS_NO_REPLY) : 0;
+      run[i] = r.status_[i] ? run[i] + 1 : 0;
+      longest = std::max(longest, run[i]);
+    }
+    r.tick();
+  }
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+  EXPECT_LT(longest, kMotorSilentMaxCycles / 2) << "the limit has the margin the rule comment claims";
+}
+
+TEST(SilentMotor, InDampingAndPassiveItIsAWarningThatBlocksPrepare) {
+  Robot r;
+  r.tick();
+  r.status_[kAnkle] = T1_STATUS_NO_REPLY;
+  r.ticks(kMotorSilentMaxCycles + 1);
+  EXPECT_EQ(r.sup_.mode(), Mode::kPassive);
+  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kMotorWarning);
+  r.sup_.request_mode(Mode::kDamping);
+  r.tick();
+  ASSERT_EQ(r.sup_.mode(), Mode::kDamping);
+  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kMotorWarning);
+  r.sup_.request_mode(Mode::kPrepare);
+  r.tick();
+  EXPECT_EQ(r.sup_.mode(), Mode::kDamping);
+  EXPECT_TRUE(says(r.sup_.last_info(), "prepare refused: motor 15 (Left_Ankle_Pitch) silent")) << r.sup_.last_info();
+  r.status_[kAnkle] = 0;  // the motor answers again: PREPARE is allowed
+  r.sup_.request_mode(Mode::kPrepare);
+  r.tick();
+  EXPECT_EQ(r.sup_.mode(), Mode::kPrepare) << r.sup_.last_info();
+  EXPECT_FALSE(r.sup_.fault_bits() & fault_bit::kMotorWarning);
+}
+
+TEST(FrozenEncoder, BitIdenticalUnderTorqueAboveTheThresholdFaultsAfterTheTimeNamingTheMotor) {
+  Robot r;
+  r.to_policy();
+  r.q_[kKnee] += 0.35f;  // target 0.35 rad away at kp 150: |PD torque| 52.5 N·m > 0.65 x 60 N·m
+  ASSERT_GT(0.35f * 150.0f, frozen_encoder_torque_nm(60.0f));
+  r.ticks(kFrozenEncoderMaxCycles + 1);  // the first reading of the offset q is not yet a repeat
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+  r.tick();
+  ASSERT_EQ(r.sup_.mode(), Mode::kFault);
+  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kEncoderFrozen);
+  EXPECT_TRUE(says(r.sup_.last_fault(), "motor 14 (Left_Knee_Pitch) encoder frozen")) << r.sup_.last_fault();
+}
+
+TEST(FrozenEncoder, AStillEncoderUnderStandingLoadsOrAMovingOneUnderFullTorqueNeverTrips) {
+  Robot r;
+  r.to_policy();
+  const float below = 0.95f * frozen_encoder_torque_nm(60.0f) / 150.0f;
+  r.q_[kKnee] += below;  // just below the threshold, for 10 s: a robot standing or lying still
+  r.ticks(5000);
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+  const float q = r.artifact_.default_pose[kKnee] + 0.35f;  // 52.5 N·m, but the encoder moves a float step each tick
+  for (int k = 0; k < 5000; ++k) {
+    r.q_[kKnee] = k % 2 ? std::nextafter(q, 1.0f) : q;
+    r.tick();
+  }
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+}
+
+TEST(FrozenEncoder, TheThresholdIsAFractionOfTheLimitWithAFloor) {
+  EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(60.0f), 39.0f);                 // knee
+  EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(7.0f), kFrozenEncoderMinTorqueNm);  // head: gravity alone is 0.6 of it
+}
+
+TEST(FrozenEncoder, MissedRepliesAreNoReadingAndAQuietTickRestartsTheClock) {
+  Robot r;
+  r.to_policy();
+  r.q_[kKnee] += 0.35f;
+  const int half = kFrozenEncoderMaxCycles / 2;
+  for (int round = 0; round < 20; ++round) {
+    r.ticks(half);
+    r.q_[kKnee] = r.artifact_.default_pose[kKnee];  // torque ~0 for one tick: not loaded
+    r.tick();
+    r.q_[kKnee] += 0.35f;
+  }
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+  r.status_[kKnee] = T1_STATUS_NO_REPLY;  // a dead motor's q repeats too: R8 names it, not R9
+  r.ticks(kMotorSilentMaxCycles + 1);
+  ASSERT_EQ(r.sup_.mode(), Mode::kFault);
+  EXPECT_TRUE(says(r.sup_.last_fault(), "silent")) << r.sup_.last_fault();
+}
