@@ -115,3 +115,28 @@ def test_recipe_errors_name_the_problem(capsys, tmp_path):
         R.Recipe("x", "x", "", (R.Stage("a", init="later"), R.Stage("later")))
     with pytest.raises(ValueError, match="needs teacher getup and joystick"):
         R.Recipe("x", "x", "", (R.Stage("a", kind="distill"),))
+
+
+def test_a_stage_kept_by_a_later_complete_stage_is_not_rerun(tmp_path):
+    """A campaign keeps only the newest stage of a chain: the stages it started from are superseded."""
+    recipe = R.load("getup_keyframe")
+    stand = recipe.stage("stand")
+    out = tmp_path / "getup_keyframe" / "stand"
+    out.mkdir(parents=True)
+    (out / checkpoints.RUN_STATE).write_text(json.dumps({"env_steps": 10, "target_steps": 10}))
+    assert recipe_runner.stage_complete(tmp_path, recipe, stand)
+    assert recipe_runner.superseded(tmp_path, recipe, recipe.stage("stand_path"))
+    assert recipe_runner.superseded(tmp_path, recipe, recipe.stage("stand_swing"))
+    assert not recipe_runner.superseded(tmp_path, recipe, recipe.stage("rise_to_kneel"))   # not in stand's chain
+
+
+def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():
+    stage = R.load("getup_knockdown").stage("landing_bank")
+    toy = recipe_runner._overrides(dict(stage.config), toy=True)
+    assert not any(o.startswith(("ppo.", "bc.")) for o in toy)          # the toy preset's sizes
+    assert "env.knockdown_starts.prob=0.8" in toy and \
+        f"env.knockdown_starts.bank_starts={recipe_runner.TOY_BANK_STARTS}" in toy
+    assert recipe_runner.resolve_ref("@joystick/sharp", Path("/nowhere"), shipped=True).endswith(
+        "policies/joystick/joystick.safetensors")
+    with pytest.raises(FileNotFoundError, match="run `python -m training recipe joystick --stage sharp`"):
+        recipe_runner.resolve_ref("@joystick/sharp", Path("/nowhere"))
