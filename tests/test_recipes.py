@@ -140,3 +140,14 @@ def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():
         "policies/joystick/joystick.safetensors")
     with pytest.raises(FileNotFoundError, match="run `python -m training recipe joystick --stage sharp`"):
         recipe_runner.resolve_ref("@joystick/sharp", Path("/nowhere"))
+
+
+def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(tmp_path, monkeypatch):
+    """getup_keyframe keeps its `stand` stage (stage 2's newest): on a fresh runs root --resume restores it, so
+    the stages it started from are skipped rather than trained again from scratch."""
+    ran = []
+    monkeypatch.setattr(recipe_runner, "_run_stage", lambda recipe, s, *a, **k: ran.append(s.name))
+    recipe_runner.run("getup_keyframe", root=tmp_path, resume=True, progress=False)
+    assert (tmp_path / "getup_keyframe" / "stand").is_dir()
+    assert "stand_path" not in ran and "stand_swing" not in ran and "stand" not in ran
+    assert ran[:1] in (["rise_to_kneel"], ["full"])

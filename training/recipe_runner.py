@@ -135,6 +135,10 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
     provenance = {"name": name, "sha256": R.content_hash(name)}
     todo = recipe.stages if stage is None else (recipe.stage(stage),)
     t0 = time.monotonic()
+    if resume:   # every kept stage first: whether an earlier stage is superseded depends on the later ones
+        for s in recipe.stages:
+            if not stage_dirs(root, recipe, s):
+                restore_campaign(recipe, s, root)
     for s in todo:
         if stage_complete(root, recipe, s):
             print(f"recipe {name}: stage {s.name} complete ({stage_dirs(root, recipe, s)[-1]})")
@@ -142,8 +146,6 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
         if stage is None and superseded(root, recipe, s):
             print(f"recipe {name}: stage {s.name} skipped (a later stage that starts from it is complete)")
             continue
-        if resume and not stage_dirs(root, recipe, s):
-            restore_campaign(recipe, s, root)
         left = None if max_minutes is None else max_minutes - (time.monotonic() - t0) / 60.0
         if left is not None and left <= 0:
             break
