@@ -200,6 +200,11 @@ def test_start_probabilities_per_stage(full_env):
     assert full_env.start_probabilities() == pytest.approx([0.4, 0.4, 0.2])
     s2 = envs.make("getup", config_overrides={"stage": "stage2"})
     assert s2.start_probabilities() == [0.0, 1.0, 0.0]
+    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
+    assert s1.start_probabilities() == [1.0, 0.0, 0.0]                      # the seed's stage 1
+    s1_kneel = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2,
+                                                   "stage1_start_probs": [0.7, 0.3, 0.0]})
+    assert s1_kneel.start_probabilities() == pytest.approx([0.7, 0.3, 0.0])   # a kneeling share (ours)
     assert envs.make("getup_baseline", config_overrides={"fallen_bank_size": 2}).start_probabilities() == [1.0, 0, 0]
     with pytest.raises(ValueError, match="stage"):
         envs.make("getup", config_overrides={"stage": "stage3", "fallen_bank_size": 2})

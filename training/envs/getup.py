@@ -79,7 +79,7 @@ class GetupBase(base.T1Env):
         probs = jnp.asarray(self.start_probabilities(), dtype=jnp.float32)
         if probs.shape != (3,) or bool(jnp.any(probs < 0)) or abs(float(probs.sum()) - 1.0) > 1e-6:
             raise ValueError(f"start_probs must be 3 non-negative numbers summing to 1 "
-                             f"(fallen, kneeling, standing), got {list(cfg.start_probs)}")
+                             f"(fallen, kneeling, standing), got {self.start_probabilities()}")
         self._start_logits = jnp.log(probs)
         if float(probs[0]) > 0:
             qpos, qvel = self.fallen_starts(int(cfg.fallen_bank_size), int(cfg.fallen_seed))
@@ -287,7 +287,10 @@ class Getup(GetupBase):
 
     def start_probabilities(self):
         stage = self._config.stage
-        return {"stage1": [1.0, 0.0, 0.0], "stage2": [0.0, 1.0, 0.0]}.get(stage, list(self._config.start_probs))
+        if stage in ("stage1", "stage2"):   # a run state older than these keys gets the seed's starts
+            key = f"{stage}_start_probs"
+            return list(self._config.get(key, default_config()[key]))
+        return list(self._config.start_probs)
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_obs = jax.random.split(rng, 3)

@@ -41,6 +41,10 @@ def getup_common_config() -> config_dict.ConfigDict:
 def default_config() -> config_dict.ConfigDict:
     cfg = getup_common_config()
     cfg.stage = "full"
+    # (fallen, kneeling, standing) of the curriculum's stages: the seed's stage 1 starts fallen, stage 2 at
+    # the kneel. A kneeling share in stage 1 (ours, a reverse curriculum) shows PPO the kneel's reward early
+    cfg.stage1_start_probs = [1.0, 0.0, 0.0]
+    cfg.stage2_start_probs = [0.0, 1.0, 0.0]
     cfg.energy_weight = 0.0
     cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)
     cfg.stage2_fall_trunk_height_m = 0.35   # stage 2 ends when the trunk drops below this [m] (docstring)
