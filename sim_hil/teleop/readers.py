@@ -128,7 +128,8 @@ _ARROWS = {b"A": "up", b"B": "down", b"C": "right", b"D": "left"}
 
 
 class KeyboardReader:
-    """Keys from a terminal fd in cbreak mode (no echo, no line buffering; Ctrl-C still interrupts).
+    """Keys from a terminal fd in cbreak mode (no echo, no line buffering) with ISIG off, so Ctrl-C arrives
+    as a key ("ctrl-c" → quit, a clean stop with a zero command) even on a terminal that is not ours.
     A terminal sends no key-up: the core's KEY_RELEASE_TIMEOUT_S stands in for it."""
 
     def __init__(self, fd: int):
@@ -137,6 +138,9 @@ class KeyboardReader:
         if os.isatty(fd):
             self._saved = termios.tcgetattr(fd)
             tty.setcbreak(fd)
+            mode = termios.tcgetattr(fd)
+            mode[3] &= ~termios.ISIG      # lflag
+            termios.tcsetattr(fd, termios.TCSANOW, mode)
         self._buffer = b""
 
     def fileno(self) -> int:
