@@ -17,10 +17,10 @@ from evdev import ecodes
 from t1 import joystick_t
 
 from messages import contract
-from runtime_peer import MODE, RuntimePeer
 from sim_hil.teleop.__main__ import LcmPublisher, main, run
 from sim_hil.teleop.core import KEY_RELEASE_TIMEOUT_S, TeleopCore, command_ranges, load_bindings
 from sim_hil.teleop.readers import EVENT, GamepadReader
+from tests.runtime_peer import MODE, RuntimePeer
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDENT = ROOT / "policies" / "student" / "student.safetensors"
