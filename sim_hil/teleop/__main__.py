@@ -95,7 +95,7 @@ def start_sim_and_runtime(policy: Path, out: Path) -> list[subprocess.Popen]:
     runtime = subprocess.Popen([str(RUNTIME), "--policy", str(policy), "--quiet", "--clock", "realtime"],
                                stdout=open(out / "runtime.log", "w"), stderr=subprocess.STDOUT)
     print(f"teleop: started sim_hil and t1-runtime ({policy}); runtime log {out / 'runtime.log'}; "
-          "press 1 (prepare) then 2 (policy) to stand and walk", file=sys.stderr)
+          "press 0 (damping), 1 (prepare), 2 (policy), then hold w/a/s/d/q/e to walk", file=sys.stderr)
     return [sim, runtime]
 
 
