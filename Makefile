@@ -19,7 +19,7 @@ export PYOPENGL_PLATFORM ?= osmesa
 # Simulator arguments for `make sim`, e.g. make sim SIM_ARGS="--spawn fallen:3 --clock lockstep"
 SIM_ARGS ?= --scenario flat --spawn standing --clock realtime
 
-.PHONY: all setup build test test-fast sim spy spy-dds demo bench bench-env bench-train clean replay plot-log
+.PHONY: all setup build test test-fast sim spy spy-dds demo teleop bench bench-env bench-train clean replay plot-log
 
 all: build
 
@@ -59,6 +59,11 @@ spy-dds: build
 
 demo: build
 	$(NETNS) $(PY) -m sim_hil.demo $(DEMO_ARGS)
+
+# Drive the T1 yourself: a realtime sim, t1-runtime and the teleop (gamepad, else this terminal's keys) in one
+# namespace. TELEOP_ARGS="--policy policies/joystick/joystick.safetensors" picks the policy.
+teleop: build
+	$(NETNS) $(PY) -m sim_hil.teleop --with-sim $(TELEOP_ARGS)
 
 # LCM logs (every demo, sim and eval trial writes one; sim_hil/lcmlog):
 #   make replay LOG=out/demo/demo.lcmlog                  play it into lcm-spy (xvfb-run without a display)

@@ -13,6 +13,7 @@ APT_PACKAGES=(
   rt-tests                        # cyclictest, the loop-lateness reference in make bench
   cyclonedds-dev cyclonedds-tools # Cyclone DDS 0.10 C API + idlc (t1-runtime --transport dds), ddsperf
   python3-venv
+  linux-libc-dev python3-dev    # evdev (sim_hil.teleop) builds its C extension from source
 )
 
 missing=()
