@@ -158,7 +158,7 @@ def push_rows(trials: list[TrialResult]) -> dict[str, str]:
 WALK_CONDITIONS = (   # tag, vx [m/s], yaw rate [rad/s], clock, stops (zero command after WALK_STOP_AT)
     ("forward", WALK_FORWARD_MPS, 0.0, "lockstep", False), ("stand", 0.0, 0.0, "lockstep", False),
     ("turn", 0.0, WALK_YAW_RPS, "lockstep", False), ("forward realtime", WALK_FORWARD_MPS, 0.0, "realtime", False),
-    # not an issue-13 target: stopping from a walk (make demo's joystick run fell once after its stop, session 6)
+    # not an issue-13 target: stopping from a walk (a joystick expert once fell after its stop in make demo)
     ("walk, turn, stop", WALK_FORWARD_MPS, WALK_YAW_RPS, "lockstep", True))
 
 

@@ -13,8 +13,8 @@ Why: at full gravity, and at half (gravity_scale 0.5, 6 M steps), PPO from the k
 up: every exploratory move that tips the robot ends a stage-2 episode, so the policy learned to hold the
 kneel. The harness carries part of the weight where it is heaviest and, attached above the centre of
 mass, holds the robot like a pendulum (attached at the trunk origin it tipped even a held kneel over:
-measured), so leg motions that rise are tried without falling. Measured on the CPU backend, targets at
-home from the kneel for 3 s: no harness, the robot falls; 1100 N/m, it rises to trunk 0.63 m. Later
+measured), so leg motions that rise are tried without falling (with targets at home from the kneel, no
+harness: the robot falls; 1100 N/m: it rises to standing height). Later
 stages lower the stiffness to 0 by fine-tuning `--from` the previous one (HoST, Huang et al. 2025, also
 pulls the base up early in training).
 """

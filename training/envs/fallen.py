@@ -11,7 +11,7 @@ prepare_s (runtime/src/safety_supervisor.cpp finish_tick) with the T1's stand-up
 PREPARE_KD) under rule R6. A lying robot straightens its limbs during that ramp and may roll. So the
 getup tasks start from the state after it, simulated here on sim_hil's robot (the loop's physics) with
 the CPU backend's motor callback (R6 + firmware_like's motor law at every 2 ms tick). Why: a policy
-trained from the settled fall met a different robot in the loop (session 6). Not modelled: the two
+trained from the settled fall met a different robot in the loop. Not modelled: the two
 PASSIVE / DAMPING ticks (4 ms) and the bus latency; the first POLICY target is rate-limited from the
 measured joint angles here, from the default pose in the runtime (they differ by PREPARE's tracking error).
 """

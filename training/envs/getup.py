@@ -12,10 +12,9 @@ Stages (config.stage), rewards from getup_rewards.py (formulas there):
   config.start_probs = (0.4, 0.4, 0.2); Height and Pose gated (§4.8). The gate is the seed's per-step
   condition, latched (config.gate_latches, ours: the seed is silent on it): once met it stays on until the
   trunk is down again (below sim_hil's fallen height, 0.35 m), then the keyframe reward is back. Why: the
-  per-step gate needs the trunk within 0.573° of vertical, which a standing robot keeps only now and then;
-  measured from v12 (stage 2 under R6), which stood 306 steps per eval episode but met the gate in only 14,
-  a per-step-gated fine-tune unlearned the stand-up within 2 M steps (success from the kneel 181 → 0,
-  gate 14 → 1 steps per episode: every small tilt paid the kneel reward, so it stayed kneeling). Latched,
+  per-step gate needs the trunk within 0.573° of vertical, which a standing robot keeps only now and then,
+  so a per-step-gated fine-tune of stage 2 paid the kneel reward for every small tilt and unlearned the
+  stand-up (training/LESSONS.md). Latched,
   the kneel keyframe (trunk 0.405 m, upright) is where the standing phase begins, as §4.8 describes it.
 reward per control step = (Height + Pose − energy_weight·energy − rise_pace.weight·pace) × ctrl_dt
 − failed_rise.cost·[a getup attempt failed this step] (pace and failed rise: ours; metric failed_rises counts

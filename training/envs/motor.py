@@ -47,7 +47,7 @@ def supervised_target(wanted, last, q, dq, kp, kd, tau_limit, range_lo, range_hi
       3. range: within [range_lo, range_hi] (the centred joint_range_fraction), as far as reachable under 1, 2;
     the point of what is left nearest to the wanted target. Why it is modelled in training: without it a
     policy learns target jumps the deployed runtime never sends (a kneel-to-stand lunge that stood in
-    training fell at once in the loop, session 6)."""
+    training fell at once in the loop)."""
     lo, hi = last - max_step, last + max_step
     t_lo, t_hi = q + (kd * dq - tau_limit) / kp, q + (kd * dq + tau_limit) / kp
     lo, hi = _narrow(lo, hi, t_lo, t_hi)
