@@ -65,12 +65,22 @@ def _launch(model: mujoco.MjModel, data: mujoco.MjData):
 
 
 class LiveViewer:
-    def __init__(self, handle, render_thread, sim):
-        self.handle, self.render_thread = handle, render_thread
+    """The viewer shows its own MjData (`view`), never the sim's: a sync waits for the render thread's frame
+    (~0.1 s with software GL), so it runs on a thread of its own, and the sim only hands over a snapshot of
+    its state at display rate when that thread is free (it never waits). The mouse's perturbation force
+    comes back the same way, into the sim's xfrc_applied."""
+
+    def __init__(self, handle, render_thread, sim, view: mujoco.MjData):
+        self.handle, self.render_thread, self.view = handle, render_thread, view
         self.model, self.data, self.trunk_id = sim.model, sim.data, sim.trunk_id
         self._period = 1.0 / SYNC_HZ
         self._next = 0.0
         self._closed_said = False
+        self._pending = threading.Event()     # a snapshot is in `view` for the sync thread
+        self._faults = "none"
+        self._stop = False
+        self._syncer = threading.Thread(target=self._sync_loop, daemon=True)
+        self._syncer.start()
         # Raw payloads, decoded at display rate only: the handlers run inside the sim's LCM polling.
         self._joystick: bytes | None = None
         self._status: bytes | None = None
@@ -86,8 +96,9 @@ class LiveViewer:
 
     @classmethod
     def open(cls, sim) -> "LiveViewer | None":
-        launched = _launch(sim.model, sim.data)
-        return None if launched is None else cls(*launched, sim)
+        view = mujoco.MjData(sim.model)
+        launched = _launch(sim.model, view)
+        return None if launched is None else cls(*launched, sim, view)
 
     def command(self) -> tuple[float, float, float]:
         if self._joystick is None:
@@ -104,8 +115,9 @@ class LiveViewer:
         return st.mode_name + (f" ({st.last_fault})" if st.mode_name == "FAULT" and st.last_fault else "")
 
     def maybe_sync(self, sim) -> None:
+        """Called by the sim after every tick; costs a clock read unless a snapshot is due and taken."""
         now = time.perf_counter()
-        if now < self._next:
+        if now < self._next or self._pending.is_set():
             return
         self._next = now + self._period
         if not self.handle.is_running():
@@ -113,14 +125,26 @@ class LiveViewer:
                 _say("window closed: the simulation goes on headless")
                 self._closed_said = True
             return
-        self._update_overlays(sim)
-        self.handle.sync()
+        # the mouse's force of the last sync goes to the sim (the sim's own pushes add and remove theirs)
+        sim.data.xfrc_applied[:] = self.view.xfrc_applied
+        self.view.qpos[:], self.view.qvel[:], self.view.time = sim.data.qpos, sim.data.qvel, sim.data.time
+        self._faults = sim.faults.describe(sim.data.time) or "none"
+        self._pending.set()
 
-    def _update_overlays(self, sim) -> None:
+    def _sync_loop(self) -> None:
+        while not self._stop:
+            if not self._pending.wait(0.1):
+                continue
+            mujoco.mj_forward(self.model, self.view)
+            self._update_overlays()     # the overlays take the viewer's lock too: not on the sim's thread
+            self.handle.sync()          # waits for the render thread; the sim does not
+            self._pending.clear()
+
+    def _update_overlays(self) -> None:
         vx, vy, wz = self.command()
-        t = sim.data.time
-        trunk_h = float(sim.data.xpos[self.trunk_id][2])
-        faults = sim.faults.describe(t) or "none"
+        t = self.view.time
+        trunk_h = float(self.view.xpos[self.trunk_id][2])
+        faults = self._faults
         fallen = "FALLEN" if trunk_h < FALLEN_TRUNK_HEIGHT_M else "upright"
         self.handle.set_texts([(None, mujoco.mjtGridPos.mjGRID_TOPLEFT,
                                 "t\nmode\ncommand\nstate\nfaults",
@@ -132,10 +156,10 @@ class LiveViewer:
             if np.hypot(vx, vy) < 1e-3:
                 return
             # The command is in the heading frame: rotate it by the trunk's yaw into the world.
-            w, x, y, z = sim.data.qpos[3:7]
+            w, x, y, z = self.view.qpos[3:7]
             yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
             c, s = np.cos(yaw), np.sin(yaw)
-            start = sim.data.xpos[self.trunk_id] + np.array([0.0, 0.0, 0.45])
+            start = self.view.xpos[self.trunk_id] + np.array([0.0, 0.0, 0.45])
             end = start + ARROW_M_PER_MPS * np.array([c * vx - s * vy, s * vx + c * vy, 0.0])
             geom = scn.geoms[0]
             mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3), np.eye(3).ravel(),
@@ -144,6 +168,8 @@ class LiveViewer:
             scn.ngeom = 1
 
     def close(self) -> None:
+        self._stop = True
+        self._syncer.join(5.0)
         self.handle.close()
         if self.render_thread is not None:
             self.render_thread.join(5.0)
