@@ -43,7 +43,7 @@ test-fast: build
 
 # Writes an LCM log of the run to out/sim/ (SIM_ARGS="--no-log" to skip, "--log PATH" to name it).
 sim: build
-	$(NETNS) $(PY) -m sim_hil $(SIM_ARGS)
+	$(NETNS) $(PY) -m sim_hil $(SIM_ARGS) $(if $(VIEWER),--viewer)
 
 # lcm-spy decoding every project type, in the same kind of namespace (start the sim inside it too:
 # `make spy` launches a sim in the background so there is traffic to look at).
@@ -58,7 +58,7 @@ spy-dds: build
 	  $(VENV)/bin/cyclonedds ls; timeout 3 $(VENV)/bin/cyclonedds subscribe rt/low_state; kill %1'
 
 demo: build
-	$(NETNS) $(PY) -m sim_hil.demo $(DEMO_ARGS)
+	$(NETNS) $(PY) -m sim_hil.demo $(DEMO_ARGS) $(if $(VIEWER),--viewer)
 
 # Drive the T1 yourself: a realtime sim, t1-runtime and the teleop (gamepad, else this terminal's keys) in one
 # namespace. TELEOP_ARGS="--policy policies/joystick/joystick.safetensors" picks the policy.

@@ -27,6 +27,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--physics-dt", type=float, default=config.DEFAULT_PHYSICS_DT_S, help="MuJoCo step [s]")
     p.add_argument("--faults", default="", help="fault specs, see sim_hil/faults.py, e.g. 'drop:rate=0.1@2'")
     p.add_argument("--record", metavar="OUT.mp4", help="write a video of the run")
+    p.add_argument("--viewer", action="store_true",
+                   help="MuJoCo's interactive viewer on the run (needs a display; without one the sim runs headless)")
     p.add_argument("--can-log", metavar="OUT.asc", help="log every CAN frame (.asc, .blf, .csv, .log ...)")
     p.add_argument("--can-interface", default="virtual", choices=("virtual", "udp_multicast"),
                    help="python-can interface of the 4 buses (udp_multicast: visible to outside tools)")
@@ -71,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
                     duration_s=args.duration, physics_dt_s=args.physics_dt, faults=args.faults,
                     lcm_url=args.lcm_url or contract.lcm_url(), can_interface=args.can_interface,
                     can_log=args.can_log, record=args.record, lockstep_timeout_s=args.lockstep_timeout,
-                    status_rate_hz=args.status_rate, dds=args.dds)
+                    status_rate_hz=args.status_rate, dds=args.dds,
+                    viewer=args.viewer)
     shim = None
     if args.fastdds_compat:
         if not args.dds:

@@ -30,6 +30,7 @@ FALLEN_SPAWN, STANDING_SPAWN = "fallen:62", "standing"
 # (start time [s], vx [m/s], vy [m/s], yaw rate [rad/s]): stand still while getting up, walk, turn, stop.
 JOYSTICK_SCRIPT = ((0.0, 0.0, 0.0, 0.0), (6.0, 0.4, 0.0, 0.0), (12.0, 0.3, 0.0, 0.5), (15.0, 0.0, 0.0, 0.0))
 JOYSTICK_RATE_HZ = 50.0
+VIEWER_ARGS: list[str] = []      # ["--viewer"] with `make demo VIEWER=1`
 
 
 def joystick_at(t: float) -> tuple[float, float, float]:
@@ -47,7 +48,10 @@ def main(argv=None) -> int:
     ap.add_argument("--spawn", default=FALLEN_SPAWN)
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "demo")
     ap.add_argument("--no-log", action="store_true", help="do not write OUT/demo.lcmlog")
+    ap.add_argument("--viewer", action="store_true", help="MuJoCo's interactive viewer on each run (needs a display)")
     args = ap.parse_args(argv)
+    global VIEWER_ARGS
+    VIEWER_ARGS = ["--viewer"] if args.viewer else []
     policy = args.policy or next(p for p in POLICIES if p.exists())
     trained = _trained(policy)
     code = run(policy, args.spawn, args.seconds, args.out, "demo", log=not args.no_log)
@@ -110,7 +114,7 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
     lc.subscribe(contract.CH_SIM_STATUS, on_sim)
     lc.subscribe(contract.CH_CONTROLLER_STATUS, lambda _c, d: last.__setitem__("rt", controller_status_t.decode(d)))
     sim_args = ["--clock", "realtime", "--spawn", spawn, "--duration", str(seconds),
-                "--status-rate", "50", "--record", str(video)]
+                "--status-rate", "50", "--record", str(video), *VIEWER_ARGS]
     runtime_args = ["--clock", "realtime", "--autostart"]
     capture = None if not log else LogCapture(
         out / f"{name}.lcmlog", contract.lcm_url(),

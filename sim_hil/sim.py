@@ -49,6 +49,7 @@ class SimConfig:
     lockstep_timeout_s: float = config.LOCKSTEP_TIMEOUT_S
     status_rate_hz: float = config.STATUS_RATE_HZ
     dds: bool = False                # serve rt/low_state + rt/joint_ctrl (DDS) instead of the LCM state/command
+    viewer: bool = False             # MuJoCo's interactive viewer on the run (sim_hil/viewer.py)
 
 
 def parse_spawn(spawn: str) -> tuple[str, int]:
@@ -115,6 +116,10 @@ class Simulator:
         if cfg.record:
             from sim_hil.recorder import Recorder
             self.recorder = Recorder(self.model, cfg.record)
+        self.viewer = None
+        if cfg.viewer:
+            from sim_hil.viewer import LiveViewer
+            self.viewer = LiveViewer.open(self)      # None (said why) without a display: run headless
         # Power-on: motors answer once so the host has a state to publish at k = 0.
         self.bus.exchange_replies(*self._encoders(), self.data.qfrc_actuator[6:].copy(), 0)
 
@@ -142,11 +147,12 @@ class Simulator:
         b = self.bus
         self.link.publish_state(self.now_us, self.seq, quat, gyro, accel, b.q, b.dq, b.tau, b.status)
 
-    def _apply_pushes(self) -> None:
-        self.data.xfrc_applied[self.trunk_id, :3] = 0.0
-        for impulse in self.faults.due_pushes(self.data.time):
-            # An impulse J [N·s] delivered as a constant force J/dt over one physics step.
-            self.data.xfrc_applied[self.trunk_id, :3] += np.asarray(impulse) / self.model.opt.timestep
+    def _push_force(self) -> np.ndarray | None:
+        """The force of the pushes due now: an impulse J [N·s] is a constant force J/dt over one physics
+        step. The caller adds it to xfrc_applied around that step only, so a force already there (the
+        viewer's mouse perturbation) is kept, not overwritten."""
+        due = self.faults.due_pushes(self.data.time)
+        return np.sum(due, axis=0) / self.model.opt.timestep if due else None
 
     def status_message(self) -> sim_status_t:
         s = sim_status_t()
@@ -188,8 +194,12 @@ class Simulator:
             q_enc, dq_enc = self._encoders()
             tau = self.bus.motor_torques(q_enc, dq_enc, self.now_us, dead)
             self.data.ctrl[:] = tau
-            self._apply_pushes()
+            push = self._push_force()
+            if push is not None:
+                self.data.xfrc_applied[self.trunk_id, :3] += push
             mujoco.mj_step(self.model, self.data)
+            if push is not None:
+                self.data.xfrc_applied[self.trunk_id, :3] -= push
         q_enc, dq_enc = self._encoders()
         self.bus.exchange_replies(q_enc, dq_enc, tau, self.now_us, drop, dead)
         self.seq += 1
@@ -213,12 +223,17 @@ class Simulator:
                     while (remaining := start + self.seq * config.CONTROL_DT_S - time.perf_counter()) > 0:
                         self.link.poll(remaining)
                 self.tick()
+                if self.viewer is not None:
+                    self.viewer.maybe_sync(self)
                 if on_status is not None and self.seq % self._status_every == 0:
                     on_status(self)
         finally:
             self.close()
 
     def close(self) -> None:
+        if self.viewer is not None:
+            self.viewer.close()
+            self.viewer = None
         if self.recorder is not None:
             self.recorder.close()
             self.recorder = None
