@@ -101,28 +101,6 @@ bool SeqTracker::accept(int64_t seq) {  // rule R3
   return false;
 }
 
-const char* mode_name(Mode mode) {
-  switch (mode) {
-    case Mode::kPassive: return "PASSIVE";
-    case Mode::kDamping: return "DAMPING";
-    case Mode::kPrepare: return "PREPARE";
-    case Mode::kPolicy: return "POLICY";
-    case Mode::kFault: return "FAULT";
-  }
-  return "?";
-}
-
-bool parse_mode(const char* text, Mode* mode) {
-  static const struct { const char* name; Mode mode; } kModes[] = {
-      {"passive", Mode::kPassive}, {"damping", Mode::kDamping}, {"prepare", Mode::kPrepare}, {"policy", Mode::kPolicy}};
-  for (const auto& m : kModes)
-    if (std::strcmp(text, m.name) == 0) {
-      *mode = m.mode;
-      return true;
-    }
-  return false;
-}
-
 Supervisor::Supervisor(const SafetyConfig& config) : cfg_(config) {
   prepare_total_ticks_ = std::max<int64_t>(1, std::llround(cfg_.prepare_duration_s / kLoopDtS));
 }
