@@ -143,11 +143,12 @@ def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():
 
 
 def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(tmp_path, monkeypatch):
-    """getup_keyframe keeps its `stand` stage (stage 2's newest): on a fresh runs root --resume restores it, so
-    the stages it started from are skipped rather than trained again from scratch."""
+    """getup_keyframe keeps its `stand` stage (stage 2's newest) and stage 1's newest: on a fresh runs root
+    --resume restores them, so complete stages and the stages they started from are not trained again."""
     ran = []
     monkeypatch.setattr(recipe_runner, "_run_stage", lambda recipe, s, *a, **k: ran.append(s.name))
     recipe_runner.run("getup_keyframe", root=tmp_path, resume=True, progress=False)
     assert (tmp_path / "getup_keyframe" / "stand").is_dir()
     assert "stand_path" not in ran and "stand_swing" not in ran and "stand" not in ran
-    assert ran[:1] in (["rise_to_kneel"], ["full"])
+    assert "rise_pose" not in ran and ran[:1] in (["rise_harnessed"], ["rise_harness_fading"], ["rise_to_kneel"],
+                                                   ["full"])
