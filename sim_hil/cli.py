@@ -9,6 +9,7 @@ from pathlib import Path
 
 from messages import contract
 from sim_hil import config
+from sim_hil.motor_bus import INTERFACES
 from sim_hil.faults import FaultSpecError
 from sim_hil.launch import stop_cleanly_on_sigterm
 
@@ -30,8 +31,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--viewer", action="store_true",
                    help="MuJoCo's interactive viewer on the run (needs a display; without one the sim runs headless)")
     p.add_argument("--can-log", metavar="OUT.asc", help="log every CAN frame (.asc, .blf, .csv, .log ...)")
-    p.add_argument("--can-interface", default="virtual", choices=("virtual", "udp_multicast"),
-                   help="python-can interface of the 4 buses (udp_multicast: visible to outside tools)")
+    p.add_argument("--can-interface", default="direct", choices=INTERFACES,
+                   help="carrier of the 4 buses' frames: direct = firmware_like's host link in C (fast); "
+                        "virtual / udp_multicast = python-can buses (udp_multicast: visible to outside tools)")
+    p.add_argument("--rt", action="store_true",
+                   help="with --clock realtime: SCHED_FIFO priority (needs root or CAP_SYS_NICE; refusal reported)")
     p.add_argument("--lcm-url", default=None, help="default: $T1_LCM_URL or " + contract.DEFAULT_LCM_URL)
     p.add_argument("--lockstep-timeout", type=float, default=config.LOCKSTEP_TIMEOUT_S,
                    help="wall seconds to wait for the command answering a state")
@@ -74,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
                     lcm_url=args.lcm_url or contract.lcm_url(), can_interface=args.can_interface,
                     can_log=args.can_log, record=args.record, lockstep_timeout_s=args.lockstep_timeout,
                     status_rate_hz=args.status_rate, dds=args.dds,
-                    viewer=args.viewer)
+                    viewer=args.viewer, rt=args.rt)
     shim = None
     if args.fastdds_compat:
         if not args.dds:

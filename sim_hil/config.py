@@ -8,6 +8,10 @@ DEFAULT_PHYSICS_DT_S = 0.002    # MuJoCo step; must divide CONTROL_DT_S
 STATUS_RATE_HZ = 10.0           # T1_SIM_STATUS rate (sim time)
 LOCKSTEP_TIMEOUT_S = 0.5        # wall time to wait for the command answering state k before going on
 LOCKSTEP_FIRST_COMMAND_TIMEOUT_S = 30.0   # the client may still be starting: wait longer for the first one
+# realtime clock: the last stretch before a tick's deadline is spent polling in a busy loop; a sleep that
+# long wakes late by its timer slack plus the scheduler's wake-up latency [s]
+REALTIME_SPIN_S = 0.0003
+RT_FIFO_PRIORITY = 70           # --rt: SCHED_FIFO priority of the realtime sim (below the runtime's 80)
 VIDEO_FPS = 20
 GL_PROBE_SIZE_PX = 16          # --record checks the GL backend with a renderer this small at start-up
 VIDEO_SIZE = (360, 480)         # (height, width) [px]; software GL renders ~0.1 s per frame here

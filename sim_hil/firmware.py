@@ -375,3 +375,39 @@ class BusArray:
     def frames_late(self) -> np.ndarray:
         """Per bus: late frames since construction."""
         return np.array([b.frames_late_total for b in self._buses], dtype=np.int64)
+
+
+_link_size = _sig("t1_link_size", C.c_size_t)
+_link_init = _sig("t1_link_init", C.c_int, _vp)
+_link_send = _sig("t1_link_send_commands", _u32, _vp, _vp, _u64, C.c_char_p, _u32, _u32, _u32, _u32)
+_link_counters = _sig("t1_link_counters", None, _vp, _vp)
+_link_replies = _sig("t1_link_exchange_replies", _u32, _vp, C.c_char_p, _u32, _u32, _vp)
+
+
+class Link:
+    """The 4 buses between host and motors in two calls per tick (t1_firmware.h, "host link"): late frames
+    carried to the next cycle, delayed and lost frames, dead motors, every frame counted by its bus model."""
+
+    def __init__(self) -> None:
+        self._state = np.zeros(-(-_link_size() // 8), dtype=np.uint64)   # 8-byte aligned t1_link_t
+        self._p = self._state.ctypes.data
+        _link_init(self._p)
+        self.buses = (_Bus * NUM_BUSES).from_address(self._p)             # the struct's first member
+        self.host_frames = np.zeros(FRAMES_BYTES, dtype=np.uint8)
+        self._host_p = self.host_frames.ctypes.data
+
+    def send_commands(self, motors: MotorArray, now_us: int, frames: bytes | None, drop_mask: int = 0,
+                      delay_cycles: int = 0, dead_mask: int = 0) -> int:
+        """Host → motors; returns the mask of motors that latched a command this cycle."""
+        send = ALL_MOTORS_MASK if frames is not None else 0
+        return int(_link_send(self._p, motors._p, now_us, frames, send, drop_mask, delay_cycles, dead_mask))
+
+    def counters(self) -> dict[str, int]:
+        """Frames put on time on a wire, lost on it, and lost to a full carry or delay queue."""
+        out = np.zeros(3, dtype=np.uint64)
+        _link_counters(self._p, out.ctypes.data)
+        return dict(zip(("frames_sent", "frames_dropped", "frames_lost_overflow"), map(int, out)))
+
+    def exchange_replies(self, replies: bytes, send_mask: int = ALL_MOTORS_MASK, drop_mask: int = 0) -> int:
+        """Motors → host, closing the cycle; the received replies are in host_frames, their mask returned."""
+        return int(_link_replies(self._p, replies, send_mask, drop_mask, self._host_p))

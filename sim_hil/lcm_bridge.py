@@ -5,9 +5,8 @@ commands with non-finite or out-of-range fields are counted and dropped with a r
 """
 from __future__ import annotations
 
-import math
+import select
 import sys
-import time
 
 import lcm
 import numpy as np
@@ -19,19 +18,25 @@ from sim_hil import firmware as fw
 N = contract.NUM_JOINTS
 
 
-def validate_command(msg: joint_command_t) -> str | None:
-    """Reason the command is unusable, or None. Gains must be inside the frame's encodable range."""
-    for name in ("q_des", "dq_des", "kp", "kd", "tau_ff"):
-        values = getattr(msg, name)
-        if len(values) != N:
-            return f"{name} has {len(values)} values, expected {N}"
-        if not all(math.isfinite(v) for v in values):
-            return f"{name} contains NaN or Inf"
-    if min(msg.kp) < 0 or max(msg.kp) > fw.KP_MAX:
-        return f"kp outside [0, {fw.KP_MAX}] N·m/rad"
-    if min(msg.kd) < 0 or max(msg.kd) > fw.KD_MAX:
-        return f"kd outside [0, {fw.KD_MAX}] N·m·s/rad"
-    return None
+FIELDS = ("q_des", "dq_des", "kp", "kd", "tau_ff")
+
+
+def command_fields(msg: joint_command_t) -> tuple[np.ndarray | None, str | None]:
+    """The command's fields as one float64[5, N] array (FIELDS order), or None and the reason it is
+    unusable. Gains must be inside the frame's encodable range."""
+    for name in FIELDS:
+        if len(getattr(msg, name)) != N:
+            return None, f"{name} has {len(getattr(msg, name))} values, expected {N}"
+    fields = np.array([getattr(msg, name) for name in FIELDS], dtype=np.float64)
+    finite = np.isfinite(fields).all(axis=1)
+    if not finite.all():
+        return None, f"{FIELDS[int(np.argmin(finite))]} contains NaN or Inf"
+    kp, kd = fields[2], fields[3]
+    if kp.min() < 0 or kp.max() > fw.KP_MAX:
+        return None, f"kp outside [0, {fw.KP_MAX}] N·m/rad"
+    if kd.min() < 0 or kd.max() > fw.KD_MAX:
+        return None, f"kd outside [0, {fw.KD_MAX}] N·m·s/rad"
+    return fields, None
 
 
 class LcmBridge:
@@ -48,11 +53,12 @@ class LcmBridge:
         self.last_drop_reason = ""
         self._reported = 0
         self.lc.subscribe(contract.CH_JOINT_CMD, self._on_command)
+        self._fd = self.lc.fileno()
 
     def _on_command(self, _channel: str, payload: bytes) -> None:
         try:
             msg = joint_command_t.decode(payload)
-            reason = validate_command(msg)
+            fields, reason = command_fields(msg)
         except ValueError as exc:              # wrong fingerprint / truncated payload
             msg, reason = None, f"undecodable T1_JOINT_CMD ({exc})"
         if reason is not None:
@@ -64,18 +70,15 @@ class LcmBridge:
             return
         self.cmds_received += 1
         self.latest = msg
-        self.latest_frames = fw.pack_commands(np.asarray(msg.q_des), np.asarray(msg.dq_des),
-                                              np.asarray(msg.kp), np.asarray(msg.kd),
-                                              np.asarray(msg.tau_ff))
+        self.latest_frames = fw.pack_commands(*fields)
 
     def poll(self, timeout_s: float) -> None:
-        """Handle incoming messages for up to timeout_s (0 = only what is already queued)."""
+        """Handle incoming messages for up to timeout_s (0 = only what is already queued). Waits on the
+        LCM socket with select, which times out to the microsecond (LCM's own wait counts whole ms)."""
         while self.lc.handle_timeout(0) > 0:       # drain what is queued
             pass
-        if timeout_s >= 0.001:
-            self.lc.handle_timeout(int(timeout_s * 1000))
-        elif timeout_s > 0:
-            time.sleep(timeout_s)                  # LCM waits in whole ms: sleep the sub-ms rest
+        if timeout_s > 0 and select.select([self._fd], [], [], timeout_s)[0]:
+            self.lc.handle()
 
     def wait_for_answer(self, state_seq: int, timeout_s: float, clock) -> bool:
         """Lockstep: handle messages until the command answering state_seq arrives (True) or timeout."""
@@ -90,11 +93,12 @@ class LcmBridge:
     def publish_state(self, utime: int, seq: int, quat, gyro, accel, q, dq, tau, status) -> None:
         imu = imu_t()
         imu.utime, imu.seq = utime, seq
-        imu.quat, imu.gyro, imu.accel = list(map(float, quat)), list(map(float, gyro)), list(map(float, accel))
+        imu.quat, imu.gyro, imu.accel = np.asarray(quat, float).tolist(), np.asarray(gyro, float).tolist(), \
+            np.asarray(accel, float).tolist()
         js = joint_state_t()
         js.utime, js.seq = utime, seq
         js.q, js.dq, js.tau_est = q.tolist(), dq.tolist(), tau.tolist()
-        js.motor_status = [int(s) for s in status]
+        js.motor_status = status.tolist()
         self.lc.publish(contract.CH_IMU, imu.encode())
         self.lc.publish(contract.CH_JOINT_STATE, js.encode())
 

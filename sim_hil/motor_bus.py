@@ -1,102 +1,117 @@
-"""The T1's four CAN buses as python-can Bus objects, with 23 firmware_like motors on the far side.
+"""The T1's four CAN buses with 23 firmware_like motors on the far side.
 
 Per 2 ms bus cycle the host side (the robot's computer, here the LCM bridge) sends one command frame per
 motor; each motor latches it, runs its firmware step at the physics rate, and answers with one reply frame
-that the host decodes into the joint state. Frames pass through real python-can buses (in-process `virtual`
-by default, `udp_multicast` inside the project namespace so outside python-can tools can log or inject),
-and through firmware_like's bus model, which counts the bits of every frame and marks the ones that do not
-fit in the cycle as late: a late frame arrives one cycle later instead of silently on time.
+that the host decodes into the joint state. firmware_like's bus model counts the bits of every frame and
+marks the ones that do not fit in the cycle as late: a late frame arrives one cycle later instead of
+silently on time. Two carriers of the same frames:
+
+* `direct` (default): firmware_like's host link in C (t1_link.c), two calls per tick, the frames never
+  become Python objects: what lets the simulator run many times faster than real time in lockstep;
+* `virtual` / `udp_multicast`: real python-can buses (`virtual` in-process, `udp_multicast` inside the
+  project namespace, so outside python-can tools can log or inject), frame by frame; `--can-log` uses them.
 """
 from __future__ import annotations
 
-import os
-import queue
 from collections import deque
 
 import can
 import numpy as np
-from can.interfaces.virtual import VirtualBus, channels_lock
 
+from sim_hil import can_wire
 from sim_hil import firmware as fw
 
-BUS_PERIOD_US = 2000            # one command + reply round per control tick (2 ms)
-UDP_GROUP = "239.74.163.2"      # IPv4: the IPv6 default group delivers nothing inside the namespace
-UDP_BASE_PORT = 43113           # bus b on port 43113 + b: Linux delivers a group's datagrams to every
-                                # socket bound to the port, whatever group it joined, so ports separate buses
+INTERFACES = ("direct", "virtual", "udp_multicast")
 NO_REPLY = fw.STATUS_HOST_NO_REPLY   # host-side status bit (t1_motor_protocol.h §7): no reply frame this cycle
 
 
-class SimVirtualBus(VirtualBus):
-    """python-can's `virtual` interface (same channel registry: any `can.Bus(interface="virtual",
-    channel=...)` in this process sees the traffic, e.g. for a logger or an injector), without the
-    per-receiver deepcopy and blocking queue calls of `VirtualBus.send`: at 23k frames per sim second those
-    dominated the simulator's profile. A frame is never mutated after it is sent, so sharing it is safe."""
-
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        # A lock-free C queue in place of queue.Queue; it still accepts put(msg, block, timeout) from
-        # stock VirtualBus senders on the same channel.
-        with channels_lock:
-            slot = self.channel.index(self.queue)
-            self.queue = queue.SimpleQueue()
-            self.channel[slot] = self.queue
-
-    def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        self._check_if_open()
-        msg.channel = self.channel_id
-        msg.is_rx = True                     # as every receiver sees it
-        for bus_queue in self.channel:
-            if bus_queue is not self.queue or self.receive_own_messages:
-                bus_queue.put_nowait(msg)
-
-    def drain(self) -> list[can.Message]:
-        """Everything queued, without BusABC.recv's per-frame filtering and debug logging (no filters are
-        set on the simulator's own endpoints)."""
-        out = []
-        try:
-            while True:
-                out.append(self.queue.get_nowait())
-        except queue.Empty:
-            return out
-
-    def _recv_internal(self, timeout: float | None):
-        try:
-            if not timeout:
-                return self.queue.get_nowait(), False
-            return self.queue.get(block=True, timeout=timeout), False
-        except queue.Empty:
-            return None, False
+def open_motor_bus(interface: str = "direct", can_log: str | None = None, rng=None) -> "MotorBus":
+    """The buses for --can-interface / --can-log: a CAN log needs python-can frames (in-process `virtual`
+    where the interface was left at `direct`)."""
+    if interface not in INTERFACES:
+        raise ValueError(f"unknown --can-interface '{interface}' ({' | '.join(INTERFACES)})")
+    if interface == "direct" and not can_log:
+        return DirectMotorBus(rng)
+    return CanMotorBus("virtual" if interface == "direct" else interface, can_log, rng)
 
 
-def _open_pair(interface: str, bus_index: int) -> tuple[can.BusABC, can.BusABC]:
-    """(host side, motor side) endpoints of one physical bus."""
-    if interface == "virtual":
-        channel = f"t1_bus{bus_index}_{os.getpid()}_{id(object())}"
-        kw = dict(channel=channel, receive_own_messages=False, preserve_timestamps=True)
-        return SimVirtualBus(**kw), SimVirtualBus(**kw)
-    if interface == "udp_multicast":
-        kw = dict(interface="udp_multicast", channel=UDP_GROUP, port=UDP_BASE_PORT + bus_index, hop_limit=0)
-        return can.Bus(**kw), can.Bus(**kw)
-    raise ValueError(f"unknown --can-interface '{interface}' (virtual | udp_multicast)")
-
-
-def _drain(end: can.BusABC) -> list[can.Message]:
-    if isinstance(end, SimVirtualBus):
-        return end.drain()
-    out = []
-    while (msg := end.recv(0.0)) is not None:
-        out.append(msg)
-    return out
+def _mask(indices) -> int:
+    return sum(1 << i for i in indices)
 
 
 class MotorBus:
-    """Host ⇄ 4 buses ⇄ 23 firmware motors. Call `cycle()` once per tick, `motor_torques()` per substep."""
+    """Host ⇄ 4 buses ⇄ 23 firmware motors. Per tick: `send_commands()`, `motor_torques()` per physics
+    substep, `exchange_replies()`; the host's view of the joints is q, dq, tau, status."""
 
-    def __init__(self, interface: str = "virtual", can_log: str | None = None, rng=None):
+    def __init__(self, rng=None):
         self.rng = rng if rng is not None else np.random.default_rng(0)
         self.motors = fw.MotorArray()
+        n = fw.NUM_MOTORS
+        # Host's view of the joints, updated from reply frames (quantised like the real bus).
+        self.q = np.zeros(n)
+        self.dq = np.zeros(n)
+        self.tau = np.zeros(n)
+        self.status = np.zeros(n, dtype=np.int32)
+
+    def motor_torques(self, q: np.ndarray, dq: np.ndarray, now_us: int, dead: set[int]) -> np.ndarray:
+        """Firmware step of every motor at the physics rate → joint torques [N·m]."""
+        tau = self.motors.step(q, dq, now_us)
+        for i in dead:
+            tau[i] = 0.0
+        return tau
+
+    def _host_receives(self, frames: bytes, got: np.ndarray) -> None:
+        """Decode the replies the host got this cycle; a motor without one keeps its last values, flagged."""
+        q, dq_r, tau_r, status = fw.unpack_replies(frames)
+        self.q[got], self.dq[got], self.tau[got] = q[got], dq_r[got], tau_r[got]
+        self.status[got] = status[got]
+        self.status[~got] |= NO_REPLY
+
+
+class DirectMotorBus(MotorBus):
+    """The buses as firmware_like's host link: the same frames, bus model, late, lost and delayed frames
+    and dead motors as CanMotorBus, in C."""
+
+    _BITS = 1 << np.arange(fw.NUM_MOTORS)
+
+    def __init__(self, rng=None):
+        super().__init__(rng)
+        self.link = fw.Link()
+
+    def _lost(self, drop_rate: float) -> int:
+        if drop_rate <= 0.0:
+            return 0
+        return int(self._BITS[self.rng.random(fw.NUM_MOTORS) < drop_rate].sum())
+
+    def send_commands(self, command_frames: bytes | None, now_us: int, drop_rate: float = 0.0,
+                      delay_cycles: int = 0, dead: set[int] = frozenset()) -> None:
+        self.link.send_commands(self.motors, now_us, command_frames, self._lost(drop_rate), delay_cycles,
+                                _mask(dead))
+
+    def exchange_replies(self, q_enc: np.ndarray, dq: np.ndarray, tau: np.ndarray, now_us: int,
+                         drop_rate: float = 0.0, dead: set[int] = frozenset()) -> None:
+        replies = self.motors.replies(q_enc, dq, tau)
+        got = self.link.exchange_replies(replies, fw.ALL_MOTORS_MASK & ~_mask(dead), self._lost(drop_rate))
+        self._host_receives(self.link.host_frames.tobytes(), (got & self._BITS) != 0)
+
+    @property
+    def frames_late(self) -> int:
+        return sum(b.frames_late_total for b in self.link.buses)
+
+    def utilisation(self) -> list[float]:
+        return [b.bits_last_cycle / b.capacity_bits for b in self.link.buses]
+
+    def close(self) -> None:
+        pass
+
+
+class CanMotorBus(MotorBus):
+    """The buses as python-can endpoints, frame by frame (--can-interface virtual | udp_multicast, --can-log)."""
+
+    def __init__(self, interface: str = "virtual", can_log: str | None = None, rng=None):
+        super().__init__(rng)
         self.bus_models = [fw.BusModel(b) for b in range(len(fw.BUS_NAMES))]
-        self.ends = [_open_pair(interface, b) for b in range(len(fw.BUS_NAMES))]
+        self.ends = [can_wire.open_pair(interface, b) for b in range(len(fw.BUS_NAMES))]
         self.log = can.Logger(can_log) if can_log else None
         n = fw.NUM_MOTORS
         self._cmd_ids = [fw.cmd_can_id(i) for i in range(n)]
@@ -108,11 +123,6 @@ class MotorBus:
         self._rx_frames = bytearray(8 * n)                          # command frames as the motors see them
         self.frames_sent = 0
         self.frames_dropped = 0
-        # Host's view of the joints, updated from reply frames (quantised like the real bus).
-        self.q = np.zeros(n)
-        self.dq = np.zeros(n)
-        self.tau = np.zeros(n)
-        self.status = np.zeros(n, dtype=np.int32)
 
     # ---- one bus cycle -------------------------------------------------------------------------------
     def send_commands(self, command_frames: bytes | None, now_us: int, drop_rate: float = 0.0,
@@ -165,7 +175,7 @@ class MotorBus:
         call); odd-length frames go through the per-frame path so the firmware flags them BAD_FRAME."""
         mask = 0
         for _, motor_end in self.ends:
-            for msg in _drain(motor_end):
+            for msg in can_wire.drain(motor_end):
                 i = self._cmd_id_to_motor.get(msg.arbitration_id)
                 if i is None or i in dead:
                     continue                   # not for a motor, or the motor is off the bus
@@ -176,13 +186,6 @@ class MotorBus:
                     self.motors.receive(i, bytes(msg.data), now_us)
         if mask:
             self.motors.receive_all(bytes(self._rx_frames), now_us, mask)
-
-    def motor_torques(self, q: np.ndarray, dq: np.ndarray, now_us: int, dead: set[int]) -> np.ndarray:
-        """Firmware step of every motor at the physics rate → joint torques [N·m]."""
-        tau = self.motors.step(q, dq, now_us)
-        for i in dead:
-            tau[i] = 0.0
-        return tau
 
     def exchange_replies(self, q_enc: np.ndarray, dq: np.ndarray, tau: np.ndarray, now_us: int,
                          drop_rate: float = 0.0, dead: set[int] = frozenset()) -> None:
@@ -197,16 +200,13 @@ class MotorBus:
         got = np.zeros(fw.NUM_MOTORS, dtype=bool)
         frames = bytearray(8 * fw.NUM_MOTORS)
         for host_end, _ in self.ends:
-            for msg in _drain(host_end):
+            for msg in can_wire.drain(host_end):
                 i = self._reply_id_to_motor.get(msg.arbitration_id)
                 if i is None:
                     continue
                 frames[8 * i: 8 * i + len(msg.data)] = msg.data
                 got[i] = True
-        q, dq_r, tau_r, status = fw.unpack_replies(bytes(frames))
-        self.q[got], self.dq[got], self.tau[got] = q[got], dq_r[got], tau_r[got]
-        self.status[got] = status[got]
-        self.status[~got] |= NO_REPLY
+        self._host_receives(bytes(frames), got)
         self.cycle_index += 1
 
     # ---- health --------------------------------------------------------------------------------------

@@ -15,7 +15,8 @@ Realtime mode paces ticks against the wall clock; lockstep runs as fast as the c
 from __future__ import annotations
 
 import math
-
+import os
+import sys
 import time
 from dataclasses import dataclass
 
@@ -30,7 +31,7 @@ from sim_hil import config
 from sim_hil.faults import FaultSchedule, parse_faults
 from sim_hil.imu import Imu
 from sim_hil.lcm_bridge import LcmBridge
-from sim_hil.motor_bus import MotorBus
+from sim_hil.motor_bus import open_motor_bus
 
 
 @dataclass
@@ -43,13 +44,14 @@ class SimConfig:
     physics_dt_s: float = config.DEFAULT_PHYSICS_DT_S
     faults: str = ""
     lcm_url: str = ""
-    can_interface: str = "virtual"
+    can_interface: str = "direct"        # direct | virtual | udp_multicast (motor_bus.py)
     can_log: str | None = None
     record: str | None = None
     lockstep_timeout_s: float = config.LOCKSTEP_TIMEOUT_S
     status_rate_hz: float = config.STATUS_RATE_HZ
     dds: bool = False                # serve rt/low_state + rt/joint_ctrl (DDS) instead of the LCM state/command
     viewer: bool = False             # MuJoCo's interactive viewer on the run (sim_hil/viewer.py)
+    rt: bool = False                 # realtime clock under SCHED_FIFO (the runtime's --rt counterpart)
 
 
 def parse_spawn(spawn: str) -> tuple[str, int]:
@@ -69,6 +71,8 @@ class Simulator:
     def __init__(self, cfg: SimConfig):
         if cfg.clock not in ("lockstep", "realtime"):
             raise ValueError(f"--clock '{cfg.clock}': expected lockstep | realtime")
+        if cfg.rt and cfg.clock != "realtime":
+            raise ValueError("--rt needs --clock realtime (lockstep runs as fast as its client answers)")
         if cfg.duration_s is not None and not (math.isfinite(cfg.duration_s) and cfg.duration_s > 0):
             raise ValueError(f"--duration {cfg.duration_s}: must be a finite number of seconds > 0 "
                              "(leave it out to run until interrupted)")
@@ -96,7 +100,9 @@ class Simulator:
         self.faults = FaultSchedule(faults + parse_faults(";".join(pushes)))
         self.rng = np.random.default_rng(cfg.seed)
         self.imu = Imu(self.model, self.rng)
-        self.bus = MotorBus(cfg.can_interface, cfg.can_log, self.rng)
+        self.bus = open_motor_bus(cfg.can_interface, cfg.can_log, self.rng)
+        if cfg.rt:
+            self._enter_fifo()       # before the link's threads start: they inherit the policy
         # The robot link: LCM, or the real T1's DDS topics (a DdsBridge has the LcmBridge's interface).
         if cfg.dds:
             from sim_hil.dds_bridge import DdsBridge
@@ -140,6 +146,20 @@ class Simulator:
             q[i] = self._frozen_q.setdefault(i, q[i])
             dq[i] = 0.0
         return q, dq
+
+    def _enter_fifo(self) -> None:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(config.RT_FIFO_PRIORITY))
+        except PermissionError as exc:
+            print(f"sim_hil: --rt: SCHED_FIFO refused ({exc}); running at normal priority", file=sys.stderr)
+
+    def _wait_until(self, deadline: float) -> None:
+        """Realtime: handle LCM until the tick's deadline, the last REALTIME_SPIN_S in a busy loop so the
+        state goes out on time rather than when a sleep happens to wake."""
+        while (remaining := deadline - time.perf_counter()) > config.REALTIME_SPIN_S:
+            self.link.poll(remaining - config.REALTIME_SPIN_S)
+        while time.perf_counter() < deadline:
+            pass
 
     def _publish_state(self) -> None:
         t = self.data.time
@@ -219,9 +239,7 @@ class Simulator:
         try:
             while n_ticks is None or self.seq < n_ticks:
                 if self.cfg.clock == "realtime":
-                    # Spend the time until this tick's deadline handling LCM, not sleeping blindly.
-                    while (remaining := start + self.seq * config.CONTROL_DT_S - time.perf_counter()) > 0:
-                        self.link.poll(remaining)
+                    self._wait_until(start + self.seq * config.CONTROL_DT_S)
                 self.tick()
                 if self.viewer is not None:
                     self.viewer.maybe_sync(self)

@@ -48,6 +48,15 @@ def test_realtime_mode_holds_real_time_factor(netns):
     assert 0.9 <= sim_s / wall_s <= 1.02, f"real-time factor {sim_s / wall_s:.3f}"
 
 
+def test_rt_realtime_runs_paced_under_sched_fifo_or_says_it_could_not(netns):
+    """--rt asks for SCHED_FIFO (granted to root; refused elsewhere, with a note): the run is paced the same."""
+    client, _, _ = run_with_client(["--clock", "realtime", "--rt", "--spawn", "standing"], hold_pose(HOME), KP, KD,
+                                   duration_s=1.0, timeout_s=60)
+    seq = states(client)
+    assert len(seq) >= 490, f"only {len(seq)} of 500 states arrived"
+    assert 0.9 <= (seq[-1].utime - seq[0].utime) * 1e-6 / (client.wall[-1] - client.wall[0]) <= 1.02
+
+
 def _reference_step(q0, qd0, target_q, n_ticks):
     """Same robot, same start, PD computed in float64 without any bus: the dynamics the bus must match."""
     data = mujoco.MjData(MODEL)
@@ -91,7 +100,8 @@ def test_stopping_commands_damps_motors_within_50ms(netns):
 def test_bad_cli_input_is_named(netns):
     for args, needle in ((["--scenario", "moon"], "moon"), (["--spawn", "fallen:x"], "fallen"),
                          (["--faults", "drop:rate=2"], "rate"), (["--physics-dt", "0.003"], "physics-dt"),
-                         (["--faults", "dead:joint=Nose"], "Nose")):
+                         (["--faults", "dead:joint=Nose"], "Nose"),
+                         (["--clock", "lockstep", "--rt"], "--rt needs --clock realtime")):
         proc = start_sim(*args, "--duration", "0.1")
         _, err = proc.communicate(timeout=60)
         assert proc.returncode == 2, (args, err)
@@ -129,7 +139,7 @@ def test_udp_multicast_buses_are_visible_to_outside_python_can_tools(netns, tmp_
     import lcm
 
     from messages import contract
-    from sim_hil.motor_bus import UDP_BASE_PORT, UDP_GROUP
+    from sim_hil.can_wire import UDP_BASE_PORT, UDP_GROUP
     from sim_hil.launch import start_sim
 
     head = 0

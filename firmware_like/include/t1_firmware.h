@@ -175,6 +175,53 @@ void t1_batch_status(const t1_motor_array_t* a, int32_t* status);
 void t1_batch_bus_cycle(t1_bus_array_t* b, uint64_t now_us, const uint8_t* commands, uint32_t cmd_mask,
                         const uint8_t* replies, uint8_t* cmd_on_time, uint8_t* reply_on_time);
 
+/* ================================ host link (the simulator's in-process buses) ================================
+ * The 4 buses between the host and the 23 motors for one control tick, in two calls: what sim_hil's python-can
+ * MotorBus does frame by frame, without a Python object per frame. Every frame is counted by its bus model;
+ * a frame that does not fit in its cycle (T1_BUS_LATE) goes out first in the next cycle; a delayed command
+ * waits its cycles in a FIFO; a frame lost on the wire is never submitted. Masks: bit i = motor i. */
+
+#define T1_LINK_LATE_CAPACITY 128u     /* frames carried per bus (overload beyond it: the frame is lost) */
+#define T1_LINK_DELAY_CAPACITY 1024u   /* delayed frames in flight (a 3-cycle delay of all 23 holds 69) */
+
+typedef struct {
+  uint32_t can_id;
+  uint32_t due_cycle; /* delayed frames: the cycle they go on the wire */
+  uint8_t bus;
+  uint8_t dlc;
+  uint8_t data[T1_FRAME_SLOT_BYTES];
+} t1_link_frame_t;
+
+typedef struct {
+  t1_bus_t buses[T1_NUM_BUSES];
+  t1_link_frame_t late[T1_NUM_BUSES][T1_LINK_LATE_CAPACITY];
+  uint32_t n_late[T1_NUM_BUSES];
+  t1_link_frame_t delayed[T1_LINK_DELAY_CAPACITY]; /* ring buffer, oldest first */
+  uint32_t delayed_head, n_delayed;
+  uint32_t cycle;                                   /* completed cycles (one per exchange_replies) */
+  uint8_t motor_rx[T1_NUM_MOTORS * T1_FRAME_SLOT_BYTES]; /* newest command that reached each motor */
+  uint32_t motor_rx_mask;
+  uint8_t host_rx[T1_NUM_MOTORS * T1_FRAME_SLOT_BYTES];  /* newest reply that reached the host */
+  uint32_t host_rx_mask;
+  uint64_t frames_sent, frames_dropped, frames_lost_overflow;
+} t1_link_t;
+
+size_t t1_link_size(void);
+int t1_link_init(t1_link_t* l);
+/* Host → motors, opening the cycle at now_us: last cycle's late frames first, then motor i's command
+ * (slot i of `frames`) for each bit of send_mask — lost if set in drop_mask, held delay_cycles cycles if
+ * > 0 — then the delayed frames now due. Each motor not in dead_mask latches the newest command that
+ * reached it. Returns the mask of motors that latched one this cycle. */
+uint32_t t1_link_send_commands(t1_link_t* l, t1_motor_array_t* motors, uint64_t now_us, const uint8_t* frames,
+                               uint32_t send_mask, uint32_t drop_mask, uint32_t delay_cycles, uint32_t dead_mask);
+/* Motors → host, closing the cycle: motor i's reply (slot i of `replies`) for each bit of send_mask, lost
+ * if set in drop_mask. Copies every reply the host received this cycle (late ones from the last cycle
+ * included) into host_frames and returns their mask. */
+uint32_t t1_link_exchange_replies(t1_link_t* l, const uint8_t* replies, uint32_t send_mask, uint32_t drop_mask,
+                                  uint8_t* host_frames);
+/* out = {frames_sent, frames_dropped, frames_lost_overflow}. */
+void t1_link_counters(const t1_link_t* l, uint64_t out[3]);
+
 #ifdef __cplusplus
 } /* extern "C" */
 #endif

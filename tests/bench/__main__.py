@@ -1,10 +1,15 @@
 """`make bench`: every benchmark of the project, each printed as a ratio against a reference measured in
 the same run. Runs inside the project network namespace (make bench wraps it in tools/netns)."""
-from tests.bench import sim_rtf
+import sys
+
+from tests.bench import sim_rtf, state_jitter
+
+JITTER_S = {True: 5.0, False: 20.0}      # realtime run per row [s]: --quick, full
 
 
 def main() -> None:
     sim_rtf.main()
+    state_jitter.main(JITTER_S["--quick" in sys.argv[1:]])
     try:
         from tests.bench import runtime_bench
     except ImportError:
