@@ -214,6 +214,8 @@ class Simulator:
             q_enc, dq_enc = self._encoders()
             tau = self.bus.motor_torques(q_enc, dq_enc, self.now_us, dead)
             self.data.ctrl[:] = tau
+            if self.viewer is not None:
+                self.viewer.apply_perturbation(self.data)
             push = self._push_force()
             if push is not None:
                 self.data.xfrc_applied[self.trunk_id, :3] += push

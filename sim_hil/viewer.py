@@ -8,8 +8,10 @@ has no viewer object at all (zero per-tick cost).
 What it shows: the camera tracks the Trunk; an arrow from the trunk is the current joystick command
 (T1_JOYSTICK, heading frame); text gives the runtime's mode (T1_CONTROLLER_STATUS), fallen (trunk below
 FALLEN_TRUNK_HEIGHT_M, as in T1_SIM_STATUS) and the active faults. A mouse perturbation (double-click a body,
-ctrl+right-drag to pull, ctrl+left-drag to twist) reaches the physics: viewer.sync() writes it into
-data.xfrc_applied, which the sim's stepping keeps (pushes are added and removed around their one step).
+ctrl+right-drag to pull, ctrl+left-drag to twist) reaches the physics: the viewer's perturbation (the body,
+its reference pose) is copied at each display sync and the sim turns it into a force on its own state at
+every physics step, as MuJoCo's own simulate does (a force computed at display rate from a snapshot and
+held between syncs is a stale spring: it overshoots and throws the robot).
 """
 from __future__ import annotations
 
@@ -64,11 +66,26 @@ def _launch(model: mujoco.MjModel, data: mujoco.MjData):
     return result[0], (render[0] if render else None)
 
 
+_PERTURB_FIELDS = ("select", "flexselect", "skinselect", "active", "active2", "refpos", "refquat", "refselpos",
+                   "localpos", "localmass", "scale")
+
+
+def _copy_perturb(src: mujoco.MjvPerturb) -> mujoco.MjvPerturb:
+    out = mujoco.MjvPerturb()
+    for name in _PERTURB_FIELDS:
+        value = getattr(src, name)
+        if isinstance(value, np.ndarray):
+            getattr(out, name)[:] = value
+        else:
+            setattr(out, name, value)
+    return out
+
+
 class LiveViewer:
     """The viewer shows its own MjData (`view`), never the sim's: a sync waits for the render thread's frame
     (~0.1 s with software GL), so it runs on a thread of its own, and the sim only hands over a snapshot of
-    its state at display rate when that thread is free (it never waits). The mouse's perturbation force
-    comes back the same way, into the sim's xfrc_applied."""
+    its state at display rate when that thread is free (it never waits). The mouse's perturbation comes
+    back the same way: the sync thread copies it, the sim applies it every step (apply_perturbation)."""
 
     def __init__(self, handle, render_thread, sim, view: mujoco.MjData):
         self.handle, self.render_thread, self.view = handle, render_thread, view
@@ -77,6 +94,8 @@ class LiveViewer:
         self._next = 0.0
         self._closed_said = False
         self._pending = threading.Event()     # a snapshot is in `view` for the sync thread
+        self._perturb: mujoco.MjvPerturb | None = None   # the mouse's, as of the last sync (replaced whole)
+        self._perturbed_body = 0              # the body whose xfrc_applied the perturbation last set
         self._faults = "none"
         self._stop = False
         self._syncer = threading.Thread(target=self._sync_loop, daemon=True)
@@ -125,8 +144,6 @@ class LiveViewer:
                 _say("window closed: the simulation goes on headless")
                 self._closed_said = True
             return
-        # the mouse's force of the last sync goes to the sim (the sim's own pushes add and remove theirs)
-        sim.data.xfrc_applied[:] = self.view.xfrc_applied
         self.view.qpos[:], self.view.qvel[:], self.view.time = sim.data.qpos, sim.data.qvel, sim.data.time
         self._faults = sim.faults.describe(sim.data.time) or "none"
         self._pending.set()
@@ -138,7 +155,20 @@ class LiveViewer:
             mujoco.mj_forward(self.model, self.view)
             self._update_overlays()     # the overlays take the viewer's lock too: not on the sim's thread
             self.handle.sync()          # waits for the render thread; the sim does not
+            with self.handle.lock():
+                self._perturb = _copy_perturb(self.handle.perturb)
             self._pending.clear()
+
+    def apply_perturbation(self, data: mujoco.MjData) -> None:
+        """Before each physics step: the mouse's pull on its body's xfrc_applied, computed from the sim's own
+        state (the sim's pushes are added on top and removed after their step)."""
+        pert = self._perturb
+        if self._perturbed_body:
+            data.xfrc_applied[self._perturbed_body] = 0.0
+            self._perturbed_body = 0
+        if pert is not None and pert.active and pert.select > 0:
+            mujoco.mjv_applyPerturbForce(self.model, data, pert)
+            self._perturbed_body = int(pert.select)
 
     def _update_overlays(self) -> None:
         vx, vy, wz = self.command()
