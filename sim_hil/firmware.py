@@ -381,7 +381,23 @@ _link_size = _sig("t1_link_size", C.c_size_t)
 _link_init = _sig("t1_link_init", C.c_int, _vp)
 _link_send = _sig("t1_link_send_commands", _u32, _vp, _vp, _u64, C.c_char_p, _u32, _u32, _u32, _u32)
 _link_counters = _sig("t1_link_counters", None, _vp, _vp)
+_host_view_update = _sig("t1_host_view_update", None, C.c_char_p, _u32, _vp, _vp, _vp, _vp)
 _link_replies = _sig("t1_link_exchange_replies", _u32, _vp, C.c_char_p, _u32, _u32, _vp)
+
+
+class HostView:
+    """The host's view of the joints from the reply frames (quantised like the real bus): q [rad],
+    dq [rad/s], tau [N·m], status bits, in joint order, updated in place once per bus cycle."""
+
+    def __init__(self) -> None:
+        self.q, self.dq, self.tau = (np.zeros(NUM_MOTORS) for _ in range(3))
+        self.status = np.zeros(NUM_MOTORS, dtype=np.int32)
+        self._ptrs = tuple(a.ctypes.data for a in (self.q, self.dq, self.tau, self.status))
+
+    def update(self, frames: bytes, got_mask: int) -> None:
+        """Motors in got_mask take their reply slot's values; the others keep theirs, gaining
+        STATUS_HOST_NO_REPLY (t1_host_view_update)."""
+        _host_view_update(_frames(frames, "HostView.update"), got_mask & ALL_MOTORS_MASK, *self._ptrs)
 
 
 class Link:

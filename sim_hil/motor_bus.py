@@ -46,12 +46,8 @@ class MotorBus:
     def __init__(self, rng=None):
         self.rng = rng if rng is not None else np.random.default_rng(0)
         self.motors = fw.MotorArray()
-        n = fw.NUM_MOTORS
-        # Host's view of the joints, updated from reply frames (quantised like the real bus).
-        self.q = np.zeros(n)
-        self.dq = np.zeros(n)
-        self.tau = np.zeros(n)
-        self.status = np.zeros(n, dtype=np.int32)
+        self.view = fw.HostView()
+        self.q, self.dq, self.tau, self.status = self.view.q, self.view.dq, self.view.tau, self.view.status
 
     def motor_torques(self, q: np.ndarray, dq: np.ndarray, now_us: int, dead: set[int]) -> np.ndarray:
         """Firmware step of every motor at the physics rate → joint torques [N·m]."""
@@ -60,12 +56,9 @@ class MotorBus:
             tau[i] = 0.0
         return tau
 
-    def _host_receives(self, frames: bytes, got: np.ndarray) -> None:
+    def _host_receives(self, frames: bytes, got_mask: int) -> None:
         """Decode the replies the host got this cycle; a motor without one keeps its last values, flagged."""
-        q, dq_r, tau_r, status = fw.unpack_replies(frames)
-        self.q[got], self.dq[got], self.tau[got] = q[got], dq_r[got], tau_r[got]
-        self.status[got] = status[got]
-        self.status[~got] |= NO_REPLY
+        self.view.update(frames, got_mask)
 
 
 class DirectMotorBus(MotorBus):
@@ -92,7 +85,7 @@ class DirectMotorBus(MotorBus):
                          drop_rate: float = 0.0, dead: set[int] = frozenset()) -> None:
         replies = self.motors.replies(q_enc, dq, tau)
         got = self.link.exchange_replies(replies, fw.ALL_MOTORS_MASK & ~_mask(dead), self._lost(drop_rate))
-        self._host_receives(self.link.host_frames.tobytes(), (got & self._BITS) != 0)
+        self._host_receives(self.link.host_frames.tobytes(), got)
 
     @property
     def frames_late(self) -> int:
@@ -197,7 +190,7 @@ class CanMotorBus(MotorBus):
             msg = can.Message(arbitration_id=fw.reply_can_id(i), is_extended_id=False,
                               data=replies[8 * i: 8 * i + fw.REPLY_DLC], timestamp=now_us * 1e-6)
             self._transmit(fw.BUS_OF_MOTOR[i], msg, drop_rate, 0)
-        got = np.zeros(fw.NUM_MOTORS, dtype=bool)
+        got = 0
         frames = bytearray(8 * fw.NUM_MOTORS)
         for host_end, _ in self.ends:
             for msg in can_wire.drain(host_end):
@@ -205,7 +198,7 @@ class CanMotorBus(MotorBus):
                 if i is None:
                     continue
                 frames[8 * i: 8 * i + len(msg.data)] = msg.data
-                got[i] = True
+                got |= 1 << i
         self._host_receives(bytes(frames), got)
         self.cycle_index += 1
 

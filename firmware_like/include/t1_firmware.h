@@ -219,6 +219,11 @@ uint32_t t1_link_send_commands(t1_link_t* l, t1_motor_array_t* motors, uint64_t 
  * included) into host_frames and returns their mask. */
 uint32_t t1_link_exchange_replies(t1_link_t* l, const uint8_t* replies, uint32_t send_mask, uint32_t drop_mask,
                                   uint8_t* host_frames);
+/* The host's joint view after a cycle: each motor in `got` takes its reply's q, dq, tau and status (a slot
+ * that does not decode: NaN and T1_BATCH_NO_REPLY_STATUS); every other motor keeps its last values with
+ * T1_STATUS_NO_REPLY added to its status. */
+void t1_host_view_update(const uint8_t* host_frames, uint32_t got, double* q, double* dq, double* tau,
+                         int32_t* status);
 /* out = {frames_sent, frames_dropped, frames_lost_overflow}. */
 void t1_link_counters(const t1_link_t* l, uint64_t out[3]);
 

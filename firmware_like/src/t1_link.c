@@ -127,3 +127,21 @@ void t1_link_counters(const t1_link_t* l, uint64_t out[3]) {
   out[1] = l->frames_dropped;
   out[2] = l->frames_lost_overflow;
 }
+
+void t1_host_view_update(const uint8_t* host_frames, uint32_t got, double* q, double* dq, double* tau,
+                         int32_t* status) {
+  if (host_frames == NULL || q == NULL || dq == NULL || tau == NULL || status == NULL) return;
+  double rq[T1_NUM_MOTORS], rdq[T1_NUM_MOTORS], rtau[T1_NUM_MOTORS];
+  int32_t rstatus[T1_NUM_MOTORS];
+  (void)t1_batch_unpack_replies(host_frames, rq, rdq, rtau, rstatus);
+  for (unsigned i = 0; i < T1_NUM_MOTORS; ++i) {
+    if (got & (1u << i)) {
+      q[i] = rq[i];
+      dq[i] = rdq[i];
+      tau[i] = rtau[i];
+      status[i] = rstatus[i];
+    } else {
+      status[i] = (int32_t)((uint32_t)status[i] | T1_STATUS_NO_REPLY);
+    }
+  }
+}
