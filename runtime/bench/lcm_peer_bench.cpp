@@ -30,6 +30,9 @@ constexpr int64_t kSimTickUs = 2000;            // lockstep sim time per state [
 constexpr float kGravityMps2 = 9.81f;           // accelerometer reading at rest [m/s^2]
 constexpr int kConnectRetryMs = 100;            // re-send state 0 until the answering process listens
 constexpr int kMaxWarmupExchanges = 20000;      // 40 s of sim time: more means the runtime never got to POLICY
+// The encoders move one count per state: still ones under PD torque are a frozen encoder to the runtime
+// (rule R9 of runtime/src/safety_supervisor.cpp), which would latch FAULT before POLICY.
+constexpr float kEncoderDitherRad = 1e-4f;
 
 const char* kHelp =
     "usage: t1rt_bench_lcm_peer [--count N] [--warmup N] [--wait-policy] [--timeout-ms MS] [--connect-s S]\n"
@@ -86,6 +89,7 @@ double exchange(Peer& p, int64_t k, int timeout_ms) {
   p.imu.seq = p.state.seq = k;
   p.imu.utime = p.state.utime = k * kSimTickUs;
   p.want_seq = k;
+  for (float& q : p.state.q) q = static_cast<float>(k % 2) * kEncoderDitherRad;
   p.answered = p.action_seen = false;
   p.publish(t1::CH_IMU, p.imu);
   const int64_t t0 = t1rt::monotonic_ns();
