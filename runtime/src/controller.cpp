@@ -210,6 +210,8 @@ void Controller::tick(double now_s) {
   ++ticks_;
   // Telemetry only after the command: the robot's answer never waits for observers' messages.
   if (policy_ran) publish_policy_telemetry(now_s);
+  // The next tick runs the policy: bring its weights into cache now, while the robot has its command.
+  if (may_run_policy && policy_phase_ % kPolicyDecimation == 0) active_->warm_cache();
   if (ticks_ % kStatusEveryTicks == 0) publish_status(now_s);
 }
 
