@@ -80,6 +80,9 @@ Vec exp_vec(Vec x) {
   return p * (Vec)((bits + kFloatExponentBias) << kFloatMantissaBits);
 }
 
+// tanh(x) = 1 - 2 / (e^2x + 1); exp_vec's clamps give exactly +-1 far out, and a NaN passes through.
+Vec tanh_vec(Vec x) { return 1.0f - 2.0f / (exp_vec(x + x) + 1.0f); }
+
 // Hidden-layer activation, in place, over n values (a whole number of vectors).
 void activate(Activation activation, float* h, int n) {
   switch (activation) {
@@ -106,6 +109,8 @@ void forward(const Net& net, const float* input, float* const* outputs) {
       panel(l.panels + r * l.cols, l.bias + r, x, l.cols, y + r);
       // Panel by panel: the activation's arithmetic overlaps the next panel's weight loads.
       if (hidden) activate(net.activation, y + r, kPanelRows);
+      else if (net.tanh_output)
+        for (int v = 0; v < kPanelRows; v += kLanes) store(y + r + v, tanh_vec(load(y + r + v)));
     }
     x = y;
   }

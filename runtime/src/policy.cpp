@@ -98,7 +98,7 @@ void GaitPhase::advance(double frequency_hz, double control_dt_s, const float* c
 }
 
 Mlp::Mlp(const PolicyArtifact& artifact, const mlp_kernel::Variant& variant)
-    : output_rule_(artifact.output_rule), variant_(variant), action_(static_cast<Eigen::Index>(kJoints)) {
+    : variant_(variant), action_(static_cast<Eigen::Index>(kJoints)) {
   // Rows computed per layer: all, except that the output rule reads only the first kJoints of the last one
   // (tanh_normal: the loc half; the scale half only matters in training).
   std::vector<int> used_rows;
@@ -125,14 +125,14 @@ Mlp::Mlp(const PolicyArtifact& artifact, const mlp_kernel::Variant& variant)
     outputs_.emplace_back(static_cast<std::size_t>(padded), 0.0f);
   }
   for (auto& o : outputs_) output_ptrs_.push_back(o.data());
-  net_ = {layers_.data(), static_cast<int>(layers_.size()), artifact.activation};
+  net_ = {layers_.data(), static_cast<int>(layers_.size()), artifact.activation,
+          artifact.output_rule == OutputRule::kTanhNormal};
 }
 
 const Eigen::VectorXf& Mlp::run(const Eigen::VectorXf& input) {
   variant_.forward(net_, input.data(), output_ptrs_.data());
   const float* out = output_ptrs_.back();  // the first kJoints values: the action (tanh_normal: its loc half)
-  for (Eigen::Index i = 0; i < action_.size(); ++i)
-    action_[i] = output_rule_ == OutputRule::kTanhNormal ? std::tanh(out[i]) : out[i];
+  std::copy(out, out + action_.size(), action_.data());
   return action_;
 }
 

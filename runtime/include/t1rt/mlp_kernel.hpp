@@ -22,7 +22,8 @@ struct PackedLayer {
 struct Net {
   const PackedLayer* layers = nullptr;
   int num_layers = 0;
-  Activation activation = Activation::kSwish;  // after every layer but the last (linear)
+  Activation activation = Activation::kSwish;  // after every layer but the last
+  bool tanh_output = false;                    // tanh on the last layer (the tanh_normal output rule), else linear
 };
 
 // outputs[i] receives layer i's padded_rows(rows) values; input holds layers[0].cols values. No allocation.

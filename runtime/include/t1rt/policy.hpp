@@ -63,7 +63,6 @@ class Mlp {
   void warm_cache() const;
 
  private:
-  OutputRule output_rule_;
   const mlp_kernel::Variant& variant_;
   std::vector<float> storage_;                 // packed panels and biases of every layer, cache-line aligned
   const float* packed_ = nullptr;              // their first value (aligned), packed_size_ values
