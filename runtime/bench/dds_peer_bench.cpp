@@ -27,6 +27,9 @@ constexpr float kGravityMps2 = 9.81f;      // accelerometer reading at rest [m/s
 constexpr int kConnectRetryMs = 100;       // re-write state 0 until the runtime's reader has matched
 constexpr int kSettleMs = 200;             // then absorb the answers to the re-written copies
 constexpr int64_t kMsToNs = 1'000'000;
+// The encoders move one count per state: still ones under PD torque are a frozen encoder to the runtime
+// (rule R9 of runtime/src/safety_supervisor.cpp), which would latch FAULT before POLICY.
+constexpr float kEncoderDitherRad = 1e-4f;
 
 const char* kHelp =
     "usage: t1rt_bench_dds_peer [--count N] [--warmup N] [--timeout-ms MS] [--connect-s S]\n"
@@ -40,6 +43,7 @@ struct Peer {
   dds_entity_t participant = 0, writer = 0, reader = 0, waitset = 0;
   std::array<MotorState, t1rt::kJoints> motors{};
   booster_interface_msg_dds__LowState_ state{};
+  int64_t writes = 0;
 
   bool open(std::string* error) {
     participant = dds_create_participant(t1::kDdsDomainId, nullptr, nullptr);
@@ -81,6 +85,8 @@ struct Peer {
 
   // Writes one state; returns the latency [us] of the first command after it, negative on timeout.
   double exchange(int timeout_ms) {
+    ++writes;
+    for (MotorState& m : motors) m.q = static_cast<float>(writes % 2) * kEncoderDitherRad;
     const int64_t t0 = t1rt::monotonic_ns();
     dds_write(writer, &state);
     const int64_t deadline = t0 + timeout_ms * kMsToNs;

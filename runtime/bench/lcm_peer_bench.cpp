@@ -3,10 +3,13 @@
 // T1_JOINT_CMD whose state_seq is k; latency = publish of the state -> arrival of its command (CLOCK_MONOTONIC).
 // The answering side (the target) is t1-runtime --clock lockstep or t1rt_bench_lcm_echo; with --echo-url a
 // t1rt_bench_lcm_echo on a second LCM URL is driven in alternation, so both see the same machine load. Ticks on which the
-// runtime evaluated the policy are told apart by the T1_ACTION it publishes before that tick's command.
+// runtime evaluated the policy are told apart by the T1_ACTION it publishes after that tick's command (its utime is
+// the state's); the peer reads what is queued before each exchange, so such telemetry is never timed.
 // Prints one JSON line for tests/bench/runtime_bench.py.
 #include <lcm/lcm.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -29,7 +32,11 @@ using t1rt::bench::usage_error;
 constexpr int64_t kSimTickUs = 2000;            // lockstep sim time per state [us] (500 Hz)
 constexpr float kGravityMps2 = 9.81f;           // accelerometer reading at rest [m/s^2]
 constexpr int kConnectRetryMs = 100;            // re-send state 0 until the answering process listens
+constexpr int kLastTelemetryMs = 100;           // wait for the telemetry that follows the last command
 constexpr int kMaxWarmupExchanges = 20000;      // 40 s of sim time: more means the runtime never got to POLICY
+// The encoders move one count per state: still ones under PD torque are a frozen encoder to the runtime
+// (rule R9 of runtime/src/safety_supervisor.cpp), which would latch FAULT before POLICY.
+constexpr float kEncoderDitherRad = 1e-4f;
 
 const char* kHelp =
     "usage: t1rt_bench_lcm_peer [--count N] [--warmup N] [--wait-policy] [--timeout-ms MS] [--connect-s S]\n"
@@ -49,11 +56,12 @@ struct Peer {
   t1::joint_state_t state{};
   t1::joint_command_t command{};
   t1::controller_status_t status{};
+  t1::action_t action{};
   std::vector<uint8_t> buffer;
+  std::vector<int64_t> policy_seqs;  // states answered by a policy tick (from T1_ACTION's utime)
   int64_t want_seq = -1;
   int64_t answer_ns = 0;   // arrival time of the command answering want_seq
   bool answered = false;
-  bool action_seen = false;
   int8_t mode = -1;        // latest controller_status_t.mode, -1 before the first status
   std::string fault;
 
@@ -73,7 +81,11 @@ void on_command(const lcm_recv_buf_t* rbuf, const char*, void* user) {
     p->answer_ns = now;
   }
 }
-void on_action(const lcm_recv_buf_t*, const char*, void* user) { static_cast<Peer*>(user)->action_seen = true; }
+void on_action(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+  auto* p = static_cast<Peer*>(user);
+  if (p->action.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return;
+  p->policy_seqs.push_back(std::llround(static_cast<double>(p->action.utime) / kSimTickUs));
+}
 void on_status(const lcm_recv_buf_t* rbuf, const char*, void* user) {
   auto* p = static_cast<Peer*>(user);
   if (p->status.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return;
@@ -85,8 +97,11 @@ void on_status(const lcm_recv_buf_t* rbuf, const char*, void* user) {
 double exchange(Peer& p, int64_t k, int timeout_ms) {
   p.imu.seq = p.state.seq = k;
   p.imu.utime = p.state.utime = k * kSimTickUs;
+  while (lcm_handle_timeout(p.lcm, 0) > 0) {  // the previous answer's telemetry: read, untimed
+  }
   p.want_seq = k;
-  p.answered = p.action_seen = false;
+  for (float& q : p.state.q) q = static_cast<float>(k % 2) * kEncoderDitherRad;
+  p.answered = false;
   p.publish(t1::CH_IMU, p.imu);
   const int64_t t0 = t1rt::monotonic_ns();
   p.publish(t1::CH_JOINT_STATE, p.state);
@@ -170,16 +185,24 @@ int main(int argc, char** argv) {
     if (!step(k, &target_us, &echo_us)) return t1rt::bench::kExitRun;
   }
 
-  std::vector<double> all_us, policy_us, plain_us, echo_all_us;
+  std::vector<double> all_us, echo_all_us;
+  std::vector<int64_t> seqs;
   all_us.reserve(static_cast<std::size_t>(count));
+  seqs.reserve(static_cast<std::size_t>(count));
   echo_all_us.reserve(static_cast<std::size_t>(count));
   for (int i = 0; i < count; ++i, ++k) {
     if (!step(k, &target_us, &echo_us)) return t1rt::bench::kExitRun;
     all_us.push_back(target_us);
-    (p.action_seen ? policy_us : plain_us).push_back(target_us);
+    seqs.push_back(k);
     if (with_echo) echo_all_us.push_back(echo_us);
   }
-  lcm_handle_timeout(p.lcm, 0);  // pick up a last status
+  lcm_handle_timeout(p.lcm, kLastTelemetryMs);  // the last answer's telemetry and a last status
+  while (lcm_handle_timeout(p.lcm, 0) > 0) {
+  }
+  std::sort(p.policy_seqs.begin(), p.policy_seqs.end());
+  std::vector<double> policy_us, plain_us;
+  for (std::size_t i = 0; i < all_us.size(); ++i)
+    (std::binary_search(p.policy_seqs.begin(), p.policy_seqs.end(), seqs[i]) ? policy_us : plain_us).push_back(all_us[i]);
   std::string out;
   t1rt::bench::json_summary(out, "latency_us", t1rt::bench::summarize(all_us));
   t1rt::bench::json_summary(out, "policy_tick_us", t1rt::bench::summarize(policy_us));

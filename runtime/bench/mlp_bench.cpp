@@ -1,4 +1,5 @@
-// t1rt_bench_mlp: latency of the runtime's hand-written Eigen MLP (t1rt::Mlp) on a policy artifact, next
+// t1rt_bench_mlp: latency of the runtime's MLP (t1rt::Mlp, the kernel variant dispatched for this CPU or the
+// portable one) on a policy artifact, next
 // to the memory-bandwidth bound of its weights measured in the same process:
 //   - streaming read bandwidth over a buffer several times the last-level cache (DRAM-resident weights),
 //   - read bandwidth over a buffer the size of the weights, re-read back to back (weights warm in whatever
@@ -36,12 +37,14 @@ constexpr int kMaxCacheIndex = 8;                      // sysfs cache/indexN ent
 constexpr std::size_t kL2ProbeDivisor = 2;             // L2 probe buffer = half the L2: surely resident
 
 const char* kHelp =
-    "usage: t1rt_bench_mlp --policy PATH --input FILE [--iterations N] [--cold-iterations N]\n"
+    "usage: t1rt_bench_mlp --policy PATH --input FILE [--iterations N] [--cold-iterations N] [--portable]\n"
     "  --policy PATH          policy artifact (*.safetensors)\n"
     "  --input FILE           raw little-endian float32 network input, obs_size values (normalised obs)\n"
     "  --iterations N         timed back-to-back forward passes (default 20000; 0 = print the action only)\n"
     "  --cold-iterations N    forward passes each after a cache flush (default 100; 0 = skip)\n"
-    "prints one JSON line: latency [ns] median/p99/max, weight bytes, bandwidths [GB/s], bounds [ns], action\n";
+    "  --portable             the portable kernel instead of the one dispatched for this CPU\n"
+    "prints one JSON line: kernel variant, latency [ns] median/p99/max, weight bytes, bandwidths [GB/s], bounds [ns],\n"
+    "action\n";
 
 // Size of the level-`level` data/unified cache of CPU 0 as the kernel reports it in sysfs (in a VM, sysconf
 // may report the host's caches instead), else sysconf, else `fallback`.
@@ -122,6 +125,7 @@ Eigen::VectorXf read_input(const std::string& path, int size) {
 int main(int argc, char** argv) {
   std::string policy_path, input_path;
   int iterations = 20000, cold_iterations = 100;
+  bool portable = false;
   Args args(argc, argv);
   while (args.next()) {
     const std::string f = args.flag();
@@ -130,6 +134,7 @@ int main(int argc, char** argv) {
     else if (f == "--input") input_path = args.value();
     else if (f == "--iterations") iterations = static_cast<int>(args.number(0));
     else if (f == "--cold-iterations") cold_iterations = static_cast<int>(args.number(0));
+    else if (f == "--portable") portable = true;
     else usage_error(argv[0], "unknown argument '" + f + "'");
   }
   if (policy_path.empty() || input_path.empty()) usage_error(argv[0], "--policy and --input are required");
@@ -137,7 +142,7 @@ int main(int argc, char** argv) {
   try {
     const t1rt::PolicyArtifact artifact = t1rt::load_artifact(policy_path);
     const Eigen::VectorXf input = read_input(input_path, artifact.obs_size);
-    t1rt::Mlp mlp(artifact);
+    t1rt::Mlp mlp(artifact, portable ? t1rt::mlp_kernel::portable_variant() : t1rt::mlp_kernel::selected_variant());
     std::size_t weight_bytes = 0;
     std::string shape = std::to_string(artifact.obs_size);
     for (const auto& l : artifact.layers) {
@@ -146,7 +151,7 @@ int main(int argc, char** argv) {
     }
 
     const Eigen::VectorXf action = mlp.run(input);  // the value checked against onnxruntime
-    std::string out;
+    std::string out = "\"variant\": \"" + std::string(mlp.variant_name()) + "\", ";
     auto append_action = [&] {
       out += "\"action\": [";
       for (Eigen::Index i = 0; i < action.size(); ++i) {

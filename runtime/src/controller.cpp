@@ -180,6 +180,7 @@ void Controller::tick(double now_s) {
   const auto& js = transport_.joystick;
   supervisor_.gate_joystick(now_s, js.have, js.stamp_s, &js.msg.vx, active_->artifact().command_ranges, command_vel_);
   const bool may_run_policy = supervisor_.begin_tick(s, active_->artifact());
+  bool policy_ran = false;
   if (supervisor_.entered_policy()) {
     engine_->reset();
     if (upright_) upright_->reset();
@@ -196,18 +197,7 @@ void Controller::tick(double now_s) {
     if (result == PolicyEngine::Result::kNonFiniteObs) supervisor_.fault(fault_bit::kNonFiniteObs, "non-finite observation");
     if (result == PolicyEngine::Result::kNonFiniteAction) supervisor_.fault(fault_bit::kNonFiniteAction, "non-finite action");
     ++policy_ticks_;
-    const int64_t utime = static_cast<int64_t>(now_s * kSToUs);
-    obs_msg_.utime = action_msg_.utime = utime;
-    obs_msg_.policy_tick = action_msg_.policy_tick = policy_ticks_;
-    const auto& raw = active_->obs_raw();
-    obs_msg_.size = static_cast<int32_t>(raw.size());
-    obs_msg_.raw.assign(raw.data(), raw.data() + raw.size());
-    obs_msg_.normalized.assign(active_->obs_normalized().data(), active_->obs_normalized().data() + raw.size());
-    action_msg_.size = static_cast<int32_t>(kJoints);
-    action_msg_.action.assign(active_->action().begin(), active_->action().end());
-    std::copy(active_->q_target().begin(), active_->q_target().end(), action_msg_.q_target);
-    transport_.publish(t1::CH_OBS, obs_msg_);
-    transport_.publish(t1::CH_ACTION, action_msg_);
+    policy_ran = true;
   }
   if (may_run_policy) ++policy_phase_;
   else if (supervisor_.mode() != Mode::kPolicy) adopt_ready_policy();  // no policy running: swap at once
@@ -218,7 +208,26 @@ void Controller::tick(double now_s) {
   command_.state_seq = transport_.joint.have ? transport_.joint.msg.seq : -1;
   publish_command();
   ++ticks_;
+  // Telemetry only after the command: the robot's answer never waits for observers' messages.
+  if (policy_ran) publish_policy_telemetry(now_s);
+  // The next tick runs the policy: bring its weights into cache now, while the robot has its command.
+  if (may_run_policy && policy_phase_ % kPolicyDecimation == 0) active_->warm_cache();
   if (ticks_ % kStatusEveryTicks == 0) publish_status(now_s);
+}
+
+void Controller::publish_policy_telemetry(double now_s) {
+  const int64_t utime = static_cast<int64_t>(now_s * kSToUs);
+  obs_msg_.utime = action_msg_.utime = utime;
+  obs_msg_.policy_tick = action_msg_.policy_tick = policy_ticks_;
+  const auto& raw = active_->obs_raw();
+  obs_msg_.size = static_cast<int32_t>(raw.size());
+  obs_msg_.raw.assign(raw.data(), raw.data() + raw.size());
+  obs_msg_.normalized.assign(active_->obs_normalized().data(), active_->obs_normalized().data() + raw.size());
+  action_msg_.size = static_cast<int32_t>(kJoints);
+  action_msg_.action.assign(active_->action().begin(), active_->action().end());
+  std::copy(active_->q_target().begin(), active_->q_target().end(), action_msg_.q_target);
+  transport_.publish(t1::CH_OBS, obs_msg_);
+  transport_.publish(t1::CH_ACTION, action_msg_);
 }
 
 void Controller::select_member(float waist_height_m) {

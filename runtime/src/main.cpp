@@ -146,9 +146,10 @@ int main(int argc, char** argv) {
   for (const t1rt::PolicyEngine* p : {engine.get(), upright.get()}) {
     if (!p) continue;
     const auto& art = p->artifact();
-    std::fprintf(stderr, "t1-runtime: %spolicy '%s' hash %.12s trained=%s obs %d layers %zu; clock %s; LCM %s; robot link %s\n",
+    std::fprintf(stderr, "t1-runtime: %spolicy '%s' hash %.12s trained=%s obs %d layers %zu (MLP kernel %s); clock %s; "
+                 "LCM %s; robot link %s\n",
                  !upright ? "" : p == engine.get() ? "getup member: " : "upright member: ", art.name.c_str(),
-                 art.content_hash.c_str(), art.trained ? "true" : "false", art.obs_size, art.layers.size(),
+                 art.content_hash.c_str(), art.trained ? "true" : "false", art.obs_size, art.layers.size(), p->mlp_variant(),
                  t1rt::clock_name(opt.clock), opt.lcm_url.c_str(),
                  opt.robot_link == t1rt::RobotLink::kDds ? "DDS (rt/low_state -> rt/joint_ctrl)" : "LCM");
   }

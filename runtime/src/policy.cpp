@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 namespace t1rt {
@@ -16,9 +17,17 @@ double wrap_pi(double x) {
   return y - M_PI;
 }
 
-template <typename F>
-void apply(Eigen::VectorXf& v, F f) {
-  for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = f(v[i]);
+constexpr std::size_t kCacheLineFloats = 64 / sizeof(float);  // panels start on a cache line: no split loads
+
+// Rows [0, rows) of `l` in the kernel's panel layout (mlp_kernel.hpp); the padding rows stay as they are (zero).
+void pack_layer(const DenseLayer& l, int rows, float* panels, float* bias) {
+  using mlp_kernel::kPanelRows;
+  const Eigen::Index cols = l.weight.cols();
+  for (int r = 0; r < rows; ++r) {
+    bias[r] = l.bias[r];
+    float* panel = panels + static_cast<std::ptrdiff_t>(r / kPanelRows) * cols * kPanelRows;
+    for (Eigen::Index c = 0; c < cols; ++c) panel[c * kPanelRows + r % kPanelRows] = l.weight(r, c);
+  }
 }
 }  // namespace
 
@@ -88,32 +97,54 @@ void GaitPhase::advance(double frequency_hz, double control_dt_s, const float* c
   for (float& p : phase_) p = static_cast<float>(wrap_pi(double(p) + step));
 }
 
-Mlp::Mlp(const PolicyArtifact& artifact) : artifact_(artifact), action_(static_cast<Eigen::Index>(kJoints)) {
-  for (const DenseLayer& l : artifact.layers) activations_.emplace_back(l.bias.size());
+Mlp::Mlp(const PolicyArtifact& artifact, const mlp_kernel::Variant& variant)
+    : variant_(variant), action_(static_cast<Eigen::Index>(kJoints)) {
+  // Rows computed per layer: all, except that the output rule reads only the first kJoints of the last one
+  // (tanh_normal: the loc half; the scale half only matters in training).
+  std::vector<int> used_rows;
+  for (const DenseLayer& l : artifact.layers) used_rows.push_back(static_cast<int>(l.weight.rows()));
+  used_rows.back() = static_cast<int>(kJoints);
+  std::size_t total = 0;
+  for (std::size_t i = 0; i < used_rows.size(); ++i)
+    total += static_cast<std::size_t>(mlp_kernel::padded_rows(used_rows[i])) *
+             static_cast<std::size_t>(artifact.layers[i].weight.cols() + 1);
+  storage_.assign(total + kCacheLineFloats, 0.0f);
+  float* next = storage_.data();
+  while (reinterpret_cast<std::uintptr_t>(next) % (kCacheLineFloats * sizeof(float)) != 0) ++next;
+  packed_ = next;
+  packed_size_ = total;
+  for (std::size_t i = 0; i < used_rows.size(); ++i) {
+    const DenseLayer& l = artifact.layers[i];
+    const int rows = used_rows[i], cols = static_cast<int>(l.weight.cols());
+    const int padded = mlp_kernel::padded_rows(rows);
+    float* panels = next;
+    float* bias = panels + static_cast<std::ptrdiff_t>(padded) * cols;
+    next = bias + padded;
+    pack_layer(l, rows, panels, bias);
+    layers_.push_back({panels, bias, rows, cols});
+    outputs_.emplace_back(static_cast<std::size_t>(padded), 0.0f);
+  }
+  for (auto& o : outputs_) output_ptrs_.push_back(o.data());
+  net_ = {layers_.data(), static_cast<int>(layers_.size()), artifact.activation,
+          artifact.output_rule == OutputRule::kTanhNormal};
 }
 
 const Eigen::VectorXf& Mlp::run(const Eigen::VectorXf& input) {
-  const std::size_t last = artifact_.layers.size() - 1;
-  for (std::size_t i = 0; i <= last; ++i) {
-    const DenseLayer& l = artifact_.layers[i];
-    Eigen::VectorXf& h = activations_[i];
-    h.noalias() = l.weight * (i == 0 ? input : activations_[i - 1]);
-    h += l.bias;
-    if (i == last) break;  // last layer is linear
-    switch (artifact_.activation) {
-      case Activation::kSwish: apply(h, [](float x) { return x / (1.0f + std::exp(-x)); }); break;
-      case Activation::kElu: apply(h, [](float x) { return x > 0.0f ? x : std::expm1(x); }); break;
-      case Activation::kTanh: apply(h, [](float x) { return std::tanh(x); }); break;
-      case Activation::kRelu: apply(h, [](float x) { return x > 0.0f ? x : 0.0f; }); break;
-    }
-  }
-  const Eigen::VectorXf& out = activations_[last];
-  if (artifact_.output_rule == OutputRule::kTanhNormal) {
-    for (Eigen::Index i = 0; i < action_.size(); ++i) action_[i] = std::tanh(out[i]);  // loc half, squashed
-  } else {
-    action_ = out;
-  }
+  variant_.forward(net_, input.data(), output_ptrs_.data());
+  const float* out = output_ptrs_.back();  // the first kJoints values: the action (tanh_normal: its loc half)
+  std::copy(out, out + action_.size(), action_.data());
   return action_;
+}
+
+void Mlp::warm_cache() const {
+  // One value per cache line into independent sums (no add waits for the one before); the volatile store
+  // keeps the reads.
+  constexpr std::size_t kSums = 4;
+  float sum[kSums] = {};
+  for (std::size_t i = 0; i + kSums * kCacheLineFloats <= packed_size_; i += kSums * kCacheLineFloats)
+    for (std::size_t k = 0; k < kSums; ++k) sum[k] += packed_[i + k * kCacheLineFloats];
+  volatile float sink = sum[0] + sum[1] + sum[2] + sum[3];
+  (void)sink;
 }
 
 PolicyEngine::PolicyEngine(PolicyArtifact artifact)

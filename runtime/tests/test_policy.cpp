@@ -62,13 +62,15 @@ TEST(GaitPhase, AdvancesWrapsAndFreezes) {
   EXPECT_NEAR(std::cos(p.phase()[0] - p.phase()[1]), -1.0, 1e-4);
 }
 
-// The MLP against a straightforward double-precision reference, for every activation and output rule.
+// The MLP against a straightforward double-precision reference, for every activation and output rule, with
+// the portable kernel and the one dispatched on this CPU (mlp_kernel.hpp).
 TEST(Mlp, MatchesReferenceForEveryActivation) {
-  for (const char* act : {"swish", "elu", "tanh", "relu"})
+  for (const mlp_kernel::Variant* variant : {&mlp_kernel::portable_variant(), &mlp_kernel::selected_variant()})
+    for (const char* act : {"swish", "elu", "tanh", "relu"})
     for (const char* rule : {"tanh_normal", "linear"}) {
       const ArtifactSpec spec = make_spec({16, 8}, rule, act, 3);
       PolicyArtifact a = load_artifact(write_spec(std::string("mlp_") + act + rule, spec));
-      Mlp mlp(a);
+      Mlp mlp(a, *variant);
       Eigen::VectorXf x = Eigen::VectorXf::LinSpaced(a.obs_size, -2.0f, 2.0f);
       const Eigen::VectorXf y = mlp.run(x);
       Eigen::VectorXd h = x.cast<double>();
@@ -84,7 +86,7 @@ TEST(Mlp, MatchesReferenceForEveryActivation) {
       ASSERT_EQ(y.size(), 23);
       for (int k = 0; k < 23; ++k) {
         const double ref = std::string(rule) == "tanh_normal" ? std::tanh(h[k]) : h[k];
-        EXPECT_NEAR(y[k], ref, 1e-5) << act << " " << rule << " " << k;
+        EXPECT_NEAR(y[k], ref, 1e-5) << variant->name << " " << act << " " << rule << " " << k;
       }
     }
 }
@@ -140,30 +142,33 @@ TEST(Golden, ObservationAndActionMatchPython) {
   const nlohmann::json g = nlohmann::json::parse(in);
   const PolicyArtifact a = load_artifact((dir / g.at("artifact").get<std::string>()).string());
   const double tol = g.value("tolerance", 1e-5);
-  Mlp mlp(a);
-  int index = 0;
-  for (const auto& c : g.at("cases")) {
-    auto vec = [&](const char* key) { return c.at(key).get<std::vector<float>>(); };
-    const auto quat = vec("imu_quat"), gyro = vec("gyro"), cmd = vec("command"), q = vec("q"), dq = vec("dq"),
-               last = vec("last_action"), phase = vec("gait_phase");
-    Eigen::VectorXf obs(a.obs_size);
-    build_observation(a, {quat.data(), gyro.data(), cmd.data(), q.data(), dq.data(), last.data(), phase.data()}, obs);
-    const Eigen::VectorXf norm = (obs - a.obs_mean).cwiseQuotient(a.obs_std);
-    const Eigen::VectorXf action = mlp.run(norm);
-    auto expect_near = [&](const char* key, const float* got, std::size_t n) {
-      const auto want = vec(key);
-      ASSERT_EQ(want.size(), n) << key << " case " << index;
-      for (std::size_t k = 0; k < n; ++k) EXPECT_NEAR(got[k], want[k], tol) << key << "[" << k << "] case " << index;
-    };
-    expect_near("obs", obs.data(), obs.size());
-    expect_near("obs_normalized", norm.data(), norm.size());
-    expect_near("action", action.data(), action.size());
-    JointArray target{};
-    for (std::size_t j = 0; j < kJoints; ++j) target[j] = a.default_pose[j] + a.action_scale[j] * action[j];
-    expect_near("q_target", target.data(), kJoints);
-    ++index;
+  for (const mlp_kernel::Variant* variant : {&mlp_kernel::portable_variant(), &mlp_kernel::selected_variant()}) {
+    SCOPED_TRACE(variant->name);
+    Mlp mlp(a, *variant);
+    int index = 0;
+    for (const auto& c : g.at("cases")) {
+      auto vec = [&](const char* key) { return c.at(key).get<std::vector<float>>(); };
+      const auto quat = vec("imu_quat"), gyro = vec("gyro"), cmd = vec("command"), q = vec("q"), dq = vec("dq"),
+                 last = vec("last_action"), phase = vec("gait_phase");
+      Eigen::VectorXf obs(a.obs_size);
+      build_observation(a, {quat.data(), gyro.data(), cmd.data(), q.data(), dq.data(), last.data(), phase.data()}, obs);
+      const Eigen::VectorXf norm = (obs - a.obs_mean).cwiseQuotient(a.obs_std);
+      const Eigen::VectorXf action = mlp.run(norm);
+      auto expect_near = [&](const char* key, const float* got, std::size_t n) {
+        const auto want = vec(key);
+        ASSERT_EQ(want.size(), n) << key << " case " << index;
+        for (std::size_t k = 0; k < n; ++k) EXPECT_NEAR(got[k], want[k], tol) << key << "[" << k << "] case " << index;
+      };
+      expect_near("obs", obs.data(), obs.size());
+      expect_near("obs_normalized", norm.data(), norm.size());
+      expect_near("action", action.data(), action.size());
+      JointArray target{};
+      for (std::size_t j = 0; j < kJoints; ++j) target[j] = a.default_pose[j] + a.action_scale[j] * action[j];
+      expect_near("q_target", target.data(), kJoints);
+      ++index;
+    }
+    EXPECT_GT(index, 0);
   }
-  EXPECT_GT(index, 0);
 }
 
 // The training envs observe the gait clock before advancing it (reset observation = initial phase), so the

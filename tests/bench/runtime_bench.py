@@ -1,9 +1,10 @@
 """Runtime benchmarks of `make bench`, each printed next to a reference measured in the same run:
 
 1. MLP latency of the student shape (obs 82 -> 512 -> 256 -> 128 -> 46, swish, tanh_normal): t1rt::Mlp
-   (Eigen, runtime/bench/mlp_bench.cpp) against onnxruntime on the same weights (single thread, batch 1,
-   same input; run in the separate bench venv .venv-bench, see tools/bench_env.sh) and against the
-   memory-bandwidth bounds of its weights (DRAM streaming, L2-resident, weights-sized buffer).
+   (the kernel variant dispatched for this CPU, runtime/bench/mlp_bench.cpp; also its portable fallback and
+   a -march=native rebuild) against onnxruntime on the same weights (single thread, batch 1, same input; run
+   in the separate bench venv .venv-bench, see tools/bench_env.sh) and against the memory-bandwidth bounds
+   of its weights (DRAM streaming, L2-resident, weights-sized buffer).
 2. 500 Hz loop lateness of the runtime's PeriodicTask, default and --rt, against cyclictest.
 3. State -> command latency over LCM: t1-runtime --clock lockstep against a raw LCM echo.
 4. The same over DDS (t1-runtime --transport dds, Cyclone, the T1's own topics), next to the LCM row.
@@ -36,7 +37,7 @@ BENCH_BIN = BUILD / "runtime" / "bench"
 RUNTIME_BIN = BUILD / "runtime" / "t1-runtime"
 STUDENT_POLICY = ROOT / "tests" / "golden" / "random_policy.safetensors"  # random weights, student shape
 STUDENT_SHAPE = "82-512-256-128-46"
-MATCH_TOL = 1e-5                   # max |Eigen - onnxruntime| on the action before any timing counts
+MATCH_TOL = 1e-5                   # max |t1rt::Mlp - onnxruntime| on the action before any timing counts
 LOOP_PERIOD_US = 2000              # 500 Hz
 LOOP_RT_CPU = 1                    # core for --rt pinning and cyclictest -a (same core for both)
 CYCLICTEST_PRIO = 80               # SCHED_FIFO priority, = t1rt::RtOptions::fifo_priority
@@ -51,7 +52,7 @@ INPUT_SEED = 7
 # ------------------------------------------------------------------------------------ onnxruntime worker
 def ort_worker(directory: Path, iterations: int) -> dict:
     """Builds the ONNX graph from the weights in directory/weights.npz with the onnx helper API, runs the
-    input once (the value checked against Eigen), then times `iterations` single-thread batch-1 passes."""
+    input once (the value checked against t1rt::Mlp), then times `iterations` single-thread batch-1 passes."""
     import onnx
     import onnxruntime as ort
     from onnx import TensorProto, helper, numpy_helper
@@ -178,38 +179,41 @@ def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
             ort_check = _run_json(ort_cmd + ["--iterations", 0], 300)
             err = float(np.max(np.abs(ours_action - np.array(ort_check["action"]))))
             ok = err <= MATCH_TOL
-            print(f"check: max |Eigen - onnxruntime {ort_check['version']}| over the {ours_action.size} actions = "
+            print(f"check: max |t1rt::Mlp - onnxruntime {ort_check['version']}| over the {ours_action.size} actions = "
                   f"{err:.2e} ({'ok' if ok else 'MISMATCH'}, tolerance {MATCH_TOL:g})")
             if not ok:
                 raise SystemExit("runtime_bench: t1rt::Mlp and onnxruntime disagree; timings would compare different maths")
             ort = _run_json(ort_cmd + ["--iterations", iterations], 600)
         ours = _run_json(mlp_cmd + ["--iterations", iterations, "--cold-iterations", cold_iterations], 600)
-        native = None
-        if (BENCH_BIN / "t1rt_bench_mlp_native").exists():  # optional target (compiler with -march=native)
-            native_cmd = [BENCH_BIN / "t1rt_bench_mlp_native"] + mlp_cmd[1:]
-            native_err = float(np.max(np.abs(np.array(_run_json(native_cmd + ["--iterations", 0], 120)["action"])
-                                              - ours_action)))
-            if native_err <= MATCH_TOL:
-                native = _run_json(native_cmd + ["--iterations", iterations, "--cold-iterations", 0], 600)
+        # The same binary forced onto the portable kernel, and the whole policy code rebuilt for this CPU.
+        others = {}
+        for label, cmd in (("portable kernel (fallback), warm", mlp_cmd + ["--portable"]),
+                           ("rebuilt -march=native, warm", [BENCH_BIN / "t1rt_bench_mlp_native"] + mlp_cmd[1:])):
+            if not Path(cmd[0]).exists():  # the native target is optional (compiler without -march=native)
+                continue
+            err = float(np.max(np.abs(np.array(_run_json(cmd + ["--iterations", 0], 120)["action"]) - ours_action)))
+            if err <= MATCH_TOL:
+                others[label] = _run_json(cmd + ["--iterations", iterations, "--cold-iterations", 0], 600)
             else:
-                print(f"note: -march=native build differs from the portable one by {native_err:.2e}: not timed")
+                print(f"note: t1rt::Mlp {label.split(',')[0]} differs from the dispatched kernel by {err:.2e}: not timed")
 
     us = 1e-3
-    print(f"{'':<44}{'median µs':>11}{'p99 µs':>10}{'Eigen/this':>12}")
+    print(f"{'':<44}{'median µs':>11}{'p99 µs':>10}{'ours/this':>11}")
     med = ours["warm_ns_median"]
-    print(f"{'t1rt::Mlp (Eigen), warm, back to back':<44}{med * us:>11.1f}{ours['warm_ns_p99'] * us:>10.1f}{'1.00':>12}")
-    print(f"{'t1rt::Mlp (Eigen), cold (caches flushed)':<44}{ours['cold_ns_median'] * us:>11.1f}"
-          f"{ours['cold_ns_p99'] * us:>10.1f}{_ratio(med, ours['cold_ns_median']):>12}")
-    if native:
-        print(f"{'t1rt::Mlp rebuilt -march=native, warm':<44}{native['warm_ns_median'] * us:>11.1f}"
-              f"{native['warm_ns_p99'] * us:>10.1f}{_ratio(med, native['warm_ns_median']):>12}")
+    name = f"t1rt::Mlp ({ours['variant']} kernel)"
+    print(f"{name + ', warm, back to back':<44}{med * us:>11.1f}{ours['warm_ns_p99'] * us:>10.1f}{'1.00':>11}")
+    print(f"{name + ', cold':<44}{ours['cold_ns_median'] * us:>11.1f}"
+          f"{ours['cold_ns_p99'] * us:>10.1f}{_ratio(med, ours['cold_ns_median']):>11}")
+    for label, other in others.items():
+        print(f"{'t1rt::Mlp ' + label:<44}{other['warm_ns_median'] * us:>11.1f}"
+              f"{other['warm_ns_p99'] * us:>10.1f}{_ratio(med, other['warm_ns_median']):>11}")
     if ort:
         o, oh = ort["ns"], ort["overhead_ns"]
         print(f"{'onnxruntime ' + ort['version'] + ' (Python session.run)':<44}{o['median'] * us:>11.1f}"
-              f"{o['p99'] * us:>10.1f}{_ratio(med, o['median']):>12}")
+              f"{o['p99'] * us:>10.1f}{_ratio(med, o['median']):>11}")
         net = o["median"] - oh["median"]
         print(f"{'  minus call overhead (Identity graph ' + format(oh['median'] * us, '.1f') + ' µs)':<44}"
-              f"{net * us:>11.1f}{'':>10}{_ratio(med, net):>12}")
+              f"{net * us:>11.1f}{'':>10}{_ratio(med, net):>11}")
     wb, l2, llc = ours["weight_bytes"], ours["l2_bytes"], ours["llc_bytes"]
     fits_l2 = wb <= l2
     warm_level = "L2" if fits_l2 else ("LLC" if wb <= llc else "DRAM")
@@ -217,7 +221,7 @@ def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
               (f"bound: L2-resident read {ours['l2_read_GBps']:.1f} GB/s", ours["l2_bound_ns"]),
               (f"bound: weights-sized buffer ({warm_level}) {ours['cache_read_GBps']:.1f} GB/s", ours["cache_bound_ns"])]
     for label, ns in bounds:
-        print(f"{label:<44}{ns * us:>11.1f}{'':>10}{_ratio(med, ns):>12}")
+        print(f"{label:<44}{ns * us:>11.1f}{'':>10}{_ratio(med, ns):>11}")
     print(f"weights {wb / 1e6:.2f} MB ({wb:.0f} B); L2 {l2 / 2**10:.0f} KiB per core, LLC {llc / 2**20:.0f} MiB; "
           f"DRAM copy {ours['dram_copy_GBps']:.1f} GB/s over {ours['stream_bytes'] / 2**20:.0f} MiB.")
     if fits_l2:

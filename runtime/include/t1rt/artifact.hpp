@@ -6,11 +6,11 @@
 #include <string>
 #include <vector>
 
+#include "t1rt/activation.hpp"
 #include "t1rt/constants.hpp"
 
 namespace t1rt {
 
-enum class Activation { kSwish, kElu, kTanh, kRelu };
 enum class OutputRule { kTanhNormal, kLinear };
 
 struct ObsTerm {

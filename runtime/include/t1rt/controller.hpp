@@ -77,6 +77,7 @@ class Controller {
  private:
   void handle_commands();
   void publish_command();
+  void publish_policy_telemetry(double now_s);  // T1_OBS / T1_ACTION of this policy tick, after its command
   void adopt_ready_policy();
   void publish_status(double now_s);
   void print_live_line(double now_s);

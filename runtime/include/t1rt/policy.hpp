@@ -4,8 +4,10 @@
 #include <Eigen/Core>
 #include <array>
 #include <memory>
+#include <vector>
 
 #include "t1rt/artifact.hpp"
+#include "t1rt/mlp_kernel.hpp"
 
 namespace t1rt {
 
@@ -47,16 +49,28 @@ class GaitPhase {
   std::array<float, 2> phase_{0.0f, static_cast<float>(-M_PI)};  // offsets (0, pi), pi wrapped to -pi
 };
 
-// Dense MLP with preallocated activations.
+// Dense MLP: the artifact's weights repacked for the kernel variant (mlp_kernel.hpp) chosen at construction;
+// every buffer is allocated in the constructor.
 class Mlp {
  public:
-  explicit Mlp(const PolicyArtifact& artifact);
+  explicit Mlp(const PolicyArtifact& artifact,
+               const mlp_kernel::Variant& variant = mlp_kernel::selected_variant());
   // Returns the action (size kJoints) after the output rule.
   const Eigen::VectorXf& run(const Eigen::VectorXf& input);
+  const char* variant_name() const { return variant_.name; }
+  // Reads every packed weight once, so the next run() finds them in cache: for the idle time before a
+  // policy tick, when other work since the last one may have evicted them.
+  void warm_cache() const;
 
  private:
-  const PolicyArtifact& artifact_;
-  std::vector<Eigen::VectorXf> activations_;  // one per layer output
+  const mlp_kernel::Variant& variant_;
+  std::vector<float> storage_;                 // packed panels and biases of every layer, cache-line aligned
+  const float* packed_ = nullptr;              // their first value (aligned), packed_size_ values
+  std::size_t packed_size_ = 0;
+  std::vector<mlp_kernel::PackedLayer> layers_;
+  std::vector<std::vector<float>> outputs_;    // one per layer, padded to whole panels
+  std::vector<float*> output_ptrs_;
+  mlp_kernel::Net net_;
   Eigen::VectorXf action_;
 };
 
@@ -72,6 +86,8 @@ class PolicyEngine {
   Result step(const float* imu_quat, const float* gyro, const float* command, const float* q, const float* dq);
   const Eigen::VectorXf& obs_raw() const { return obs_raw_; }
   const Eigen::VectorXf& obs_normalized() const { return obs_norm_; }
+  void warm_cache() const { mlp_.warm_cache(); }  // Mlp::warm_cache
+  const char* mlp_variant() const { return mlp_.variant_name(); }
   // Composite mode, for the member that did NOT act this policy tick: its clock follows, and its
   // last_action becomes the applied joint targets [rad] in ITS action map, clip((q - pose) / scale, -1, 1),
   // as the stitched teacher hands each expert the env's one last action (training/teacher.py). The members'
