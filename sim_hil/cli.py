@@ -34,6 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--can-interface", default="direct", choices=INTERFACES,
                    help="carrier of the 4 buses' frames: direct = firmware_like's host link in C (fast); "
                         "virtual / udp_multicast = python-can buses (udp_multicast: visible to outside tools)")
+    p.add_argument("--python-tick", action="store_true",
+                   help="run every lockstep tick in Python (the reference the C++ tick is tested against; slower)")
     p.add_argument("--rt", action="store_true",
                    help="with --clock realtime: SCHED_FIFO priority (needs root or CAP_SYS_NICE; refusal reported)")
     p.add_argument("--lcm-url", default=None, help="default: $T1_LCM_URL or " + contract.DEFAULT_LCM_URL)
@@ -78,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
                     lcm_url=args.lcm_url or contract.lcm_url(), can_interface=args.can_interface,
                     can_log=args.can_log, record=args.record, lockstep_timeout_s=args.lockstep_timeout,
                     status_rate_hz=args.status_rate, dds=args.dds,
-                    viewer=args.viewer, rt=args.rt)
+                    viewer=args.viewer, rt=args.rt, python_tick=args.python_tick)
     shim = None
     if args.fastdds_compat:
         if not args.dds:

@@ -87,6 +87,7 @@ class DdsBridge:
         self.waitset.attach(ReadCondition(self.reader, ViewState.Any | InstanceState.Any | SampleState.NotRead))
         self.latest = None                  # newest valid LowCmd_
         self.latest_frames: bytes | None = None
+        self._lcm_subscribed = False        # Python LCM subscriptions (the live view's): poll handles lc too
         self.cmds_received = 0
         self.cmds_dropped = 0
         self.last_drop_reason = ""
@@ -123,8 +124,24 @@ class DdsBridge:
         if timeout_s > 0:
             self.waitset.wait(duration(microseconds=max(1, int(timeout_s * 1e6))))
 
+    def take_frames(self) -> bytes | None:
+        """The newest valid command's 23 CAN frames, once: a command goes on the bus once, as on the robot."""
+        frames, self.latest_frames = self.latest_frames, None
+        return frames
+
+    def subscribe(self, channel: str, handler) -> None:
+        """A Python LCM subscription beside the DDS link (the live view's), handled by poll."""
+        self.lc.subscribe(channel, handler)
+        self._lcm_subscribed = True
+
+    def close(self) -> None:
+        """Nothing to release by hand: the DDS entities go with the participant when the bridge is dropped."""
+
     def poll(self, timeout_s: float) -> None:
         """Handle incoming commands for up to timeout_s (0 = only what is already queued)."""
+        if self._lcm_subscribed:
+            while self.lc.handle_timeout(0) > 0:
+                pass
         if self._take() == 0 and timeout_s > 0:
             self._wait(timeout_s)
             self._take()

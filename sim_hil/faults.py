@@ -154,6 +154,19 @@ class FaultSchedule:
                 out[k] += v
         return out
 
+    def needs_python_tick(self, t_s: float, t_end_s: float) -> bool:
+        """Whether a fault the C++ lockstep tick does not model acts in the tick [t_s, t_end_s]: IMU noise or
+        bias (read at its start), a frozen encoder (read at every substep and at its end), a push due (dead
+        motors, lost and delayed frames it does)."""
+        for i, f in enumerate(self.faults):
+            if f.kind in ("imu_noise", "imu_bias") and f.active(t_s):
+                return True
+            if f.kind == "frozen" and f.start_s <= t_end_s and t_s < f.end_s:
+                return True
+            if f.kind == "push" and i not in self._pushes_done and t_end_s >= f.start_s:
+                return True
+        return False
+
     def due_pushes(self, t_s: float) -> list[tuple[float, float, float]]:
         """Impulses [N·s] to apply now (each once)."""
         due = []

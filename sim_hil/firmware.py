@@ -264,6 +264,11 @@ class MotorArray:
         self._status_p = self._status.ctypes.data
         self.reset()
 
+    @property
+    def address(self) -> int:
+        """Address of the t1_motor_array_t (for the simulator's C++ tick)."""
+        return self._p
+
     def reset(self) -> None:
         """Power-on reset of every motor (call on a simulator reset: time may restart from 0)."""
         _motor_array_init(self._p)
@@ -417,6 +422,11 @@ class Link:
         """Host → motors; returns the mask of motors that latched a command this cycle."""
         send = ALL_MOTORS_MASK if frames is not None else 0
         return int(_link_send(self._p, motors._p, now_us, frames, send, drop_mask, delay_cycles, dead_mask))
+
+    @property
+    def address(self) -> int:
+        """Address of the t1_link_t (for the simulator's C++ tick)."""
+        return self._p
 
     def counters(self) -> dict[str, int]:
         """Frames put on time on a wire, lost on it, and lost to a full carry or delay queue."""

@@ -22,6 +22,11 @@ class Imu:
         self._gyro = _sensor_slice(model, mujoco.mjtSensor.mjSENS_GYRO)
         self._accel = _sensor_slice(model, mujoco.mjtSensor.mjSENS_ACCELEROMETER)
 
+    @property
+    def addresses(self) -> tuple[int, int, int]:
+        """sensordata addresses of the orientation, gyro and accelerometer readings."""
+        return self._quat.start, self._gyro.start, self._accel.start
+
     def read(self, data: mujoco.MjData, noise: dict, bias: dict):
         """(quat w x y z, gyro [rad/s], accel [m/s²]) with noise (std) and bias applied."""
         quat = data.sensordata[self._quat].copy()

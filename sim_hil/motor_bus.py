@@ -35,7 +35,8 @@ def open_motor_bus(interface: str = "direct", can_log: str | None = None, rng=No
     return CanMotorBus("virtual" if interface == "direct" else interface, can_log, rng)
 
 
-def _mask(indices) -> int:
+def mask(indices) -> int:
+    """Motor indices → a bit mask (bit i = motor i)."""
     return sum(1 << i for i in indices)
 
 
@@ -71,20 +72,21 @@ class DirectMotorBus(MotorBus):
         super().__init__(rng)
         self.link = fw.Link()
 
-    def _lost(self, drop_rate: float) -> int:
+    def lost_mask(self, drop_rate: float) -> int:
+        """Which of the 23 frames of one direction the wire loses this cycle, each with drop_rate."""
         if drop_rate <= 0.0:
             return 0
         return int(self._BITS[self.rng.random(fw.NUM_MOTORS) < drop_rate].sum())
 
     def send_commands(self, command_frames: bytes | None, now_us: int, drop_rate: float = 0.0,
                       delay_cycles: int = 0, dead: set[int] = frozenset()) -> None:
-        self.link.send_commands(self.motors, now_us, command_frames, self._lost(drop_rate), delay_cycles,
-                                _mask(dead))
+        self.link.send_commands(self.motors, now_us, command_frames, self.lost_mask(drop_rate), delay_cycles,
+                                mask(dead))
 
     def exchange_replies(self, q_enc: np.ndarray, dq: np.ndarray, tau: np.ndarray, now_us: int,
                          drop_rate: float = 0.0, dead: set[int] = frozenset()) -> None:
         replies = self.motors.replies(q_enc, dq, tau)
-        got = self.link.exchange_replies(replies, fw.ALL_MOTORS_MASK & ~_mask(dead), self._lost(drop_rate))
+        got = self.link.exchange_replies(replies, fw.ALL_MOTORS_MASK & ~mask(dead), self.lost_mask(drop_rate))
         self._host_receives(self.link.host_frames.tobytes(), got)
 
     @property

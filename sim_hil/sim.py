@@ -31,6 +31,7 @@ from sim_hil import config
 from sim_hil.faults import FaultSchedule, parse_faults
 from sim_hil.imu import Imu
 from sim_hil.lcm_bridge import LcmBridge
+from sim_hil import motor_bus
 from sim_hil.motor_bus import open_motor_bus
 
 
@@ -51,6 +52,7 @@ class SimConfig:
     status_rate_hz: float = config.STATUS_RATE_HZ
     dds: bool = False                # serve rt/low_state + rt/joint_ctrl (DDS) instead of the LCM state/command
     viewer: bool = False             # MuJoCo's interactive viewer on the run (sim_hil/viewer.py)
+    python_tick: bool = False        # every tick in Python: the reference the C++ lockstep tick is tested against
     rt: bool = False                 # realtime clock under SCHED_FIFO (the runtime's --rt counterpart)
 
 
@@ -126,6 +128,15 @@ class Simulator:
         if cfg.viewer:
             from sim_hil.viewer import LiveViewer
             self.viewer = LiveViewer.open(self)      # None (said why) without a display: run headless
+        # The lockstep tick in one C++ call where it needs nothing from Python (tick_core.py); the LCM link and
+        # the C buses are what it steps, so DDS, the python-can buses and --python-tick keep the Python tick.
+        self._core_tick = None
+        self._commanded = False       # a valid command has arrived (lockstep waits longer for the first)
+        if (cfg.clock == "lockstep" and not cfg.python_tick and isinstance(self.link, LcmBridge)
+                and isinstance(self.bus, motor_bus.DirectMotorBus)):
+            from sim_hil.tick_core import LockstepTick
+            self._core_tick = LockstepTick(self.link.core, self.model, self.data, self.bus, self.substeps,
+                                           self.imu.addresses)
         # Power-on: motors answer once so the host has a state to publish at k = 0.
         self.bus.exchange_replies(*self._encoders(), self.data.qfrc_actuator[6:].copy(), 0)
 
@@ -195,20 +206,44 @@ class Simulator:
 
     # ---- the tick ------------------------------------------------------------------------------------
     def tick(self) -> None:
+        t = self.data.time
+        dead, drop = self.faults.dead_joints(t), self.faults.drop_rate(t)
+        if self._core_tick is not None and not self._needs_python(t):
+            self._frozen_q.clear()          # no encoder is frozen now
+            answered = self._core_tick(self.seq, self._lockstep_wait_s(), motor_bus.mask(dead),
+                                       self.bus.lost_mask(drop), self.bus.lost_mask(drop), self.faults.delay_ticks(t))
+            self.lockstep_timeouts += not answered
+        else:
+            self._python_tick(dead, drop)
+        self.seq += 1
+        if self.recorder is not None:
+            self.recorder.maybe_capture(self.data)
+        if self.seq % self._status_every == 0:
+            wall, sim_t = time.perf_counter(), self.data.time
+            self._rtf = (sim_t - self._rtf_mark[1]) / max(wall - self._rtf_mark[0], 1e-9)
+            self._rtf_mark = (wall, sim_t)
+            self.link.publish_status(self.status_message())
+
+    def _lockstep_wait_s(self) -> float:
+        """The client may still be starting until its first command: wait longer for that one."""
+        if not self._commanded:
+            self._commanded = self.link.cmds_received > 0
+        return self.cfg.lockstep_timeout_s if self._commanded else config.LOCKSTEP_FIRST_COMMAND_TIMEOUT_S
+
+    def _needs_python(self, t: float) -> bool:
+        """Whether this tick needs what only the Python tick does: IMU noise or bias, a frozen encoder, a push,
+        the live view's mouse."""
+        return self.viewer is not None or self.faults.needs_python_tick(t, t + config.CONTROL_DT_S)
+
+    def _python_tick(self, dead: set[int], drop: float) -> None:
         self._publish_state()
         if self.cfg.clock == "lockstep":
-            first = self.link.latest is None
-            wait = config.LOCKSTEP_FIRST_COMMAND_TIMEOUT_S if first else self.cfg.lockstep_timeout_s
-            if not self.link.wait_for_answer(self.seq, wait, time.perf_counter):
+            if not self.link.wait_for_answer(self.seq, self._lockstep_wait_s(), time.perf_counter):
                 self.lockstep_timeouts += 1
         else:
             self.link.poll(0.0)
-
         t = self.data.time
-        dead = self.faults.dead_joints(t)
-        drop = self.faults.drop_rate(t)
-        fresh = self.link.latest_frames
-        self.link.latest_frames = None          # a command is sent on the bus once, as on the robot
+        fresh = self.link.take_frames()
         self.bus.send_commands(fresh, self.now_us, drop, self.faults.delay_ticks(t), dead)
         for _ in range(self.substeps):
             q_enc, dq_enc = self._encoders()
@@ -224,15 +259,6 @@ class Simulator:
                 self.data.xfrc_applied[self.trunk_id, :3] -= push
         q_enc, dq_enc = self._encoders()
         self.bus.exchange_replies(q_enc, dq_enc, tau, self.now_us, drop, dead)
-        self.seq += 1
-
-        if self.recorder is not None:
-            self.recorder.maybe_capture(self.data)
-        if self.seq % self._status_every == 0:
-            wall, sim_t = time.perf_counter(), self.data.time
-            self._rtf = (sim_t - self._rtf_mark[1]) / max(wall - self._rtf_mark[0], 1e-9)
-            self._rtf_mark = (wall, sim_t)
-            self.link.publish_status(self.status_message())
 
     def run(self, on_status=None) -> None:
         """Tick until duration (or forever). Realtime: tick k starts at wall start + k·dt."""
@@ -258,3 +284,4 @@ class Simulator:
             self.recorder.close()
             self.recorder = None
         self.bus.close()
+        self.link.close()

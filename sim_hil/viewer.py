@@ -103,10 +103,8 @@ class LiveViewer:
         # Raw payloads, decoded at display rate only: the handlers run inside the sim's LCM polling.
         self._joystick: bytes | None = None
         self._status: bytes | None = None
-        lc = getattr(sim.link, "lc", None)       # LcmBridge and DdsBridge both keep an LCM handle
-        if lc is not None:
-            lc.subscribe(contract.CH_JOYSTICK, lambda _c, d: setattr(self, "_joystick", d))
-            lc.subscribe(contract.CH_CONTROLLER_STATUS, lambda _c, d: setattr(self, "_status", d))
+        sim.link.subscribe(contract.CH_JOYSTICK, lambda _c, d: setattr(self, "_joystick", d))
+        sim.link.subscribe(contract.CH_CONTROLLER_STATUS, lambda _c, d: setattr(self, "_status", d))
         with handle.lock():
             cam = handle.cam
             cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING

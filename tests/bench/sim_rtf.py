@@ -1,8 +1,8 @@
 """Lockstep real-time factor of the full-collision simulated T1 with the C++ runtime in the loop (separate
 process, over LCM, through the emulated CAN buses and the firmware motors), standing and fallen; next to
-the same with the python-can buses (--can-interface virtual, the carrier before firmware_like's host
-link), with a scripted Python client, and the bare physics of the same model stepped in this process
-(the ceiling the bus and LCM overhead is measured against). Target: >= 10x real time."""
+the same with every tick in Python (--python-tick) and with the python-can buses as well (--can-interface
+virtual: the simulator before issue 49), with a scripted Python client, and the bare physics of the same
+model stepped in this process (the ceiling the bus and LCM overhead is measured against). Target: >= 10x."""
 from __future__ import annotations
 
 import time
@@ -66,13 +66,16 @@ TARGET_RTF = 10.0
 
 def main() -> None:
     print(f"== sim_hil lockstep real-time factor ({SIM_SECONDS:g} s of sim time each; target >= {TARGET_RTF:g}x) ==")
-    print(f"{'spawn':<12}{'+ C++ runtime':>15}{'/ target':>10}{'python-can':>12}{'direct/pycan':>14}"
-          f"{'+ Py client':>13}{'physics only':>14}{'runtime/phys':>14}")
+    print(f"{'spawn':<12}{'+ C++ runtime':>15}{'/ target':>10}{'Python tick':>13}{'/ it':>7}{'+ python-can':>14}"
+          f"{'/ it':>7}{'+ Py client':>13}{'physics only':>14}{'/ it':>7}")
     for spawn in ("standing", "fallen:3"):
-        rt, pycan = runtime_hil_rtf(spawn), runtime_hil_rtf(spawn, SIM_SECONDS, "--can-interface", "virtual")
+        rt = runtime_hil_rtf(spawn)
+        py = runtime_hil_rtf(spawn, SIM_SECONDS, "--python-tick")
+        pycan = runtime_hil_rtf(spawn, SIM_SECONDS, "--python-tick", "--can-interface", "virtual")
         hil, phys = hil_rtf(spawn), physics_only_rtf(spawn)
-        print(f"{spawn:<12}{rt:>14.1f}x{rt / TARGET_RTF:>10.2f}{pycan:>11.1f}x{rt / pycan:>14.2f}"
-              f"{hil:>12.1f}x{phys:>13.1f}x{rt / phys:>14.2f}")
-    print("(C++ runtime: t1-runtime, untrained student, answers every state; python-can: the same with "
-          "--can-interface virtual; Py client: scripted PD client, a separate Python process; physics only: "
-          "mj_step + PD in this process, no bus, no LCM: the ceiling)")
+        print(f"{spawn:<12}{rt:>14.1f}x{rt / TARGET_RTF:>10.2f}{py:>12.1f}x{rt / py:>7.2f}{pycan:>13.1f}x"
+              f"{rt / pycan:>7.2f}{hil:>12.1f}x{phys:>13.1f}x{rt / phys:>7.2f}")
+    print("(C++ runtime: t1-runtime, untrained student, answers every state; Python tick: the same with "
+          "--python-tick; + python-can: and --can-interface virtual; Py client: scripted PD client, a separate "
+          "Python process; physics only: mj_step + PD in this process, no bus, no LCM: the ceiling; / it: the "
+          "C++-tick figure over the column's)")

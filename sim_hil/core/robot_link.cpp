@@ -1,0 +1,136 @@
+#include "robot_link.hpp"
+
+#include <sys/select.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include <t1/imu_t.hpp>
+#include <t1/joint_command_t.hpp>
+#include <t1/joint_state_t.hpp>
+#include <t1_contract.hpp>
+
+namespace t1sim {
+namespace {
+constexpr int kReportedDrops = 5;   // drop reasons printed; the rest only counted (commands come at 500 Hz)
+constexpr double kUsPerS = 1e6;
+
+template <size_t N>
+bool finite(const float (&v)[N]) {
+  for (float x : v)
+    if (!std::isfinite(x)) return false;
+  return true;
+}
+
+template <size_t N>
+bool within(const float (&v)[N], float lo, float hi) {
+  for (float x : v)
+    if (x < lo || x > hi) return false;
+  return true;
+}
+}  // namespace
+
+RobotLink::RobotLink(const std::string& url) : lcm_(url) {
+  if (lcm_.good()) lcm_.subscribe(t1::CH_JOINT_CMD, &RobotLink::on_command, this);
+}
+
+void RobotLink::publish_state(const StateReading& s) {
+  t1::imu_t imu{};
+  imu.utime = s.utime_us;
+  imu.seq = s.seq;
+  for (int i = 0; i < 4; ++i) imu.quat[i] = static_cast<float>(s.quat[i]);
+  for (int i = 0; i < 3; ++i) {
+    imu.gyro[i] = static_cast<float>(s.gyro[i]);
+    imu.accel[i] = static_cast<float>(s.accel[i]);
+  }
+  t1::joint_state_t js{};
+  js.utime = s.utime_us;
+  js.seq = s.seq;
+  for (unsigned i = 0; i < T1_NUM_MOTORS; ++i) {
+    js.q[i] = static_cast<float>(s.q[i]);
+    js.dq[i] = static_cast<float>(s.dq[i]);
+    js.tau_est[i] = static_cast<float>(s.tau[i]);
+    js.motor_status[i] = s.status[i];
+  }
+  lcm_.publish(t1::CH_IMU, &imu);
+  lcm_.publish(t1::CH_JOINT_STATE, &js);
+}
+
+void RobotLink::drop(const std::string& reason) {
+  ++dropped;
+  last_drop_reason = reason;
+  if (reported_ < kReportedDrops) {
+    std::fprintf(stderr, "sim_hil: dropped command: %s\n", reason.c_str());
+    ++reported_;
+  }
+}
+
+void RobotLink::on_command(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+  t1::joint_command_t c;
+  if (c.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return drop("undecodable T1_JOINT_CMD");
+  const struct { const char* name; const float (&v)[T1_NUM_MOTORS]; } fields[] = {
+      {"q_des", c.q_des}, {"dq_des", c.dq_des}, {"kp", c.kp}, {"kd", c.kd}, {"tau_ff", c.tau_ff}};
+  for (const auto& f : fields)
+    if (!finite(f.v)) return drop(std::string(f.name) + " contains NaN or Inf");
+  char why[96];
+  if (!within(c.kp, 0.0f, T1_PROTOCOL.kp_max)) {
+    std::snprintf(why, sizeof why, "kp outside [0, %g] N·m/rad", static_cast<double>(T1_PROTOCOL.kp_max));
+    return drop(why);
+  }
+  if (!within(c.kd, 0.0f, T1_PROTOCOL.kd_max)) {
+    std::snprintf(why, sizeof why, "kd outside [0, %g] N·m·s/rad", static_cast<double>(T1_PROTOCOL.kd_max));
+    return drop(why);
+  }
+  double q[T1_NUM_MOTORS], dq[T1_NUM_MOTORS], kp[T1_NUM_MOTORS], kd[T1_NUM_MOTORS], tau[T1_NUM_MOTORS];
+  for (unsigned i = 0; i < T1_NUM_MOTORS; ++i) {
+    q[i] = c.q_des[i];
+    dq[i] = c.dq_des[i];
+    kp[i] = c.kp[i];
+    kd[i] = c.kd[i];
+    tau[i] = c.tau_ff[i];
+  }
+  (void)t1_batch_pack_commands(q, dq, kp, kd, tau, frames_);   // all finite: nothing left unpacked
+  fresh_ = true;
+  ++received;
+  latest_state_seq_ = c.state_seq;
+  const auto* bytes = static_cast<const uint8_t*>(rbuf->data);
+  latest_payload_.assign(bytes, bytes + rbuf->data_size);
+}
+
+bool RobotLink::take_frames(uint8_t* out) {
+  if (!fresh_) return false;
+  std::memcpy(out, frames_, sizeof frames_);
+  fresh_ = false;
+  return true;
+}
+
+bool RobotLink::wait_readable(double timeout_s) {
+  if (timeout_s <= 0.0) return false;
+  const int fd = lcm_.getFileno();
+  fd_set fds;
+  FD_ZERO(&fds);
+  FD_SET(fd, &fds);
+  const auto us = static_cast<long>(timeout_s * kUsPerS);
+  timeval tv{us / 1000000L, us % 1000000L};
+  return select(fd + 1, &fds, nullptr, nullptr, &tv) > 0;
+}
+
+void RobotLink::poll(double timeout_s) {
+  while (lcm_.handleTimeout(0) > 0) {
+  }
+  if (wait_readable(timeout_s)) lcm_.handle();
+}
+
+bool RobotLink::wait_for_answer(int64_t state_seq, double timeout_s) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (!has_latest() || latest_state_seq_ < state_seq) {
+    const double left = std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
+    if (left <= 0.0) return false;
+    if (wait_readable(left)) lcm_.handle();
+  }
+  return true;
+}
+
+}  // namespace t1sim

@@ -1,0 +1,57 @@
+// The simulator's LCM robot link (sim_hil/lcm_bridge.py's engine): publishes T1_IMU and T1_JOINT_STATE,
+// receives T1_JOINT_CMD, and turns a valid command into the 23 CAN command frames at once. An unusable
+// command (undecodable, non-finite, gains outside the frame's range) is counted and dropped with a reason.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "t1_firmware.h"
+
+namespace t1sim {
+
+struct StateReading {  // what one state message pair carries (joint order, SI units)
+  int64_t utime_us, seq;
+  const double *quat, *gyro, *accel;   // 4, 3, 3
+  const double *q, *dq, *tau;          // NUM_MOTORS each
+  const int32_t* status;
+};
+
+class RobotLink {
+ public:
+  explicit RobotLink(const std::string& url);
+  bool good() const { return lcm_.good(); }
+
+  void publish_state(const StateReading& s);
+  int publish(const std::string& channel, const void* data, int size) { return lcm_.publish(channel, data, size); }
+  // Handle what is queued, then wait up to timeout_s [s] (to the microsecond) for more.
+  void poll(double timeout_s);
+  // Lockstep: handle commands until the one answering state_seq arrived (true) or timeout_s passed.
+  bool wait_for_answer(int64_t state_seq, double timeout_s);
+
+  bool has_latest() const { return !latest_payload_.empty(); }
+  int64_t latest_state_seq() const { return latest_state_seq_; }
+  const std::vector<uint8_t>& latest_payload() const { return latest_payload_; }
+  // The newest valid command's frames, once: a command goes on the bus once, as on the robot.
+  bool take_frames(uint8_t* out);
+
+  uint64_t received = 0, dropped = 0;
+  std::string last_drop_reason;
+
+ private:
+  void on_command(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
+  void drop(const std::string& reason);
+  bool wait_readable(double timeout_s);
+
+  lcm::LCM lcm_;
+  std::vector<uint8_t> latest_payload_;
+  int64_t latest_state_seq_ = -1;
+  uint8_t frames_[T1_NUM_MOTORS * T1_FRAME_SLOT_BYTES] = {};
+  bool fresh_ = false;
+  int reported_ = 0;
+};
+
+}  // namespace t1sim
