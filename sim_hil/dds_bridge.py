@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 
 import lcm
 import numpy as np

@@ -20,6 +20,7 @@ import numpy as np
 
 from sim_hil import can_wire
 from sim_hil import firmware as fw
+from sim_hil import firmware_buses as fwb
 
 INTERFACES = ("direct", "virtual", "udp_multicast")
 NO_REPLY = fw.STATUS_HOST_NO_REPLY   # host-side status bit (t1_motor_protocol.h §7): no reply frame this cycle
@@ -47,7 +48,7 @@ class MotorBus:
     def __init__(self, rng=None):
         self.rng = rng if rng is not None else np.random.default_rng(0)
         self.motors = fw.MotorArray()
-        self.view = fw.HostView()
+        self.view = fwb.HostView()
         self.q, self.dq, self.tau, self.status = self.view.q, self.view.dq, self.view.tau, self.view.status
 
     def motor_torques(self, q: np.ndarray, dq: np.ndarray, now_us: int, dead: set[int]) -> np.ndarray:
@@ -70,7 +71,7 @@ class DirectMotorBus(MotorBus):
 
     def __init__(self, rng=None):
         super().__init__(rng)
-        self.link = fw.Link()
+        self.link = fwb.Link()
 
     def lost_mask(self, drop_rate: float) -> int:
         """Which of the 23 frames of one direction the wire loses this cycle, each with drop_rate."""
@@ -105,7 +106,7 @@ class CanMotorBus(MotorBus):
 
     def __init__(self, interface: str = "virtual", can_log: str | None = None, rng=None):
         super().__init__(rng)
-        self.bus_models = [fw.BusModel(b) for b in range(len(fw.BUS_NAMES))]
+        self.bus_models = [fwb.BusModel(b) for b in range(len(fw.BUS_NAMES))]
         self.ends = [can_wire.open_pair(interface, b) for b in range(len(fw.BUS_NAMES))]
         self.log = can.Logger(can_log) if can_log else None
         n = fw.NUM_MOTORS

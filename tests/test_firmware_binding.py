@@ -10,6 +10,7 @@ import pytest
 
 from messages import contract
 from sim_hil import firmware as fw
+from sim_hil import firmware_buses as fwb
 
 N = fw.NUM_MOTORS
 ALL = fw.ALL_MOTORS_MASK
@@ -130,7 +131,7 @@ def test_bad_frames_through_python():
 
 
 def test_bus_model():
-    bus = fw.BusModel(2)
+    bus = fwb.BusModel(2)
     assert bus.capacity_bits == 2000
     bus.begin_cycle(0)
     zeros = bytes(8)
@@ -142,12 +143,12 @@ def test_bus_model():
     with pytest.raises(ValueError, match="arms"):
         bus.submit(0x900, zeros)
     with pytest.raises(IndexError):
-        fw.BusModel(4)
+        fwb.BusModel(4)
 
 
 def test_bus_array_cycle_and_timing():
     rng = np.random.default_rng(3)
-    motors, buses = fw.MotorArray(), fw.BusArray()
+    motors, buses = fw.MotorArray(), fwb.BusArray()
     cmd = _random_command(rng)
     q, dq = np.zeros(N), np.zeros(N)
     ticks = 2000

@@ -1,11 +1,9 @@
 """Issue 50 item 1: `python -m sim_hil --viewer` shows the running robot in MuJoCo's viewer; without a
 display it says so and the run completes headless."""
 import json
-import os
 import shutil
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
