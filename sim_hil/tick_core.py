@@ -60,6 +60,9 @@ class Link:
             _lib.t1_sim_link_close(self._p)
             self._p = None
 
+    def __del__(self) -> None:      # a simulator dropped without close(): its LCM receive thread goes too
+        self.close()
+
     def publish(self, channel: str, payload: bytes) -> None:
         _lib.t1_sim_link_publish(self._p, channel.encode(), payload, len(payload))
 
