@@ -1,10 +1,16 @@
 #include "robot_link.hpp"
 
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
 #include <sys/select.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 
 #include <t1/imu_t.hpp>
@@ -16,6 +22,10 @@ namespace t1sim {
 namespace {
 constexpr int kReportedDrops = 5;   // drop reasons printed; the rest only counted (commands come at 500 Hz)
 constexpr double kUsPerS = 1e6;
+constexpr uint32_t kShortMagic = 0x4C433032;   // "LC02": a message in one datagram
+constexpr size_t kHeaderBytes = 8;             // magic, sequence number
+constexpr size_t kMaxDatagramBytes = 65536;
+constexpr int kReceiveBufferBytes = 1 << 21;   // a slow tick must not cost a command to a full buffer
 
 template <size_t N>
 bool finite(const float (&v)[N]) {
@@ -32,8 +42,58 @@ bool within(const float (&v)[N], float lo, float hi) {
 }
 }  // namespace
 
-RobotLink::RobotLink(const std::string& url) : lcm_(url) {
-  if (lcm_.good()) lcm_.subscribe(t1::CH_JOINT_CMD, &RobotLink::on_command, this);
+// udpm://GROUP:PORT[?options] → the socket that receives the group's datagrams (-1 if it cannot).
+static int open_group_socket(const std::string& url) {
+  const std::string scheme = "udpm://";
+  if (url.compare(0, scheme.size(), scheme) != 0) return -1;
+  const auto colon = url.find(':', scheme.size());
+  if (colon == std::string::npos) return -1;
+  const std::string group = url.substr(scheme.size(), colon - scheme.size());
+  const int port = std::atoi(url.c_str() + colon + 1);
+  const int fd = socket(AF_INET, SOCK_DGRAM, IPPROTO_UDP);
+  if (fd < 0) return -1;
+  const int one = 1, rcvbuf = kReceiveBufferBytes;
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_ANY);
+  ip_mreq mreq{};
+  const bool ok = port > 0 && inet_aton(group.c_str(), &mreq.imr_multiaddr) != 0 &&
+                  setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) == 0 &&   // as LCM: all peers bind it
+                  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf) == 0 &&
+                  bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
+                  setsockopt(fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq) == 0 &&
+                  fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) | O_NONBLOCK) == 0;
+  if (!ok) {
+    close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+RobotLink::RobotLink(const std::string& url) : lcm_(url), sock_(open_group_socket(url)), rx_(kMaxDatagramBytes) {}
+
+RobotLink::~RobotLink() {
+  if (sock_ >= 0) close(sock_);
+}
+
+int RobotLink::handle_queued() {
+  uint8_t* buf = rx_.data();
+  const size_t name_len = std::strlen(t1::CH_JOINT_CMD) + 1;   // with its NUL
+  int n = 0;
+  for (;;) {
+    const ssize_t got = recv(sock_, buf, rx_.size(), 0);
+    if (got < 0) return n;
+    ++n;
+    const auto size = static_cast<size_t>(got);
+    if (size < kHeaderBytes + name_len || std::memcmp(buf + kHeaderBytes, t1::CH_JOINT_CMD, name_len) != 0) continue;
+    const uint32_t magic = (uint32_t{buf[0]} << 24) | (uint32_t{buf[1]} << 16) | (uint32_t{buf[2]} << 8) | buf[3];
+    if (magic != kShortMagic) {   // a fragmented message (> 64 kB): never a command
+      drop("T1_JOINT_CMD in fragments (not a command)");
+      continue;
+    }
+    on_command(buf + kHeaderBytes + name_len, size - kHeaderBytes - name_len);
+  }
 }
 
 void RobotLink::publish_state(const StateReading& s) {
@@ -67,9 +127,9 @@ void RobotLink::drop(const std::string& reason) {
   }
 }
 
-void RobotLink::on_command(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+void RobotLink::on_command(const uint8_t* payload, size_t size) {
   t1::joint_command_t c;
-  if (c.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return drop("undecodable T1_JOINT_CMD");
+  if (c.decode(payload, 0, static_cast<int>(size)) < 0) return drop("undecodable T1_JOINT_CMD");
   const struct { const char* name; const float (&v)[T1_NUM_MOTORS]; } fields[] = {
       {"q_des", c.q_des}, {"dq_des", c.dq_des}, {"kp", c.kp}, {"kd", c.kd}, {"tau_ff", c.tau_ff}};
   for (const auto& f : fields)
@@ -95,8 +155,7 @@ void RobotLink::on_command(const lcm::ReceiveBuffer* rbuf, const std::string&) {
   fresh_ = true;
   ++received;
   latest_state_seq_ = c.state_seq;
-  const auto* bytes = static_cast<const uint8_t*>(rbuf->data);
-  latest_payload_.assign(bytes, bytes + rbuf->data_size);
+  latest_payload_.assign(payload, payload + size);
 }
 
 bool RobotLink::take_frames(uint8_t* out) {
@@ -108,7 +167,7 @@ bool RobotLink::take_frames(uint8_t* out) {
 
 bool RobotLink::wait_readable(double timeout_s) {
   if (timeout_s <= 0.0) return false;
-  const int fd = lcm_.getFileno();
+  const int fd = sock_;
   fd_set fds;
   FD_ZERO(&fds);
   FD_SET(fd, &fds);
@@ -118,17 +177,16 @@ bool RobotLink::wait_readable(double timeout_s) {
 }
 
 void RobotLink::poll(double timeout_s) {
-  while (lcm_.handleTimeout(0) > 0) {
-  }
-  if (wait_readable(timeout_s)) lcm_.handle();
+  if (handle_queued() == 0 && wait_readable(timeout_s)) handle_queued();
 }
 
 bool RobotLink::wait_for_answer(int64_t state_seq, double timeout_s) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  handle_queued();
   while (!has_latest() || latest_state_seq_ < state_seq) {
     const double left = std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
     if (left <= 0.0) return false;
-    if (wait_readable(left)) lcm_.handle();
+    if (wait_readable(left)) handle_queued();
   }
   return true;
 }

@@ -1,6 +1,9 @@
 // The simulator's LCM robot link (sim_hil/lcm_bridge.py's engine): publishes T1_IMU and T1_JOINT_STATE,
 // receives T1_JOINT_CMD, and turns a valid command into the 23 CAN command frames at once. An unusable
 // command (undecodable, non-finite, gains outside the frame's range) is counted and dropped with a reason.
+// Commands are read from a UDP socket of the link's own on the LCM group (LCM's one-datagram format:
+// "LC02", sequence number, channel, payload), not through an LCM subscription: the library hands every
+// datagram from a receive thread to the caller, a wake-up per message, the sim's own states included.
 #pragma once
 
 #include <cstdint>
@@ -23,7 +26,10 @@ struct StateReading {  // what one state message pair carries (joint order, SI u
 class RobotLink {
  public:
   explicit RobotLink(const std::string& url);
-  bool good() const { return lcm_.good(); }
+  ~RobotLink();
+  RobotLink(const RobotLink&) = delete;
+  RobotLink& operator=(const RobotLink&) = delete;
+  bool good() const { return lcm_.good() && sock_ >= 0; }
 
   void publish_state(const StateReading& s);
   int publish(const std::string& channel, const void* data, int size) { return lcm_.publish(channel, data, size); }
@@ -42,11 +48,14 @@ class RobotLink {
   std::string last_drop_reason;
 
  private:
-  void on_command(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
+  void on_command(const uint8_t* payload, size_t size);
+  int handle_queued();   // commands read from the socket now; returns how many datagrams were read
   void drop(const std::string& reason);
   bool wait_readable(double timeout_s);
 
-  lcm::LCM lcm_;
+  lcm::LCM lcm_;        // publishing only: without a subscription it starts no receive thread
+  int sock_ = -1;
+  std::vector<uint8_t> rx_;   // one datagram
   std::vector<uint8_t> latest_payload_;
   int64_t latest_state_seq_ = -1;
   uint8_t frames_[T1_NUM_MOTORS * T1_FRAME_SLOT_BYTES] = {};
