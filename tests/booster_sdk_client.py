@@ -51,6 +51,10 @@ def main() -> None:
         time.sleep(COMMAND_PERIOD_S)
     print(json.dumps({"states": len(states), "motors": len(states[-1]), "head_yaw_first": first[HEAD_YAW],
                       "head_yaw_last": states[-1][HEAD_YAW]}), flush=True)
+    # Closed before the interpreter tears the SDK down: a state callback still running into that teardown
+    # segfaulted the client now and then, after its result was out.
+    sub.CloseChannel()
+    pub.CloseChannel()
 
 
 if __name__ == "__main__":
