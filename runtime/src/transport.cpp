@@ -1,9 +1,14 @@
 #include "t1rt/transport.hpp"
 
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <cstdlib>
+#include <cstring>
 #include <utility>
 
 #include "t1_contract.hpp"
+#include "t1_lcm_group.hpp"
 #include "t1rt/composite.hpp"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/safety.hpp"
@@ -12,6 +17,7 @@ namespace t1rt {
 
 namespace {
 constexpr double kUsToS = 1e-6;
+constexpr double kMsToS = 1e-3;
 }  // namespace
 
 const char* clock_name(ClockMode mode) { return mode == ClockMode::kLockstep ? "lockstep" : "realtime"; }
@@ -25,6 +31,7 @@ std::string resolve_lcm_url(const std::string& cli_url) {
 
 LcmTransport::~LcmTransport() {
   if (lcm_) lcm_destroy(lcm_);
+  if (sock_ >= 0) close(sock_);
 }
 
 bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error,
@@ -32,32 +39,61 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
   clock_ = clock;
   supervisor_ = supervisor;
   buffer_.assign(kEncodeBufferBytes, 0);
+  rx_.assign(t1::kLcmMaxDatagramBytes, 0);
   lcm_ = lcm_create(url.c_str());
   if (!lcm_) {
     *error = "lcm_create failed for URL '" + url + "' (multicast route missing? run inside tools/netns)";
     return false;
   }
-  if (subscribe_robot_state) {
-    lcm_subscribe(lcm_, t1::CH_IMU, &LcmTransport::on_imu, this);
-    lcm_subscribe(lcm_, t1::CH_JOINT_STATE, &LcmTransport::on_joint, this);
+  sock_ = t1::open_lcm_group_socket(url);
+  if (sock_ < 0) {
+    *error = "cannot receive on LCM URL '" + url + "' (a udpm://GROUP:PORT URL is needed; multicast route "
+             "missing? run inside tools/netns)";
+    return false;
   }
-  lcm_subscribe(lcm_, t1::CH_JOYSTICK, &LcmTransport::on_joystick, this);
-  lcm_subscribe(lcm_, t1::CH_RUNTIME_CMD, &LcmTransport::on_command, this);
+  if (subscribe_robot_state) {
+    subscribe(t1::CH_IMU, &LcmTransport::on_imu);
+    subscribe(t1::CH_JOINT_STATE, &LcmTransport::on_joint);
+  }
+  subscribe(t1::CH_JOYSTICK, &LcmTransport::on_joystick);
+  subscribe(t1::CH_RUNTIME_CMD, &LcmTransport::on_command);
   if (subscribe_sim_status) {
     // Decoding assigns the three strings; with this capacity (>= any accepted datagram) it never allocates.
     for (t1::sim_status_t* m : {&sim_status.msg, &sim_status.scratch})
       for (std::string* s : {&m->scenario, &m->clock, &m->active_faults}) s->reserve(kSimStatusMaxBytes);
-    lcm_subscribe(lcm_, t1::CH_SIM_STATUS, &LcmTransport::on_sim_status, this);
+    subscribe(t1::CH_SIM_STATUS, &LcmTransport::on_sim_status);
   }
   return true;
 }
 
-int LcmTransport::handle(int timeout_ms) { return lcm_handle_timeout(lcm_, timeout_ms); }
+void LcmTransport::subscribe(const char* channel, Handler handler) {
+  subscriptions_.at(subscription_count_++) = {channel, handler};
+}
 
-void LcmTransport::drain() {
-  while (lcm_handle_timeout(lcm_, 0) > 0) {
+int LcmTransport::handle_queued() {
+  int handled = 0;
+  for (;;) {
+    const ssize_t got = recv(sock_, rx_.data(), rx_.size(), 0);
+    if (got < 0) return handled;
+    t1::LcmDatagram m;
+    if (!t1::parse_lcm_datagram(rx_.data(), static_cast<std::size_t>(got), &m) || m.channel == nullptr) continue;
+    for (std::size_t i = 0; i < subscription_count_; ++i) {
+      if (std::strcmp(m.channel, subscriptions_[i].channel) != 0) continue;
+      ++handled;
+      if (m.fragment) ++decode_errors;
+      else (this->*subscriptions_[i].handler)({m.payload, static_cast<uint32_t>(m.size)});
+      break;
+    }
   }
 }
+
+int LcmTransport::handle(int timeout_ms) {
+  const int handled = handle_queued();
+  if (handled > 0 || !t1::wait_readable(sock_, timeout_ms * kMsToS)) return handled;
+  return handle_queued();
+}
+
+void LcmTransport::drain() { handle_queued(); }
 
 double LcmTransport::stamp(int64_t utime) const {
   return clock_ == ClockMode::kLockstep ? static_cast<double>(utime) * kUsToS
@@ -67,9 +103,9 @@ double LcmTransport::stamp(int64_t utime) const {
 // Safety rule R3 (src/safety_supervisor.cpp): decode into scratch; only a datagram that decodes exactly
 // (no error, no trailing bytes) may replace the live message.
 template <class Message>
-bool LcmTransport::decode_scratch(MessageSlot<Message>& slot, const lcm_recv_buf_t* rbuf) {
-  const int used = slot.scratch.decode(rbuf->data, 0, rbuf->data_size);
-  if (used < 0 || static_cast<uint32_t>(used) != rbuf->data_size) {
+bool LcmTransport::decode_scratch(MessageSlot<Message>& slot, const Datagram& d) {
+  const int used = slot.scratch.decode(d.data, 0, static_cast<int>(d.size));
+  if (used < 0 || static_cast<uint32_t>(used) != d.size) {
     ++decode_errors;
     return false;
   }
@@ -84,52 +120,47 @@ void LcmTransport::commit(MessageSlot<Message>& slot) {
   ++slot.received;
 }
 
-void LcmTransport::on_imu(const lcm_recv_buf_t* rbuf, const char*, void* p) {
-  auto* self = static_cast<LcmTransport*>(p);
-  if (!self->decode_scratch(self->imu, rbuf)) return;
-  if (self->supervisor_ && !self->supervisor_->accept_imu_seq(self->imu.scratch.seq)) return;
-  self->commit(self->imu);
+void LcmTransport::on_imu(const Datagram& d) {
+  if (!decode_scratch(imu, d)) return;
+  if (supervisor_ && !supervisor_->accept_imu_seq(imu.scratch.seq)) return;
+  commit(imu);
 }
 
-void LcmTransport::on_joint(const lcm_recv_buf_t* rbuf, const char*, void* p) {
-  auto* self = static_cast<LcmTransport*>(p);
-  if (!self->decode_scratch(self->joint, rbuf)) return;
-  if (self->supervisor_ && !self->supervisor_->accept_joint_seq(self->joint.scratch.seq)) return;
-  self->commit(self->joint);
-  self->new_joint_state = true;
+void LcmTransport::on_joint(const Datagram& d) {
+  if (!decode_scratch(joint, d)) return;
+  if (supervisor_ && !supervisor_->accept_joint_seq(joint.scratch.seq)) return;
+  commit(joint);
+  new_joint_state = true;
 }
 
-void LcmTransport::on_joystick(const lcm_recv_buf_t* rbuf, const char*, void* p) {
-  auto* self = static_cast<LcmTransport*>(p);
-  if (self->decode_scratch(self->joystick, rbuf)) self->commit(self->joystick);
+void LcmTransport::on_joystick(const Datagram& d) {
+  if (decode_scratch(joystick, d)) commit(joystick);
 }
 
-void LcmTransport::on_sim_status(const lcm_recv_buf_t* rbuf, const char*, void* p) {
-  auto* self = static_cast<LcmTransport*>(p);
-  if (rbuf->data_size > kSimStatusMaxBytes) {
-    ++self->sim_status_oversized;
+void LcmTransport::on_sim_status(const Datagram& d) {
+  if (d.size > kSimStatusMaxBytes) {
+    ++sim_status_oversized;
     return;
   }
-  if (self->decode_scratch(self->sim_status, rbuf)) self->commit(self->sim_status);
+  if (decode_scratch(sim_status, d)) commit(sim_status);
 }
 
-void LcmTransport::on_command(const lcm_recv_buf_t* rbuf, const char*, void* p) {
-  auto* self = static_cast<LcmTransport*>(p);
-  t1::runtime_cmd_t& c = self->command_scratch_;
-  const int used = c.decode(rbuf->data, 0, rbuf->data_size);
-  if (used < 0 || static_cast<uint32_t>(used) != rbuf->data_size) {
-    ++self->decode_errors;
+void LcmTransport::on_command(const Datagram& d) {
+  t1::runtime_cmd_t& c = command_scratch_;
+  const int used = c.decode(d.data, 0, static_cast<int>(d.size));
+  if (used < 0 || static_cast<uint32_t>(used) != d.size) {
+    ++decode_errors;
     return;
   }
   if (c.verb == "estop") {  // safety rule R2: outside the bounded queue
-    self->estop_pending = true;
+    estop_pending = true;
     return;
   }
-  if (self->command_count >= kCommandQueue) {
-    ++self->commands_dropped;
+  if (command_count >= kCommandQueue) {
+    ++commands_dropped;
     return;
   }
-  std::swap(self->commands[self->command_count++], c);
+  std::swap(commands[command_count++], c);
 }
 
 }  // namespace t1rt

@@ -33,6 +33,9 @@ class LcmPeer {
     m.encode(buf.data(), 0, static_cast<int>(buf.size()));
     lcm_publish(lcm_, channel, buf.data(), static_cast<unsigned>(buf.size()));
   }
+  void publish_raw(const char* channel, const uint8_t* data, std::size_t size) {
+    lcm_publish(lcm_, channel, data, static_cast<unsigned>(size));
+  }
   void command(const std::string& verb, const std::string& arg = "") {
     t1::runtime_cmd_t c{};
     c.verb = verb;

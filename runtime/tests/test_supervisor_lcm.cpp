@@ -151,6 +151,27 @@ TEST_F(SupervisorLcm, SequenceGapsCounted) {
   EXPECT_EQ(ctrl_->supervisor().imu_seq().gaps(), 5);
 }
 
+// The transport reads the LCM group itself (messages/cpp/t1_lcm_group.hpp): a datagram that does not decode,
+// and a message too large for one datagram (LCM sends it in fragments, which it does not reassemble), are
+// counted and leave the live state as it was; the next state is answered.
+TEST_F(SupervisorLcm, TruncatedAndFragmentedStatesCountedAndIgnored) {
+  step();
+  const float q0 = ctrl_->transport().joint.msg.q[0];
+  const int64_t errors = ctrl_->transport().decode_errors;
+  t1::joint_state_t js{};
+  js.seq = 1000;
+  js.q[0] = q0 + 1.0f;
+  std::vector<uint8_t> buf(js.getEncodedSize());
+  js.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  peer_.publish_raw(t1::CH_JOINT_STATE, buf.data(), buf.size() - 4);   // truncated
+  buf.resize(100 * 1024);                                              // trailing bytes, over 64 kB
+  peer_.publish_raw(t1::CH_JOINT_STATE, buf.data(), buf.size());
+  step();
+  EXPECT_EQ(ctrl_->transport().decode_errors, errors + 2);
+  EXPECT_FLOAT_EQ(ctrl_->transport().joint.msg.q[0], q0);
+  EXPECT_EQ(ctrl_->transport().joint.msg.seq, k_);
+}
+
 TEST_F(SupervisorLcm, NanInStateFaults) {
   to_policy();
   pose_[3] = NAN;

@@ -1,9 +1,5 @@
 #include "robot_link.hpp"
 
-#include <arpa/inet.h>
-#include <fcntl.h>
-#include <netinet/in.h>
-#include <sys/select.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -17,15 +13,11 @@
 #include <t1/joint_command_t.hpp>
 #include <t1/joint_state_t.hpp>
 #include <t1_contract.hpp>
+#include <t1_lcm_group.hpp>
 
 namespace t1sim {
 namespace {
 constexpr int kReportedDrops = 5;   // drop reasons printed; the rest only counted (commands come at 500 Hz)
-constexpr double kUsPerS = 1e6;
-constexpr uint32_t kShortMagic = 0x4C433032;   // "LC02": a message in one datagram
-constexpr size_t kHeaderBytes = 8;             // magic, sequence number
-constexpr size_t kMaxDatagramBytes = 65536;
-constexpr int kReceiveBufferBytes = 1 << 21;   // a slow tick must not cost a command to a full buffer
 
 template <size_t N>
 bool finite(const float (&v)[N]) {
@@ -42,57 +34,23 @@ bool within(const float (&v)[N], float lo, float hi) {
 }
 }  // namespace
 
-// udpm://GROUP:PORT[?options] → the socket that receives the group's datagrams (-1 if it cannot).
-static int open_group_socket(const std::string& url) {
-  const std::string scheme = "udpm://";
-  if (url.compare(0, scheme.size(), scheme) != 0) return -1;
-  const auto colon = url.find(':', scheme.size());
-  if (colon == std::string::npos) return -1;
-  const std::string group = url.substr(scheme.size(), colon - scheme.size());
-  const int port = std::atoi(url.c_str() + colon + 1);
-  const int fd = socket(AF_INET, SOCK_DGRAM, IPPROTO_UDP);
-  if (fd < 0) return -1;
-  const int one = 1, rcvbuf = kReceiveBufferBytes;
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_ANY);
-  ip_mreq mreq{};
-  const bool ok = port > 0 && inet_aton(group.c_str(), &mreq.imr_multiaddr) != 0 &&
-                  setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) == 0 &&   // as LCM: all peers bind it
-                  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf) == 0 &&
-                  bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
-                  setsockopt(fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq) == 0 &&
-                  fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) | O_NONBLOCK) == 0;
-  if (!ok) {
-    close(fd);
-    return -1;
-  }
-  return fd;
-}
-
-RobotLink::RobotLink(const std::string& url) : lcm_(url), sock_(open_group_socket(url)), rx_(kMaxDatagramBytes) {}
+RobotLink::RobotLink(const std::string& url) : lcm_(url), sock_(t1::open_lcm_group_socket(url)), rx_(t1::kLcmMaxDatagramBytes) {}
 
 RobotLink::~RobotLink() {
   if (sock_ >= 0) close(sock_);
 }
 
 int RobotLink::handle_queued() {
-  uint8_t* buf = rx_.data();
-  const size_t name_len = std::strlen(t1::CH_JOINT_CMD) + 1;   // with its NUL
   int n = 0;
   for (;;) {
-    const ssize_t got = recv(sock_, buf, rx_.size(), 0);
+    const ssize_t got = recv(sock_, rx_.data(), rx_.size(), 0);
     if (got < 0) return n;
     ++n;
-    const auto size = static_cast<size_t>(got);
-    if (size < kHeaderBytes + name_len || std::memcmp(buf + kHeaderBytes, t1::CH_JOINT_CMD, name_len) != 0) continue;
-    const uint32_t magic = (uint32_t{buf[0]} << 24) | (uint32_t{buf[1]} << 16) | (uint32_t{buf[2]} << 8) | buf[3];
-    if (magic != kShortMagic) {   // a fragmented message (> 64 kB): never a command
-      drop("T1_JOINT_CMD in fragments (not a command)");
-      continue;
-    }
-    on_command(buf + kHeaderBytes + name_len, size - kHeaderBytes - name_len);
+    t1::LcmDatagram m;
+    if (!t1::parse_lcm_datagram(rx_.data(), static_cast<size_t>(got), &m)) continue;
+    if (m.channel == nullptr || std::strcmp(m.channel, t1::CH_JOINT_CMD) != 0) continue;
+    if (m.fragment) drop("T1_JOINT_CMD in fragments (over 64 kB: not a command)");
+    else on_command(m.payload, m.size);
   }
 }
 
@@ -165,19 +123,8 @@ bool RobotLink::take_frames(uint8_t* out) {
   return true;
 }
 
-bool RobotLink::wait_readable(double timeout_s) {
-  if (timeout_s <= 0.0) return false;
-  const int fd = sock_;
-  fd_set fds;
-  FD_ZERO(&fds);
-  FD_SET(fd, &fds);
-  const auto us = static_cast<long>(timeout_s * kUsPerS);
-  timeval tv{us / 1000000L, us % 1000000L};
-  return select(fd + 1, &fds, nullptr, nullptr, &tv) > 0;
-}
-
 void RobotLink::poll(double timeout_s) {
-  if (handle_queued() == 0 && wait_readable(timeout_s)) handle_queued();
+  if (handle_queued() == 0 && t1::wait_readable(sock_, timeout_s)) handle_queued();
 }
 
 bool RobotLink::wait_for_answer(int64_t state_seq, double timeout_s) {
@@ -186,7 +133,7 @@ bool RobotLink::wait_for_answer(int64_t state_seq, double timeout_s) {
   while (!has_latest() || latest_state_seq_ < state_seq) {
     const double left = std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
     if (left <= 0.0) return false;
-    if (wait_readable(left)) handle_queued();
+    if (t1::wait_readable(sock_, left)) handle_queued();
   }
   return true;
 }

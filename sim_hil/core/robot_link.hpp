@@ -1,9 +1,8 @@
 // The simulator's LCM robot link (sim_hil/lcm_bridge.py's engine): publishes T1_IMU and T1_JOINT_STATE,
 // receives T1_JOINT_CMD, and turns a valid command into the 23 CAN command frames at once. An unusable
 // command (undecodable, non-finite, gains outside the frame's range) is counted and dropped with a reason.
-// Commands are read from a UDP socket of the link's own on the LCM group (LCM's one-datagram format:
-// "LC02", sequence number, channel, payload), not through an LCM subscription: the library hands every
-// datagram from a receive thread to the caller, a wake-up per message, the sim's own states included.
+// Commands are read from a socket of the link's own on the LCM group (messages/cpp/t1_lcm_group.hpp), not
+// through an LCM subscription, which would wake a receive thread for every datagram, the sim's own included.
 #pragma once
 
 #include <cstdint>
@@ -51,7 +50,6 @@ class RobotLink {
   void on_command(const uint8_t* payload, size_t size);
   int handle_queued();   // commands read from the socket now; returns how many datagrams were read
   void drop(const std::string& reason);
-  bool wait_readable(double timeout_s);
 
   lcm::LCM lcm_;        // publishing only: without a subscription it starts no receive thread
   int sock_ = -1;

@@ -1,5 +1,7 @@
-// LCM transport on the C API: subscriptions decode straight into preallocated message slots (the fixed-size
-// state messages decode without heap use); publishing encodes into one preallocated buffer.
+// LCM transport: the subscribed channels are read from a socket of our own on the LCM group
+// (messages/cpp/t1_lcm_group.hpp: no receive thread, one wake-up per state message) and decode straight into
+// preallocated message slots (the fixed-size state messages decode without heap use); publishing goes
+// through the LCM C API from one preallocated buffer.
 // Heap use that remains, on purpose, off the hot path: runtime_cmd_t carries std::string verb/argument,
 // so decoding an operator command allocates (rare, operator-driven, never per tick).
 #pragma once
@@ -51,7 +53,7 @@ class LcmTransport {
   // T1_JOINT_STATE on LCM are ignored (one source for the live state, never two).
   bool open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error,
             bool subscribe_sim_status = false, bool subscribe_robot_state = true);
-  int handle(int timeout_ms);  // >0 handled a message, 0 timeout, <0 error
+  int handle(int timeout_ms);  // >0 handled datagrams (waiting up to timeout_ms for the first), 0 timeout
   void drain();                // handle everything already queued, without waiting
 
   template <class Message>
@@ -72,22 +74,40 @@ class LcmTransport {
   std::size_t command_count = 0;
   bool estop_pending = false;    // estop never queues, so a full queue cannot drop it (safety rule R2)
   int64_t commands_dropped = 0;  // non-estop commands that found the queue full
-  int64_t decode_errors = 0;     // datagrams that failed to decode or had trailing bytes (any channel)
+  int64_t decode_errors = 0;     // subscribed datagrams that failed to decode, had trailing bytes or came
+                                 // in fragments (a message over 64 kB: none of ours)
 
  private:
-  static void on_imu(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
-  static void on_joint(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
-  static void on_joystick(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
-  static void on_sim_status(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
-  static void on_command(const lcm_recv_buf_t* rbuf, const char* channel, void* self);
+  struct Datagram {
+    const uint8_t* data;
+    uint32_t size;
+  };
+  using Handler = void (LcmTransport::*)(const Datagram&);
+  struct Subscription {
+    const char* channel;
+    Handler handler;
+  };
+  static constexpr std::size_t kMaxSubscriptions = 5;
+
+  void on_imu(const Datagram& d);
+  void on_joint(const Datagram& d);
+  void on_joystick(const Datagram& d);
+  void on_sim_status(const Datagram& d);
+  void on_command(const Datagram& d);
+  void subscribe(const char* channel, Handler handler);
+  int handle_queued();   // datagrams read now on subscribed channels
   double stamp(int64_t utime) const;
   template <class Message>
-  bool decode_scratch(MessageSlot<Message>& slot, const lcm_recv_buf_t* rbuf);
+  bool decode_scratch(MessageSlot<Message>& slot, const Datagram& d);
   template <class Message>
   void commit(MessageSlot<Message>& slot);
   t1::runtime_cmd_t command_scratch_;
 
-  lcm_t* lcm_ = nullptr;
+  lcm_t* lcm_ = nullptr;   // publishing only: without a subscription it starts no receive thread
+  int sock_ = -1;          // the group's datagrams
+  std::vector<uint8_t> rx_;
+  std::array<Subscription, kMaxSubscriptions> subscriptions_{};
+  std::size_t subscription_count_ = 0;
   ClockMode clock_ = ClockMode::kRealtime;
   Supervisor* supervisor_ = nullptr;
   std::vector<uint8_t> buffer_;

@@ -1,0 +1,99 @@
+// LCM's UDP multicast group read straight from a socket of one's own, for the peers on the tick's path (the
+// simulator's core, the runtime). Why: the LCM library hands every datagram from a receive thread through a
+// pipe, two wake-ups per message where the socket needs one. Publishing stays with the library.
+// Wire format (LCM's one-datagram message): "LC02" (big-endian magic), sequence number (4 bytes), the
+// channel name with its NUL, the payload. Messages over one datagram ("LC03" fragments: a 20-byte header, the
+// channel in the first piece only) are recognised, not reassembled: no channel on the tick's path needs them.
+#pragma once
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <sys/select.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+namespace t1 {
+
+inline constexpr uint32_t kLcmShortMagic = 0x4C433032;      // "LC02": a whole message in one datagram
+inline constexpr uint32_t kLcmFragmentMagic = 0x4C433033;   // "LC03": a piece of a larger message
+inline constexpr std::size_t kLcmHeaderBytes = 8;            // magic, sequence number
+inline constexpr std::size_t kLcmFragmentHeaderBytes = 20;   // + size, offset, piece number, pieces
+inline constexpr std::size_t kLcmMaxDatagramBytes = 65536;
+inline constexpr int kLcmGroupReceiveBufferBytes = 1 << 21;  // a slow tick must not lose a message to a full buffer
+
+// udpm://GROUP:PORT[?options] → a non-blocking socket on the group's port, joined to the group (-1 if the
+// URL is not udpm or the socket cannot be set up). All peers bind the port, as LCM does (SO_REUSEADDR).
+inline int open_lcm_group_socket(const std::string& url) {
+  const std::string scheme = "udpm://";
+  if (url.compare(0, scheme.size(), scheme) != 0) return -1;
+  const auto colon = url.find(':', scheme.size());
+  if (colon == std::string::npos) return -1;
+  const std::string group = url.substr(scheme.size(), colon - scheme.size());
+  const int port = std::atoi(url.c_str() + colon + 1);
+  const int fd = socket(AF_INET, SOCK_DGRAM, IPPROTO_UDP);
+  if (fd < 0) return -1;
+  const int one = 1, rcvbuf = kLcmGroupReceiveBufferBytes;
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_ANY);
+  ip_mreq mreq{};
+  const bool ok = port > 0 && port < 65536 && inet_aton(group.c_str(), &mreq.imr_multiaddr) != 0 &&
+                  setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) == 0 &&
+                  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf) == 0 &&
+                  bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
+                  setsockopt(fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq) == 0 &&
+                  fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) | O_NONBLOCK) == 0;
+  if (!ok) {
+    close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+// Whether fd became readable within timeout_s [s] (to the microsecond; false at once for timeout_s <= 0).
+inline bool wait_readable(int fd, double timeout_s) {
+  if (timeout_s <= 0.0) return false;
+  fd_set fds;
+  FD_ZERO(&fds);
+  FD_SET(fd, &fds);
+  const auto us = static_cast<long>(timeout_s * 1e6);
+  timeval tv{us / 1000000L, us % 1000000L};
+  return select(fd + 1, &fds, nullptr, nullptr, &tv) > 0;
+}
+
+struct LcmDatagram {
+  const char* channel = nullptr;   // NUL-terminated, inside the datagram (a fragment's: first piece only)
+  const uint8_t* payload = nullptr;   // a whole message's (unset for a fragment)
+  std::size_t size = 0;
+  bool fragment = false;           // an "LC03" piece of a larger message
+};
+
+// One received datagram → its channel and payload; false if it is not an LCM datagram.
+inline bool parse_lcm_datagram(const uint8_t* buf, std::size_t n, LcmDatagram* out) {
+  *out = LcmDatagram{};
+  if (n < kLcmHeaderBytes) return false;
+  const uint32_t magic = (uint32_t{buf[0]} << 24) | (uint32_t{buf[1]} << 16) | (uint32_t{buf[2]} << 8) | buf[3];
+  out->fragment = magic == kLcmFragmentMagic;
+  if (!out->fragment && magic != kLcmShortMagic) return false;
+  const std::size_t header = out->fragment ? kLcmFragmentHeaderBytes : kLcmHeaderBytes;
+  const bool named = !out->fragment || (n >= header && buf[16] == 0 && buf[17] == 0);   // piece number 0
+  if (n < header || !named) return out->fragment;
+  const auto* name = reinterpret_cast<const char*>(buf + header);
+  const auto* end = static_cast<const char*>(std::memchr(name, '\0', n - header));
+  if (end == nullptr) return false;
+  out->channel = name;
+  if (!out->fragment) {
+    out->payload = reinterpret_cast<const uint8_t*>(end + 1);
+    out->size = n - static_cast<std::size_t>(out->payload - buf);
+  }
+  return true;
+}
+
+}  // namespace t1
