@@ -8,6 +8,9 @@ DEFAULT_PHYSICS_DT_S = 0.002    # MuJoCo step; must divide CONTROL_DT_S
 STATUS_RATE_HZ = 10.0           # T1_SIM_STATUS rate (sim time)
 LOCKSTEP_TIMEOUT_S = 0.5        # wall time to wait for the command answering state k before going on
 LOCKSTEP_FIRST_COMMAND_TIMEOUT_S = 30.0   # the client may still be starting: wait longer for the first one
+# a batch of lockstep ticks in one C++ call ends this far [s] before the next fault edge at the latest, so
+# sim time's float rounding never puts the edge's own tick in it
+FAULT_EDGE_MARGIN_S = 1e-9
 # realtime clock: the last stretch before a tick's deadline is spent polling in a busy loop; a sleep that
 # long wakes late by its timer slack plus the scheduler's wake-up latency [s]
 REALTIME_SPIN_S = 0.0003

@@ -167,6 +167,12 @@ class FaultSchedule:
                 return True
         return False
 
+    def next_change_s(self, t_s: float) -> float:
+        """The first sim time after t_s at which a fault starts or ends (inf: none): until then every query
+        answers as at t_s, so the simulator may run the ticks before it in one batch."""
+        edges = [e for f in self.faults for e in (f.start_s, f.end_s) if e > t_s]
+        return min(edges, default=math.inf)
+
     def due_pushes(self, t_s: float) -> list[tuple[float, float, float]]:
         """Impulses [N·s] to apply now (each once)."""
         due = []

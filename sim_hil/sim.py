@@ -218,6 +218,37 @@ class Simulator:
         self.seq += 1
         if self.recorder is not None:
             self.recorder.maybe_capture(self.data)
+        self._maybe_publish_status()
+
+    def advance(self, max_ticks: int) -> int:
+        """Up to max_ticks lockstep ticks, as many as need nothing from Python in one C++ call (to the next
+        status message or fault edge), else one tick(); how many ran. Every tick is the one tick() would be."""
+        n = self._batchable_ticks(max_ticks)
+        if n <= 1:
+            self.tick()
+            return 1
+        t = self.data.time
+        self._frozen_q.clear()
+        answered = self._core_tick.run(self.seq, n, self._lockstep_wait_s(), motor_bus.mask(self.faults.dead_joints(t)),
+                                       self.faults.delay_ticks(t))
+        self.lockstep_timeouts += n - answered
+        self.seq += n
+        self._maybe_publish_status()
+        return n
+
+    def _batchable_ticks(self, max_ticks: int) -> int:
+        """How many ticks from now run in one C++ call: none needs Python (a status message ends a batch; a
+        recorder, a lost frame drawn per tick or a fault edge inside a tick keep it to one)."""
+        if self._core_tick is None or self.recorder is not None or not self._commanded:
+            return 1
+        t = self.data.time
+        if self.faults.drop_rate(t) > 0.0 or self._needs_python(t):
+            return 1
+        n = min(max_ticks, self._status_every - self.seq % self._status_every)
+        quiet_s = self.faults.next_change_s(t) - t - config.FAULT_EDGE_MARGIN_S
+        return min(n, int(quiet_s / config.CONTROL_DT_S)) if math.isfinite(quiet_s) else n
+
+    def _maybe_publish_status(self) -> None:
         if self.seq % self._status_every == 0:
             wall, sim_t = time.perf_counter(), self.data.time
             self._rtf = (sim_t - self._rtf_mark[1]) / max(wall - self._rtf_mark[0], 1e-9)
@@ -268,7 +299,9 @@ class Simulator:
             while n_ticks is None or self.seq < n_ticks:
                 if self.cfg.clock == "realtime":
                     self._wait_until(start + self.seq * config.CONTROL_DT_S)
-                self.tick()
+                    self.tick()
+                else:
+                    self.advance(self._status_every if n_ticks is None else n_ticks - self.seq)
                 if self.viewer is not None:
                     self.viewer.maybe_sync(self)
                 if on_status is not None and self.seq % self._status_every == 0:

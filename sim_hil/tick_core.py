@@ -35,7 +35,8 @@ def _load() -> C.CDLL:
             ("t1_sim_link_poll", None, [vp, f64]), ("t1_sim_link_wait_for_answer", C.c_int, [vp, i64, f64]),
             ("t1_sim_link_take_frames", C.c_int, [vp, vp]), ("t1_sim_link_latest", C.c_int, [vp, vp, C.c_int]),
             ("t1_sim_link_counters", None, [vp, vp]), ("t1_sim_link_last_drop_reason", C.c_char_p, [vp]),
-            ("t1_sim_lockstep_tick", C.c_int, [vp, vp, vp, i64, f64])):
+            ("t1_sim_lockstep_tick", C.c_int, [vp, vp, vp, i64, f64]),
+            ("t1_sim_lockstep_ticks", C.c_int, [vp, vp, vp, i64, C.c_int, f64])):
         fn = getattr(lib, name)
         fn.restype, fn.argtypes = res, args
     return lib
@@ -127,10 +128,19 @@ class LockstepTick:
         self._faults = _Faults()
         self._plant_p, self._faults_p = C.addressof(self._plant), C.addressof(self._faults)
 
-    def __call__(self, seq: int, wait_s: float, dead_mask: int = 0, cmd_drop_mask: int = 0,
-                 reply_drop_mask: int = 0, delay_cycles: int = 0) -> bool:
-        """One tick; True if the command answering state `seq` arrived within wait_s."""
+    def _set_faults(self, dead_mask: int, cmd_drop_mask: int, reply_drop_mask: int, delay_cycles: int) -> None:
         f = self._faults
         f.dead_mask, f.cmd_drop_mask, f.reply_drop_mask, f.delay_cycles = (
             dead_mask, cmd_drop_mask, reply_drop_mask, delay_cycles)
+
+    def __call__(self, seq: int, wait_s: float, dead_mask: int = 0, cmd_drop_mask: int = 0,
+                 reply_drop_mask: int = 0, delay_cycles: int = 0) -> bool:
+        """One tick; True if the command answering state `seq` arrived within wait_s."""
+        self._set_faults(dead_mask, cmd_drop_mask, reply_drop_mask, delay_cycles)
         return bool(_lib.t1_sim_lockstep_tick(self._link._p, self._plant_p, self._faults_p, seq, wait_s))
+
+    def run(self, seq0: int, n: int, wait_s: float, dead_mask: int = 0, delay_cycles: int = 0) -> int:
+        """Ticks seq0 … seq0 + n − 1 under the same faults (no frame lost: a loss is drawn per tick); how many
+        were answered within wait_s."""
+        self._set_faults(dead_mask, 0, 0, delay_cycles)
+        return _lib.t1_sim_lockstep_ticks(self._link._p, self._plant_p, self._faults_p, seq0, n, wait_s)

@@ -31,3 +31,28 @@ def test_the_cpp_tick_publishes_what_the_python_tick_does(netns, faults):
         assert len(cpp) == len(python) == 500, name
         first = next((k for k, (a, b) in enumerate(zip(cpp, python)) if a != b), None)
         assert first is None, f"{name} {first} differs between the C++ and the Python tick"
+
+
+def test_ticks_between_status_messages_and_fault_edges_run_in_one_call(netns):
+    """Simulator.advance batches the ticks that need nothing from Python up to the next status message or
+    fault edge (the bit-for-bit test above runs the batches: the sim's run loop advances)."""
+    from sim_hil.faults import FaultSchedule, parse_faults
+    from sim_hil.sim import SimConfig, Simulator
+
+    schedule = FaultSchedule(parse_faults("dead:joint=3@0.1-0.3;push:x=5@0.5"))
+    assert [schedule.next_change_s(t) for t in (0.0, 0.1, 0.35, 0.5)] == [0.1, 0.3, 0.5, float("inf")]
+    sim = Simulator(SimConfig(clock="lockstep", spawn="standing", lcm_url=contract.lcm_url(),
+                              faults="dead:joint=3@0.1-0.3;drop:rate=0.5@0.4"))
+    try:
+        assert sim._batchable_ticks(1000) == 1           # until the first command: one tick at a time
+        sim._commanded = True
+        every = sim._status_every
+        assert sim._batchable_ticks(1000) == min(every, 49) and sim._batchable_ticks(7) == 7   # dead starts at 0.1 s
+        sim.data.time, sim.seq = 0.2, 100
+        assert sim._batchable_ticks(1000) == min(every, 49)  # dead ends at 0.3 s: 50 ticks, the last at the edge
+        sim.seq = 100 + every - 3
+        assert sim._batchable_ticks(1000) == 3           # the status message ends a batch
+        sim.data.time = 0.45
+        assert sim._batchable_ticks(1000) == 1           # frames lost at random: drawn per tick, in Python
+    finally:
+        sim.close()

@@ -123,4 +123,13 @@ int t1_sim_lockstep_tick(RobotLink* link, const t1_sim_plant* p, const t1_sim_ti
   return answered;
 }
 
+// Ticks seq0 … seq0 + n − 1 under the same faults (the simulator batches the ticks between two things that
+// need Python: a status message, a fault window's edge); returns how many were answered within wait_s.
+int t1_sim_lockstep_ticks(RobotLink* link, const t1_sim_plant* p, const t1_sim_tick_faults* f, int64_t seq0,
+                          int n, double wait_s) {
+  int answered = 0;
+  for (int i = 0; i < n; ++i) answered += t1_sim_lockstep_tick(link, p, f, seq0 + i, wait_s);
+  return answered;
+}
+
 }  // extern "C"
