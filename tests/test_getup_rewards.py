@@ -196,6 +196,20 @@ def test_stage_rewards(full_env):
     assert float(t2["pose"]) == pytest.approx(float(G.pose_reward(_state(s2).qpos[7:], s2._default_pose)), rel=1e-5)
 
 
+def test_stage1_pays_its_gate_reward_only_while_the_gate_holds_this_step():
+    """stage1_gate_reward (ours; 0 = the seed): added to stage 1's Height Reward on a step that meets §4.8's
+    gate (trunk above 0.395 m, within 0.573° of vertical), whatever the latched gate says."""
+    plain = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
+    paid = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2, "stage1_gate_reward": 1.5})
+    for tilt_deg, h, meets in ((0.3, 0.40, True), (1.25, 0.40, False), (0.3, 0.39, False)):
+        info = {"trunk_height": jnp.asarray(h), "waist_height": jnp.asarray(0.29), "up": jnp.asarray(_tilted(tilt_deg)),
+                "up_z": jnp.asarray(float(_tilted(tilt_deg)[2])), "gate": jnp.asarray(True)}
+        extra = float(paid.reward_terms(_state(paid), info)["height"] - plain.reward_terms(_state(plain), info)["height"])
+        assert extra == pytest.approx(1.5 if meets else 0.0, abs=1e-6), (tilt_deg, h)
+    with pytest.raises(ValueError, match="stage1_gate_reward"):
+        envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2, "stage1_gate_reward": -1.0})
+
+
 def test_start_probabilities_per_stage(full_env):
     assert full_env.start_probabilities() == pytest.approx([0.4, 0.4, 0.2])
     s2 = envs.make("getup", config_overrides={"stage": "stage2"})

@@ -1,7 +1,8 @@
 """Getup expert: the seed's keyframe curriculum (thesis §4.5–4.8) on the full-body-collision model.
 
 Stages (config.stage), rewards from getup_rewards.py (formulas there):
-* "stage1" fallen → kneel: starts fallen; Height = HO(kneel targets), Pose = pose(q, q_kneel).
+* "stage1" fallen → kneel: starts fallen; Height = HO(kneel targets), Pose = pose(q, q_kneel); ours, off by
+  default: config.stage1_gate_reward per step while the gate holds (getup_rewards.kneel_height_reward).
 * "stage2" kneel → stand: starts kneeling; Height = HO(torso 0.67, waist 0.55), Pose = pose(q, q_init): the
   same two §4.7 rewards as stage 1, toward the standing reference. The 1.83 / 0.6 bonuses and the 100·
   weight belong to the gate, which §4.8 introduces "to train the full getup controller"; without a gate
@@ -207,6 +208,9 @@ class Getup(GetupBase):
         if self._failed_rise_cost < 0.0:
             raise ValueError(f"failed_rise.cost must be >= 0, got {self._failed_rise_cost}")
         self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
+        self._stage1_gate_reward = float(self._config.get("stage1_gate_reward", 0.0))   # older runs: none
+        if self._stage1_gate_reward < 0.0:
+            raise ValueError(f"stage1_gate_reward must be >= 0, got {self._stage1_gate_reward}")
 
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
         """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn."""
@@ -315,7 +319,8 @@ class Getup(GetupBase):
         stand_p = G.pose_reward(q, self._default_pose)
         ok = info["gate"]
         if stage == "stage1":
-            height, pose = kneel_h, kneel_p
+            gate_now = G.gate(info["trunk_height"], info["up"])
+            height, pose = G.kneel_height_reward(gate_now, kneel_h, self._stage1_gate_reward), kneel_p
         elif stage == "stage2":
             height, pose = stand_h, stand_p
         else:

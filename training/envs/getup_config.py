@@ -44,6 +44,9 @@ def default_config() -> config_dict.ConfigDict:
     # (fallen, kneeling, standing) of the curriculum's stages: the seed's stage 1 starts fallen, stage 2 at
     # the kneel. A kneeling share in stage 1 (ours, a reverse curriculum) shows PPO the kneel's reward early
     cfg.stage1_start_probs = [1.0, 0.0, 0.0]
+    # stage 1's reward per step while §4.8's gate holds that step (getup_rewards.kneel_height_reward; ours,
+    # 0 = the seed's stage 1)
+    cfg.stage1_gate_reward = 0.0
     cfg.stage2_start_probs = [0.0, 1.0, 0.0]
     cfg.energy_weight = 0.0
     cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)

@@ -107,6 +107,14 @@ def gate(h_torso, up):
     return high & (up_error(up) < GATE_UP_ERROR)
 
 
+def kneel_height_reward(gate_now, ho_kneel, gate_reward):
+    """Stage 1's Height Reward: HO(kneel targets) + gate_reward while §4.8's gate holds this step (ours; 0 = the
+    seed's). Why: holding the kneel keyframe's joint angles under PD sags the trunk 1.25° (the gate wants
+    0.57°), which the pose term pays 0.999 of its best: without a reward for the gate itself, stage 1 meets
+    it only by chance."""
+    return ho_kneel + gate_reward * gate_now.astype(jnp.float32)
+
+
 def gated_height_reward(gate_ok, ho_kneel, ho_standing):
     g = gate_ok.astype(jnp.float32)
     return (1.0 - g) * ho_kneel + g * (STANDUP_HEIGHT_BONUS + ho_standing)
