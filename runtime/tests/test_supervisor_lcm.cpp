@@ -364,3 +364,13 @@ TEST(SeqTracker, RejectsOlderFramesAndCountsOnlyRealGaps) {
   EXPECT_EQ(t.gaps(), 85);
   EXPECT_EQ(t.reordered(), 3);
 }
+
+// The transport receives on its own socket on the LCM group: a URL that names none is refused, naming the URL.
+TEST(LcmTransportOpen, UrlWithoutAMulticastGroupRefused) {
+  for (const char* url : {"memq://", "udpm://239.255.76.67", "udpm://not-an-address:7667"}) {
+    LcmTransport transport;
+    std::string error;
+    EXPECT_FALSE(transport.open(url, ClockMode::kLockstep, nullptr, &error)) << url;
+    EXPECT_NE(error.find(std::string("'") + url + "'"), std::string::npos) << error;
+  }
+}
