@@ -51,7 +51,7 @@ from mujoco_playground._src import mjx_env
 from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
-from training.envs import handover, start_path, upright
+from training.envs import handover, rise_bank, start_path, upright
 from common.events import FALLEN_TRUNK_HEIGHT_M
 from common.events import STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import PREPARE_S, fallen_states
@@ -213,25 +213,33 @@ class Getup(GetupBase):
             raise ValueError(f"stage1_gate_reward must be >= 0, got {self._stage1_gate_reward}")
 
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
-        """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn."""
-        banks = []
-        for name, make in (("knockdown_starts", handover.knockdown_bank), ("wall_starts", self._wall_bank),
-                           ("push_starts", handover.push_test_bank)):
+        """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn. The
+        shares are checked before any bank is rolled."""
+        wanted = []
+        for name, policy_key, make in (("knockdown_starts", "joystick_policy", handover.knockdown_bank),
+                                       ("wall_starts", "joystick_policy", self._wall_bank),
+                                       ("push_starts", "joystick_policy", handover.push_test_bank),
+                                       ("rise_starts", "getup_policy", self._rise_bank)):
             b = self._config.get(name)   # runs made before a bank existed have no such key
             if b is None:
                 continue
             if not 0.0 <= b.prob <= 1.0:
                 raise ValueError(f"{name}.prob must be in [0, 1], got {b.prob}")
             if b.prob > 0:
-                if not b.joystick_policy:
-                    raise ValueError(f"{name}.prob > 0 needs {name}.joystick_policy (a joystick artifact or "
-                                     "checkpoint)")
-                bank = make(self._make_env, b.joystick_policy, int(b.bank_starts), int(b.seed))
-                banks.append((float(b.prob), tuple(jnp.asarray(x) for x in bank)))
-        if sum(p for p, _ in banks) > 1.0 + 1e-9:
-            raise ValueError(f"knockdown_starts.prob + wall_starts.prob + push_starts.prob must be at most 1, "
-                             f"got {' + '.join(str(p) for p, _ in banks)}")
-        return banks
+                if not b[policy_key]:
+                    raise ValueError(f"{name}.prob > 0 needs {name}.{policy_key} (an artifact, checkpoint or run "
+                                     "directory)")
+                wanted.append((float(b.prob), make, b[policy_key], int(b.bank_starts), int(b.seed)))
+        if sum(w[0] for w in wanted) > 1.0 + 1e-9:
+            raise ValueError(f"knockdown_starts.prob + wall_starts.prob + push_starts.prob + rise_starts.prob must "
+                             f"be at most 1, got {' + '.join(str(w[0]) for w in wanted)}")
+        return [(prob, tuple(jnp.asarray(x) for x in make(self._make_env, policy, n, seed)))
+                for prob, make, policy, n, seed in wanted]
+
+    def _rise_bank(self, make_env, getup_policy: str, num_starts: int, seed: int):
+        r = self._config.rise_starts
+        return rise_bank.rise_bank(make_env, getup_policy, float(r.harness_n_per_m), float(r.harness_slack_m),
+                                   num_starts, seed, float(r.min_progress))
 
     def _wall_bank(self, make_env, joystick_policy: str, num_starts: int, seed: int):
         return handover.wall_bank(make_env, joystick_policy, num_starts, seed,

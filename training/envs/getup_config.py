@@ -62,8 +62,13 @@ def default_config() -> config_dict.ConfigDict:
     cfg.wall_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=400_000)
     # push-test starts (handover.push_test_bank; ours): this share of the fallen starts is where the teacher
     # hands `joystick_policy` over after the loop's push test shoved it (a torso impulse, forward or backward),
-    # from `bank_starts` standing starts. The three shares sum to at most 1
+    # from `bank_starts` standing starts. The shares of these and rise_starts sum to at most 1
     cfg.push_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=500_000)
+    # rise starts (rise_bank.py; ours, stage 1's reverse curriculum): this share of the fallen starts is instead
+    # a state along the rises `getup_policy` makes with the harness (stiffness [N/m], slack [m]) from
+    # `bank_starts` fallen starts (seeds from `seed`), at progress min_progress … 1 toward the kneel
+    cfg.rise_starts = config_dict.create(prob=0.0, getup_policy="", harness_n_per_m=400.0, harness_slack_m=0.45,
+                                         bank_starts=128, seed=600_000, min_progress=0.5)
     # the composite's upright member in the world (training/envs/upright.py; ours): a joystick artifact that
     # drives whenever the waist is at or above the teacher's switch height; "" = the getup expert alone
     cfg.upright_policy = ""
