@@ -64,7 +64,7 @@ def _status_line(sim) -> None:
 
 
 def _start_log(args, cfg, argv: list[str]):
-    """lcm-logger on the sim's URL: everything the sim and whoever talks to it publish (sim_hil/lcmlog)."""
+    """t1-lcm-logger on the sim's URL: everything the sim and whoever talks to it publish (sim_hil/lcmlog)."""
     from sim_hil.lcmlog.capture import LogCapture, RunInfo
     path = Path(args.log) if args.log else config.SIM_LOG_DIR / (
         f"{cfg.scenario}_{cfg.spawn.replace(':', '-')}_{cfg.clock}_{time.strftime('%Y%m%d-%H%M%S')}.lcmlog")

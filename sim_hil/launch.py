@@ -12,6 +12,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 BUILD = Path(os.environ.get("T1_BUILD", ROOT / "build"))
 RUNTIME = BUILD / "runtime" / "t1-runtime"
+LOGGER = BUILD / "sim_hil" / "core" / "t1-lcm-logger"   # sim_hil/core/lcm_logger.cpp
 RUNTIME_OPEN_MARGIN_S = 0.2     # banner printed -> LCM subscribed: microseconds; this is margin
 
 

@@ -219,3 +219,30 @@ def test_make_sim_logs_by_default_under_out_sim_and_not_with_no_log(netns):
         assert log.first(contract.CH_RUN_INFO).producer == "sim"
     finally:
         path.unlink()
+
+
+def test_the_logger_refuses_bad_arguments_and_skips_foreign_channels(tmp_path, netns):
+    """t1-lcm-logger (sim_hil/core/lcm_logger.cpp): a wrong argument exits 2 naming it; it logs only the
+    channels it is given, whole, in order, and writes what it holds at SIGINT."""
+    import lcm
+    import signal
+    from sim_hil.launch import LOGGER
+    for bad, why in ((["--bogus"], "--bogus"), (["--flush-interval=0", "--lcm-url=x", "--channels=A", "f"], "ms > 0"),
+                     (["--lcm-url", contract.lcm_url(), str(tmp_path / "x.lcmlog")], "required")):
+        run = subprocess.run([str(LOGGER), *bad], capture_output=True, text=True)
+        assert run.returncode == 2 and why in run.stderr, run.stderr
+    path = tmp_path / "kept.lcmlog"
+    proc = subprocess.Popen([str(LOGGER), f"--lcm-url={contract.lcm_url()}", f"--channels={contract.CH_JOINT_STATE}",
+                             "--flush-interval=10", str(path)], stderr=subprocess.PIPE, text=True)
+    lc = lcm.LCM(contract.lcm_url())
+    deadline = time.monotonic() + 10
+    while not (path.exists() and path.stat().st_size > 0) and time.monotonic() < deadline:
+        lc.publish(contract.CH_JOINT_STATE, _state(0))    # until the logger is listening
+        time.sleep(0.02)
+    for seq in range(1, 2001):
+        lc.publish(contract.CH_JOINT_STATE, _state(seq))
+        lc.publish("NOT_OURS", b"x")
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=10) == 0, proc.stderr.read()
+    seqs = [joint_state_t.decode(e.data).seq for e in read_events(path, LogProblems())]
+    assert seqs[-2000:] == list(range(1, 2001))          # every one, in order; nothing else

@@ -27,9 +27,10 @@ inline constexpr std::size_t kLcmFragmentHeaderBytes = 20;   // + size, offset, 
 inline constexpr std::size_t kLcmMaxDatagramBytes = 65536;
 inline constexpr int kLcmGroupReceiveBufferBytes = 1 << 21;  // a slow tick must not lose a message to a full buffer
 
-// udpm://GROUP:PORT[?options] → a non-blocking socket on the group's port, joined to the group (-1 if the
-// URL is not udpm or the socket cannot be set up). All peers bind the port, as LCM does (SO_REUSEADDR).
-inline int open_lcm_group_socket(const std::string& url) {
+// udpm://GROUP:PORT[?options] → a non-blocking socket on the group's port, joined to the group, asking for
+// receive_buffer_bytes of kernel buffer (-1 if the URL is not udpm or the socket cannot be set up). All peers
+// bind the port, as LCM does (SO_REUSEADDR).
+inline int open_lcm_group_socket(const std::string& url, int receive_buffer_bytes = kLcmGroupReceiveBufferBytes) {
   const std::string scheme = "udpm://";
   if (url.compare(0, scheme.size(), scheme) != 0) return -1;
   const auto colon = url.find(':', scheme.size());
@@ -38,7 +39,7 @@ inline int open_lcm_group_socket(const std::string& url) {
   const int port = std::atoi(url.c_str() + colon + 1);
   const int fd = socket(AF_INET, SOCK_DGRAM, IPPROTO_UDP);
   if (fd < 0) return -1;
-  const int one = 1, rcvbuf = kLcmGroupReceiveBufferBytes;
+  const int one = 1, rcvbuf = receive_buffer_bytes;
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_port = htons(static_cast<uint16_t>(port));

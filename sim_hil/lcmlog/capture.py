@@ -1,14 +1,14 @@
-"""Capture a run's LCM traffic with lcm-logger (the C logger of the pinned lcm wheel: a writer thread of
-its own, so logging costs the simulator and the runtime nothing) and stamp the log with a run_info_t.
+"""Capture a run's LCM traffic with t1-lcm-logger (sim_hil/core/lcm_logger.cpp: a process of its own, so
+logging costs the simulator and the runtime nothing; LCM's event-log format, as lcm-logger writes it) and
+stamp the log with a run_info_t.
 
-Only the project's channels are logged (the regex is built from messages/contract.json). The logger is
+Only the project's channels are logged (the list is messages/contract.json's). The logger is
 ready when the run_info_t it was sent is on disk: the run's first state can then not be missed, which a
 replay needs (the runtime's PREPARE ramp starts from the first state it sees). At the end the same marker
 is sent again and waited for, so the run's last messages are on disk before the logger is stopped."""
 from __future__ import annotations
 
 import os
-import re
 import shlex
 import signal
 import subprocess
@@ -20,27 +20,19 @@ import lcm
 from t1 import run_info_t
 
 from messages import contract
+from sim_hil.launch import LOGGER
 from sim_hil.lcmlog.eventlog import LogProblems, read_events
 
-FLUSH_INTERVAL_MS = 20        # lcm-logger's disk flush period: how soon readiness is visible
+FLUSH_INTERVAL_MS = 20        # the logger's disk flush period: how soon readiness is visible
 MARK_TIMEOUT_S = 10.0         # a logger that has not written the run_info_t marker by then is broken
 MARK_POLL_S = 0.05            # run_info_t re-sent at this period until it shows up in the file
-STOP_TIMEOUT_S = 10.0         # SIGINT -> lcm-logger writes what it holds and exits
-# The logger's UDP receive buffer [bytes]. Nothing waits for the logger (a lockstep sim waits only for the
-# runtime), so when a loaded CPU starves it, the buffer is all that keeps messages: the kernel default
-# (~208 KiB) holds ~50 ms of the project's traffic and dropped a state under load; 4 MiB holds seconds.
-# The kernel caps it at net.core.rmem_max.
-LOGGER_RECV_BUF_BYTES = 4 * 1024 * 1024
+STOP_TIMEOUT_S = 10.0         # SIGINT -> the logger writes what it holds and exits
 
 
-def logger_url(url: str) -> str:
-    """`url` with the logger's receive buffer option (LCM udpm `recv_buf_size`) added."""
-    return f"{url}{'&' if '?' in url else '?'}recv_buf_size={LOGGER_RECV_BUF_BYTES}"
-
-
-def channel_regex() -> str:
-    """lcm_subscribe regex matching exactly the contract's channels."""
-    return "^(" + "|".join(re.escape(c) for c in sorted(contract.CHANNELS.values())) + ")$"
+def logger_path() -> str:
+    if not LOGGER.exists():
+        raise FileNotFoundError(f"{LOGGER} is not built: run `make build`")
+    return str(LOGGER)
 
 
 def lcm_tool(name: str) -> str:
@@ -73,20 +65,20 @@ class RunInfo:
 
 
 class LogCapture:
-    """lcm-logger on `url` writing `path` (overwritten), started and stamped; stop() ends it cleanly."""
+    """t1-lcm-logger on `url` writing `path` (overwritten), started and stamped; stop() ends it cleanly."""
 
     def __init__(self, path: Path | str, url: str, info: RunInfo):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.path.unlink(missing_ok=True)
         self.proc = subprocess.Popen(
-            [lcm_tool("lcm-logger"), "--quiet", "--force", f"--flush-interval={FLUSH_INTERVAL_MS}",
-             f"--lcm-url={logger_url(url)}", f"--channel={channel_regex()}", str(self.path)],
+            [logger_path(), f"--flush-interval={FLUSH_INTERVAL_MS}", f"--lcm-url={url}",
+             f"--channels={','.join(sorted(contract.CHANNELS.values()))}", str(self.path)],
             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         self._info, self._lc = info, lcm.LCM(url)
         if not self._stamp_and_wait(0):
             self.stop()
-            raise RuntimeError(f"lcm-logger wrote nothing to {self.path} within {MARK_TIMEOUT_S} s")
+            raise RuntimeError(f"t1-lcm-logger wrote nothing to {self.path} within {MARK_TIMEOUT_S} s")
 
     def _stamp_and_wait(self, since_byte: int) -> bool:
         """Publish run_info_t until the logger has written one past `since_byte`. At the start this proves
@@ -95,7 +87,7 @@ class LogCapture:
         deadline = time.monotonic() + MARK_TIMEOUT_S
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
-                raise RuntimeError(f"lcm-logger exited {self.proc.returncode}: {self.proc.stderr.read().strip()}")
+                raise RuntimeError(f"t1-lcm-logger exited {self.proc.returncode}: {self.proc.stderr.read().strip()}")
             self._lc.publish(contract.CH_RUN_INFO, stamp)
             time.sleep(MARK_POLL_S)
             if self.path.exists() and contract.CH_RUN_INFO.encode() in self._bytes_from(since_byte):
@@ -109,7 +101,7 @@ class LogCapture:
             return f.read()
 
     def stop(self) -> Path:
-        """End marker, SIGINT, then cut a partly written last event (lcm-logger can leave one on exit)."""
+        """End marker, SIGINT, then cut a partly written last event (a logger killed mid-write leaves one)."""
         if self.proc.poll() is None:
             self._stamp_and_wait(self.path.stat().st_size if self.path.exists() else 0)
             self.proc.send_signal(signal.SIGINT)

@@ -24,7 +24,7 @@ MAX_DATA_LEN = 64 * 1024 * 1024       # far above any project message; larger me
 @dataclass(frozen=True)
 class Event:
     offset: int         # byte offset of the event in the file
-    timestamp_us: int   # receive time (lcm-logger's clock)
+    timestamp_us: int   # receive time (the logger's wall clock)
     channel: str
     data: bytes
 
