@@ -124,7 +124,7 @@ def _overrides(config: dict, toy: bool) -> list[str]:
     return out
 
 
-BANKED = ("env.knockdown_starts", "env.wall_starts", "env.push_starts", "env.handover")
+BANKED = ("env.knockdown_starts", "env.wall_starts", "env.push_starts", "env.handover", "env.rise_starts")
 
 
 def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: bool = False,
