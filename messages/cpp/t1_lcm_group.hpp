@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <vector>
 
 namespace t1 {
 
@@ -95,6 +96,20 @@ inline bool parse_lcm_datagram(const uint8_t* buf, std::size_t n, LcmDatagram* o
     out->size = n - static_cast<std::size_t>(out->payload - buf);
   }
   return true;
+}
+
+// Reads every datagram queued on fd into rx, without waiting, and hands each LCM one that names its channel
+// (a whole message, or a fragment's first piece) to on_datagram(const LcmDatagram&); how many it read.
+template <class OnDatagram>
+int drain_lcm_group(int fd, std::vector<uint8_t>& rx, OnDatagram&& on_datagram) {
+  int read = 0;
+  for (;;) {
+    const ssize_t got = recv(fd, rx.data(), rx.size(), MSG_DONTWAIT);
+    if (got < 0) return read;
+    ++read;
+    LcmDatagram m;
+    if (parse_lcm_datagram(rx.data(), static_cast<std::size_t>(got), &m) && m.channel != nullptr) on_datagram(m);
+  }
 }
 
 }  // namespace t1

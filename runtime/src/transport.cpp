@@ -1,6 +1,5 @@
 #include "t1rt/transport.hpp"
 
-#include <sys/socket.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -72,19 +71,16 @@ void LcmTransport::subscribe(const char* channel, Handler handler) {
 
 int LcmTransport::handle_queued() {
   int handled = 0;
-  for (;;) {
-    const ssize_t got = recv(sock_, rx_.data(), rx_.size(), 0);
-    if (got < 0) return handled;
-    t1::LcmDatagram m;
-    if (!t1::parse_lcm_datagram(rx_.data(), static_cast<std::size_t>(got), &m) || m.channel == nullptr) continue;
+  t1::drain_lcm_group(sock_, rx_, [&](const t1::LcmDatagram& m) {
     for (std::size_t i = 0; i < subscription_count_; ++i) {
       if (std::strcmp(m.channel, subscriptions_[i].channel) != 0) continue;
       ++handled;
       if (m.fragment) ++decode_errors;
       else (this->*subscriptions_[i].handler)({m.payload, static_cast<uint32_t>(m.size)});
-      break;
+      return;
     }
-  }
+  });
+  return handled;
 }
 
 int LcmTransport::handle(int timeout_ms) {

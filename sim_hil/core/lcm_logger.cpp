@@ -7,7 +7,6 @@
 //
 //   t1-lcm-logger --lcm-url URL --channels CH1,CH2,... [--flush-interval MS] FILE
 #include <lcm/eventlog.h>
-#include <sys/socket.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -96,16 +95,11 @@ int main(int argc, char** argv) {
   for (;;) {
     const bool stopping = g_stop;   // then one last pass over what is queued
     if (!stopping) t1::wait_readable(sock, kWaitSliceS);
-    for (;;) {
-      const ssize_t got = recv(sock, rx.data(), rx.size(), MSG_DONTWAIT);
-      if (got < 0) break;
-      t1::LcmDatagram m;
-      if (!t1::parse_lcm_datagram(rx.data(), static_cast<std::size_t>(got), &m) || m.channel == nullptr ||
-          channels.count(m.channel) == 0)
-        continue;
+    t1::drain_lcm_group(sock, rx, [&](const t1::LcmDatagram& m) {
+      if (channels.count(m.channel) == 0) return;
       if (m.fragment) {   // never one of the project's channels; counted, not reassembled
         ++fragments;
-        continue;
+        return;
       }
       lcm_eventlog_event_t event{};
       event.timestamp = wall_us();
@@ -115,7 +109,7 @@ int main(int argc, char** argv) {
       event.data = const_cast<uint8_t*>(m.payload);
       if (lcm_eventlog_write_event(log, &event) == 0) ++logged;
       else ++write_errors;
-    }
+    });
     const auto now = std::chrono::steady_clock::now();
     if (stopping || now - last_flush >= std::chrono::milliseconds(flush_ms)) {
       std::fflush(log->f);

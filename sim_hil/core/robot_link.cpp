@@ -1,6 +1,5 @@
 #include "robot_link.hpp"
 
-#include <sys/socket.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -41,17 +40,11 @@ RobotLink::~RobotLink() {
 }
 
 int RobotLink::handle_queued() {
-  int n = 0;
-  for (;;) {
-    const ssize_t got = recv(sock_, rx_.data(), rx_.size(), 0);
-    if (got < 0) return n;
-    ++n;
-    t1::LcmDatagram m;
-    if (!t1::parse_lcm_datagram(rx_.data(), static_cast<size_t>(got), &m)) continue;
-    if (m.channel == nullptr || std::strcmp(m.channel, t1::CH_JOINT_CMD) != 0) continue;
+  return t1::drain_lcm_group(sock_, rx_, [this](const t1::LcmDatagram& m) {
+    if (std::strcmp(m.channel, t1::CH_JOINT_CMD) != 0) return;
     if (m.fragment) drop("T1_JOINT_CMD in fragments (over 64 kB: not a command)");
     else on_command(m.payload, m.size);
-  }
+  });
 }
 
 void RobotLink::publish_state(const StateReading& s) {
