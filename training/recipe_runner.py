@@ -124,7 +124,8 @@ def _overrides(config: dict, toy: bool) -> list[str]:
     return out
 
 
-BANKED = ("env.knockdown_starts", "env.wall_starts", "env.push_starts", "env.handover", "env.rise_starts")
+BANKED = ("env.knockdown_starts", "env.wall_starts", "env.push_starts", "env.handover", "env.rise_starts",
+          "env.collapse_starts")
 
 
 def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: bool = False,

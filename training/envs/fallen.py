@@ -80,17 +80,22 @@ def _prepared(num: int, seed: int, prepare_s: float, supervisor: tuple[float, fl
     return after_prepare(qpos, qvel, prepare_s, supervisor)
 
 
-@functools.lru_cache(maxsize=1)
-def _prepare_physics():
-    """sim_hil's robot with the CPU backend's motor callback and the stand-up gains in the PD slots."""
-    from training.envs import base, collision, cpu_backend   # heavy (JAX); only where PREPARE runs
+def backend_model(kp: np.ndarray, kd: np.ndarray) -> mujoco.MjModel:
+    """sim_hil's robot with the CPU backend's motor callback and the PD gains kp [N·m/rad], kd [N·m·s/rad]."""
+    from training.envs import base, collision, cpu_backend   # heavy (JAX); only where host rollouts run
 
     spec = mujoco.MjSpec.from_file(str(t1model.MODEL_PATH))
     cpu_backend.add_backend_elements(spec, collision.FOOT_GEOMS, base.FLOOR_GEOM)
     mj = spec.compile()
-    mj.actuator_biasprm[:, base.KP_SLOT] = PREPARE_KP
-    mj.actuator_biasprm[:, base.KD_SLOT] = PREPARE_KD
+    mj.actuator_biasprm[:, base.KP_SLOT] = kp
+    mj.actuator_biasprm[:, base.KD_SLOT] = kd
     return mj
+
+
+@functools.lru_cache(maxsize=1)
+def _prepare_physics():
+    """sim_hil's robot with the CPU backend's motor callback and the stand-up gains in the PD slots."""
+    return backend_model(PREPARE_KP, PREPARE_KD)
 
 
 def after_prepare(qpos: np.ndarray, qvel: np.ndarray, prepare_s: float,

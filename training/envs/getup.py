@@ -51,13 +51,15 @@ from mujoco_playground._src import mjx_env
 from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
-from training.envs import handover, rise_bank, start_path, upright
+from training.envs import handover, kneel_collapse, rise_bank, start_path, upright
 from common.events import FALLEN_TRUNK_HEIGHT_M
 from common.events import STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import PREPARE_S, fallen_states
 from training.envs.getup_config import default_config   # envs.make's config of this task
 
 STAGES = ("stage1", "stage2", "full")
+# the banks that replace a share of the fallen starts, in the order their shares are drawn
+BANK_CONFIGS = ("knockdown_starts", "wall_starts", "push_starts", "rise_starts", "collapse_starts")
 START_KINDS = ("fallen", "kneeling", "standing")
 
 
@@ -215,24 +217,24 @@ class Getup(GetupBase):
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
         """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn. The
         shares are checked before any bank is rolled."""
-        wanted = []
-        for name, policy_key, make in (("knockdown_starts", "joystick_policy", handover.knockdown_bank),
-                                       ("wall_starts", "joystick_policy", self._wall_bank),
-                                       ("push_starts", "joystick_policy", handover.push_test_bank),
-                                       ("rise_starts", "getup_policy", self._rise_bank)):
+        wanted, names = [], BANK_CONFIGS
+        for name, policy_key, make in zip(names, ("joystick_policy",) * 3 + ("getup_policy", None), (
+                handover.knockdown_bank, self._wall_bank, handover.push_test_bank, self._rise_bank,
+                self._collapse_bank)):
             b = self._config.get(name)   # runs made before a bank existed have no such key
             if b is None:
                 continue
             if not 0.0 <= b.prob <= 1.0:
                 raise ValueError(f"{name}.prob must be in [0, 1], got {b.prob}")
             if b.prob > 0:
-                if not b[policy_key]:
+                if policy_key and not b[policy_key]:
                     raise ValueError(f"{name}.prob > 0 needs {name}.{policy_key} (an artifact, checkpoint or run "
                                      "directory)")
-                wanted.append((float(b.prob), make, b[policy_key], int(b.bank_starts), int(b.seed)))
+                wanted.append((float(b.prob), make, b[policy_key] if policy_key else "", int(b.bank_starts),
+                               int(b.seed)))
         if sum(w[0] for w in wanted) > 1.0 + 1e-9:
-            raise ValueError(f"knockdown_starts.prob + wall_starts.prob + push_starts.prob + rise_starts.prob must "
-                             f"be at most 1, got {' + '.join(str(w[0]) for w in wanted)}")
+            raise ValueError(f"{' + '.join(n + '.prob' for n in names)} must be at most 1, got "
+                             f"{' + '.join(str(w[0]) for w in wanted)}")
         return [(prob, tuple(jnp.asarray(x) for x in make(self._make_env, policy, n, seed)))
                 for prob, make, policy, n, seed in wanted]
 
@@ -240,6 +242,14 @@ class Getup(GetupBase):
         r = self._config.rise_starts
         return rise_bank.rise_bank(make_env, getup_policy, float(r.harness_n_per_m), float(r.harness_slack_m),
                                    num_starts, seed, float(r.min_progress))
+
+    def _collapse_bank(self, make_env, _policy: str, num_starts: int, seed: int):
+        c = self._config.collapse_starts
+        step_per_substep, fraction = self._supervisor_settings(self._config)
+        return kneel_collapse.collapse_bank(
+            num_starts, seed, float(c.max_progress), gain_scale=float(c.gain_scale), push_rad_s=float(c.push_rad_s),
+            duration_s=float(c.duration_s), ctrl_dt=float(self._config.ctrl_dt),
+            supervisor=(step_per_substep / float(self._config.sim_dt), fraction))
 
     def _wall_bank(self, make_env, joystick_policy: str, num_starts: int, seed: int):
         return handover.wall_bank(make_env, joystick_policy, num_starts, seed,

@@ -4,7 +4,8 @@ per-step gated rewards, then the energy (§4.7) and observation-noise (§4.6) fi
 card: stage 1 rises with the elastic harness (assists.py) pulling the trunk toward kneeling height, weakened
 in small steps to none (HoST's fading pull; unassisted, 10 M steps only learned the kneel's joint angles lying
 down), then unassisted with kneeling starts, starts along the harnessed rises (a reverse curriculum,
-rise_bank.py) and a reward while the §4.8 gate holds (the kneel's joint angles alone leave the trunk 1.25°
+rise_bank.py), then along the kneel's collapse to the floor (kneel_collapse.py), and a reward while the §4.8
+gate holds (the kneel's joint angles alone leave the trunk 1.25°
 off vertical, the gate wants 0.57°); stage 2 learns along a reverse curriculum of starts from the kneel up
 the lunge (start_path.py), first the whole path, then its swing, then the whole path again; the runtime's
 target rule R6 is in every stage. The rise bank's policy, rise_harnessed, stays in the campaign."""
@@ -34,6 +35,11 @@ UNASSISTED = {"env.stage1_start_probs": [0.7, 0.3, 0.0], "env.stage1_gate_reward
               "env.rise_starts.prob": 0.5, "env.rise_starts.min_progress": 0.5,
               "env.rise_starts.getup_policy": "training/campaigns/getup_keyframe/rise_harnessed",
               "env.rise_starts.harness_n_per_m": 400.0, "env.rise_starts.harness_slack_m": 0.45}
+# From the kneel down (kneel_collapse.py): the unassisted stage held the kneel from the keyframe but met the gate
+# from 3 % of the rise bank's starts and no fallen start (training/LESSONS.md, period 4); starts along the
+# kneel's collapse to the floor take the place of the rise bank
+FROM_COLLAPSE = {**{k: v for k, v in UNASSISTED.items() if not k.startswith("env.rise_starts.")},
+                 "env.collapse_starts.prob": 0.6, "env.collapse_starts.max_progress": 1.0}
 FULL = {"env.gate_latches": False, "ppo.policy_std_scale": 0.25, "ppo.entropy_cost": 0.001,
         "ppo.learning_rate": 1e-4}
 
@@ -45,8 +51,11 @@ RECIPE = Recipe(
         Stage("rise_harnessed", task="getup", getup_stage="stage1", steps=5_000_000, init="rise_pose",
               config={**HARNESS, "env.harness.stiffness_n_per_m": 400.0}),
         *harness_fade(init="rise_harnessed", stiffnesses_n_per_m=(300, 200), steps=2_500_000),
-        Stage("rise_unassisted", task="getup", getup_stage="stage1", steps=20_000_000, init="rise_harness_200",
+        # stopped at its plateau (gate from kneeling starts alone, flat from 3 M): training/LESSONS.md, period 4
+        Stage("rise_unassisted", task="getup", getup_stage="stage1", steps=8_028_160, init="rise_harness_200",
               config=UNASSISTED),
+        Stage("rise_from_collapse", task="getup", getup_stage="stage1", steps=30_000_000, init="rise_unassisted",
+              config=FROM_COLLAPSE),
         Stage("stand_path", task="getup", getup_stage="stage2", steps=27_095_040, config=STAND),
         Stage("stand_swing", task="getup", getup_stage="stage2", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
