@@ -126,6 +126,17 @@ def trunk_height(data: mujoco.MjData) -> float:
     return float(data.xpos[data.model.body("Trunk").id, 2])
 
 
+def trunk_heights(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """Trunk origin heights [m] of a batch of states qpos [N, nq] (kinematics only)."""
+    data = mujoco.MjData(model)
+    heights = []
+    for q in qpos:
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        heights.append(trunk_height(data))
+    return np.array(heights)
+
+
 def waist_height(data: mujoco.MjData) -> float:
     """Waist (pelvis) body origin height [m]."""
     return float(data.xpos[data.model.body("Waist").id, 2])

@@ -2,7 +2,6 @@
 keyframe under weakened PD, up to a progress; the getup env starts its fallen share there (C physics)."""
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 import pytest
 
@@ -19,14 +18,7 @@ def _bank(max_progress):
 
 
 def _trunk_heights(qpos):
-    model = t1model.load_model()
-    data = mujoco.MjData(model)
-    heights = []
-    for q in qpos:
-        data.qpos[:] = q
-        mujoco.mj_kinematics(model, data)
-        heights.append(t1model.trunk_height(data))
-    return np.array(heights)
+    return t1model.trunk_heights(t1model.load_model(), qpos)
 
 
 def test_the_collapse_runs_from_the_kneel_toward_the_floor():

@@ -3,7 +3,6 @@ policy makes, from a progress on; the getup env starts its fallen share there. R
 checkpoint (CPU physics)."""
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 import pytest
 
@@ -20,14 +19,7 @@ def _bank(min_progress):
 
 
 def _trunk_heights(qpos):
-    model = t1model.load_model()
-    data = mujoco.MjData(model)
-    heights = []
-    for q in qpos:
-        data.qpos[:] = q
-        mujoco.mj_kinematics(model, data)
-        heights.append(t1model.trunk_height(data))
-    return np.array(heights)
+    return t1model.trunk_heights(t1model.load_model(), qpos)
 
 
 @pytest.mark.slow
