@@ -87,16 +87,20 @@ def _cmd_recipe(args, command: str) -> int:
 BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported: parsing needs no JAX)
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
-START_CHOICES = ("fallen", "knockdown", "wall", "push")   # = training.evaluate.START_KINDS (not imported: parsing needs no JAX)
+# = training.evaluate.START_KINDS and JOYSTICK_STARTS (not imported: parsing needs no JAX)
+START_CHOICES = ("fallen", "knockdown", "wall", "push", "collapse")
+JOYSTICK_STARTS = ("knockdown", "wall", "push")
 START_JOYSTICK = "policies/joystick/joystick.safetensors"   # evaluate --starts knockdown|wall|push: the shipped joystick expert
 
 
 def _cmd_evaluate(args, command: str) -> int:
     seconds = EVAL_SECONDS[args.task] if args.seconds is None else args.seconds
     out = args.out or f"out/eval_{args.task}"
-    if args.start_joystick and args.starts == "fallen":
+    if args.start_joystick and args.starts not in JOYSTICK_STARTS:
         raise ValueError("--start-joystick goes with --starts knockdown, wall or push")
-    if args.starts != "fallen" and not args.start_joystick:
+    if args.collapse_progress is not None and args.starts != "collapse":
+        raise ValueError("--collapse-progress goes with --starts collapse")
+    if args.starts in JOYSTICK_STARTS and not args.start_joystick:
         args.start_joystick = START_JOYSTICK
     if args.task == "joystick":
         if args.baseline:
@@ -111,7 +115,8 @@ def _cmd_evaluate(args, command: str) -> int:
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
                                    command=command, backend=args.backend, starts=args.starts,
-                                   start_joystick=args.start_joystick)
+                                   start_joystick=args.start_joystick,
+                                   collapse_progress=1.0 if args.collapse_progress is None else args.collapse_progress)
     print(report.read_text())
     return 0
 
@@ -209,7 +214,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "wall = the same after --start-joystick walked into the low-wall course from SEEDS approaches "
                    "(training/envs/wall_course.py), those that stepped over it left out; push = the same in the "
                    "loop's push test: SEEDS standing starts shoved on the torso forward or backward (2 : 1), "
-                   "the ones it caught left out")
+                   "the ones it caught left out; collapse = SEEDS collapses from the kneel (stage 1's reverse "
+                   "curriculum, training/envs/kneel_collapse.py) at --collapse-progress")
+    p.add_argument("--collapse-progress", type=float, metavar="P",
+                   help="with --starts collapse: 0 the kneel … 1 the end of the collapse (default 1)")
     p.add_argument("--start-joystick", "--knockdown-joystick", metavar="ARTIFACT", dest="start_joystick",
                    help="with --starts knockdown, wall or push: the joystick expert that walks and is pushed over or "
                    f"trips (default {START_JOYSTICK})")

@@ -169,9 +169,11 @@ def summarize(rows: list[dict]) -> dict:
             **{k: mean(k) for k in EFFORT_KEYS}}
 
 
-START_KINDS = ("fallen", "knockdown", "wall", "push")   # fallen: the loop's fallen starts; knockdown: mid-fall
-# after a push; wall: mid-fall after walking into the low-wall course (the getup env then has the course);
-# push: mid-fall in the loop's push test (handover.push_test_bank: its torso shoves, forward and backward 2 : 1)
+START_KINDS = ("fallen", "knockdown", "wall", "push", "collapse")   # fallen: the loop's fallen starts; knockdown:
+# mid-fall after a push; wall: mid-fall after walking into the low-wall course (the getup env then has the course);
+# push: mid-fall in the loop's push test (handover.push_test_bank: its torso shoves, forward and backward 2 : 1);
+# collapse: part-way down the kneel's collapse (kneel_collapse.py; stage 1's reverse curriculum)
+JOYSTICK_STARTS = ("knockdown", "wall", "push")   # the banks a joystick expert makes
 ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attempts_per_fall", "{:.2f}"),
         ("attempts per episode (the loop's push test counts per trial)", "attempts_per_episode", "{:.2f}"),
         ("most attempts in one episode", "max_attempts", "{:.0f}"),
@@ -201,7 +203,7 @@ def _fmt(fmt, value):
 def markdown_report(results: dict, meta: dict) -> str:
     names = list(results)
     starts = meta.get("starts", "fallen")
-    from_bank = starts != "fallen"   # a bank of landings (knockdown, wall, push): the seed's figures do not apply
+    from_bank = starts != "fallen"   # a bank of starts (landings, collapses): the seed's figures do not apply
     if starts == "knockdown":
         title = (f"{meta['episodes']} knockdown landings (of {meta['seeds']} pushed standing starts, bank seed "
                  f"{meta['first_seed']}, knocked over by `{meta['start_joystick']}`)")
@@ -211,6 +213,9 @@ def markdown_report(results: dict, meta: dict) -> str:
     elif starts == "wall":
         title = (f"{meta['episodes']} landings at a low wall (of {meta['seeds']} approaches, bank seed "
                  f"{meta['first_seed']}, walked into it by `{meta['start_joystick']}`)")
+    elif starts == "collapse":
+        title = (f"{meta['seeds']} collapses from the kneel at progress {meta['collapse_progress']:g} (bank seed "
+                 f"{meta['first_seed']})")
     else:
         title = f"{meta['seeds']} seeded fallen starts from seed {meta['first_seed']}"
     lines = [f"# Getup evaluation ({title}, {meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]
@@ -272,12 +277,13 @@ def plot_heights(results: dict, png: Path) -> None:
 
 def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 32, seconds: float = 10.0,
              first_seed: int = 0, command: str = "", backend: str | None = None, starts: str = "fallen",
-             start_joystick: str | None = None) -> Path:
+             start_joystick: str | None = None, collapse_progress: float = 1.0) -> Path:
     """Run the evaluation; returns the path of report.md. starts="knockdown": instead of fallen starts, the
     states where `start_joystick`, knocked over from `seeds` standing starts (bank seed `first_seed`),
     hands over to the getup policy mid-fall (training/envs/handover.py); the ones it caught are left out.
     starts="wall": the same after `start_joystick` walked into the low-wall course from `seeds` approaches
-    (the getup env then has the course in its world); starts="push": after the loop's push test shoved it."""
+    (the getup env then has the course in its world); starts="push": after the loop's push test shoved it;
+    starts="collapse": `seeds` collapses from the kneel (bank seed `first_seed`), each at `collapse_progress`."""
     from training import checkpoints, envs
     from training.train import default_backend
     checkpoints.jax_setup()
@@ -285,7 +291,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         raise ValueError(f"--task {task!r}: only the getup evaluation exists so far")
     if starts not in START_KINDS:
         raise ValueError(f"starts {starts!r}: one of {START_KINDS}")
-    if (starts != "fallen") != (start_joystick is not None):
+    if (starts in JOYSTICK_STARTS) != (start_joystick is not None):
         raise ValueError("a start joystick policy goes with knockdown, wall or push starts, and only with them")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -293,6 +299,9 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
                                             "wall_course.enable": starts == "wall"})
     if starts == "fallen":
         qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
+    elif starts == "collapse":
+        from training.envs import kneel_collapse
+        qpos, qvel = kneel_collapse.collapse_states(seeds, first_seed, collapse_progress, **env.collapse_settings())
     else:
         from training.envs import handover
         if starts == "knockdown":
@@ -312,7 +321,8 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         run = run_policy(env, policy, qpos, qvel, seconds)
         results[role] = {"policy": policy, "run": run, "summary": summarize(run["rows"])}
     meta = {"seeds": seeds, "first_seed": first_seed, "seconds": seconds, "command": command or "evaluate()",
-            "backend": env.backend, "starts": starts, "episodes": len(qpos), "start_joystick": start_joystick}
+            "backend": env.backend, "starts": starts, "episodes": len(qpos), "start_joystick": start_joystick,
+            "collapse_progress": collapse_progress}
     report = out / "report.md"
     report.write_text(markdown_report(results, meta))
     with (out / "per_env.csv").open("w", newline="") as f:
@@ -321,7 +331,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         writer.writeheader()
         for role, res in results.items():
             for i, row in enumerate(res["run"]["rows"]):
-                seed = first_seed + i if starts == "fallen" else i   # knockdown / wall: the landing's row in the bank
+                seed = i if starts in JOYSTICK_STARTS else first_seed + i   # knockdown / wall / push: the bank's row
                 writer.writerow({"role": role, "seed": seed, "trained": res["policy"].trained, **row})
     plot_heights(results, out / "heights.png")
     if baseline is not None:

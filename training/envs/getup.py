@@ -243,13 +243,17 @@ class Getup(GetupBase):
         return rise_bank.rise_bank(make_env, getup_policy, float(r.harness_n_per_m), float(r.harness_slack_m),
                                    num_starts, seed, float(r.min_progress))
 
-    def _collapse_bank(self, make_env, _policy: str, num_starts: int, seed: int):
+    def collapse_settings(self) -> dict:
+        """kneel_collapse's settings of this env's collapse starts (training and evaluation)."""
         c = self._config.collapse_starts
         step_per_substep, fraction = self._supervisor_settings(self._config)
-        return kneel_collapse.collapse_bank(
-            num_starts, seed, float(c.max_progress), gain_scale=float(c.gain_scale), push_rad_s=float(c.push_rad_s),
-            duration_s=float(c.duration_s), ctrl_dt=float(self._config.ctrl_dt),
-            supervisor=(step_per_substep / float(self._config.sim_dt), fraction))
+        return dict(gain_scale=float(c.gain_scale), push_rad_s=float(c.push_rad_s), duration_s=float(c.duration_s),
+                    ctrl_dt=float(self._config.ctrl_dt),
+                    supervisor=(step_per_substep / float(self._config.sim_dt), fraction))
+
+    def _collapse_bank(self, make_env, _policy: str, num_starts: int, seed: int):
+        return kneel_collapse.collapse_bank(num_starts, seed, float(self._config.collapse_starts.max_progress),
+                                            **self.collapse_settings())
 
     def _wall_bank(self, make_env, joystick_policy: str, num_starts: int, seed: int):
         return handover.wall_bank(make_env, joystick_policy, num_starts, seed,

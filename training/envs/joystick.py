@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 

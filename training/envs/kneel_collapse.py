@@ -41,6 +41,17 @@ def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale
     return bank
 
 
+def collapse_states(num_starts: int, seed: int, progress: float, *, gain_scale: float, push_rad_s: float,
+                    duration_s: float, ctrl_dt: float, supervisor: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos [num_starts, nq], qvel [num_starts, nv]): each collapse at `progress` (evaluate --starts collapse)."""
+    if not 0.0 <= progress <= 1.0:
+        raise ValueError(f"collapse progress must be in [0, 1], got {progress}")
+    qpos, qvel = collapses(int(num_starts), int(seed), float(gain_scale), float(push_rad_s), float(duration_s),
+                           float(ctrl_dt), tuple(float(x) for x in supervisor))
+    tick = int(round(progress * (qpos.shape[1] - 1)))
+    return qpos[:, tick].copy(), qvel[:, tick].copy()
+
+
 @functools.lru_cache(maxsize=4)
 def collapses(num_starts: int, seed: int, gain_scale: float, push_rad_s: float, duration_s: float, ctrl_dt: float,
               supervisor: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:

@@ -11,7 +11,6 @@ damping (kd is the motor's and is sent exactly by the runtime).
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 from mujoco import mjx
 
 FLOOR_GEOM_ID = 0   # the floor is the first geom of common/models/t1.xml
