@@ -4,11 +4,12 @@ per-step gated rewards, then the energy (§4.7) and observation-noise (§4.6) fi
 card: stage 1 rises with the elastic harness (assists.py) pulling the trunk toward kneeling height, weakened
 in small steps to none (HoST's fading pull; unassisted, 10 M steps only learned the kneel's joint angles lying
 down), then unassisted with kneeling starts, starts along the harnessed rises (a reverse curriculum,
-rise_bank.py), then along the kneel's collapse to the floor (kneel_collapse.py), and a reward while the §4.8
-gate holds (the kneel's joint angles alone leave the trunk 1.25°
-off vertical, the gate wants 0.57°); stage 2 learns along a reverse curriculum of starts from the kneel up
-the lunge (start_path.py), first the whole path, then its swing, then the whole path again; the runtime's
-target rule R6 is in every stage. The rise bank's policy, rise_harnessed, stays in the campaign."""
+rise_bank.py), then along the kneel's collapse to the floor (kneel_collapse.py; first a stiffer, shorter
+collapse that ends slumped forward, then one that ends lying), and a reward while the §4.8 gate holds (the
+kneel's joint angles alone leave the trunk 1.25° off vertical, the gate wants 0.57°); stage 2 learns along a
+reverse curriculum of starts from the kneel up the lunge (start_path.py), first the whole path, then its
+swing, then the whole path again; the runtime's target rule R6 is in every stage. The rise bank's policy,
+rise_harnessed, stays in the campaign."""
 from training.recipe import Recipe, Stage
 
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
@@ -40,6 +41,8 @@ UNASSISTED = {"env.stage1_start_probs": [0.7, 0.3, 0.0], "env.stage1_gate_reward
 # kneel's collapse to the floor take the place of the rise bank
 FROM_COLLAPSE = {**{k: v for k, v in UNASSISTED.items() if not k.startswith("env.rise_starts.")},
                  "env.collapse_starts.prob": 0.6, "env.collapse_starts.max_progress": 1.0}
+# then down to the floor: a limper, longer collapse ends lying as the fallen starts do (trunk 0.15 m, on its side)
+FROM_FLOOR = {**FROM_COLLAPSE, "env.collapse_starts.gain_scale": 0.05, "env.collapse_starts.duration_s": 3.0}
 FULL = {"env.gate_latches": False, "ppo.policy_std_scale": 0.25, "ppo.entropy_cost": 0.001,
         "ppo.learning_rate": 1e-4}
 
@@ -56,6 +59,8 @@ RECIPE = Recipe(
               config=UNASSISTED),
         Stage("rise_from_collapse", task="getup", getup_stage="stage1", steps=30_000_000, init="rise_unassisted",
               config=FROM_COLLAPSE),
+        Stage("rise_from_floor", task="getup", getup_stage="stage1", steps=20_000_000, init="rise_from_collapse",
+              config=FROM_FLOOR),
         Stage("stand_path", task="getup", getup_stage="stage2", steps=27_095_040, config=STAND),
         Stage("stand_swing", task="getup", getup_stage="stage2", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
