@@ -58,8 +58,6 @@ from training.envs.fallen import PREPARE_S, fallen_states
 from training.envs.getup_config import default_config   # envs.make's config of this task
 
 STAGES = ("stage1", "stage2", "full")
-# the banks that replace a share of the fallen starts, in the order their shares are drawn
-BANK_CONFIGS = ("knockdown_starts", "wall_starts", "push_starts", "rise_starts", "collapse_starts")
 START_KINDS = ("fallen", "kneeling", "standing")
 
 
@@ -217,10 +215,12 @@ class Getup(GetupBase):
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
         """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn. The
         shares are checked before any bank is rolled."""
-        wanted, names = [], BANK_CONFIGS
-        for name, policy_key, make in zip(names, ("joystick_policy",) * 3 + ("getup_policy", None), (
-                handover.knockdown_bank, self._wall_bank, handover.push_test_bank, self._rise_bank,
-                self._collapse_bank)):
+        wanted = []
+        for name, policy_key, make in (("knockdown_starts", "joystick_policy", handover.knockdown_bank),
+                                       ("wall_starts", "joystick_policy", self._wall_bank),
+                                       ("push_starts", "joystick_policy", handover.push_test_bank),
+                                       ("rise_starts", "getup_policy", self._rise_bank),
+                                       ("collapse_starts", None, self._collapse_bank)):
             b = self._config.get(name)   # runs made before a bank existed have no such key
             if b is None:
                 continue
@@ -230,13 +230,13 @@ class Getup(GetupBase):
                 if policy_key and not b[policy_key]:
                     raise ValueError(f"{name}.prob > 0 needs {name}.{policy_key} (an artifact, checkpoint or run "
                                      "directory)")
-                wanted.append((float(b.prob), make, b[policy_key] if policy_key else "", int(b.bank_starts),
+                wanted.append((name, float(b.prob), make, b[policy_key] if policy_key else "", int(b.bank_starts),
                                int(b.seed)))
-        if sum(w[0] for w in wanted) > 1.0 + 1e-9:
-            raise ValueError(f"{' + '.join(n + '.prob' for n in names)} must be at most 1, got "
-                             f"{' + '.join(str(w[0]) for w in wanted)}")
+        if sum(w[1] for w in wanted) > 1.0 + 1e-9:
+            raise ValueError(f"the start banks' shares must sum to at most 1, got "
+                             f"{' + '.join(f'{w[0]}.prob {w[1]}' for w in wanted)}")
         return [(prob, tuple(jnp.asarray(x) for x in make(self._make_env, policy, n, seed)))
-                for prob, make, policy, n, seed in wanted]
+                for _, prob, make, policy, n, seed in wanted]
 
     def _rise_bank(self, make_env, getup_policy: str, num_starts: int, seed: int):
         r = self._config.rise_starts

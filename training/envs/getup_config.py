@@ -62,7 +62,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.wall_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=400_000)
     # push-test starts (handover.push_test_bank; ours): this share of the fallen starts is where the teacher
     # hands `joystick_policy` over after the loop's push test shoved it (a torso impulse, forward or backward),
-    # from `bank_starts` standing starts. The shares of these and rise_starts sum to at most 1
+    # from `bank_starts` standing starts. The shares of these, rise_starts and collapse_starts sum to at most 1
     cfg.push_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=500_000)
     # rise starts (rise_bank.py; ours, stage 1's reverse curriculum): this share of the fallen starts is instead
     # a state along the rises `getup_policy` makes with the harness (stiffness [N/m], slack [m]) from

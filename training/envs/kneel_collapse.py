@@ -32,8 +32,7 @@ def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale
     supervisor = (max target speed [rad/s], joint-range fraction) of rule R6."""
     if not 0.0 <= max_progress <= 1.0:
         raise ValueError(f"collapse_starts.max_progress must be in [0, 1], got {max_progress}")
-    qpos, qvel = collapses(int(num_starts), int(seed), float(gain_scale), float(push_rad_s), float(duration_s),
-                           float(ctrl_dt), tuple(float(x) for x in supervisor))
+    qpos, qvel = _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor)
     last = int(np.floor(max_progress * (qpos.shape[1] - 1) + 1e-9))
     bank = (qpos[:, :last + 1].reshape(-1, qpos.shape[-1]), qvel[:, :last + 1].reshape(-1, qvel.shape[-1]))
     for array in bank:
@@ -46,10 +45,15 @@ def collapse_states(num_starts: int, seed: int, progress: float, *, gain_scale: 
     """(qpos [num_starts, nq], qvel [num_starts, nv]): each collapse at `progress` (evaluate --starts collapse)."""
     if not 0.0 <= progress <= 1.0:
         raise ValueError(f"collapse progress must be in [0, 1], got {progress}")
-    qpos, qvel = collapses(int(num_starts), int(seed), float(gain_scale), float(push_rad_s), float(duration_s),
-                           float(ctrl_dt), tuple(float(x) for x in supervisor))
+    qpos, qvel = _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor)
     tick = int(round(progress * (qpos.shape[1] - 1)))
     return qpos[:, tick].copy(), qvel[:, tick].copy()
+
+
+def _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor):
+    """collapses() with its arguments in the types its cache keys on (a numpy or JAX scalar would miss it)."""
+    return collapses(int(num_starts), int(seed), float(gain_scale), float(push_rad_s), float(duration_s),
+                     float(ctrl_dt), tuple(float(x) for x in supervisor))
 
 
 @functools.lru_cache(maxsize=4)
