@@ -76,8 +76,10 @@ def test_a_fine_tune_starts_from_the_stage_before(toy_root):
 @pytest.mark.slow
 def test_a_campaign_goes_on_from_training_campaigns_on_a_fresh_machine(toy_root, tmp_path):
     campaigns, fresh = tmp_path / "campaigns", tmp_path / "runs"
+    (campaigns / "joystick" / "walk").mkdir(parents=True)    # from an earlier save, before yaw was complete
     saved = recipe_runner.save_campaign("joystick", toy_root, campaigns)
-    assert {p.name for p in saved} == {"walk", "yaw", "sharp"}
+    assert {p.name for p in saved} == {"sharp"}     # walk → yaw → sharp: the newest of the chain only
+    assert sorted(p.name for p in (campaigns / "joystick").iterdir()) == ["sharp"]
     kept = sorted(p.name for p in (campaigns / "joystick" / "sharp").iterdir())
     assert kept == ["checkpoints", "learning_curve.png", "metrics.csv", "run_state.json"]
     assert len(list((campaigns / "joystick" / "sharp" / "checkpoints").iterdir())) == 1   # the newest only
@@ -128,6 +130,9 @@ def test_a_stage_kept_by_a_later_complete_stage_is_not_rerun(tmp_path):
     assert recipe_runner.superseded(tmp_path, recipe, recipe.stage("stand_path"))
     assert recipe_runner.superseded(tmp_path, recipe, recipe.stage("stand_swing"))
     assert not recipe_runner.superseded(tmp_path, recipe, recipe.stage("rise_unassisted"))   # not in stand's chain
+    # still read by a later stage's config (the rise bank's policy): kept in the campaign though superseded
+    assert recipe_runner.referenced(recipe, recipe.stage("rise_harnessed"))
+    assert not recipe_runner.referenced(recipe, recipe.stage("rise_pose"))
 
 
 def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():

@@ -76,6 +76,18 @@ def superseded(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
     return False
 
 
+def referenced(recipe: R.Recipe, stage: R.Stage) -> bool:
+    """Whether a stage's config or teacher in any recipe names `stage` (as @RECIPE/STAGE or by its campaign
+    directory): a superseded stage that is still read stays in the campaign."""
+    names = (f"{R.REF_PREFIX}{recipe.name}/{stage.name}", f"campaigns/{recipe.name}/{stage.name}")
+    for other in map(R.load, R.names()):
+        for s in other.stages:
+            for value in (*s.config.values(), *s.teacher.values()):
+                if isinstance(value, str) and any(value == n or value.endswith(n) for n in names):
+                    return True
+    return False
+
+
 def _json(path: Path) -> dict:
     return json.loads(path.read_text()) if path.exists() else {}
 
@@ -219,14 +231,18 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
 # ---------------------------------------------------------------- campaigns (training/campaigns/<recipe>/)
 def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS_ROOT) -> list[Path]:
     """Copy each run stage's newest checkpoint, run state and curve into campaigns/NAME/<stage dir>/
-    (replacing what was there): what a campaign needs to go on on another machine."""
+    (replacing what was there): what a campaign needs to go on on another machine. A superseded stage that
+    nothing reads is dropped from the campaign instead."""
     recipe = R.load(name)
     saved = []
     for s in recipe.stages:
+        drop = superseded(root, recipe, s) and not referenced(recipe, s)
         for run_dir in stage_dirs(root, recipe, s):
             dest = campaigns / name / run_dir.name
             if dest.exists():
                 shutil.rmtree(dest)
+            if drop:
+                continue
             dest.mkdir(parents=True)
             for f in (checkpoints.RUN_STATE, DISTILL_STATE, *CURVE_FILES):
                 if (run_dir / f).exists():
