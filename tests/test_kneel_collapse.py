@@ -71,14 +71,18 @@ def test_evaluate_from_the_collapse(tmp_path):
     report names the starts and drops the seed's fallen-start figures."""
     from training.evaluate import evaluate
     report = evaluate(GETUP, tmp_path, seeds=2, seconds=0.1, first_seed=SEED, backend="cpu", starts="collapse",
-                      collapse_progress=0.5).read_text()
-    assert "2 collapses from the kneel at progress 0.5 (bank seed 700000)" in report
+                      collapse_progress=0.5, collapse={"gain_scale": 0.05, "duration_s": 3.0}).read_text()
+    assert "2 collapses from the kneel at progress 0.5 (bank seed 700000; kneel targets at PD × 0.05, 3.0 s)" \
+        in report
     assert "| reached the kneel" in report and "seed: policy" not in report
 
 
 def test_evaluate_cli_keeps_collapse_and_joystick_options_apart(capsys):
     from training import cli
     assert cli.main(["evaluate", "--policy", GETUP, "--collapse-progress", "0.5"]) == 2
-    assert "--collapse-progress goes with --starts collapse" in capsys.readouterr().err
+    assert "--collapse-progress, --collapse-gain-scale and --collapse-seconds go with --starts collapse" \
+        in capsys.readouterr().err
+    assert cli.main(["evaluate", "--policy", GETUP, "--collapse-seconds", "3"]) == 2
+    assert "go with --starts collapse" in capsys.readouterr().err
     assert cli.main(["evaluate", "--policy", GETUP, "--starts", "collapse", "--start-joystick", "j"]) == 2
     assert "--start-joystick goes with" in capsys.readouterr().err

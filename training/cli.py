@@ -98,8 +98,10 @@ def _cmd_evaluate(args, command: str) -> int:
     out = args.out or f"out/eval_{args.task}"
     if args.start_joystick and args.starts not in JOYSTICK_STARTS:
         raise ValueError("--start-joystick goes with --starts knockdown, wall or push")
-    if args.collapse_progress is not None and args.starts != "collapse":
-        raise ValueError("--collapse-progress goes with --starts collapse")
+    collapse = {k: v for k, v in (("gain_scale", args.collapse_gain_scale),
+                                  ("duration_s", args.collapse_seconds)) if v is not None}
+    if (args.collapse_progress is not None or collapse) and args.starts != "collapse":
+        raise ValueError("--collapse-progress, --collapse-gain-scale and --collapse-seconds go with --starts collapse")
     if args.starts in JOYSTICK_STARTS and not args.start_joystick:
         args.start_joystick = START_JOYSTICK
     if args.task == "joystick":
@@ -116,7 +118,8 @@ def _cmd_evaluate(args, command: str) -> int:
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
                                    command=command, backend=args.backend, starts=args.starts,
                                    start_joystick=args.start_joystick,
-                                   collapse_progress=1.0 if args.collapse_progress is None else args.collapse_progress)
+                                   collapse_progress=1.0 if args.collapse_progress is None else args.collapse_progress,
+                                   collapse=collapse)
     print(report.read_text())
     return 0
 
@@ -218,6 +221,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "curriculum, training/envs/kneel_collapse.py) at --collapse-progress")
     p.add_argument("--collapse-progress", type=float, metavar="P",
                    help="with --starts collapse: 0 the kneel … 1 the end of the collapse (default 1)")
+    p.add_argument("--collapse-gain-scale", type=float, metavar="G",
+                   help="with --starts collapse: the kneel's PD gains × G while it collapses (default: the getup "
+                   "env's collapse_starts.gain_scale; a stage's own is in its recipe)")
+    p.add_argument("--collapse-seconds", type=float, metavar="S",
+                   help="with --starts collapse: how long the collapse lasts [s] (default: the env's duration_s)")
     p.add_argument("--start-joystick", "--knockdown-joystick", metavar="ARTIFACT", dest="start_joystick",
                    help="with --starts knockdown, wall or push: the joystick expert that walks and is pushed over or "
                    f"trips (default {START_JOYSTICK})")

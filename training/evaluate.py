@@ -214,8 +214,10 @@ def markdown_report(results: dict, meta: dict) -> str:
         title = (f"{meta['episodes']} landings at a low wall (of {meta['seeds']} approaches, bank seed "
                  f"{meta['first_seed']}, walked into it by `{meta['start_joystick']}`)")
     elif starts == "collapse":
+        c = meta.get("collapse") or {}
         title = (f"{meta['seeds']} collapses from the kneel at progress {meta['collapse_progress']:g} (bank seed "
-                 f"{meta['first_seed']})")
+                 f"{meta['first_seed']}; kneel targets at PD × {c.get('gain_scale', 'n/a')}, "
+                 f"{c.get('duration_s', 'n/a')} s)")
     else:
         title = f"{meta['seeds']} seeded fallen starts from seed {meta['first_seed']}"
     lines = [f"# Getup evaluation ({title}, {meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]
@@ -277,13 +279,16 @@ def plot_heights(results: dict, png: Path) -> None:
 
 def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 32, seconds: float = 10.0,
              first_seed: int = 0, command: str = "", backend: str | None = None, starts: str = "fallen",
-             start_joystick: str | None = None, collapse_progress: float = 1.0) -> Path:
+             start_joystick: str | None = None, collapse_progress: float = 1.0,
+             collapse: dict | None = None) -> Path:
     """Run the evaluation; returns the path of report.md. starts="knockdown": instead of fallen starts, the
     states where `start_joystick`, knocked over from `seeds` standing starts (bank seed `first_seed`),
     hands over to the getup policy mid-fall (training/envs/handover.py); the ones it caught are left out.
     starts="wall": the same after `start_joystick` walked into the low-wall course from `seeds` approaches
     (the getup env then has the course in its world); starts="push": after the loop's push test shoved it;
-    starts="collapse": `seeds` collapses from the kneel (bank seed `first_seed`), each at `collapse_progress`."""
+    starts="collapse": `seeds` collapses from the kneel (bank seed `first_seed`), each at `collapse_progress`;
+    `collapse` overrides the env's `collapse_starts` settings (gain_scale, duration_s: the collapse a stage
+    trained on)."""
     from training import checkpoints, envs
     from training.train import default_backend
     checkpoints.jax_setup()
@@ -295,8 +300,11 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         raise ValueError("a start joystick policy goes with knockdown, wall or push starts, and only with them")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    if collapse and starts != "collapse":
+        raise ValueError("collapse settings go with starts='collapse'")
     env = envs.make(task, config_overrides={"backend": backend or default_backend(),
-                                            "wall_course.enable": starts == "wall"})
+                                            "wall_course.enable": starts == "wall",
+                                            **{f"collapse_starts.{k}": v for k, v in (collapse or {}).items()}})
     if starts == "fallen":
         qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
     elif starts == "collapse":
@@ -322,7 +330,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         results[role] = {"policy": policy, "run": run, "summary": summarize(run["rows"])}
     meta = {"seeds": seeds, "first_seed": first_seed, "seconds": seconds, "command": command or "evaluate()",
             "backend": env.backend, "starts": starts, "episodes": len(qpos), "start_joystick": start_joystick,
-            "collapse_progress": collapse_progress}
+            "collapse_progress": collapse_progress, "collapse": env.collapse_settings() if starts == "collapse" else None}
     report = out / "report.md"
     report.write_text(markdown_report(results, meta))
     with (out / "per_env.csv").open("w", newline="") as f:
