@@ -71,6 +71,17 @@ def test_a_ladder_of_gain_scales_shares_the_starts_from_slumped_to_lying():
         kneel_collapse.collapse_bank(2, SEED, 1.0, **{**SETTINGS, "gain_scale": (0.05, 0.07, 0.1)})
 
 
+def test_a_push_about_an_axis_in_0_to_180_degrees_lays_it_face_down():
+    """push_axis_deg: the tipping push's axis from world x; (0°, 180°) pitches the kneeling robot forward,
+    so every collapse ends prone (the trunk's forward axis pointing at the floor)."""
+    qpos, _ = kneel_collapse.collapses(STARTS, SEED, *(SETTINGS[k] for k in (
+        "gain_scale", "push_rad_s", "duration_s", "ctrl_dt", "supervisor")), (20.0, 160.0))
+    w, x, y, z = qpos[:, -1, 3:7].T
+    assert np.all(2.0 * (x * z - w * y) < -0.5)           # the trunk's x axis, world z component
+    with pytest.raises(ValueError, match="push_axis_deg"):
+        kneel_collapse.collapse_bank(STARTS, SEED, 0.5, **{**SETTINGS, "push_axis_deg": (160.0, 20.0)})
+
+
 def test_collapse_start_settings_are_checked():
     with pytest.raises(ValueError, match="max_progress"):
         _bank(1.5)
@@ -90,16 +101,15 @@ def test_evaluate_from_the_collapse(tmp_path):
     from training.evaluate import evaluate
     report = evaluate(GETUP, tmp_path, seeds=2, seconds=0.1, first_seed=SEED, backend="cpu", starts="collapse",
                       collapse_progress=0.5, collapse={"gain_scale": 0.05, "duration_s": 3.0}).read_text()
-    assert "2 collapses from the kneel at progress 0.5 (bank seed 700000; kneel targets at PD × 0.05, 3.0 s)" \
-        in report
+    assert "2 collapses from the kneel at progress 0.5 (bank seed 700000; kneel targets at PD × 0.05, 3.0 s, " \
+        "push axis 0–360°)" in report
     assert "| reached the kneel" in report and "seed: policy" not in report
 
 
 def test_evaluate_cli_keeps_collapse_and_joystick_options_apart(capsys):
     from training import cli
     assert cli.main(["evaluate", "--policy", GETUP, "--collapse-progress", "0.5"]) == 2
-    assert "--collapse-progress, --collapse-gain-scale and --collapse-seconds go with --starts collapse" \
-        in capsys.readouterr().err
+    assert "--collapse-push-axis-deg go with --starts collapse" in capsys.readouterr().err
     assert cli.main(["evaluate", "--policy", GETUP, "--collapse-seconds", "3"]) == 2
     assert "go with --starts collapse" in capsys.readouterr().err
     assert cli.main(["evaluate", "--policy", GETUP, "--starts", "collapse", "--start-joystick", "j"]) == 2

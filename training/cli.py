@@ -99,9 +99,11 @@ def _cmd_evaluate(args, command: str) -> int:
     if args.start_joystick and args.starts not in JOYSTICK_STARTS:
         raise ValueError("--start-joystick goes with --starts knockdown, wall or push")
     collapse = {k: v for k, v in (("gain_scale", args.collapse_gain_scale),
-                                  ("duration_s", args.collapse_seconds)) if v is not None}
+                                  ("duration_s", args.collapse_seconds),
+                                  ("push_axis_deg", args.collapse_push_axis_deg)) if v is not None}
     if (args.collapse_progress is not None or collapse) and args.starts != "collapse":
-        raise ValueError("--collapse-progress, --collapse-gain-scale and --collapse-seconds go with --starts collapse")
+        raise ValueError("--collapse-progress, --collapse-gain-scale, --collapse-seconds and "
+                         "--collapse-push-axis-deg go with --starts collapse")
     if args.starts in JOYSTICK_STARTS and not args.start_joystick:
         args.start_joystick = START_JOYSTICK
     if args.task == "joystick":
@@ -226,6 +228,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "env's collapse_starts.gain_scale; a stage's own is in its recipe)")
     p.add_argument("--collapse-seconds", type=float, metavar="S",
                    help="with --starts collapse: how long the collapse lasts [s] (default: the env's duration_s)")
+    p.add_argument("--collapse-push-axis-deg", type=float, nargs=2, metavar=("LOW", "HIGH"),
+                   help="with --starts collapse: the tipping push's axis, uniform in [LOW, HIGH] degrees from "
+                   "world x (20 160: it falls face down; default: any axis)")
     p.add_argument("--start-joystick", "--knockdown-joystick", metavar="ARTIFACT", dest="start_joystick",
                    help="with --starts knockdown, wall or push: the joystick expert that walks and is pushed over or "
                    f"trips (default {START_JOYSTICK})")

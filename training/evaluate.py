@@ -217,7 +217,7 @@ def markdown_report(results: dict, meta: dict) -> str:
         c = meta.get("collapse") or {}
         title = (f"{meta['seeds']} collapses from the kneel at progress {meta['collapse_progress']:g} (bank seed "
                  f"{meta['first_seed']}; kneel targets at PD × {c.get('gain_scale', 'n/a')}, "
-                 f"{c.get('duration_s', 'n/a')} s)")
+                 f"{c.get('duration_s', 'n/a')} s, push axis {'–'.join(f'{a:g}' for a in c.get('push_axis_deg', ()))}°)")
     else:
         title = f"{meta['seeds']} seeded fallen starts from seed {meta['first_seed']}"
     lines = [f"# Getup evaluation ({title}, {meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]

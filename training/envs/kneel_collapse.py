@@ -8,8 +8,9 @@ down: early states are the kneel slightly tipped, late ones lie on the floor nea
 `max_progress` (0 the kneel, 1 the end of the collapse) sets how far down the starts go, as start_path.py does
 for stage 2 along a hand-made path.
 
-`collapse_bank` starts at the kneel with a random tipping push (root angular velocity, horizontal axis,
-push_rad_s·U(0.5, 1) [rad/s]) and the kneel's joint angles held with the shared PD gains × gain_scale, in C
+`collapse_bank` starts at the kneel with a random tipping push (root angular velocity about a horizontal
+axis at an angle U(push_axis_deg) from the world x axis, push_rad_s·U(0.5, 1) [rad/s]; axes in (0°, 180°)
+tip it forward, face down) and the kneel's joint angles held with the shared PD gains × gain_scale, in C
 MuJoCo with the CPU backend's motor callback (R6 and the firmware's motor law: a one-off host computation
 whatever backend trains), and keeps the state of every control tick of the first duration_s [s]; progress is
 tick / last tick. Given several gain scales, the starts are shared evenly among the collapses at each (a
@@ -30,8 +31,8 @@ PUSH_SPREAD = (0.5, 1.0)    # the push's magnitude as a fraction of push_rad_s, 
 
 
 def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale: float | Sequence[float],
-                  push_rad_s: float, duration_s: float, ctrl_dt: float,
-                  supervisor: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+                  push_rad_s: float, duration_s: float, ctrl_dt: float, supervisor: tuple[float, float],
+                  push_axis_deg: tuple[float, float] = (0.0, 360.0)) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) of the collapses from progress 0 to `max_progress` (module docstring); read-only arrays.
     A sequence of gain scales shares the starts evenly (rung k seeded seed + k). supervisor = (max target
     speed [rad/s], joint-range fraction) of rule R6."""
@@ -42,7 +43,7 @@ def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale
         raise ValueError(f"collapse_starts: {num_starts} starts cannot share {len(scales)} gain scales")
     per_rung = np.diff(np.linspace(0, num_starts, len(scales) + 1).round().astype(int))
     qpos, qvel = (np.concatenate(parts) for parts in zip(*(
-        _rollouts(n, seed + k, g, push_rad_s, duration_s, ctrl_dt, supervisor)
+        _rollouts(n, seed + k, g, push_rad_s, duration_s, ctrl_dt, supervisor, push_axis_deg)
         for k, (n, g) in enumerate(zip(per_rung, scales)))))
     last = int(np.floor(max_progress * (qpos.shape[1] - 1) + 1e-9))
     bank = (qpos[:, :last + 1].reshape(-1, qpos.shape[-1]), qvel[:, :last + 1].reshape(-1, qvel.shape[-1]))
@@ -52,24 +53,26 @@ def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale
 
 
 def collapse_states(num_starts: int, seed: int, progress: float, *, gain_scale: float, push_rad_s: float,
-                    duration_s: float, ctrl_dt: float, supervisor: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+                    duration_s: float, ctrl_dt: float, supervisor: tuple[float, float],
+                    push_axis_deg: tuple[float, float] = (0.0, 360.0)) -> tuple[np.ndarray, np.ndarray]:
     """(qpos [num_starts, nq], qvel [num_starts, nv]): each collapse at `progress` (evaluate --starts collapse)."""
     if not 0.0 <= progress <= 1.0:
         raise ValueError(f"collapse progress must be in [0, 1], got {progress}")
-    qpos, qvel = _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor)
+    qpos, qvel = _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor, push_axis_deg)
     tick = int(round(progress * (qpos.shape[1] - 1)))
     return qpos[:, tick].copy(), qvel[:, tick].copy()
 
 
-def _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor):
+def _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor, push_axis_deg):
     """collapses() with its arguments in the types its cache keys on (a numpy or JAX scalar would miss it)."""
     return collapses(int(num_starts), int(seed), float(gain_scale), float(push_rad_s), float(duration_s),
-                     float(ctrl_dt), tuple(float(x) for x in supervisor))
+                     float(ctrl_dt), tuple(float(x) for x in supervisor), tuple(float(x) for x in push_axis_deg))
 
 
 @functools.lru_cache(maxsize=4)
 def collapses(num_starts: int, seed: int, gain_scale: float, push_rad_s: float, duration_s: float, ctrl_dt: float,
-              supervisor: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+              supervisor: tuple[float, float],
+              push_axis_deg: tuple[float, float] = (0.0, 360.0)) -> tuple[np.ndarray, np.ndarray]:
     """The rollouts: qpos (starts, ticks + 1, nq), qvel (starts, ticks + 1, nv) [float32], tick 0 the kneel.
     Cached (read-only arrays): banks at other progresses pay nothing."""
     from training.envs import cpu_backend    # heavy (JAX); only where a bank is rolled
@@ -80,6 +83,8 @@ def collapses(num_starts: int, seed: int, gain_scale: float, push_rad_s: float, 
         raise ValueError(f"collapse_starts.gain_scale must be in (0, 1] (weaker than the policy's PD), got {gain_scale}")
     if push_rad_s < 0.0 or duration_s <= 0.0:
         raise ValueError(f"collapse_starts: push_rad_s must be >= 0 and duration_s > 0, got {push_rad_s}, {duration_s}")
+    if len(push_axis_deg) != 2 or not push_axis_deg[0] <= push_axis_deg[1]:
+        raise ValueError(f"collapse_starts.push_axis_deg must be [low, high] with low <= high, got {push_axis_deg}")
     kp, kd = t1model.pd_gains(t1model.load_model())
     mj = backend_model(gain_scale * kp, gain_scale * kd)
     substeps = int(round(ctrl_dt / mj.opt.timestep))
@@ -92,7 +97,7 @@ def collapses(num_starts: int, seed: int, gain_scale: float, push_rad_s: float, 
     b = physics.evaluation_batch(num_starts)
     kneel = t1model.keyframe_qpos(mj, "kneel")
     rng = np.random.default_rng(seed)
-    axis = rng.uniform(0.0, 2.0 * np.pi, num_starts)
+    axis = rng.uniform(*np.radians(push_axis_deg), num_starts)
     rate = push_rad_s * rng.uniform(*PUSH_SPREAD, num_starts)
     b.qpos[:], b.qvel[:], b.time[:] = kneel, 0.0, 0.0
     root_w = slice(t1model.ROOT_QVEL - 3, t1model.ROOT_QVEL)       # the free joint's angular velocity

@@ -5,7 +5,8 @@ card: stage 1 rises with the elastic harness (assists.py) pulling the trunk towa
 in small steps to none (HoST's fading pull; unassisted, 10 M steps only learned the kneel's joint angles lying
 down), then unassisted with kneeling starts, starts along the harnessed rises (a reverse curriculum,
 rise_bank.py), then along the kneel's collapse to the floor (kneel_collapse.py; first a stiffer, shorter
-collapse that ends slumped forward, then one that ends lying), and a reward while the §4.8 gate holds (the
+collapse that ends leaning back on the heels or face down, then a limper one that ends lying, then the
+forward falls alone, from their start), and a reward while the §4.8 gate holds (the
 kneel's joint angles alone leave the trunk 1.25° off vertical, the gate wants 0.57°); stage 2 learns along a
 reverse curriculum of starts from the kneel up the lunge (start_path.py), first the whole path, then its
 swing, then the whole path again; the runtime's target rule R6 is in every stage. The rise bank's policy,
@@ -41,8 +42,12 @@ UNASSISTED = {"env.stage1_start_probs": [0.7, 0.3, 0.0], "env.stage1_gate_reward
 # kneel's collapse to the floor take the place of the rise bank
 FROM_COLLAPSE = {**{k: v for k, v in UNASSISTED.items() if not k.startswith("env.rise_starts.")},
                  "env.collapse_starts.prob": 0.6, "env.collapse_starts.max_progress": 1.0}
-# then down to the floor: a limper, longer collapse ends lying as the fallen starts do (trunk 0.15 m, on its side)
+# then down to the floor: a limper, longer collapse ends lying flat as the fallen starts do (face down or on the back)
 FROM_FLOOR = {**FROM_COLLAPSE, "env.collapse_starts.gain_scale": 0.05, "env.collapse_starts.duration_s": 3.0}
+# face down only, from the early part of the fall: from the floor the kneel was reached from lying on the back
+# (sitting up onto the heels) and never from prone, whose frontier is within 0.3 s of the tip (LESSONS, period 5)
+FROM_PRONE = {**FROM_FLOOR, "env.collapse_starts.push_axis_deg": [20.0, 160.0],
+              "env.collapse_starts.max_progress": 0.3}
 FULL = {"env.gate_latches": False, "ppo.policy_std_scale": 0.25, "ppo.entropy_cost": 0.001,
         "ppo.learning_rate": 1e-4}
 
@@ -59,8 +64,11 @@ RECIPE = Recipe(
               config=UNASSISTED),
         Stage("rise_from_collapse", task="getup", getup_stage="stage1", steps=30_000_000, init="rise_unassisted",
               config=FROM_COLLAPSE),
-        Stage("rise_from_floor", task="getup", getup_stage="stage1", steps=20_000_000, init="rise_from_collapse",
+        # stopped at its plateau (reached the kneel from lying on its back only): training/LESSONS.md, period 5
+        Stage("rise_from_floor", task="getup", getup_stage="stage1", steps=16_056_320, init="rise_from_collapse",
               config=FROM_FLOOR),
+        Stage("rise_from_prone", task="getup", getup_stage="stage1", steps=20_000_000, init="rise_from_floor",
+              config=FROM_PRONE),
         Stage("stand_path", task="getup", getup_stage="stage2", steps=27_095_040, config=STAND),
         Stage("stand_swing", task="getup", getup_stage="stage2", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
