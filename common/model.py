@@ -137,6 +137,13 @@ def trunk_heights(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
     return np.array(heights)
 
 
+def trunk_forward_z(qpos: np.ndarray) -> np.ndarray:
+    """World z of the trunk's forward (x) axis for states qpos [..., nq], from the free joint's quaternion:
+    near -1 lying face down, near +1 on the back."""
+    w, x, y, z = np.moveaxis(np.asarray(qpos)[..., 3:ROOT_QPOS], -1, 0)
+    return 2.0 * (x * z - w * y)
+
+
 def waist_height(data: mujoco.MjData) -> float:
     """Waist (pelvis) body origin height [m]."""
     return float(data.xpos[data.model.body("Waist").id, 2])

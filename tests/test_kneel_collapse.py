@@ -76,8 +76,7 @@ def test_a_push_about_an_axis_in_0_to_180_degrees_lays_it_face_down():
     so every collapse ends prone (the trunk's forward axis pointing at the floor)."""
     qpos, _ = kneel_collapse.collapses(STARTS, SEED, *(SETTINGS[k] for k in (
         "gain_scale", "push_rad_s", "duration_s", "ctrl_dt", "supervisor")), (20.0, 160.0))
-    w, x, y, z = qpos[:, -1, 3:7].T
-    assert np.all(2.0 * (x * z - w * y) < -0.5)           # the trunk's x axis, world z component
+    assert np.all(t1model.trunk_forward_z(qpos[:, -1]) < -0.5)
     with pytest.raises(ValueError, match="push_axis_deg"):
         kneel_collapse.collapse_bank(STARTS, SEED, 0.5, **{**SETTINGS, "push_axis_deg": (160.0, 20.0)})
 
@@ -104,6 +103,7 @@ def test_evaluate_from_the_collapse(tmp_path):
     assert "2 collapses from the kneel at progress 0.5 (bank seed 700000; kneel targets at PD × 0.05, 3.0 s, " \
         "push axis 0–360°)" in report
     assert "| reached the kneel" in report and "seed: policy" not in report
+    assert "| … from starts lying face down" in report      # mid-fall starts: neither face down nor up → n/a
 
 
 def test_evaluate_cli_keeps_collapse_and_joystick_options_apart(capsys):

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common import model as t1model
 from common import observation as obsdef
 from training import table_4_3
 from training.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
@@ -111,8 +112,9 @@ def run_policy(env, policy: ArtifactPolicy | CompositePolicy, qpos, qvel, second
         series = jax.tree.map(np.asarray, make_rollout(env, policy, ticks)(policy.params, qpos, qvel))
     readings = series["readings"]                      # (N, T + 1, 3)
     t = np.arange(ticks + 1) * ctrl_dt
-    rows = [episode_row(t, readings[i], {k: v[i] for k, v in series.items() if k != "readings"})
-            for i in range(readings.shape[0])]
+    forward_z = t1model.trunk_forward_z(np.asarray(qpos))
+    rows = [{**episode_row(t, readings[i], {k: v[i] for k, v in series.items() if k != "readings"}),
+             "start_forward_z": float(forward_z[i])} for i in range(readings.shape[0])]
     return {"rows": rows, "t": t, "trunk_height": readings[:, :, 0], "waist_height": readings[:, :, 2],
             "up_z": readings[:, :, 1]}
 
@@ -147,6 +149,8 @@ def episode_row(t, readings, series) -> dict:
         "z_contact_impulse_Ns": float(series["contact_force_z_N"].sum() * ctrl_dt)}
 
 
+# a start lies face down / on its back where the trunk's forward axis is within 60° of vertical
+FACING_Z = 0.5   # |world z of the forward axis|
 EFFORT_KEYS = ("energy_J", "energy_to_stand_J", "max_energy_J", "max_torque_Nm", "total_torque_Nms",
                "max_joint_acc_radps2", "total_joint_acc_radps", "max_contact_force_N", "mean_contact_force_N", "z_contact_impulse_Ns")
 
@@ -166,6 +170,9 @@ def summarize(rows: list[dict]) -> dict:
             "never_rose": float(np.mean([r["attempts"] == 0 and not r["success"] for r in rows])),
             "time_to_stand_s": mean("time_to_stand_s"), "through_kneel_gate": mean("through_kneel_gate"),
             "reached_kneel": mean("reached_kneel"),
+            # rows from episode_row alone carry no start state: counted in neither
+            "reached_kneel_face_down": mean("reached_kneel", lambda r: r.get("start_forward_z", 0.0) < -FACING_Z),
+            "reached_kneel_face_up": mean("reached_kneel", lambda r: r.get("start_forward_z", 0.0) > FACING_Z),
             **{k: mean(k) for k in EFFORT_KEYS}}
 
 
@@ -184,6 +191,8 @@ ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attem
         ("through the kneel gate before standing (share of those that stood)", "through_kneel_gate", "{:.2f}"),
         ("reached the kneel: the gate met while not standing (share of episodes; stage 1's aim)", "reached_kneel",
          "{:.2f}"),
+        ("… from starts lying face down (trunk's forward axis pointing down)", "reached_kneel_face_down", "{:.2f}"),
+        ("… from starts lying on the back (trunk's forward axis pointing up)", "reached_kneel_face_up", "{:.2f}"),
         ("energy Σ\\|τ·q̇\\|·dt [J]", "energy_J", "{:.1f}"),
         ("energy until the first stand-up [J] (episodes that stood)", "energy_to_stand_J", "{:.1f}"),
         ("max energy in one physics step [J]", "max_energy_J", "{:.2f}"),
