@@ -53,24 +53,6 @@ def test_the_stage1_env_draws_its_fallen_share_from_the_collapse():
     assert prob == 0.6 and np.array_equal(np.asarray(qpos), bank[0]) and np.array_equal(np.asarray(qvel), bank[1])
 
 
-def test_a_ladder_of_gain_scales_shares_the_starts_from_slumped_to_lying():
-    """stiffer_gain_scales: the bank's starts are split evenly among the collapses at each gain scale, the
-    limpest first (rung k seeded seed + k); the limp collapse ends lower than the stiff one."""
-    env = envs.make("getup", config_overrides={
-        "stage": "stage1", "fallen_bank_size": 2, "collapse_starts.prob": 0.6, "collapse_starts.bank_starts": STARTS,
-        "collapse_starts.seed": SEED, "collapse_starts.gain_scale": 0.05, "collapse_starts.stiffer_gain_scales": [0.1]})
-    ((_, (qpos, _)),) = env._fallen_banks
-    ticks = int(round(SETTINGS["duration_s"] / SETTINGS["ctrl_dt"])) + 1
-    half = STARTS // 2
-    limp = kneel_collapse.collapse_bank(half, SEED, 1.0, **{**SETTINGS, "gain_scale": 0.05})[0]
-    stiff = kneel_collapse.collapse_bank(half, SEED + 1, 1.0, **SETTINGS)[0]
-    np.testing.assert_array_equal(np.asarray(qpos), np.concatenate([limp, stiff]))
-    ends = _trunk_heights(np.asarray(qpos).reshape(STARTS, ticks, -1)[:, -1])
-    assert np.median(ends[:half]) < np.median(ends[half:])
-    with pytest.raises(ValueError, match="cannot share 3 gain scales"):
-        kneel_collapse.collapse_bank(2, SEED, 1.0, **{**SETTINGS, "gain_scale": (0.05, 0.07, 0.1)})
-
-
 def test_a_push_about_an_axis_in_0_to_180_degrees_lays_it_face_down():
     """push_axis_deg: the tipping push's axis from world x; (0°, 180°) pitches the kneeling robot forward,
     so every collapse ends prone (the trunk's forward axis pointing at the floor)."""

@@ -253,12 +253,8 @@ class Getup(GetupBase):
                     supervisor=(step_per_substep / float(self._config.sim_dt), fraction))
 
     def _collapse_bank(self, make_env, _policy: str, num_starts: int, seed: int):
-        c = self._config.collapse_starts
-        settings = self.collapse_settings()
-        ladder = [float(g) for g in c.get("stiffer_gain_scales", [])]   # runs made before it have none
-        if ladder:
-            settings["gain_scale"] = (settings["gain_scale"], *ladder)
-        return kneel_collapse.collapse_bank(num_starts, seed, float(c.max_progress), **settings)
+        return kneel_collapse.collapse_bank(num_starts, seed, float(self._config.collapse_starts.max_progress),
+                                            **self.collapse_settings())
 
     def _wall_bank(self, make_env, joystick_policy: str, num_starts: int, seed: int):
         return handover.wall_bank(make_env, joystick_policy, num_starts, seed,

@@ -72,11 +72,10 @@ def default_config() -> config_dict.ConfigDict:
     # collapse starts (kneel_collapse.py; ours, stage 1's reverse curriculum): this share of the fallen starts is
     # instead a state along the collapse from the kneel (PD gains × gain_scale, a tipping push of push_rad_s
     # [rad/s] about an axis push_axis_deg [deg] from world x: (0, 180) tips it face down, duration_s [s]) of
-    # `bank_starts` starts, at progress 0 … max_progress toward the floor; stiffer_gain_scales: further
-    # collapses at these gain scales share the starts evenly (a ladder)
+    # `bank_starts` starts, at progress 0 … max_progress toward the floor
     cfg.collapse_starts = config_dict.create(prob=0.0, max_progress=1.0, bank_starts=256, seed=700_000,
                                              gain_scale=0.1, push_rad_s=2.0, duration_s=2.0,
-                                             stiffer_gain_scales=[], push_axis_deg=[0.0, 360.0])
+                                             push_axis_deg=[0.0, 360.0])
     # the composite's upright member in the world (training/envs/upright.py; ours): a joystick artifact that
     # drives whenever the waist is at or above the teacher's switch height; "" = the getup expert alone
     cfg.upright_policy = ""

@@ -13,14 +13,11 @@ axis at an angle U(push_axis_deg) from the world x axis, push_rad_s·U(0.5, 1) [
 tip it forward, face down) and the kneel's joint angles held with the shared PD gains × gain_scale, in C
 MuJoCo with the CPU backend's motor callback (R6 and the firmware's motor law: a one-off host computation
 whatever backend trains), and keeps the state of every control tick of the first duration_s [s]; progress is
-tick / last tick. Given several gain scales, the starts are shared evenly among the collapses at each (a
-ladder from a stiff collapse that ends slumped forward to a limp one that ends lying), as the harness was
-weakened in small steps (training/LESSONS.md, period 2–3).
+tick / last tick.
 """
 from __future__ import annotations
 
 import functools
-from typing import Sequence
 
 import numpy as np
 
@@ -30,21 +27,14 @@ from training.envs.fallen import backend_model
 PUSH_SPREAD = (0.5, 1.0)    # the push's magnitude as a fraction of push_rad_s, uniform in this range
 
 
-def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale: float | Sequence[float],
+def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale: float,
                   push_rad_s: float, duration_s: float, ctrl_dt: float, supervisor: tuple[float, float],
                   push_axis_deg: tuple[float, float] = (0.0, 360.0)) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) of the collapses from progress 0 to `max_progress` (module docstring); read-only arrays.
-    A sequence of gain scales shares the starts evenly (rung k seeded seed + k). supervisor = (max target
-    speed [rad/s], joint-range fraction) of rule R6."""
+    supervisor = (max target speed [rad/s], joint-range fraction) of rule R6."""
     if not 0.0 <= max_progress <= 1.0:
         raise ValueError(f"collapse_starts.max_progress must be in [0, 1], got {max_progress}")
-    scales = [gain_scale] if np.isscalar(gain_scale) else list(gain_scale)
-    if not scales or num_starts < len(scales):
-        raise ValueError(f"collapse_starts: {num_starts} starts cannot share {len(scales)} gain scales")
-    per_rung = np.diff(np.linspace(0, num_starts, len(scales) + 1).round().astype(int))
-    qpos, qvel = (np.concatenate(parts) for parts in zip(*(
-        _rollouts(n, seed + k, g, push_rad_s, duration_s, ctrl_dt, supervisor, push_axis_deg)
-        for k, (n, g) in enumerate(zip(per_rung, scales)))))
+    qpos, qvel = _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor, push_axis_deg)
     last = int(np.floor(max_progress * (qpos.shape[1] - 1) + 1e-9))
     bank = (qpos[:, :last + 1].reshape(-1, qpos.shape[-1]), qvel[:, :last + 1].reshape(-1, qvel.shape[-1]))
     for array in bank:
