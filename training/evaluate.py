@@ -296,8 +296,8 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     starts="wall": the same after `start_joystick` walked into the low-wall course from `seeds` approaches
     (the getup env then has the course in its world); starts="push": after the loop's push test shoved it;
     starts="collapse": `seeds` collapses from the kneel (bank seed `first_seed`), each at `collapse_progress`;
-    `collapse` overrides the env's `collapse_starts` settings (gain_scale, duration_s: the collapse a stage
-    trained on)."""
+    `collapse` overrides the env's `collapse_starts` settings (gain_scale, duration_s, push_axis_deg: the
+    collapse a stage trained on)."""
     from training import checkpoints, envs
     from training.train import default_backend
     checkpoints.jax_setup()

@@ -248,7 +248,7 @@ class Getup(GetupBase):
         c = self._config.collapse_starts
         step_per_substep, fraction = self._supervisor_settings(self._config)
         return dict(gain_scale=float(c.gain_scale), push_rad_s=float(c.push_rad_s), duration_s=float(c.duration_s),
-                    push_axis_deg=tuple(c.get("push_axis_deg", (0.0, 360.0))),   # runs made before it: any axis
+                    push_axis_deg=tuple(c.get("push_axis_deg", kneel_collapse.ANY_AXIS_DEG)),   # runs made before it: any axis
                     ctrl_dt=float(self._config.ctrl_dt),
                     supervisor=(step_per_substep / float(self._config.sim_dt), fraction))
 

@@ -25,11 +25,12 @@ from common import model as t1model
 from training.envs.fallen import backend_model
 
 PUSH_SPREAD = (0.5, 1.0)    # the push's magnitude as a fraction of push_rad_s, uniform in this range
+ANY_AXIS_DEG = (0.0, 360.0)  # push_axis_deg: a tip in any horizontal direction
 
 
 def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale: float,
                   push_rad_s: float, duration_s: float, ctrl_dt: float, supervisor: tuple[float, float],
-                  push_axis_deg: tuple[float, float] = (0.0, 360.0)) -> tuple[np.ndarray, np.ndarray]:
+                  push_axis_deg: tuple[float, float] = ANY_AXIS_DEG) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) of the collapses from progress 0 to `max_progress` (module docstring); read-only arrays.
     supervisor = (max target speed [rad/s], joint-range fraction) of rule R6."""
     if not 0.0 <= max_progress <= 1.0:
@@ -44,7 +45,7 @@ def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale
 
 def collapse_states(num_starts: int, seed: int, progress: float, *, gain_scale: float, push_rad_s: float,
                     duration_s: float, ctrl_dt: float, supervisor: tuple[float, float],
-                    push_axis_deg: tuple[float, float] = (0.0, 360.0)) -> tuple[np.ndarray, np.ndarray]:
+                    push_axis_deg: tuple[float, float] = ANY_AXIS_DEG) -> tuple[np.ndarray, np.ndarray]:
     """(qpos [num_starts, nq], qvel [num_starts, nv]): each collapse at `progress` (evaluate --starts collapse)."""
     if not 0.0 <= progress <= 1.0:
         raise ValueError(f"collapse progress must be in [0, 1], got {progress}")
@@ -62,7 +63,7 @@ def _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, sup
 @functools.lru_cache(maxsize=4)
 def collapses(num_starts: int, seed: int, gain_scale: float, push_rad_s: float, duration_s: float, ctrl_dt: float,
               supervisor: tuple[float, float],
-              push_axis_deg: tuple[float, float] = (0.0, 360.0)) -> tuple[np.ndarray, np.ndarray]:
+              push_axis_deg: tuple[float, float] = ANY_AXIS_DEG) -> tuple[np.ndarray, np.ndarray]:
     """The rollouts: qpos (starts, ticks + 1, nq), qvel (starts, ticks + 1, nv) [float32], tick 0 the kneel.
     Cached (read-only arrays): banks at other progresses pay nothing."""
     from training.envs import cpu_backend    # heavy (JAX); only where a bank is rolled
