@@ -88,7 +88,7 @@ BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
 # = training.evaluate.START_KINDS and JOYSTICK_STARTS (not imported: parsing needs no JAX)
-START_CHOICES = ("fallen", "knockdown", "wall", "push", "collapse")
+START_CHOICES = ("fallen", "knockdown", "wall", "push", "collapse", "prone")
 JOYSTICK_STARTS = ("knockdown", "wall", "push")
 START_JOYSTICK = "policies/joystick/joystick.safetensors"   # evaluate --starts knockdown|wall|push: the shipped joystick expert
 
@@ -104,6 +104,8 @@ def _cmd_evaluate(args, command: str) -> int:
     if (args.collapse_progress is not None or collapse) and args.starts != "collapse":
         raise ValueError("--collapse-progress, --collapse-gain-scale, --collapse-seconds and "
                          "--collapse-push-axis-deg go with --starts collapse")
+    if args.prone_progress is not None and args.starts != "prone":
+        raise ValueError("--prone-progress goes with --starts prone")
     if args.starts in JOYSTICK_STARTS and not args.start_joystick:
         args.start_joystick = START_JOYSTICK
     if args.task == "joystick":
@@ -121,7 +123,8 @@ def _cmd_evaluate(args, command: str) -> int:
                                    command=command, backend=args.backend, starts=args.starts,
                                    start_joystick=args.start_joystick,
                                    collapse_progress=1.0 if args.collapse_progress is None else args.collapse_progress,
-                                   collapse=collapse)
+                                   collapse=collapse,
+                                   prone_progress=args.prone_progress)
     print(report.read_text())
     return 0
 
@@ -220,7 +223,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "(training/envs/wall_course.py), those that stepped over it left out; push = the same in the "
                    "loop's push test: SEEDS standing starts shoved on the torso forward or backward (2 : 1), "
                    "the ones it caught left out; collapse = SEEDS collapses from the kneel (stage 1's reverse "
-                   "curriculum, training/envs/kneel_collapse.py) at --collapse-progress")
+                   "curriculum, training/envs/kneel_collapse.py) at --collapse-progress; prone = SEEDS settled starts on "
+                   "the path kneel → hands and knees → face down (training/envs/prone_path.py) at --prone-progress")
+    p.add_argument("--prone-progress", type=float, metavar="P",
+                   help="with --starts prone: 0 the kneel, 1 hands and knees, 2 face down (default 2)")
     p.add_argument("--collapse-progress", type=float, metavar="P",
                    help="with --starts collapse: 0 the kneel … 1 the end of the collapse (default 1)")
     p.add_argument("--collapse-gain-scale", type=float, metavar="G",

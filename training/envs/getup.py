@@ -51,7 +51,7 @@ from mujoco_playground._src import mjx_env
 from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
-from training.envs import handover, kneel_collapse, rise_bank, start_path, upright
+from training.envs import handover, kneel_collapse, prone_path, rise_bank, start_path, upright
 from common.events import FALLEN_TRUNK_HEIGHT_M
 from common.events import STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import PREPARE_S, fallen_states
@@ -220,7 +220,8 @@ class Getup(GetupBase):
                                        ("wall_starts", "joystick_policy", self._wall_bank),
                                        ("push_starts", "joystick_policy", handover.push_test_bank),
                                        ("rise_starts", "getup_policy", self._rise_bank),
-                                       ("collapse_starts", None, self._collapse_bank)):
+                                       ("collapse_starts", None, self._collapse_bank),
+                                       ("prone_starts", None, self._prone_bank)):
             b = self._config.get(name)   # runs made before a bank existed have no such key
             if b is None:
                 continue
@@ -255,6 +256,18 @@ class Getup(GetupBase):
     def _collapse_bank(self, make_env, _policy: str, num_starts: int, seed: int):
         return kneel_collapse.collapse_bank(num_starts, seed, float(self._config.collapse_starts.max_progress),
                                             **self.collapse_settings())
+
+    def prone_settings(self) -> dict:
+        """prone_path's settings of this env's prone starts (training and evaluation)."""
+        p = self._config.prone_starts
+        step_per_substep, fraction = self._supervisor_settings(self._config)
+        return dict(hands_knees_pitch_rad=float(p.hands_knees_pitch_rad), target_noise_rad=float(p.target_noise_rad),
+                    settle_s=float(p.settle_s), supervisor=(step_per_substep / float(self._config.sim_dt), fraction))
+
+    def _prone_bank(self, make_env, _policy: str, num_starts: int, seed: int):
+        p = self._config.prone_starts
+        return prone_path.prone_bank(num_starts, seed, float(p.min_progress), float(p.max_progress),
+                                     **self.prone_settings())
 
     def _wall_bank(self, make_env, joystick_policy: str, num_starts: int, seed: int):
         return handover.wall_bank(make_env, joystick_policy, num_starts, seed,

@@ -62,7 +62,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.wall_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=400_000)
     # push-test starts (handover.push_test_bank; ours): this share of the fallen starts is where the teacher
     # hands `joystick_policy` over after the loop's push test shoved it (a torso impulse, forward or backward),
-    # from `bank_starts` standing starts. The shares of these, rise_starts and collapse_starts sum to at most 1
+    # from `bank_starts` standing starts. The shares of these, rise_starts, collapse_starts and prone_starts sum to at most 1
     cfg.push_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=500_000)
     # rise starts (rise_bank.py; ours, stage 1's reverse curriculum): this share of the fallen starts is instead
     # a state along the rises `getup_policy` makes with the harness (stiffness [N/m], slack [m]) from
@@ -76,6 +76,12 @@ def default_config() -> config_dict.ConfigDict:
     cfg.collapse_starts = config_dict.create(prob=0.0, max_progress=1.0, bank_starts=256, seed=700_000,
                                              gain_scale=0.1, push_rad_s=2.0, duration_s=2.0,
                                              push_axis_deg=[0.0, 360.0])
+    # prone starts (prone_path.py; ours, stage 1's reverse curriculum): this share of the fallen starts is instead
+    # a settled state along kneel (0) → hands and knees (1, trunk pitched forward hands_knees_pitch_rad) → lying
+    # face down (2), at progress U(min_progress, max_progress), joint targets ± target_noise_rad, held settle_s [s]
+    cfg.prone_starts = config_dict.create(prob=0.0, min_progress=0.0, max_progress=2.0, bank_starts=256,
+                                          seed=800_000, hands_knees_pitch_rad=1.4, target_noise_rad=0.1,
+                                          settle_s=1.0)
     # the composite's upright member in the world (training/envs/upright.py; ours): a joystick artifact that
     # drives whenever the waist is at or above the teacher's switch height; "" = the getup expert alone
     cfg.upright_policy = ""

@@ -62,10 +62,11 @@ def pose_at(points: list, progress: float) -> np.ndarray:
     return (1.0 - t) * a + t * b
 
 
-def place_on_floor(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
-    """qpos at the origin, trunk upright, root height such that the lowest robot primitive touches z = 0."""
+def place_on_floor(model: mujoco.MjModel, qpos: np.ndarray, pitch_rad: float = 0.0) -> np.ndarray:
+    """qpos at the origin, trunk pitched forward by pitch_rad (0 upright), root height such that the lowest
+    robot primitive touches z = 0."""
     q = np.array(qpos, dtype=np.float64)
-    q[0:3], q[3:7] = 0.0, (1.0, 0.0, 0.0, 0.0)
+    q[0:3], q[3:7] = 0.0, (np.cos(pitch_rad / 2.0), 0.0, np.sin(pitch_rad / 2.0), 0.0)
     data = mujoco.MjData(model)
     data.qpos[:] = q
     mujoco.mj_kinematics(model, data)

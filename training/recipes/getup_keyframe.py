@@ -6,7 +6,8 @@ in small steps to none (HoST's fading pull; unassisted, 10 M steps only learned 
 down), then unassisted with kneeling starts, starts along the harnessed rises (a reverse curriculum,
 rise_bank.py), then along the kneel's collapse to the floor (kneel_collapse.py; first a stiffer, shorter
 collapse that ends leaning back on the heels or face down, then a limper one that ends lying, then the
-forward falls alone, from their start), and a reward while the §4.8 gate holds (the
+forward falls alone, from their start; then at rest along a hand-made path from the kneel over hands and knees to
+lying face down, prone_path.py), and a reward while the §4.8 gate holds (the
 kneel's joint angles alone leave the trunk 1.25° off vertical, the gate wants 0.57°); stage 2 learns along a
 reverse curriculum of starts from the kneel up the lunge (start_path.py), first the whole path, then its
 swing, then the whole path again; the runtime's target rule R6 is in every stage. The rise bank's policy,
@@ -48,6 +49,11 @@ FROM_FLOOR = {**FROM_COLLAPSE, "env.collapse_starts.gain_scale": 0.05, "env.coll
 # (sitting up onto the heels) and never from prone, whose frontier is within 0.3 s of the tip (LESSONS, period 5)
 FROM_PRONE = {**FROM_FLOOR, "env.collapse_starts.push_axis_deg": [20.0, 160.0],
               "env.collapse_starts.max_progress": 0.3}
+# at rest along a hand-made path from the kneel over hands and knees to lying face down (prone_path.py; from
+# p 0.7, where the hands reach the floor): the forward collapse's states jumped from the kneel to prone
+# (LESSONS, period 5); the limp collapse stays for the rise from the back
+OVER_HANDS = {**FROM_FLOOR, "env.collapse_starts.prob": 0.2, "env.prone_starts.prob": 0.6,
+              "env.prone_starts.min_progress": 0.7}
 FULL = {"env.gate_latches": False, "ppo.policy_std_scale": 0.25, "ppo.entropy_cost": 0.001,
         "ppo.learning_rate": 1e-4}
 
@@ -67,8 +73,11 @@ RECIPE = Recipe(
         # stopped at its plateau (reached the kneel from lying on its back only): training/LESSONS.md, period 5
         Stage("rise_from_floor", task="getup", getup_stage="stage1", steps=16_056_320, init="rise_from_collapse",
               config=FROM_FLOOR),
-        Stage("rise_from_prone", task="getup", getup_stage="stage1", steps=20_000_000, init="rise_from_floor",
+        # stopped at its plateau (face down: the kneel from 3 % of the starts 0.6 s into the fall): LESSONS, period 5
+        Stage("rise_from_prone", task="getup", getup_stage="stage1", steps=11_038_720, init="rise_from_floor",
               config=FROM_PRONE),
+        Stage("rise_over_hands", task="getup", getup_stage="stage1", steps=30_000_000, init="rise_from_prone",
+              config=OVER_HANDS),
         Stage("stand_path", task="getup", getup_stage="stage2", steps=27_095_040, config=STAND),
         Stage("stand_swing", task="getup", getup_stage="stage2", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
