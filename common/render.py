@@ -36,3 +36,12 @@ def render_frames(model: mujoco.MjModel, poses, camera: mujoco.MjvCamera, height
         return frames
     finally:
         renderer.close()
+
+
+def save_side_strip(model: mujoco.MjModel, poses, out_png: str, lookat_m, elevation_deg: float, px: int) -> None:
+    """The poses seen from the robot's left side (2 m away, looking at lookat_m [m]), left to right, as one PNG."""
+    import numpy as np
+    import PIL.Image
+    camera = mujoco.MjvCamera()
+    camera.lookat[:], camera.distance, camera.elevation, camera.azimuth = lookat_m, 2.0, elevation_deg, 90.0
+    PIL.Image.fromarray(np.concatenate(render_frames(model, poses, camera, px, px), axis=1)).save(out_png, optimize=True)

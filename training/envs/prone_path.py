@@ -109,9 +109,7 @@ def _bank(num_starts, seed, min_progress, max_progress, hands_knees_pitch_rad, t
 
 def render_strip(out_png: str, size: int = 11, px: int = 200) -> None:
     """Side view of `size` settled starts at evenly spaced progress 0 … 2 (no noise), left to right, as one PNG."""
-    import mujoco
-    import PIL.Image
-    from common.render import render_frames
+    from common.render import save_side_strip
     from training.envs.getup_config import default_config
     cfg = default_config()
     c, sup = cfg.prone_starts, cfg.supervisor
@@ -119,10 +117,7 @@ def render_strip(out_png: str, size: int = 11, px: int = 200) -> None:
     qpos = np.stack([prone_bank(1, 0, p, p, hands_knees_pitch_rad=c.hands_knees_pitch_rad, target_noise_rad=0.0,
                                 settle_s=c.settle_s, supervisor=(sup.max_target_speed_rps, sup.joint_range_fraction))[0][0]
                      for p in np.linspace(0.0, PATH_END, size)])
-    camera = mujoco.MjvCamera()
-    camera.lookat[:], camera.distance, camera.elevation, camera.azimuth = (0.2, 0, 0.25), 2.0, -15.0, 90.0
-    frames = render_frames(model, qpos, camera, px, px)
-    PIL.Image.fromarray(np.concatenate(frames, axis=1)).save(out_png, optimize=True)
+    save_side_strip(model, qpos, out_png, lookat_m=(0.2, 0.0, 0.25), elevation_deg=-15.0, px=px)
 
 
 if __name__ == "__main__":   # MUJOCO_GL=osmesa python -m training.envs.prone_path OUT.png
