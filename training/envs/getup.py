@@ -98,8 +98,12 @@ class GetupBase(base.T1Env):
         after the runtime's PREPARE ramp, under this env's supervisor settings. Runs configured before the
         hand-over was modelled get it too (they resume onto the loop's starts)."""
         prepare_s = float(self._config.get("fallen_prepare_s", PREPARE_S))
+        return fallen_states(num, seed, prepare_s, self._host_supervisor())
+
+    def _host_supervisor(self) -> tuple[float, float]:
+        """Rule R6 as the host rollouts of the start banks take it: (max target speed [rad/s], range fraction)."""
         step_per_substep, fraction = self._supervisor_settings(self._config)
-        return fallen_states(num, seed, prepare_s, (step_per_substep / float(self._config.sim_dt), fraction))
+        return step_per_substep / float(self._config.sim_dt), fraction
 
     def _keyframe_heights(self, qpos) -> tuple[float, float]:
         """(trunk, waist) origin heights [m] of a keyframe, from the model's kinematics."""
@@ -247,11 +251,9 @@ class Getup(GetupBase):
     def collapse_settings(self) -> dict:
         """kneel_collapse's settings of this env's collapse starts (training and evaluation)."""
         c = self._config.collapse_starts
-        step_per_substep, fraction = self._supervisor_settings(self._config)
         return dict(gain_scale=float(c.gain_scale), push_rad_s=float(c.push_rad_s), duration_s=float(c.duration_s),
                     push_axis_deg=tuple(c.get("push_axis_deg", kneel_collapse.ANY_AXIS_DEG)),   # runs made before it: any axis
-                    ctrl_dt=float(self._config.ctrl_dt),
-                    supervisor=(step_per_substep / float(self._config.sim_dt), fraction))
+                    ctrl_dt=float(self._config.ctrl_dt), supervisor=self._host_supervisor())
 
     def _collapse_bank(self, make_env, _policy: str, num_starts: int, seed: int):
         return kneel_collapse.collapse_bank(num_starts, seed, float(self._config.collapse_starts.max_progress),
@@ -260,9 +262,8 @@ class Getup(GetupBase):
     def prone_settings(self) -> dict:
         """prone_path's settings of this env's prone starts (training and evaluation)."""
         p = self._config.prone_starts
-        step_per_substep, fraction = self._supervisor_settings(self._config)
         return dict(hands_knees_pitch_rad=float(p.hands_knees_pitch_rad), target_noise_rad=float(p.target_noise_rad),
-                    settle_s=float(p.settle_s), supervisor=(step_per_substep / float(self._config.sim_dt), fraction))
+                    settle_s=float(p.settle_s), supervisor=self._host_supervisor())
 
     def _prone_bank(self, make_env, _policy: str, num_starts: int, seed: int):
         p = self._config.prone_starts

@@ -33,7 +33,8 @@ from training.envs.start_path import place_on_floor
 
 PATH_END = 2.0          # progress of lying face down
 PRONE_PITCH_RAD = np.pi / 2
-HANDS_KNEES_JOINTS = ("Left_Hip_Pitch", "Right_Hip_Pitch", "Left_Shoulder_Pitch", "Right_Shoulder_Pitch")
+HIPS = ("Left_Hip_Pitch", "Right_Hip_Pitch")                  # flexed θ more than the kneel's: thighs vertical
+SHOULDERS = ("Left_Shoulder_Pitch", "Right_Shoulder_Pitch")   # at −θ: the arms point at the floor
 
 
 def path_points(model, hands_knees_pitch_rad: float) -> list[tuple[float, np.ndarray, float]]:
@@ -44,9 +45,10 @@ def path_points(model, hands_knees_pitch_rad: float) -> list[tuple[float, np.nda
     if not 0.0 < theta <= PRONE_PITCH_RAD:
         raise ValueError(f"prone_starts.hands_knees_pitch_rad must be in (0, π/2], got {theta}")
     hands_knees = kneel.copy()
-    for name in HANDS_KNEES_JOINTS:
-        adr = model.joint(name).qposadr[0]
-        hands_knees[adr] = (kneel[adr] - theta) if "Hip" in name else -theta
+    for name in HIPS:
+        hands_knees[model.joint(name).qposadr[0]] -= theta
+    for name in SHOULDERS:
+        hands_knees[model.joint(name).qposadr[0]] = -theta
     return [(0.0, kneel, 0.0), (1.0, hands_knees, theta), (PATH_END, prone, PRONE_PITCH_RAD)]
 
 
