@@ -126,6 +126,20 @@ def test_unified_torso_shoves_are_the_push_tests_turned_to_the_heading():
         envs.make("unified", config_overrides={"knockdown.shove": "elbow", "fallen_bank_size": 2})
 
 
+def test_unified_mixed_knockdowns_are_base_pushes_and_torso_shoves():
+    """knockdown.shove "mixed": torso_share of the knockdowns are the push test's torso shove (_apply_push), the
+    rest base-speed knockdowns (_push_magnitude)."""
+    env = envs.make("unified", config_overrides={"knockdown.prob": 1.0, "knockdown.shove": "mixed",
+                                                 "knockdown.torso_share": 0.25, "fallen_bank_size": 2})
+    assert env._torso_shove is not None
+    walk_hi = envs.default_config("joystick").push.magnitude_range_mps[1]
+    speeds = np.asarray(jax.vmap(env._push_magnitude)(jax.random.split(jax.random.PRNGKey(5), 4000)))
+    assert 0.72 < np.mean(speeds > walk_hi) < 0.78           # 3000 ± 27 (1 σ) of 4000 draws
+    with pytest.raises(ValueError, match="knockdown.torso_share must be in"):
+        envs.make("unified", config_overrides={"knockdown.shove": "mixed", "knockdown.torso_share": 1.5,
+                                               "fallen_bank_size": 2})
+
+
 @pytest.mark.slow
 def test_unified_push_is_a_shove_only_when_due_and_drawn():
     env = envs.make("unified", config_overrides={"knockdown.prob": 1.0, "knockdown.shove": "torso",

@@ -115,8 +115,10 @@ def test_recipe_errors_name_the_problem(capsys, tmp_path):
     assert cli.main(["recipe"]) == 2
     with pytest.raises(ValueError, match="init 'later' is not an earlier stage"):
         R.Recipe("x", "x", "", (R.Stage("a", init="later"), R.Stage("later")))
-    with pytest.raises(ValueError, match="needs teacher getup and joystick"):
+    with pytest.raises(ValueError, match="a distill stage needs one"):
         R.Recipe("x", "x", "", (R.Stage("a", kind="distill"),))
+    with pytest.raises(ValueError, match="a teacher is getup and joystick"):
+        R.Recipe("x", "x", "", (R.Stage("a", teacher={"getup": "g"}),))
 
 
 def test_a_stage_kept_by_a_later_complete_stage_is_not_rerun(tmp_path):
@@ -138,9 +140,13 @@ def test_a_stage_kept_by_a_later_complete_stage_is_not_rerun(tmp_path):
 def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():
     stage = R.load("getup_knockdown").stage("landing_bank")
     toy = recipe_runner._overrides(dict(stage.config), toy=True)
-    assert not any(o.startswith(("ppo.", "bc.")) for o in toy)          # the toy preset's sizes
+    assert not any(o.startswith(("ppo.", "bc.")) for o in toy)          # the toy preset's sizes and rates
     assert "env.knockdown_starts.prob=0.8" in toy and \
         f"env.knockdown_starts.bank_starts={recipe_runner.TOY_BANK_STARTS}" in toy
+    finetune = R.load("student").stage("finetune")      # what the learner is stays the stage's at toy size
+    toy = recipe_runner._overrides(dict(finetune.config), toy=True)
+    assert "ppo.policy_distribution='normal'" in toy and any(o.startswith("ppo.teacher.bc_weight=") for o in toy)
+    assert not any(o.startswith(("ppo.learning_rate", "ppo.value_warmup_steps")) for o in toy)
     assert recipe_runner.resolve_ref("@joystick/sharp", Path("/nowhere"), shipped=True).endswith(
         "policies/joystick/joystick.safetensors")
     with pytest.raises(FileNotFoundError, match="run `python -m training recipe joystick --stage sharp`"):

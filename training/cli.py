@@ -10,7 +10,7 @@ import shlex
 import sys
 from typing import Sequence
 
-TASKS = ("joystick", "getup", "getup_baseline")  # = training.envs.TASKS (checked when the envs load)
+TASKS = ("joystick", "getup", "getup_baseline", "unified")  # = training.envs.TASKS (checked when the envs load)
 STAGES = ("stage1", "stage2", "full")
 RUNS_DIR = "runs"   # experiments' default home (ignored by git): = training.recipe_runner.RUNS_ROOT
 
@@ -172,7 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--getup", required=True)
     p.add_argument("--joystick", required=True)
     p.add_argument("--out", help="run directory; default runs/<name>")
-    p.add_argument("--task", choices=(*TASKS, "unified"), default="unified",
+    p.add_argument("--task", choices=TASKS, default="unified",
                    help="env the student is rolled out in (default unified: fallen/kneeling/standing starts, "
                         "joystick commands, pushes, falls)")
     p.add_argument("--envs", type=int)

@@ -29,7 +29,7 @@ from ml_collections import config_dict
 
 from training import checkpoints, curves
 from common import observation as obsdef
-from training.teacher import STUDENT_OBS_KEY, WAIST_OBS_KEY, load_expert, make_teacher
+from training.teacher import STUDENT_OBS_KEY, WaistObservation, load_expert, make_teacher
 
 DEFAULT_TASK = "unified"  # the whole walk–fall–getup task (training/envs/unified.py); cli.py repeats it
 
@@ -101,30 +101,6 @@ def beta_schedule(teacher_phases: int):
     phases, then 0 (the seed's Algorithm 1 with teacher_phases = 1)."""
     import jax.numpy as jnp
     return lambda step: jnp.where(step < teacher_phases, 1.0, 0.0)
-
-
-class WaistObservation:
-    """Wraps a brax-training-wrapped (batched) env: adds obs[WAIST_OBS_KEY] = waist height (B, 1) [m],
-    read from the physics data (so it is right after an auto-reset, when info is still the old one)."""
-
-    def __init__(self, wrapped, base_env):
-        import jax
-        self._env, self._waist = wrapped, jax.vmap(base_env.waist_height)
-
-    def __getattr__(self, name):
-        return getattr(self._env, name)
-
-    def _add(self, state):
-        obs = dict(state.obs)
-        obs[WAIST_OBS_KEY] = self._waist(state.data)[..., None]
-        return state.replace(obs=obs)
-
-    def reset(self, rng):
-        return self._add(self._env.reset(rng))
-
-    def step(self, state, action):
-        inner_obs = {k: v for k, v in state.obs.items() if k != WAIST_OBS_KEY}  # the inner env's own layout
-        return self._add(self._env.step(state.replace(obs=inner_obs), action))
 
 
 def loc_half(policy_params) -> dict:

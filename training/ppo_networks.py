@@ -9,11 +9,13 @@ ACTIVATION = "swish"  # brax's PPO/BC default (flax linen.swish); the artifact's
 
 def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observations_fn=None,
                                 policy_hidden_layer_sizes=(512, 256, 128), value_hidden_layer_sizes=(512, 256, 128),
-                                policy_obs_key="state", value_obs_key="state", policy_std_scale: float = 1.0):
+                                policy_obs_key="state", value_obs_key="state", policy_std_scale: float = 1.0,
+                                policy_distribution: str = "tanh_normal", init_noise_std: float = 1.0):
     """brax's make_ppo_networks, its tanh-normal policy's std multiplied by policy_std_scale (brax's own
     NormalTanhDistribution var_scale; make_ppo_networks does not pass it on). Only sampling and the PPO
     log-probabilities change: the parameters, checkpoints and exported means are brax's. Every keyword is
-    named here so that brax's checkpoint network_config records it."""
+    named here so that brax's checkpoint network_config records it. policy_distribution "normal" (the student's
+    fine-tune, student_finetune.py): no tanh, a learned state-independent std starting at init_noise_std."""
     from brax.training import distribution
     from brax.training.agents.ppo import networks as brax_ppo_networks
     from brax.training.types import identity_observation_preprocessor
@@ -21,8 +23,10 @@ def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observ
         observation_size, action_size,
         preprocess_observations_fn=preprocess_observations_fn or identity_observation_preprocessor,
         policy_hidden_layer_sizes=policy_hidden_layer_sizes, value_hidden_layer_sizes=value_hidden_layer_sizes,
-        policy_obs_key=policy_obs_key, value_obs_key=value_obs_key)
-    if policy_std_scale == 1.0:
+        policy_obs_key=policy_obs_key, value_obs_key=value_obs_key,
+        **({"distribution_type": "normal", "noise_std_type": "log", "init_noise_std": init_noise_std}
+           if policy_distribution == "normal" else {}))
+    if policy_std_scale == 1.0 or policy_distribution == "normal":
         return nets
     return nets.replace(parametric_action_distribution=distribution.NormalTanhDistribution(
         event_size=action_size, var_scale=policy_std_scale))
@@ -36,7 +40,9 @@ def network_factory(cfg):
         value_hidden_layer_sizes=tuple(cfg.value_hidden_layer_sizes),
         policy_obs_key=cfg.policy_obs_key, value_obs_key=cfg.value_obs_key,
         # runs recorded before the knob existed sampled with brax's std
-        policy_std_scale=float(cfg.get("policy_std_scale", 1.0)))
+        policy_std_scale=float(cfg.get("policy_std_scale", 1.0)),
+        policy_distribution=cfg.get("policy_distribution", "tanh_normal"),
+        init_noise_std=float(cfg.get("init_noise_std", 1.0)))
 
 
 def frozen_policy_factory(factory):

@@ -30,7 +30,8 @@ class Stage:
     getup_stage: str | None = None    # getup: the keyframe curriculum's stage (stage1 | stage2 | full)
     init: str | None = None        # the stage to fine-tune from (this recipe's, or @RECIPE/STAGE); None = scratch
     config: Mapping[str, Any] = field(default_factory=dict)   # {"env.x": v, "ppo.y": v, "bc.z": v}: the diff
-    teacher: Mapping[str, str] = field(default_factory=dict)  # distill: {"getup": ref, "joystick": ref}
+    # distill: {"getup": ref, "joystick": ref}; ppo: the same for a behaviour-cloning term (ppo.teacher.*)
+    teacher: Mapping[str, str] = field(default_factory=dict)
     envs: int | None = None        # parallel envs where the stage needs other than its preset's
 
     def references(self) -> list[str]:
@@ -55,9 +56,9 @@ class Recipe:
                 raise ValueError(f"recipe {self.name}, stage {s.name}: kind {s.kind!r} is not one of {KINDS}")
             if s.init is not None and not s.init.startswith(REF_PREFIX) and s.init not in names[:i]:
                 raise ValueError(f"recipe {self.name}, stage {s.name}: init {s.init!r} is not an earlier stage")
-            if s.kind == "distill" and set(s.teacher) != {"getup", "joystick"}:
-                raise ValueError(f"recipe {self.name}, stage {s.name}: a distill stage needs teacher getup and "
-                                 "joystick")
+            if (s.kind == "distill" or s.teacher) and set(s.teacher) != {"getup", "joystick"}:
+                raise ValueError(f"recipe {self.name}, stage {s.name}: a teacher is getup and joystick (a distill "
+                                 "stage needs one)")
 
     def stage(self, name: str) -> Stage:
         for s in self.stages:

@@ -125,17 +125,18 @@ def resolve_ref(value, root: Path, shipped: bool = False):
 
 
 def _overrides(config: dict, toy: bool) -> list[str]:
-    """A stage's config diff as `key=value`; at toy size the PPO/DAgger sizes stay the toy preset's and the
-    landing banks are small."""
+    """A stage's config diff as `key=value`; at toy size the PPO/DAgger sizes and rates stay the toy preset's
+    (what the learner is, TOY_KEEPS, stays the stage's) and the landing banks are small."""
     if not toy:
         return [f"{k}={v!r}" for k, v in config.items()]
-    out = [f"{k}={v!r}" for k, v in config.items() if not k.startswith(("ppo.", "bc."))]
+    out = [f"{k}={v!r}" for k, v in config.items() if k.startswith(TOY_KEEPS) or not k.startswith(("ppo.", "bc."))]
     for k, v in config.items():
         if k.endswith(".prob") and isinstance(v, float) and v > 0 and k[:-len(".prob")] in BANKED:
             out.append(f"{k[:-len('.prob')]}.bank_starts={TOY_BANK_STARTS}")
     return out
 
 
+TOY_KEEPS = ("ppo.teacher.", "ppo.policy_distribution", "ppo.init_noise_std")   # a student fine-tune's learner
 BANKED = ("env.knockdown_starts", "env.wall_starts", "env.push_starts", "env.handover", "env.rise_starts",
           "env.collapse_starts")
 
@@ -185,7 +186,10 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
                f"{' --toy' if toy else ''} (recipe sha256 {provenance['sha256'][:12]})")
     # a toy stage's landing banks roll the policies its config names, which must be trained experts (a toy
     # one never rises or falls as a bank needs): there a reference stands for that recipe's shipped policy
-    overrides = _overrides({k: resolve_ref(v, root, shipped=toy) for k, v in s.config.items()}, toy)
+    config = dict(s.config)
+    if s.kind == "ppo":   # a PPO stage's teacher is its behaviour-cloning term's (training/student_finetune.py)
+        config.update({f"ppo.teacher.{k}": v for k, v in s.teacher.items()})
+    overrides = _overrides({k: resolve_ref(v, root, shipped=toy) for k, v in config.items()}, toy)
     name = artifact_name(recipe, s)
     if s.kind == "random_init":
         from training import untrained

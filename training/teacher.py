@@ -18,6 +18,30 @@ from training.experts import STUDENT_OBS_KEY, WAIST_OBS_KEY, Expert, TermAdapter
 CHECK_FALLEN_STARTS = 16  # host-precomputed fallen starts for the `teacher` check rollout (seconds each)
 
 
+class WaistObservation:
+    """Wraps a brax-training-wrapped (batched) env: adds obs[WAIST_OBS_KEY] = waist height (B, 1) [m],
+    read from the physics data (so it is right after an auto-reset, when info is still the old one)."""
+
+    def __init__(self, wrapped, base_env):
+        import jax
+        self._env, self._waist = wrapped, jax.vmap(base_env.waist_height)
+
+    def __getattr__(self, name):
+        return getattr(self._env, name)
+
+    def _add(self, state):
+        obs = dict(state.obs)
+        obs[WAIST_OBS_KEY] = self._waist(state.data)[..., None]
+        return state.replace(obs=obs)
+
+    def reset(self, rng):
+        return self._add(self._env.reset(rng))
+
+    def step(self, state, action):
+        inner_obs = {k: v for k, v in state.obs.items() if k != WAIST_OBS_KEY}  # the inner env's own layout
+        return self._add(self._env.step(state.replace(obs=inner_obs), action))
+
+
 def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, student_action_scale,
                  student_tanh_squash: bool, switch_height_m: float = WAIST_SWITCH_HEIGHT_M):
     """brax-bc teacher: obs dict {"state": student-layout obs, "waist_height": (..., 1)} →

@@ -10,7 +10,6 @@ between two jitted epochs, so stopping there is clean). Every call exports the n
 """
 from __future__ import annotations
 
-import functools
 import math
 import shutil
 import time
@@ -20,7 +19,7 @@ from typing import Sequence
 
 from ml_collections import config_dict
 
-from training import checkpoints, curves, ppo_networks
+from training import checkpoints, curves, ppo_networks, student_finetune
 from training.export import exported_as_trained, run_provenance
 from training.checkpoints import REPO_ROOT
 from training.overrides import apply_overrides
@@ -55,6 +54,11 @@ def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
         # fine-tune on new starts first fits the value of states the pretrained critic never saw, so the
         # first policy updates do not follow its errors (issue 14: full getup from stage 2)
         value_warmup_steps=0,
+        # the student's RL fine-tune (training/student_finetune.py): "normal" = a Gaussian around the mean the
+        # policy acts with (no tanh), std starting at init_noise_std [action units]; teacher: the stitched
+        # teacher's experts and the decaying behaviour-cloning term toward its labels (bc_weight 0 = none)
+        policy_distribution="tanh_normal", init_noise_std=0.1,
+        teacher=config_dict.create(getup="", joystick="", bc_weight=0.0, bc_decay_steps=0),
         # one epoch ≈ 1 min on an H100 (joystick ~100k env-steps/s; the full-body getup 40–76k: half as many)
         checkpoint_every_steps=10_000_000 if task == "joystick" else 5_000_000,
         run_evals=True, num_eval_envs=128, deterministic_eval=True,
@@ -189,7 +193,6 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     """One PPO run (or a call that resumes one). `recipe` ({"name", "stage", "sha256"}) is recorded in the run
     state and the artifact's provenance when a recipe runs it (training/recipe_runner.py)."""
     from brax.training.agents.ppo import train as ppo
-    from mujoco_playground import wrapper
     import tqdm
 
     checkpoints.jax_setup()
@@ -209,18 +212,20 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
             state["target_steps"] = int(steps)  # extending a finished run is allowed
         restore = checkpoints.load_checkpoint(run_dir) if state["env_steps"] > 0 else state.get("init")
         if isinstance(restore, str):
-            restore = checkpoints.load_checkpoint(restore)
+            restore = student_finetune.init_params(checkpoints.load_checkpoint(restore), ppo_cfg)
     else:
         if (run_dir / checkpoints.RUN_STATE).exists():
             raise FileExistsError(f"{run_dir} already holds a run: pass --resume to continue it or pick "
                                   "another --out")
         ppo_cfg, env_cfg = build_configs(task, preset, stage, overrides)
         init = str(checkpoints.resolve_checkpoint(from_checkpoint)) if from_checkpoint else None
-        restore = checkpoints.load_checkpoint(init) if init else None
+        restore = student_finetune.init_params(checkpoints.load_checkpoint(init) if init else None, ppo_cfg)
         state = {"task": task, "name": name or run_name(task, env_cfg), "preset": preset, "seed": seed,
                  "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
                  "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
-                 "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {})}
+                 "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {}),
+                 # where the BC term's decay counts from (student_finetune.py)
+                 "bc_count_start": float(student_finetune.sample_count(restore[0])) if restore else 0.0}
         run_dir.mkdir(parents=True, exist_ok=True)
         checkpoints.save_run_state(run_dir, state)
     if num_envs is not None:
@@ -286,7 +291,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
         ppo.train(
             environment=env, num_timesteps=num_steps, num_envs=ppo_cfg.num_envs,
             episode_length=int(env_cfg.episode_length),
-            wrap_env_fn=functools.partial(wrapper.wrap_for_brax_training, full_reset=bool(ppo_cfg.full_reset)),
+            wrap_env_fn=student_finetune.wrap_env_fn(ppo_cfg, env, full_reset=bool(ppo_cfg.full_reset)),
             seed=seed + phase["offset"],
             learning_rate=ppo_cfg.learning_rate, entropy_cost=ppo_cfg.entropy_cost,
             discounting=ppo_cfg.discounting, unroll_length=ppo_cfg.unroll_length,
@@ -302,16 +307,18 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
             training_metrics_steps=ppo_cfg.training_metrics_steps,
             progress_fn=progress_fn, policy_params_fn=policy_params_fn,
             randomization_fn=_randomization(ppo_cfg, env, seed + phase["offset"]),
-            restore_params=None if latest["params"] is None else tuple(latest["params"]))
+            restore_params=None if latest["params"] is None else tuple(latest["params"]),
+            restore_value_fn=latest["params"] is not None and latest["params"][2] is not None)
 
     # (end step, networks): the critic-only warm-up, then PPO proper
     warmup_end = min(target, int(ppo_cfg.get("value_warmup_steps", 0)))
     phases = ((warmup_end, ppo_networks.frozen_policy_factory(factory)), (target, factory))
     stopped = False
     try:
-        for end, network_factory in phases:
-            if end > latest["steps"]:
-                run_ppo(end - latest["steps"], network_factory)
+        with student_finetune.teacher_term(ppo_cfg, env, float(state.get("bc_count_start", 0.0))):
+            for end, network_factory in phases:
+                if end > latest["steps"]:
+                    run_ppo(end - latest["steps"], network_factory)
     except _StopAtCheckpoint:
         stopped = True
     bar.close()
@@ -341,11 +348,14 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     from training.export import export_brax_ppo
     steps = int(state["env_steps"])
     manifest = dict(env.manifest_fields())
-    manifest.update(name=state["name"], activation=ACTIVATION, output_rule="tanh_normal",
+    policy, rule = params[1], "tanh_normal"
+    if state["ppo_config"].get("policy_distribution") == student_finetune.NORMAL:   # acts with its mean
+        policy, rule = student_finetune.student_layers(policy), "linear"
+    manifest.update(name=state["name"], activation=ACTIVATION, output_rule=rule,
                     trained=exported_as_trained(steps, preset, state["env_config"]),
                     provenance=run_provenance(state, steps, preset))
     path = run_dir / f"{state['name']}.safetensors"
-    export_brax_ppo(tuple(params), manifest, path,
+    export_brax_ppo((params[0], policy), manifest, path,
                     observations_normalized=bool(state["ppo_config"]["normalize_observations"]))
     return path
 

@@ -116,6 +116,13 @@ class GetupBase(base.T1Env):
         return G.height_orientation_reward(info["trunk_height"], info["waist_height"], info["up_z"],
                                            targets[0], targets[1])
 
+    def full_task_rewards(self, q, info, gate_ok):
+        """(Height, Pose) Rewards of the full task (§4.8, gated) at joint angles q [rad]."""
+        kneel_h = self.height_orientation(info, self._kneel_targets)
+        stand_h = self.height_orientation(info, self._standing_targets)
+        kneel_p, stand_p = G.pose_reward(q, self._kneel_qpos[7:]), G.pose_reward(q, self._default_pose)
+        return G.gated_height_reward(gate_ok, kneel_h, stand_h), G.gated_pose_reward(gate_ok, kneel_p, stand_p)
+
     @staticmethod
     def standing(info):
         return (info["trunk_height"] >= STANDING_TRUNK_HEIGHT_M) & (info["up_z"] >= UPRIGHT_UP_Z)
@@ -350,18 +357,16 @@ class Getup(GetupBase):
         """Height and Pose Rewards (the stage's form), the energy and rise-pace costs of the state after the step."""
         q = data.qpos[7:]
         stage = self._config.stage
-        kneel_h = self.height_orientation(info, self._kneel_targets)
-        kneel_p = G.pose_reward(q, self._kneel_pose)
-        stand_h = self.height_orientation(info, self._standing_targets)
-        stand_p = G.pose_reward(q, self._default_pose)
         ok = info["gate"]
         if stage == "stage1":
             gate_now = G.gate(info["trunk_height"], info["up"])
-            height, pose = G.kneel_height_reward(gate_now, kneel_h, self._stage1_gate_reward), kneel_p
+            kneel_h = self.height_orientation(info, self._kneel_targets)
+            height = G.kneel_height_reward(gate_now, kneel_h, self._stage1_gate_reward)
+            pose = G.pose_reward(q, self._kneel_pose)
         elif stage == "stage2":
-            height, pose = stand_h, stand_p
+            height, pose = self.height_orientation(info, self._standing_targets), G.pose_reward(q, self._default_pose)
         else:
-            height, pose = G.gated_height_reward(ok, kneel_h, stand_h), G.gated_pose_reward(ok, kneel_p, stand_p)
+            height, pose = self.full_task_rewards(q, info, ok)
         pace = G.rise_pace_cost(data.qvel[0:2], info["waist_height"], self._pace_waist_m)
         return {"height": height, "pose": pose, "gate": ok, "energy": self.energy_cost(data), "pace": pace}
 

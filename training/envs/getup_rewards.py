@@ -37,6 +37,7 @@ GATE_UP_ERROR = events.KNEEL_GATE_UP_ERROR            # ‖u − e_z‖ below th
 STANDUP_HEIGHT_BONUS = 1.83    # gate·(1.83 + …) in the Height Reward
 STANDUP_POSE_BONUS = 0.6       # gate·(0.6 + …) in the Pose Reward
 STANDUP_POSE_WEIGHT = 100.0    # gate·(… + 100·pose(q, q_init))
+HO_MAX = 1.125   # height_orientation_reward upright (r_ori 0.5625) at both targets: 2·0.5625·(2 + 1)/3
 STANDING_TORSO_M = 0.67        # standing targets after the gate [m]
 STANDING_WAIST_M = 0.55
 
@@ -123,6 +124,11 @@ def gated_height_reward(gate_ok, ho_kneel, ho_standing):
 def gated_pose_reward(gate_ok, pose_kneel, pose_standing):
     g = gate_ok.astype(jnp.float32)
     return (1.0 - g) * pose_kneel + g * (STANDUP_POSE_BONUS + STANDUP_POSE_WEIGHT * pose_standing)
+
+
+def gated_reward_max() -> float:
+    """The most Height + Pose Reward pays per step (gate on, HO at its 1.125 ceiling, pose 1)."""
+    return STANDUP_HEIGHT_BONUS + HO_MAX + STANDUP_POSE_BONUS + STANDUP_POSE_WEIGHT
 
 
 def energy_cost(dq, tau, tau_limit):

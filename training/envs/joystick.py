@@ -80,12 +80,7 @@ class Joystick(base.T1Env):
                  make_env=None):
         super().__init__(config if config is not None else default_config(), config_overrides, make_env)
         mj = self._mj_model
-        lo, hi = self._q_min, self._q_max
-        centre, half = (lo + hi) / 2, (hi - lo) / 2 * self._config.soft_joint_pos_limit_factor
-        self._soft_lower, self._soft_upper = centre - half, centre + half
-        self._hip_idx = jnp.array([mj.joint(n).qposadr[0] - 7 for n in HIP_JOINTS])
-        self._knee_idx = jnp.array([mj.joint(n).qposadr[0] - 7 for n in KNEE_JOINTS])
-        self._pose_weights = jnp.array(POSE_WEIGHTS)
+        self._init_reward_constants()
         self._handover = None
         h = self._config.get("handover")   # runs made before hand-over starts existed have none
         for key in ("prob", "push_prob", "knockdown_prob", "zero_command_prob") if h is not None else ():
@@ -101,6 +96,17 @@ class Joystick(base.T1Env):
             bank = handover.handover_bank(self._make_env, h.getup_policy, int(h.bank_starts), int(h.seed),
                                           _landing_overrides(h))
             self._handover = jax.tree.map(jnp.asarray, bank)
+
+    def _init_reward_constants(self) -> None:
+        """What _reward_terms reads besides the state: soft joint limits, hip / knee indices, pose weights
+        (a method, so that the unified env's fine-tuning reward builds the same from its own config)."""
+        mj = self._mj_model
+        lo, hi = self._q_min, self._q_max
+        centre, half = (lo + hi) / 2, (hi - lo) / 2 * self._config.soft_joint_pos_limit_factor
+        self._soft_lower, self._soft_upper = centre - half, centre + half
+        self._hip_idx = jnp.array([mj.joint(n).qposadr[0] - 7 for n in HIP_JOINTS])
+        self._knee_idx = jnp.array([mj.joint(n).qposadr[0] - 7 for n in KNEE_JOINTS])
+        self._pose_weights = jnp.array(POSE_WEIGHTS)
 
     # ------------------------------------------------------------------ commands
     def sample_command(self, rng: jax.Array) -> jax.Array:
@@ -141,9 +147,7 @@ class Joystick(base.T1Env):
             "last_act": last_act,
             "motor_targets": self._default_pose,
             "runtime_target": self.start_target(qpos),
-            "feet_air_time": jnp.zeros(2),
-            "last_contact": jnp.zeros(2, dtype=bool),
-            "swing_peak": jnp.zeros(2),
+            **self.initial_feet_info(),
             "phase": obsdef.initial_gait_phase(jnp).astype(jnp.float32),
             "push": jnp.zeros(2),
             "push_step": jnp.array(0, jnp.int32),
@@ -178,24 +182,15 @@ class Joystick(base.T1Env):
         data, info["runtime_target"] = self.physics_step(data, q_des, info["runtime_target"])
         info["motor_targets"] = q_des
 
-        contact = self.foot_contacts(data)
-        contact_filt = contact | info["last_contact"]
-        first_contact = (info["feet_air_time"] > 0.0) * contact_filt
-        info["feet_air_time"] = info["feet_air_time"] + self.dt
-        feet_z = data.site_xpos[self._feet_sites][:, 2]
-        info["swing_peak"] = jnp.maximum(info["swing_peak"], feet_z)
+        contact, first_contact = self._feet_touchdown(data, info)
         info.update(self.body_readings(data))
 
         done = (info["up_z"] < 0.0) | self.invalid(data)
-        terms = self._reward_terms(data, action, info, first_contact, contact)
-        scales = self._config.reward.scales
-        scaled = {k: v * scales[k] for k, v in terms.items()}
+        scaled = self._scaled_reward_terms(self._config.reward.scales, data, action, info, first_contact, contact)
         reward = jnp.clip(sum(scaled.values()) * self.dt, 0.0, 10000.0)
 
         self._advance_clock_and_command(info, action, k_cmd)
-        info["feet_air_time"] = info["feet_air_time"] * ~contact
-        info["last_contact"] = contact
-        info["swing_peak"] = info["swing_peak"] * ~contact
+        self._feet_after_step(info, contact)
 
         obs = self._observe(data, info, contact, k_obs)
         metrics = dict(state.metrics)
@@ -204,6 +199,29 @@ class Joystick(base.T1Env):
         metrics["swing_peak"] = jnp.mean(info["swing_peak"])
         return state.replace(data=data, obs=obs, reward=reward, done=done.astype(reward.dtype),
                              metrics=metrics, info=info)
+
+    @staticmethod
+    def initial_feet_info() -> dict:
+        return {"feet_air_time": jnp.zeros(2), "last_contact": jnp.zeros(2, dtype=bool), "swing_peak": jnp.zeros(2)}
+
+    def _feet_touchdown(self, data, info: dict):
+        """(contact, first_contact) of the state after the step; advances info's air times and swing peaks
+        (in place) as Playground's T1 does."""
+        contact = self.foot_contacts(data)
+        first_contact = (info["feet_air_time"] > 0.0) * (contact | info["last_contact"])
+        info["feet_air_time"] = info["feet_air_time"] + self.dt
+        info["swing_peak"] = jnp.maximum(info["swing_peak"], data.site_xpos[self._feet_sites][:, 2])
+        return contact, first_contact
+
+    @staticmethod
+    def _feet_after_step(info: dict, contact) -> None:
+        """Feet on the floor start a new swing (in place), after the reward read this step's."""
+        info["feet_air_time"] = info["feet_air_time"] * ~contact
+        info["last_contact"] = contact
+        info["swing_peak"] = info["swing_peak"] * ~contact
+
+    def _scaled_reward_terms(self, scales, data, action, info, first_contact, contact) -> dict[str, jax.Array]:
+        return {k: v * scales[k] for k, v in self._reward_terms(data, action, info, first_contact, contact).items()}
 
     def _advance_clock_and_command(self, info: dict, action: jax.Array, k_cmd: jax.Array) -> None:
         """Tick bookkeeping (in place): the gait clock advances with the command in force during this step,

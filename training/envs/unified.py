@@ -19,13 +19,25 @@ The seed's student is distilled on the whole task, so one episode mixes everythi
 * privileged observation = privileged_base + foot site positions; info carries trunk_height,
   waist_height and up_z (the teacher switch reads waist_height).
 
-Reward: brax bc ignores it (the student is trained on teacher actions only), but DAgger's evaluation
-curves (eval/episode_reward) should still mean something, so it is a small named sum per control step
-(× ctrl_dt):
+Reward (reward.mode). "monitor" (default): brax bc ignores it (the student is trained on teacher actions
+only), but DAgger's evaluation curves (eval/episode_reward) should still mean something, so it is a small
+named sum per control step (× ctrl_dt):
     alive + w_height·HO(standing targets)   (the seed's height & orientation reward, getup_rewards.py)
     + standing·(w_lin·tracking_lin_vel + w_ang·tracking_ang_vel)
 with standing = waist height ≥ the teacher's switch height (0.5 m): tracking only counts while the
 joystick expert would be in charge, so a fallen robot is scored on getting up, a standing one on walking.
+"skills": the student's RL fine-tune (training/student_finetune.py): each expert's own reward where it is in
+charge, per control step (× ctrl_dt):
+    below the switch: reward.getup.scale × the teacher getup expert's (§4.8's gated Height + Pose, per-step
+        gate, as getup_knockdown trained, − reward.getup.energy_weight·energy)
+    at or above it:   the joystick env's terms × reward.joystick_scales, clipped at 0 as there,
+                      + the most the scaled getup reward can pay below (the standing bonus)
+    − reward.getup.failed_rise_cost once per failed getup attempt (events.py's definition)
+The scale and the bonus are ours. The gated reward pays 13.4 per step at the kneel keyframe and up to 103.6
+(pose 100·exp(−½‖q − q_init‖²)) for an upright crouch just below the switch, a walk about 2: unscaled, or
+without the bonus, the switch would be a wall to stay below. Scaled by 0.02 the rise's shaping (about 0.03
+per step before the gate) stays below the walk's terms, and the bonus (2.07) makes any state above the
+switch pay more than any below it.
 """
 from __future__ import annotations
 
@@ -36,7 +48,9 @@ from mujoco_playground._src import mjx_env
 
 from common import observation as obsdef
 from training.envs import base, handover, wall_course
+from training.envs import getup_rewards as G
 from training.envs import joystick_rewards as R
+from common.events import STAND_HOLD_S
 from training.envs.getup import START_KINDS, GetupBase
 from training.envs.getup_config import getup_common_config
 from training.envs.joystick import Joystick
@@ -45,6 +59,8 @@ from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 METRIC_NAMES = ("reward/alive", "reward/height", "reward/tracking_lin_vel", "reward/tracking_ang_vel",
                 "standing")
+SKILLS_METRIC_NAMES = ("reward/getup", "reward/joystick", "failed_rises", "gate", "standing")
+REWARD_MODES = ("monitor", "skills")
 
 
 def default_config() -> config_dict.ConfigDict:
@@ -66,13 +82,22 @@ def default_config() -> config_dict.ConfigDict:
     cfg.push = config_dict.create(**joy.push.to_dict())
     # knockdown.prob of the pushes are knockdowns (module docstring). shove "velocity": the base speed changes by
     # magnitude_range_mps in a random direction; "torso": the loop's push test itself, its torso impulse
-    # forward or backward (2 : 1) off the heading (handover.push_test_bank, TorsoShove)
-    cfg.knockdown = config_dict.create(prob=0.0, magnitude_range_mps=list(handover.KNOCKDOWN_MPS), shove="velocity")
+    # forward or backward (2 : 1) off the heading (handover.push_test_bank, TorsoShove); "mixed": both kinds,
+    # torso_share of the knockdowns the torso shove
+    cfg.knockdown = config_dict.create(prob=0.0, magnitude_range_mps=list(handover.KNOCKDOWN_MPS), shove="velocity",
+                                       torso_share=0.5)
     cfg.walls = config_dict.create(prob=0.0)   # share of episodes that walk into the low-wall course
+    cfg.soft_joint_pos_limit_factor = joy.soft_joint_pos_limit_factor
     cfg.reward = config_dict.create(
+        mode="monitor",   # or "skills" (module docstring)
         scales=config_dict.create(alive=0.25, height=1.0, tracking_lin_vel=1.0, tracking_ang_vel=0.5),
         tracking_sigma=joy.reward.tracking_sigma,
-        standing_waist_height_m=WAIST_SWITCH_HEIGHT_M)
+        standing_waist_height_m=WAIST_SWITCH_HEIGHT_M,
+        # "skills": the joystick env's terms and scales above the switch, the getup expert's below it
+        max_foot_height_m=joy.reward.max_foot_height_m,
+        joystick_scales=config_dict.create(**joy.reward.scales.to_dict()),
+        # energy_weight: getup_knockdown's; scale: the docstring's
+        getup=config_dict.create(scale=0.02, energy_weight=0.01, failed_rise_cost=0.0))
     return cfg
 
 
@@ -83,11 +108,15 @@ class Unified(GetupBase):
     # zero_command_prob, push) and info["push_step"/"push_interval_steps"], so walking episodes here
     # draw commands and pushes from exactly the joystick env's distributions.
     sample_command = Joystick.sample_command
+    _reward_terms = Joystick._reward_terms   # the "skills" reward above the switch
+    _scaled_reward_terms = Joystick._scaled_reward_terms
+    _feet_touchdown = Joystick._feet_touchdown
+    _feet_after_step = staticmethod(Joystick._feet_after_step)
     _push_interval_steps = Joystick._push_interval_steps
     _walking_push_magnitude = Joystick._push_magnitude
     _advance_clock_and_command = Joystick._advance_clock_and_command
     WALL_SHARE_CONFIG = "walls"
-    SHOVES = ("velocity", "torso")   # knockdown.shove
+    SHOVES = ("velocity", "torso", "mixed")   # knockdown.shove
 
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
                  make_env=None):
@@ -104,8 +133,20 @@ class Unified(GetupBase):
         if self._config.push.get("torso_shove_prob", 0.0) > 0:
             raise ValueError("push.torso_shove_prob is the joystick env's: the unified env's shoves are "
                              "knockdown.prob with knockdown.shove \"torso\"")
+        self._reward_mode = self._config.reward.get("mode", "monitor")   # runs made before the fine-tune: none
+        if self._reward_mode not in REWARD_MODES:
+            raise ValueError(f"reward.mode {self._reward_mode!r}: one of {', '.join(REWARD_MODES)}")
+        if self._reward_mode == "skills":
+            Joystick._init_reward_constants(self)
+            self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
+            if not self._config.reward.getup.scale > 0:
+                raise ValueError(f"reward.getup.scale must be > 0, got {self._config.reward.getup.scale}")
         self._push_shove = None    # (the joystick env's push.torso_shove_prob; Joystick._apply_push reads it)
-        self._torso_shove = handover.TorsoShove(self._mj_model, self._home_qpos) if shove == "torso" else None
+        # the share of knockdowns that are torso shoves
+        self._torso_share = {"velocity": 0.0, "torso": 1.0}.get(shove, float(kd.get("torso_share", 0.5)))
+        if not 0.0 <= self._torso_share <= 1.0:
+            raise ValueError(f"knockdown.torso_share must be in [0, 1], got {self._torso_share}")
+        self._torso_shove = handover.TorsoShove(self._mj_model, self._home_qpos) if self._torso_share > 0 else None
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_cmd, k_push, k_obs = jax.random.split(rng, 5)
@@ -135,8 +176,11 @@ class Unified(GetupBase):
             "runtime_target": self.start_target(qpos),
             **self.body_readings(data),
         }
+        if self._reward_mode == "skills":
+            info.update(Joystick.initial_feet_info(), rise_track=G.rise_track_start(info["trunk_height"]))
         obs = self._observe(data, info, k_obs)
-        metrics = {k: jnp.zeros(()) for k in METRIC_NAMES}
+        names = SKILLS_METRIC_NAMES if self._reward_mode == "skills" else METRIC_NAMES
+        metrics = {k: jnp.zeros(()) for k in names}
         return mjx_env.State(data, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
@@ -145,8 +189,12 @@ class Unified(GetupBase):
         data = self._apply_push(state.data, info, k_theta, k_mag)
         data, info["runtime_target"] = self.physics_step(data, self.motor_targets(action), info["runtime_target"])
         info.update(self.body_readings(data))
-        scaled, standing = self._reward_terms(data, info)
-        reward = sum(scaled.values()) * self.dt
+        if self._reward_mode == "skills":
+            reward, terms = self._skills_reward(data, action, info)
+        else:
+            scaled, standing = self._monitor_terms(data, info)
+            reward = sum(scaled.values()) * self.dt
+            terms = {**{f"reward/{k}": v for k, v in scaled.items()}, "standing": standing}
 
         course_command = info["command"]
         self._advance_clock_and_command(info, action, k_cmd)     # same tick bookkeeping as the joystick env
@@ -154,36 +202,56 @@ class Unified(GetupBase):
 
         obs = self._observe(data, info, k_obs)
         metrics = dict(state.metrics)   # keep what wrappers added (brax's EvalWrapper adds "reward")
-        metrics.update({f"reward/{k}": v.astype(jnp.float32) for k, v in scaled.items()})
-        metrics["standing"] = standing.astype(jnp.float32)
+        metrics.update({k: v.astype(jnp.float32) for k, v in terms.items()})
         done = self.invalid(data).astype(jnp.float32)  # falls do not end the episode
         return state.replace(data=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
 
     def _apply_push(self, data, info, k_theta, k_mag):
         """The joystick env's push (with knockdown.shove "velocity", knockdown.prob of them knockdowns); with
-        "torso", that share of the pushes is instead the loop's push-test shove."""
+        "torso", that share of the pushes is instead the loop's push-test shove ("mixed": torso_share of it)."""
         if self._torso_shove is None:
             return Joystick._apply_push(self, data, info, k_theta, k_mag)
         k_pick, k_walk, k_shove = jax.random.split(k_mag, 3)
         due = jnp.mod(info["push_step"] + 1, info["push_interval_steps"]) == 0
         walked = Joystick._apply_push(self, data, info, k_theta, k_walk)   # counts the push step, sets info["push"]
-        shoved = due & jax.random.bernoulli(k_pick, self._config.knockdown.prob) & bool(self._config.push.enable)
+        shove_prob = self._config.knockdown.prob * self._torso_share
+        shoved = due & jax.random.bernoulli(k_pick, shove_prob) & bool(self._config.push.enable)
         dqvel = self._torso_shove.dqvel(data.qpos, k_shove)
         info["push"] = jnp.where(shoved, dqvel[:2], info["push"])
         return data.replace(qvel=jnp.where(shoved, data.qvel + dqvel, walked.qvel))
 
     def _push_magnitude(self, rng):
-        """A joystick-env push [m/s], or with probability knockdown.prob a knockdown (module docstring); with
-        torso shoves (_apply_push) the joystick env's only."""
+        """A joystick-env push [m/s], or with probability knockdown.prob (× the share that are not torso shoves,
+        _apply_push) a knockdown (module docstring)."""
         k_walk, k_hard, k_pick = jax.random.split(rng, 3)
-        if self._torso_shove is not None:
+        if self._torso_share == 1.0:
             return self._walking_push_magnitude(k_walk)
         kd = self._config.knockdown
         hard = jax.random.uniform(k_hard, minval=kd.magnitude_range_mps[0], maxval=kd.magnitude_range_mps[1])
-        return jnp.where(jax.random.bernoulli(k_pick, kd.prob), hard, self._walking_push_magnitude(k_walk))
+        knocked = jax.random.bernoulli(k_pick, kd.prob * (1.0 - self._torso_share))
+        return jnp.where(knocked, hard, self._walking_push_magnitude(k_walk))
 
-    def _reward_terms(self, data, info):
-        """(scaled terms, standing flag) for the state after the step."""
+    def _skills_reward(self, data, action, info):
+        """The "skills" reward of the state after the step (module docstring) and its metrics; advances the
+        feet and failed-rise bookkeeping in info (in place)."""
+        cfg = self._config.reward
+        contact, first_contact = self._feet_touchdown(data, info)
+        standing = info["waist_height"] >= cfg.standing_waist_height_m
+        walk = self._scaled_reward_terms(cfg.joystick_scales, data, action, info, first_contact, contact)
+        joystick = jnp.maximum(sum(walk.values()), 0.0) + cfg.getup.scale * G.gated_reward_max()
+        gate = G.gate(info["trunk_height"], self.up_vector(data))
+        height, pose = self.full_task_rewards(data.qpos[7:], info, gate)
+        getup = cfg.getup.scale * (height + pose - cfg.getup.energy_weight * self.energy_cost(data))
+        info["rise_track"], failed = G.rise_track_step(info["rise_track"], info["trunk_height"], self.standing(info),
+                                                       self._stand_hold_ticks)
+        self._feet_after_step(info, contact)
+        reward = jnp.where(standing, joystick, getup) * self.dt - cfg.getup.failed_rise_cost * failed
+        return reward, {"reward/getup": jnp.where(standing, 0.0, getup),
+                        "reward/joystick": jnp.where(standing, joystick, 0.0),
+                        "failed_rises": failed, "gate": gate, "standing": standing}
+
+    def _monitor_terms(self, data, info):
+        """The "monitor" reward: (scaled terms, standing flag) for the state after the step."""
         cfg = self._config.reward
         w = cfg.scales
         cmd = info["command"]

@@ -1,10 +1,23 @@
 """The student: one network distilled by DAgger (Table 5.2 settings, the unified env) from the stitched
 teacher (getup expert below the 0.5 m waist switch, joystick expert above), then continued with knockdown
-pushes and wall-course episodes (ours). The shipped phase is DAgger-3400: the walls stage's 400 phases."""
+pushes and wall-course episodes (ours). The shipped phase is DAgger-3400: the walls stage's 400 phases.
+`finetune` (issue 47; training/student_finetune.py): PPO on the unified env's "skills" reward from those
+DAgger weights, critic warm-up first, a behaviour-cloning term toward the same teacher that decays to 0 over
+the stage, starts mixing fallen, kneeling and standing states, knockdowns and the push test's torso shoves,
+and the low-wall course. It ships only where it beats DAgger-3400 in the chapter-6 table (CARD.md)."""
 from training.recipe import Recipe, Stage
 
 JOYSTICK = "policies/joystick_handover/joystick_handover.safetensors"
+GETUP = "policies/getup_knockdown/getup_knockdown.safetensors"
 KNOCKDOWN = {"env.knockdown.prob": 0.25}
+FINETUNE_STEPS = 30_000_000
+FINETUNE = {
+    "env.reward.mode": "skills", "env.reward.getup.failed_rise_cost": 1.0,
+    "env.knockdown.prob": 0.5, "env.knockdown.shove": "mixed", "env.walls.prob": 0.2,
+    # the mean is the DAgger student's; PPO samples ±0.05 action units (0.1 rad) around it at first
+    "ppo.policy_distribution": "normal", "ppo.init_noise_std": 0.05, "ppo.entropy_cost": 0.0,
+    "ppo.learning_rate": 1e-4, "ppo.value_warmup_steps": 1_000_000,
+    "ppo.teacher.bc_weight": 1.0, "ppo.teacher.bc_decay_steps": FINETUNE_STEPS}
 
 RECIPE = Recipe(
     name="student", policy="student",
@@ -17,6 +30,8 @@ RECIPE = Recipe(
               teacher={"getup": "@getup_knockdown/energy", "joystick": JOYSTICK},
               config={**KNOCKDOWN, "bc.num_evals": 8}),
         Stage("walls", kind="distill", steps=400, envs=1024, init="knockdown",
-              teacher={"getup": "policies/getup_knockdown/getup_knockdown.safetensors", "joystick": JOYSTICK},
+              teacher={"getup": GETUP, "joystick": JOYSTICK},
               config={**KNOCKDOWN, "env.walls.prob": 0.2, "bc.num_evals": 5}),
+        Stage("finetune", task="unified", steps=FINETUNE_STEPS, init="walls",
+              teacher={"getup": GETUP, "joystick": JOYSTICK}, config=FINETUNE),
     ))

@@ -1,0 +1,136 @@
+"""The student's RL fine-tune (training/student_finetune.py): the DAgger weights become a PPO policy that acts
+exactly as the student did, the export is the student's artifact again, the BC term decays as configured and
+reaches brax's PPO loss only while it is open, and the unified env's "skills" reward pays each expert's own
+reward on its side of the switch."""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from ml_collections import config_dict
+
+from common import observation as obsdef
+from training import student_finetune as F
+from training import ppo_networks
+from training.train import ppo_config
+
+OBS = {"state": (82,), "privileged_state": (125,), "waist_height": (1,)}
+HIDDEN = (16, 8)
+
+
+def _student(seed=0):
+    """A brax bc (DAgger) policy and normaliser of the student's shape."""
+    from brax.training.acme import running_statistics
+    from brax.training.agents.bc import networks as bc_networks
+    nets = bc_networks.make_bc_networks(OBS, obsdef.NUM_JOINTS, policy_hidden_layer_sizes=HIDDEN,
+                                        policy_obs_key="state")
+    policy = nets.policy_network.init(jax.random.PRNGKey(seed))
+    normalizer = running_statistics.init_state(jax.tree.map(lambda s: jnp.zeros(s), OBS))
+    return nets, normalizer, policy
+
+
+def _ppo_cfg(**teacher):
+    cfg = ppo_config("unified", "toy")
+    cfg.update(dict(policy_distribution=F.NORMAL, init_noise_std=0.05, policy_hidden_layer_sizes=HIDDEN))
+    cfg.teacher.update({"getup": "g", "joystick": "j", "bc_weight": 1.0, "bc_decay_steps": 1000, **teacher})
+    return cfg
+
+
+def test_the_fine_tuned_policy_starts_as_the_student_and_exports_back_to_it():
+    bc_nets, normalizer, policy = _student()
+    assert F.is_student_checkpoint([normalizer, policy])
+    params = F.init_params([normalizer, policy], _ppo_cfg())
+    assert params[2] is None                                          # the critic starts fresh
+    nets = ppo_networks.network_factory(_ppo_cfg())(OBS, obsdef.NUM_JOINTS)
+    obs = {k: jax.random.normal(jax.random.PRNGKey(1), (4, *s)) for k, s in OBS.items()}
+    logits = nets.policy_network.apply(normalizer, params[1], obs)
+    mean = nets.parametric_action_distribution.mode(logits)
+    loc = bc_nets.policy_network.apply(normalizer, policy, obs)[..., :obsdef.NUM_JOINTS]
+    np.testing.assert_allclose(mean, loc, rtol=1e-5, atol=1e-6)      # acts with the student's loc
+    np.testing.assert_allclose(logits[1], 0.05, rtol=1e-5)           # and samples with init_noise_std
+    exported = F.student_layers(params[1])["params"]
+    assert sorted(exported) == ["hidden_0", "hidden_1", "hidden_2"]
+    np.testing.assert_array_equal(exported["hidden_2"]["kernel"], policy["params"]["hidden_2"]["kernel"][:, :23])
+
+
+def test_a_student_checkpoint_needs_the_normal_policy_and_a_teacher():
+    _, normalizer, policy = _student()
+    cfg = _ppo_cfg()
+    cfg.policy_distribution = "tanh_normal"
+    with pytest.raises(ValueError, match="policy_distribution='normal'"):
+        F.init_params([normalizer, policy], cfg)
+    with pytest.raises(ValueError, match="teacher"):
+        F.init_params([normalizer, policy], _ppo_cfg(bc_weight=0.0))
+    ppo_params = [normalizer, policy, {"params": {}}]               # a PPO checkpoint passes unchanged
+    assert F.init_params(ppo_params, cfg) is ppo_params
+
+
+def test_the_bc_weight_decays_linearly_to_zero_and_counts_samples():
+    assert float(F.bc_weight(0.0, 2.0, 1000)) == 2.0
+    assert float(F.bc_weight(250.0, 2.0, 1000)) == pytest.approx(1.5)
+    assert float(F.bc_weight(5000.0, 2.0, 1000)) == 0.0
+    assert float(F.bc_weight(5000.0, 2.0, 0)) == 2.0                  # no decay
+    from brax.training import types
+    state = config_dict.ConfigDict({"count": types.UInt64(hi=1, lo=5)})
+    assert float(F.sample_count(state)) == pytest.approx(2.0 ** 32 + 5, rel=1e-6)
+
+
+def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
+    from brax.training.agents.ppo import losses as ppo_losses
+    from training import teacher as teacher_module
+    original = ppo_losses.compute_ppo_loss
+    monkeypatch.setattr(teacher_module, "load_expert", lambda path, kind: kind)
+
+    def fake_teacher(*_args, **_kwargs):
+        return lambda obs: (None, {"loc": jnp.zeros(obs["state"].shape[:-1] + (obsdef.NUM_JOINTS,))})
+    monkeypatch.setattr(teacher_module, "make_teacher", fake_teacher)
+
+    class Env:
+        obs_terms = obsdef.TERMS_UNION
+
+        @staticmethod
+        def manifest_fields():
+            return {"action_scale": 2.0}
+    with F.teacher_term(_ppo_cfg(), Env(), count_start=0.0):
+        assert ppo_losses.compute_ppo_loss is not original
+    assert ppo_losses.compute_ppo_loss is original
+    with F.teacher_term(_ppo_cfg(bc_weight=0.0), Env(), count_start=0.0):
+        assert ppo_losses.compute_ppo_loss is original
+
+
+@pytest.fixture(scope="module")
+def skills_env():
+    from training import envs
+    return envs.make("unified", config_overrides={"reward.mode": "skills", "fallen_bank_size": 2})
+
+
+def _info_at(env, keyframe):
+    from common import model as t1model
+    from training.envs import getup_rewards as G
+    from training.envs.joystick import Joystick
+    data = env.make_data(jnp.asarray(t1model.keyframe_qpos(env.mj_model, keyframe)), jnp.zeros(env.mj_model.nv))
+    info = {**env.body_readings(data), **Joystick.initial_feet_info(), "command": jnp.zeros(3),
+            "last_act": jnp.zeros(obsdef.NUM_JOINTS), "phase": obsdef.initial_gait_phase(jnp)}
+    info["rise_track"] = G.rise_track_start(info["trunk_height"])
+    return data, info
+
+
+def test_the_skills_reward_pays_each_expert_its_own_on_its_side_of_the_switch(skills_env):
+    from training.envs import getup_rewards as G
+    env, cfg = skills_env, skills_env._config.reward
+    bonus = cfg.getup.scale * G.gated_reward_max()
+    data, info = _info_at(env, "home")                     # standing: the joystick's terms + the bonus
+    reward, terms = env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)
+    assert float(terms["standing"]) == 1.0 and float(terms["reward/getup"]) == 0.0
+    assert float(terms["reward/joystick"]) > bonus and float(reward) == pytest.approx(
+        float(terms["reward/joystick"]) * env.dt, rel=1e-5)
+    data, info = _info_at(env, "kneel")                    # the kneel keyframe: the getup expert's, gate on
+    reward, terms = env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)
+    assert float(terms["standing"]) == 0.0 and float(terms["gate"]) == 1.0
+    height, pose = env.full_task_rewards(data.qpos[7:], info, jnp.ones((), bool))
+    assert float(terms["reward/getup"]) == pytest.approx(cfg.getup.scale * float(height + pose), rel=1e-4)
+    assert 0.0 < float(terms["reward/getup"]) < bonus       # the switch is no wall to stay below
+    with pytest.raises(ValueError, match="reward.mode 'walk'"):
+        from training import envs
+        envs.make("unified", config_overrides={"reward.mode": "walk", "fallen_bank_size": 2})

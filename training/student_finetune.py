@@ -1,0 +1,136 @@
+"""RL fine-tuning of the distilled student (issue 47 item 3; AHC, arXiv 2511.06371: distil, then fine-tune by
+RL on the student's own outcomes): PPO on the unified env's "skills" reward (training/envs/unified.py) from the
+DAgger weights, plus a behaviour-cloning term toward the stitched teacher's labels that decays, so the student
+keeps both skills while PPO changes what the teacher does badly (the seam at the waist switch).
+
+Policy. The student acts with its mean (output rule `linear`, no tanh squash: distill.py), so PPO samples
+around it with brax's "normal" distribution, a state-independent learned std (ppo.init_noise_std at the
+start, in action units: 2 rad per unit on most joints). The DAgger net's hidden layers become the PPO policy's
+MLP and its last layer's loc half the mean layer; the critic starts fresh (ppo.value_warmup_steps: train.py).
+BC term, added to brax's PPO loss:
+    w(n) · mean over the batch of Σ_joints (tanh(μ) − tanh(label))²        (brax bc's own loss, distill.py)
+    w(n) = teacher.bc_weight · max(0, 1 − n / teacher.bc_decay_steps)
+with n the env steps of this fine-tune, read from the observation normaliser's sample count (one sample per
+env step; the only step counter brax hands its loss) minus the count it started from (the run state's
+`bc_count_start`). The teacher reads the privileged waist height: the env is wrapped in WaistObservation.
+"""
+from __future__ import annotations
+
+import contextlib
+import functools
+
+import numpy as np
+
+from common import observation as obsdef
+
+NORMAL = "normal"   # ppo.policy_distribution of a fine-tuned student ("tanh_normal": brax's default)
+
+
+def is_student_checkpoint(params) -> bool:
+    """A brax bc (DAgger) checkpoint: (normaliser, MLP policy with 2·23 outputs: loc, scale) and no critic."""
+    if len(params) != 2:
+        return False
+    inner = params[1].get("params", {})
+    last = inner.get(f"hidden_{len(inner) - 1}", {})
+    return "kernel" in last and np.shape(last["kernel"])[-1] == 2 * obsdef.NUM_JOINTS
+
+
+def policy_from_student(student_policy, init_noise_std: float) -> dict:
+    """brax bc policy params → the "normal" PPO policy's (MLP_0 = hidden layers, Dense_0 = loc half of the
+    last layer, std_logparam = log of init_noise_std on every joint)."""
+    inner = student_policy["params"]
+    n = len(inner)
+    last = inner[f"hidden_{n - 1}"]
+    return {"params": {
+        "MLP_0": {f"hidden_{i}": dict(inner[f"hidden_{i}"]) for i in range(n - 1)},
+        "Dense_0": {"kernel": np.asarray(last["kernel"])[:, :obsdef.NUM_JOINTS],
+                    "bias": np.asarray(last["bias"])[:obsdef.NUM_JOINTS]},
+        "std_logparam": {"log_value": np.full(obsdef.NUM_JOINTS, np.log(init_noise_std), np.float32)}}}
+
+
+def student_layers(policy) -> dict:
+    """The "normal" PPO policy's params → brax MLP layers hidden_0..hidden_N (its mean: the exported student,
+    output rule `linear`; the std is training's only)."""
+    inner = policy["params"]
+    mlp = inner["MLP_0"]
+    layers = {f"hidden_{i}": mlp[f"hidden_{i}"] for i in range(len(mlp))}
+    layers[f"hidden_{len(mlp)}"] = inner["Dense_0"]
+    return {"params": layers}
+
+
+def init_params(restored, ppo_cfg):
+    """A run's first params: a DAgger checkpoint becomes the "normal" policy with no critic (None: brax
+    initialises it); anything else is returned as it is."""
+    if restored is None or not is_student_checkpoint(restored):
+        return restored
+    if ppo_cfg.get("policy_distribution", "tanh_normal") != NORMAL:
+        raise ValueError("a DAgger student checkpoint fine-tunes only with ppo.policy_distribution='normal' "
+                         "(it acts with its mean, no tanh)")
+    if not uses_teacher(ppo_cfg):
+        raise ValueError("a DAgger student checkpoint fine-tunes only with a teacher (ppo.teacher.getup, "
+                         ".joystick, .bc_weight > 0): its observation normaliser also reads the waist height")
+    return [restored[0], policy_from_student(restored[1], float(ppo_cfg.init_noise_std)), None]
+
+
+def sample_count(normalizer, xp=np):
+    """The observation normaliser's sample count, float32 (brax keeps it as UInt64 hi/lo or a number); xp: numpy
+    on the host, jax.numpy inside the loss."""
+    count = normalizer.count
+    if hasattr(count, "hi"):
+        return xp.asarray(count.hi, xp.float32) * xp.float32(2.0 ** 32) + xp.asarray(count.lo, xp.float32)
+    return xp.asarray(count, xp.float32)
+
+
+def bc_weight(env_steps, weight: float, decay_steps: int):
+    """w(n) = weight · max(0, 1 − n / decay_steps) (decay_steps 0: constant)."""
+    import jax.numpy as jnp
+    if decay_steps <= 0:
+        return jnp.float32(weight)
+    return weight * jnp.maximum(0.0, 1.0 - env_steps / float(decay_steps))
+
+
+def uses_teacher(ppo_cfg) -> bool:
+    t = ppo_cfg.get("teacher")
+    return bool(t) and float(t.bc_weight) > 0
+
+
+def wrap_env_fn(ppo_cfg, env, full_reset: bool):
+    """brax's wrap_env_fn: Playground's training wrapper, and the teacher's waist height where a BC term reads it."""
+    from mujoco_playground import wrapper
+    wrap = functools.partial(wrapper.wrap_for_brax_training, full_reset=full_reset)
+    if not uses_teacher(ppo_cfg):
+        return wrap
+    from training.teacher import WaistObservation
+    return lambda inner, **kw: WaistObservation(wrap(inner, **kw), env)
+
+
+@contextlib.contextmanager
+def teacher_term(ppo_cfg, env, count_start: float):
+    """While open, brax's PPO loss carries the BC term (module docstring); a no-op without a teacher."""
+    if not uses_teacher(ppo_cfg):
+        yield
+        return
+    import jax.numpy as jnp
+    from brax.training.agents.ppo import losses as ppo_losses
+    from training.teacher import load_expert, make_teacher
+    t = ppo_cfg.teacher
+    teacher = make_teacher(load_expert(t.getup, "getup"), load_expert(t.joystick, "joystick"), env.obs_terms,
+                           env.manifest_fields()["action_scale"], student_tanh_squash=False)
+    weight, decay = float(t.bc_weight), int(t.bc_decay_steps)
+    ppo_loss = ppo_losses.compute_ppo_loss
+
+    def loss(params, normalizer_params, data, rng, ppo_network, **kwargs):
+        total, metrics = ppo_loss(params, normalizer_params, data, rng, ppo_network, **kwargs)
+        logits = ppo_network.policy_network.apply(normalizer_params, params.policy, data.observation)
+        mean = ppo_network.parametric_action_distribution.mode(logits)
+        label = teacher(data.observation)[1]["loc"]
+        bc = jnp.mean(jnp.sum(jnp.square(jnp.tanh(mean) - jnp.tanh(label)), axis=-1))
+        w = bc_weight(sample_count(normalizer_params, jnp) - count_start, weight, decay)
+        metrics = {**metrics, "bc_loss": bc, "bc_weight": w}
+        return total + w * bc, metrics
+
+    ppo_losses.compute_ppo_loss = loss
+    try:
+        yield
+    finally:
+        ppo_losses.compute_ppo_loss = ppo_loss
