@@ -65,6 +65,24 @@ def test_every_recipe_runs_to_its_policy_at_toy_size(toy_root, name):
 
 
 @pytest.mark.slow
+def test_the_student_fine_tune_starts_from_dagger_and_exports_a_student(toy_root):
+    """The student's PPO stage starts from the walls stage's DAgger checkpoint and exports, at its end and from
+    any kept checkpoint, the artifact the runtime runs: output rule linear, the student's layer shapes."""
+    from training import export
+    run = toy_root / "student" / "finetune"
+    state = json.loads((run / checkpoints.RUN_STATE).read_text())
+    assert Path(state["init"]).parent.parent == toy_root / "student" / "walls"
+    assert state["ppo_config"]["teacher"]["bc_weight"] > 0 and state["bc_count_start"] > 0
+    final = read_artifact(run / "student.safetensors")
+    kept = read_artifact(export.export_checkpoint(run, checkpoints.checkpoint_steps(run), "kept",
+                                                  like=run / "student.safetensors"))
+    walls = read_artifact(toy_root / "student" / "walls" / "student_walls.safetensors")
+    for artifact in (final, kept):
+        assert artifact[3]["output_rule"] == "linear"
+        assert [w.shape for w, _ in artifact[0]] == [w.shape for w, _ in walls[0]]
+
+
+@pytest.mark.slow
 def test_a_fine_tune_starts_from_the_stage_before(toy_root):
     recipe = R.load("joystick")
     state = json.loads((toy_root / "joystick" / "yaw" / checkpoints.RUN_STATE).read_text())

@@ -59,7 +59,7 @@ def _cmd_export_phase(args, command: str) -> int:
 
 def _cmd_export_checkpoint(args, command: str) -> int:
     from training import export
-    path = export.export_checkpoint(args.run, args.steps, args.name)
+    path = export.export_checkpoint(args.run, args.steps, args.name, like=args.like)
     print(f"{path}: the checkpoint at {args.steps} env steps of {args.run}")
     return 0
 
@@ -204,6 +204,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--run", required=True, help="train run directory")
     p.add_argument("--steps", type=int, required=True, help="env steps of a checkpoint in RUN/checkpoints")
     p.add_argument("--name", required=True, help="policy name: RUN/NAME.safetensors")
+    p.add_argument("--like", help="an artifact of the same env and network whose manifest fields are reused "
+                   "(default: the run's own export, or mid-run its --from run's)")
     p.set_defaults(func=_cmd_export_checkpoint)
 
     p = sub.add_parser("evaluate", help="batched rollouts of an artifact: getup from seeded fallen "

@@ -80,23 +80,27 @@ def _env_fields_artifact(run_dir: Path, state: dict) -> Path:
         return own     # named in the error below
 
 
-def export_checkpoint(run_dir, env_steps: int, name: str) -> Path:
+def export_checkpoint(run_dir, env_steps: int, name: str, like=None) -> Path:
     """A run's kept checkpoint at `env_steps` → run_dir/<name>.safetensors: the env and network fields of
-    the run's export (mid-run: its --from run's), this run's provenance at that checkpoint's steps. A
-    campaign screens its checkpoints and keeps the best one (e.g. the cheapest getup that still stands)."""
+    `like` (default: the run's export, mid-run its --from run's), this run's provenance at that checkpoint's
+    steps. A campaign screens its checkpoints and keeps the best one (e.g. the cheapest getup that still stands)."""
+    from training import student_finetune
     run_dir = Path(run_dir)
     state = checkpoints.load_run_state(run_dir)
     ckpt = checkpoints.kept_checkpoint(run_dir, env_steps, f"{env_steps} env steps")
-    like = _env_fields_artifact(run_dir, state)
+    like = Path(like) if like else _env_fields_artifact(run_dir, state)
     if not like.exists():
         raise FileNotFoundError(f"{like}: no export of the run (nor of a --from run) to take the manifest's "
-                                "env fields from")
+                                "env fields from (name one with --like)")
     manifest = {k: v for k, v in read_artifact(like)[3].items() if k not in ("content_hash", "provenance")}
     manifest["provenance"] = {**run_provenance(state, env_steps, state["preset"]),
                               "exported_from": f"{ckpt} (env fields from {like})"}
-    manifest.update(name=name, trained=exported_as_trained(int(env_steps), state["preset"], state["env_config"]))
+    params = checkpoints.load_checkpoint(ckpt)
+    policy, rule = student_finetune.exported_policy(params[1], state["ppo_config"])
+    manifest.update(name=name, output_rule=rule,
+                    trained=exported_as_trained(int(env_steps), state["preset"], state["env_config"]))
     path = run_dir / f"{name}.safetensors"
-    export_brax_ppo(tuple(checkpoints.load_checkpoint(ckpt)), manifest, path,
+    export_brax_ppo((params[0], policy), manifest, path,
                     observations_normalized=bool(state["ppo_config"]["normalize_observations"]))
     return path
 

@@ -58,6 +58,14 @@ def student_layers(policy) -> dict:
     return {"params": layers}
 
 
+def exported_policy(policy, ppo_config) -> tuple[dict, str]:
+    """(policy params as the artifact's MLP, output rule) of a PPO run's policy: a fine-tuned student acts with
+    its mean (`linear`), any other PPO policy is brax's tanh-normal."""
+    if ppo_config.get("policy_distribution") == NORMAL:
+        return student_layers(policy), "linear"
+    return policy, "tanh_normal"
+
+
 def init_params(restored, ppo_cfg):
     """A run's first params: a DAgger checkpoint becomes the "normal" policy with no critic (None: brax
     initialises it); anything else is returned as it is."""

@@ -348,9 +348,7 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     from training.export import export_brax_ppo
     steps = int(state["env_steps"])
     manifest = dict(env.manifest_fields())
-    policy, rule = params[1], "tanh_normal"
-    if state["ppo_config"].get("policy_distribution") == student_finetune.NORMAL:   # acts with its mean
-        policy, rule = student_finetune.student_layers(policy), "linear"
+    policy, rule = student_finetune.exported_policy(params[1], state["ppo_config"])
     manifest.update(name=state["name"], activation=ACTIVATION, output_rule=rule,
                     trained=exported_as_trained(steps, preset, state["env_config"]),
                     provenance=run_provenance(state, steps, preset))
