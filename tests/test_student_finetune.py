@@ -49,7 +49,8 @@ def test_the_fine_tuned_policy_starts_as_the_student_and_exports_back_to_it():
     loc = bc_nets.policy_network.apply(normalizer, policy, obs)[..., :obsdef.NUM_JOINTS]
     np.testing.assert_allclose(mean, loc, rtol=1e-5, atol=1e-6)      # acts with the student's loc
     np.testing.assert_allclose(logits[1], 0.05, rtol=1e-5)           # and samples with init_noise_std
-    exported = F.student_layers(params[1])["params"]
+    from training.export import student_layers
+    exported = student_layers(params[1])["params"]
     assert sorted(exported) == ["hidden_0", "hidden_1", "hidden_2"]
     np.testing.assert_array_equal(exported["hidden_2"]["kernel"], policy["params"]["hidden_2"]["kernel"][:, :23])
 

@@ -31,6 +31,27 @@ def brax_policy_layers(policy_params: Mapping[str, Any]) -> list[tuple[np.ndarra
     return layers
 
 
+NORMAL = "normal"   # ppo.policy_distribution of a fine-tuned student (training/student_finetune.py)
+
+
+def student_layers(policy) -> dict:
+    """The "normal" PPO policy's params → brax MLP layers hidden_0..hidden_N (its mean: the exported student,
+    output rule `linear`; the std is training's only)."""
+    inner = policy["params"]
+    mlp = inner["MLP_0"]
+    layers = {f"hidden_{i}": mlp[f"hidden_{i}"] for i in range(len(mlp))}
+    layers[f"hidden_{len(mlp)}"] = inner["Dense_0"]
+    return {"params": layers}
+
+
+def exported_policy(policy, ppo_config) -> tuple[dict, str]:
+    """(policy params as the artifact's MLP, output rule) of a PPO run's policy: a fine-tuned student acts with
+    its mean (`linear`), any other PPO policy is brax's tanh-normal."""
+    if ppo_config.get("policy_distribution") == NORMAL:
+        return student_layers(policy), "linear"
+    return policy, "tanh_normal"
+
+
 def export_brax_ppo(params, manifest_fields: Mapping[str, Any], path, observations_normalized: bool = True,
                     obs_key: str = "state") -> str:
     """(normalizer_params, policy_params, value_params) from brax.training.agents.ppo → artifact at `path`.
@@ -84,7 +105,6 @@ def export_checkpoint(run_dir, env_steps: int, name: str, like=None) -> Path:
     """A run's kept checkpoint at `env_steps` → run_dir/<name>.safetensors: the env and network fields of
     `like` (default: the run's export, mid-run its --from run's), this run's provenance at that checkpoint's
     steps. A campaign screens its checkpoints and keeps the best one (e.g. the cheapest getup that still stands)."""
-    from training import student_finetune
     run_dir = Path(run_dir)
     state = checkpoints.load_run_state(run_dir)
     ckpt = checkpoints.kept_checkpoint(run_dir, env_steps, f"{env_steps} env steps")
@@ -96,7 +116,7 @@ def export_checkpoint(run_dir, env_steps: int, name: str, like=None) -> Path:
     manifest["provenance"] = {**run_provenance(state, env_steps, state["preset"]),
                               "exported_from": f"{ckpt} (env fields from {like})"}
     params = checkpoints.load_checkpoint(ckpt)
-    policy, rule = student_finetune.exported_policy(params[1], state["ppo_config"])
+    policy, rule = exported_policy(params[1], state["ppo_config"])
     manifest.update(name=name, output_rule=rule,
                     trained=exported_as_trained(int(env_steps), state["preset"], state["env_config"]))
     path = run_dir / f"{name}.safetensors"

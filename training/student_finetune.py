@@ -22,8 +22,8 @@ import functools
 import numpy as np
 
 from common import observation as obsdef
+from training.export import NORMAL
 
-NORMAL = "normal"   # ppo.policy_distribution of a fine-tuned student ("tanh_normal": brax's default)
 
 
 def is_student_checkpoint(params) -> bool:
@@ -46,24 +46,6 @@ def policy_from_student(student_policy, init_noise_std: float) -> dict:
         "Dense_0": {"kernel": np.asarray(last["kernel"])[:, :obsdef.NUM_JOINTS],
                     "bias": np.asarray(last["bias"])[:obsdef.NUM_JOINTS]},
         "std_logparam": {"log_value": np.full(obsdef.NUM_JOINTS, np.log(init_noise_std), np.float32)}}}
-
-
-def student_layers(policy) -> dict:
-    """The "normal" PPO policy's params → brax MLP layers hidden_0..hidden_N (its mean: the exported student,
-    output rule `linear`; the std is training's only)."""
-    inner = policy["params"]
-    mlp = inner["MLP_0"]
-    layers = {f"hidden_{i}": mlp[f"hidden_{i}"] for i in range(len(mlp))}
-    layers[f"hidden_{len(mlp)}"] = inner["Dense_0"]
-    return {"params": layers}
-
-
-def exported_policy(policy, ppo_config) -> tuple[dict, str]:
-    """(policy params as the artifact's MLP, output rule) of a PPO run's policy: a fine-tuned student acts with
-    its mean (`linear`), any other PPO policy is brax's tanh-normal."""
-    if ppo_config.get("policy_distribution") == NORMAL:
-        return student_layers(policy), "linear"
-    return policy, "tanh_normal"
 
 
 def init_params(restored, ppo_cfg):

@@ -20,7 +20,7 @@ from typing import Sequence
 from ml_collections import config_dict
 
 from training import checkpoints, curves, ppo_networks, student_finetune
-from training.export import exported_as_trained, run_provenance
+from training.export import exported_as_trained, exported_policy, run_provenance
 from training.checkpoints import REPO_ROOT
 from training.overrides import apply_overrides
 from training.ppo_networks import ACTIVATION
@@ -348,7 +348,7 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     from training.export import export_brax_ppo
     steps = int(state["env_steps"])
     manifest = dict(env.manifest_fields())
-    policy, rule = student_finetune.exported_policy(params[1], state["ppo_config"])
+    policy, rule = exported_policy(params[1], state["ppo_config"])
     manifest.update(name=state["name"], activation=ACTIVATION, output_rule=rule,
                     trained=exported_as_trained(steps, preset, state["env_config"]),
                     provenance=run_provenance(state, steps, preset))
