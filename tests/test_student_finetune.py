@@ -61,6 +61,10 @@ def test_a_student_checkpoint_needs_the_normal_policy_and_a_teacher():
     cfg.policy_distribution = "tanh_normal"
     with pytest.raises(ValueError, match="policy_distribution='normal'"):
         F.init_params([normalizer, policy], cfg)
+    cfg.policy_distribution, cfg.init_noise_std = F.NORMAL, 0.0
+    with pytest.raises(ValueError, match="init_noise_std must be > 0"):
+        F.init_params([normalizer, policy], cfg)
+    cfg.policy_distribution = "tanh_normal"
     with pytest.raises(ValueError, match="teacher"):
         F.init_params([normalizer, policy], _ppo_cfg(bc_weight=0.0))
     ppo_params = [normalizer, policy, {"params": {}}]               # a PPO checkpoint passes unchanged

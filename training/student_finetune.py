@@ -25,7 +25,6 @@ from common import observation as obsdef
 from training.export import NORMAL
 
 
-
 def is_student_checkpoint(params) -> bool:
     """A brax bc (DAgger) checkpoint: (normaliser, MLP policy with 2·23 outputs: loc, scale) and no critic."""
     if len(params) != 2:
@@ -56,6 +55,8 @@ def init_params(restored, ppo_cfg):
     if ppo_cfg.get("policy_distribution", "tanh_normal") != NORMAL:
         raise ValueError("a DAgger student checkpoint fine-tunes only with ppo.policy_distribution='normal' "
                          "(it acts with its mean, no tanh)")
+    if not float(ppo_cfg.init_noise_std) > 0:
+        raise ValueError(f"ppo.init_noise_std must be > 0 (the sampling std), got {ppo_cfg.init_noise_std}")
     if not uses_teacher(ppo_cfg):
         raise ValueError("a DAgger student checkpoint fine-tunes only with a teacher (ppo.teacher.getup, "
                          ".joystick, .bc_weight > 0): its observation normaliser also reads the waist height")
