@@ -355,20 +355,17 @@ class Getup(GetupBase):
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
         """Height and Pose Rewards (the stage's form), the energy and rise-pace costs of the state after the step."""
-        q = data.qpos[7:]
-        stage = self._config.stage
-        ok = info["gate"]
+        q, stage = data.qpos[7:], self._config.stage
         if stage == "stage1":
-            gate_now = G.gate(info["trunk_height"], info["up"])
             kneel_h = self.height_orientation(info, self._kneel_targets)
-            height = G.kneel_height_reward(gate_now, kneel_h, self._stage1_gate_reward)
+            height = G.kneel_height_reward(G.gate(info["trunk_height"], info["up"]), kneel_h, self._stage1_gate_reward)
             pose = G.pose_reward(q, self._kneel_pose)
         elif stage == "stage2":
             height, pose = self.height_orientation(info, self._standing_targets), G.pose_reward(q, self._default_pose)
         else:
-            height, pose = self.full_task_rewards(q, info, ok)
+            height, pose = self.full_task_rewards(q, info, info["gate"])
         pace = G.rise_pace_cost(data.qvel[0:2], info["waist_height"], self._pace_waist_m)
-        return {"height": height, "pose": pose, "gate": ok, "energy": self.energy_cost(data), "pace": pace}
+        return {"height": height, "pose": pose, "gate": info["gate"], "energy": self.energy_cost(data), "pace": pace}
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         data, info, k_obs = self._physics(state, action)
