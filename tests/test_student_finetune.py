@@ -116,7 +116,8 @@ def _info_at(env, keyframe):
     from training.envs.joystick import Joystick
     data = env.make_data(jnp.asarray(t1model.keyframe_qpos(env.mj_model, keyframe)), jnp.zeros(env.mj_model.nv))
     info = {**env.body_readings(data), **Joystick.initial_feet_info(), "command": jnp.zeros(3),
-            "last_act": jnp.zeros(obsdef.NUM_JOINTS), "phase": obsdef.initial_gait_phase(jnp)}
+            "last_act": jnp.zeros(obsdef.NUM_JOINTS), "phase": obsdef.initial_gait_phase(jnp),
+            "course": jnp.zeros((), bool), "course_speed": jnp.zeros(())}
     info["rise_track"] = G.rise_track_start(info["trunk_height"])
     return data, info
 
@@ -139,3 +140,27 @@ def test_the_skills_reward_pays_each_expert_its_own_on_its_side_of_the_switch(sk
     with pytest.raises(ValueError, match="reward.mode 'walk'"):
         from training import envs
         envs.make("unified", config_overrides={"reward.mode": "walk", "fallen_bank_size": 2})
+
+
+def test_a_wall_course_charges_standing_still_but_not_moving_on():
+    """The course term (unified.py): at a wall, balancing on the spot costs progress_cost per second at any
+    height; walking on at the command, or a fall forward across the wall, costs nothing; other episodes never."""
+    from training import envs
+    env = envs.make("unified", config_overrides={"reward.mode": "skills", "fallen_bank_size": 2,
+                                                 "reward.course.progress_cost": 4.0})
+    action = jnp.zeros(obsdef.NUM_JOINTS)
+
+    def course_reward(course, speed_mps, qvel_x_mps):
+        data, info = _info_at(env, "home")
+        data = data.replace(qvel=data.qvel.at[0].set(qvel_x_mps))
+        info.update(course=jnp.asarray(course), course_speed=jnp.asarray(speed_mps),
+                    command=jnp.array([0.4, 0.0, 0.0]))
+        _, terms = env._skills_reward(data, action, info)
+        return float(terms["reward/course"]), float(info["course_speed"])
+
+    cost, speed = course_reward(True, 0.0, 0.0)            # stood still for long: the whole cost
+    assert cost == pytest.approx(-4.0) and speed == 0.0
+    assert course_reward(True, 0.4, 0.4) == (0.0, pytest.approx(0.4))        # walking on at the command
+    cost, speed = course_reward(True, 0.4, 2.0)            # falling forward lifts the smoothed speed
+    assert cost == 0.0 and speed > 0.4
+    assert course_reward(False, 0.0, 0.0)[0] == 0.0        # no course: no charge

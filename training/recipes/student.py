@@ -14,6 +14,8 @@ FINETUNE_STEPS = 30_000_000
 FINETUNE = {
     "env.reward.mode": "skills", "env.reward.getup.failed_rise_cost": 1.0,
     "env.knockdown.prob": 0.5, "env.knockdown.shove": "mixed", "env.walls.prob": 0.2,
+    # standing still at a wall costs more than lying down (unified.py): the fine-tune must trip on across it
+    "env.reward.course.progress_cost": 4.0,
     # the mean is the DAgger student's; PPO samples ±0.05 action units (0.1 rad) around it at first
     "ppo.policy_distribution": "normal", "ppo.init_noise_std": 0.05, "ppo.entropy_cost": 0.0,
     "ppo.learning_rate": 1e-4, "ppo.value_warmup_steps": 1_000_000,
