@@ -44,7 +44,7 @@ The course term is ours too. The policy is blind: at a wall its legs are blocked
 seed's, to trip across it and get up beyond. Without the term, balancing on the spot in front of the wall pays
 more than a fall within the discount's horizon (0.97 per 20 ms tick: 0.7 s), so the fine-tune learns to stand
 there (loop wall test: 5/5 courses unfinished). With it, standing still costs more than lying down, and a fall
-forward, whose speed lifts v̄ for a while, is paid at once.
+forward, whose speed lifts v̄ for a while, is paid at once. (Off by default; whether it is enough: LESSONS.)
 """
 from __future__ import annotations
 
@@ -68,6 +68,7 @@ METRIC_NAMES = ("reward/alive", "reward/height", "reward/tracking_lin_vel", "rew
                 "standing")
 SKILLS_METRIC_NAMES = ("reward/getup", "reward/joystick", "reward/course", "failed_rises", "gate", "standing")
 REWARD_MODES = ("monitor", "skills")
+MIN_COURSE_SPEED_MPS = 1e-3   # a wall approach's command is ≥ 0.3 m/s (wall_course.APPROACH_SPEED_MPS)
 
 
 def default_config() -> config_dict.ConfigDict:
@@ -267,7 +268,8 @@ class Unified(GetupBase):
         cfg = self._config.reward.course
         speed = info["course_speed"] + (data.qvel[0] - info["course_speed"]) * self.dt / cfg.speed_tau_s
         info["course_speed"] = speed
-        return cfg.progress_cost * jnp.clip(1.0 - speed / jnp.maximum(info["command"][0], 1e-3), 0.0, 1.0)
+        held = jnp.maximum(info["command"][0], MIN_COURSE_SPEED_MPS)
+        return cfg.progress_cost * jnp.clip(1.0 - speed / held, 0.0, 1.0)
 
     def _monitor_terms(self, data, info):
         """The "monitor" reward: (scaled terms, standing flag) for the state after the step."""
