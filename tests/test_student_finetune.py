@@ -107,7 +107,8 @@ def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
 @pytest.fixture(scope="module")
 def skills_env():
     from training import envs
-    return envs.make("unified", config_overrides={"reward.mode": "skills", "fallen_bank_size": 2})
+    return envs.make("unified", config_overrides={"reward.mode": "skills", "fallen_bank_size": 2,
+                                                  "reward.course.progress_cost": 4.0})
 
 
 def _info_at(env, keyframe):
@@ -142,13 +143,10 @@ def test_the_skills_reward_pays_each_expert_its_own_on_its_side_of_the_switch(sk
         envs.make("unified", config_overrides={"reward.mode": "walk", "fallen_bank_size": 2})
 
 
-def test_a_wall_course_charges_standing_still_but_not_moving_on():
+def test_a_wall_course_charges_standing_still_but_not_moving_on(skills_env):
     """The course term (unified.py): at a wall, balancing on the spot costs progress_cost per second at any
     height; walking on at the command, or a fall forward across the wall, costs nothing; other episodes never."""
-    from training import envs
-    env = envs.make("unified", config_overrides={"reward.mode": "skills", "fallen_bank_size": 2,
-                                                 "reward.course.progress_cost": 4.0})
-    action = jnp.zeros(obsdef.NUM_JOINTS)
+    env, action = skills_env, jnp.zeros(obsdef.NUM_JOINTS)
 
     def course_reward(course, speed_mps, qvel_x_mps):
         data, info = _info_at(env, "home")
