@@ -20,7 +20,7 @@ from typing import Sequence
 from ml_collections import config_dict
 
 from training import checkpoints, curves, ppo_networks, student_finetune
-from training.export import exported_as_trained, exported_policy, run_provenance
+from training.export import export_brax_ppo, exported_as_trained, exported_policy, run_provenance
 from training.checkpoints import REPO_ROOT
 from training.overrides import apply_overrides
 from training.ppo_networks import ACTIVATION
@@ -345,7 +345,6 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
 
 def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     """The run's newest params → <run_dir>/<name>.safetensors, manifest from the env config."""
-    from training.export import export_brax_ppo
     steps = int(state["env_steps"])
     manifest = dict(env.manifest_fields())
     policy, rule = exported_policy(params[1], state["ppo_config"])

@@ -52,8 +52,7 @@ from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
 from training.envs import handover, kneel_collapse, prone_path, rise_bank, start_path, upright
-from common.events import FALLEN_TRUNK_HEIGHT_M
-from common.events import STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
+from common.events import FALLEN_TRUNK_HEIGHT_M, STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import PREPARE_S, fallen_states
 from training.envs.getup_config import default_config   # envs.make's config of this task
 
