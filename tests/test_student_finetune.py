@@ -107,8 +107,7 @@ def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
 @pytest.fixture(scope="module")
 def skills_env():
     from training import envs
-    return envs.make("unified", config_overrides={"reward.mode": "skills", "fallen_bank_size": 2,
-                                                  "reward.course.progress_cost": 4.0})
+    return envs.make("unified", config_overrides={"reward.mode": "skills", "fallen_bank_size": 2})
 
 
 def _info_at(env, keyframe):
@@ -118,7 +117,7 @@ def _info_at(env, keyframe):
     data = env.make_data(jnp.asarray(t1model.keyframe_qpos(env.mj_model, keyframe)), jnp.zeros(env.mj_model.nv))
     info = {**env.body_readings(data), **Joystick.initial_feet_info(), "command": jnp.zeros(3),
             "last_act": jnp.zeros(obsdef.NUM_JOINTS), "phase": obsdef.initial_gait_phase(jnp),
-            "course": jnp.zeros((), bool), "course_speed": jnp.zeros(())}
+            "course": jnp.zeros((), bool)}
     info["rise_track"] = G.rise_track_start(info["trunk_height"])
     return data, info
 
@@ -143,22 +142,17 @@ def test_the_skills_reward_pays_each_expert_its_own_on_its_side_of_the_switch(sk
         envs.make("unified", config_overrides={"reward.mode": "walk", "fallen_bank_size": 2})
 
 
-def test_a_wall_course_charges_standing_still_but_not_moving_on(skills_env):
-    """The course term (unified.py): at a wall, balancing on the spot costs progress_cost per second at any
-    height; walking on at the command, or a fall forward across the wall, costs nothing; other episodes never."""
-    env, action = skills_env, jnp.zeros(obsdef.NUM_JOINTS)
-
-    def course_reward(course, speed_mps, qvel_x_mps):
-        data, info = _info_at(env, "home")
-        data = data.replace(qvel=data.qvel.at[0].set(qvel_x_mps))
-        info.update(course=jnp.asarray(course), course_speed=jnp.asarray(speed_mps),
-                    command=jnp.array([0.4, 0.0, 0.0]))
-        _, terms = env._skills_reward(data, action, info)
-        return float(terms["reward/course"]), float(info["course_speed"])
-
-    cost, speed = course_reward(True, 0.0, 0.0)            # stood still for long: the whole cost
-    assert cost == pytest.approx(-4.0) and speed == 0.0
-    assert course_reward(True, 0.4, 0.4) == (0.0, pytest.approx(0.4))        # walking on at the command
-    cost, speed = course_reward(True, 0.4, 2.0)            # falling forward lifts the smoothed speed
-    assert cost == 0.0 and speed > 0.4
-    assert course_reward(False, 0.0, 0.0)[0] == 0.0        # no course: no charge
+def test_wall_course_samples_keep_the_full_bc_weight_where_held(skills_env):
+    """bc_hold_in_course: samples whose episode's "wall_course" metric is on keep bc_weight; others decay."""
+    data, info = _info_at(skills_env, "home")
+    assert float(skills_env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)[1]["wall_course"]) == 0.0
+    info["course"] = jnp.ones((), bool)
+    assert float(skills_env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)[1]["wall_course"]) == 1.0
+    from brax.training import types
+    summed = jnp.array([[0.0, 3.0], [1.0, 0.0]])            # episode_metrics: the metric summed so far
+    batch = types.Transition(observation=None, action=None, reward=None, discount=None, next_observation=None,
+                             extras={"state_extras": {"episode_metrics": {"wall_course": summed}}})
+    in_course = F.in_wall_course(batch)
+    np.testing.assert_array_equal(in_course, [[False, True], [True, False]])
+    np.testing.assert_allclose(F.sample_weights(jnp.float32(0.25), in_course, 1.0, True), [[0.25, 1.0], [1.0, 0.25]])
+    np.testing.assert_allclose(F.sample_weights(jnp.float32(0.25), in_course, 1.0, False), 0.25)

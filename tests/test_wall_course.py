@@ -46,6 +46,13 @@ def test_approaches_start_before_the_first_wall_facing_it_with_a_forward_command
     cmd = np.asarray(cmd)
     assert np.all((cmd[:, 0] >= wall_course.APPROACH_SPEED_MPS[0]) & (cmd[:, 0] <= wall_course.APPROACH_SPEED_MPS[1]))
     assert np.all(cmd[:, 1:] == 0.0)
+    cfg.approach_m = [1.0, 5.0]                               # a longer run-up (config)
+    xy, _, _ = jax.vmap(lambda k: wall_course.course_start(k, cfg))(jax.random.split(jax.random.PRNGKey(0), 500))
+    before = cfg.first_wall_x_m - np.asarray(xy[:, 0])
+    assert before.min() >= 1.0 and before.max() <= 5.0 and before.max() > wall_course.APPROACH_M[1]
+    cfg.approach_m = [2.0, 1.0]
+    with pytest.raises(ValueError, match="approach_m"):
+        wall_course.course_start(jax.random.PRNGKey(0), cfg)
 
 
 def test_envs_have_the_course_only_when_asked():

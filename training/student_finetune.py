@@ -8,11 +8,15 @@ around it with brax's "normal" distribution, a state-independent learned std (pp
 start, in action units: 2 rad per unit on most joints). The DAgger net's hidden layers become the PPO policy's
 MLP and its last layer's loc half the mean layer; the critic starts fresh (ppo.value_warmup_steps: train.py).
 BC term, added to brax's PPO loss:
-    w(n) · mean over the batch of Σ_joints (tanh(μ) − tanh(label))²        (brax bc's own loss, distill.py)
-    w(n) = teacher.bc_weight · max(0, 1 − n / teacher.bc_decay_steps)
+    mean over the batch of w_i(n) · Σ_joints (tanh(μ) − tanh(label))²      (brax bc's own loss, distill.py)
+    w_i(n) = teacher.bc_weight · max(0, 1 − n / teacher.bc_decay_steps)
 with n the env steps of this fine-tune, read from the observation normaliser's sample count (one sample per
 env step; the only step counter brax hands its loss) minus the count it started from (the run state's
-`bc_count_start`). The teacher reads the privileged waist height: the env is wrapped in WaistObservation.
+`bc_count_start`). With teacher.bc_hold_in_course, samples of wall-course episodes keep teacher.bc_weight
+(no decay): there the teacher trips across the wall and gets up beyond, the one way on for a blind policy,
+while PPO alone learned to balance in front of it (training/LESSONS.md). They are told apart by the unified
+env's "wall_course" metric, which brax hands the loss summed over the episode so far.
+The teacher reads the privileged waist height: the env is wrapped in WaistObservation.
 """
 from __future__ import annotations
 
@@ -80,6 +84,21 @@ def bc_weight(env_steps, weight: float, decay_steps: int):
     return weight * jnp.maximum(0.0, 1.0 - env_steps / float(decay_steps))
 
 
+def sample_weights(decayed, in_course, weight: float, hold_in_course: bool):
+    """Per-sample BC weights (module docstring): `decayed` everywhere, or with hold_in_course `weight` where
+    in_course (bool, the samples' shape)."""
+    import jax.numpy as jnp
+    if not hold_in_course:
+        return jnp.broadcast_to(decayed, in_course.shape)
+    return jnp.where(in_course, jnp.float32(weight), decayed)
+
+
+def in_wall_course(data):
+    """Which samples of a brax PPO batch come from wall-course episodes: the unified env's "wall_course" metric
+    summed over the episode so far (brax's episode_metrics; at least 1 from an episode's first step)."""
+    return data.extras["state_extras"]["episode_metrics"]["wall_course"] > 0
+
+
 def uses_teacher(ppo_cfg) -> bool:
     t = ppo_cfg.get("teacher")
     return bool(t) and float(t.bc_weight) > 0
@@ -108,6 +127,7 @@ def teacher_term(ppo_cfg, env, count_start: float):
     teacher = make_teacher(load_expert(t.getup, "getup"), load_expert(t.joystick, "joystick"), env.obs_terms,
                            env.manifest_fields()["action_scale"], student_tanh_squash=False)
     weight, decay = float(t.bc_weight), int(t.bc_decay_steps)
+    hold = bool(t.get("bc_hold_in_course", False))
     ppo_loss = ppo_losses.compute_ppo_loss
 
     def loss(params, normalizer_params, data, rng, ppo_network, **kwargs):
@@ -115,10 +135,12 @@ def teacher_term(ppo_cfg, env, count_start: float):
         logits = ppo_network.policy_network.apply(normalizer_params, params.policy, data.observation)
         mean = ppo_network.parametric_action_distribution.mode(logits)
         label = teacher(data.observation)[1]["loc"]
-        bc = jnp.mean(jnp.sum(jnp.square(jnp.tanh(mean) - jnp.tanh(label)), axis=-1))
-        w = bc_weight(sample_count(normalizer_params, jnp) - count_start, weight, decay)
-        metrics = {**metrics, "bc_loss": bc, "bc_weight": w}
-        return total + w * bc, metrics
+        bc = jnp.sum(jnp.square(jnp.tanh(mean) - jnp.tanh(label)), axis=-1)
+        decayed = bc_weight(sample_count(normalizer_params, jnp) - count_start, weight, decay)
+        in_course = in_wall_course(data) if hold else jnp.zeros(bc.shape, bool)
+        w = sample_weights(decayed, in_course, weight, hold)
+        metrics = {**metrics, "bc_loss": jnp.mean(bc), "bc_weight": jnp.mean(w)}
+        return total + jnp.mean(w * bc), metrics
 
     ppo_losses.compute_ppo_loss = loss
     try:

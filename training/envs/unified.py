@@ -33,18 +33,12 @@ charge, per control step (× ctrl_dt):
     at or above it:   the joystick env's terms × reward.joystick_scales, clipped at 0 as there,
                       + the most the scaled getup reward can pay below (the standing bonus)
     − reward.getup.failed_rise_cost once per failed getup attempt (events.py's definition)
-    − reward.course.progress_cost · shortfall, in wall-course episodes at any height: shortfall =
-        clip(1 − v̄/v_cmd, 0, 1), v̄ the world-x speed [m/s] smoothed over speed_tau_s, v_cmd the held command
 The scale and the bonus are ours. The gated reward pays 13.4 per step at the kneel keyframe and up to 103.6
 (pose 100·exp(−½‖q − q_init‖²)) for an upright crouch just below the switch, a walk about 2: unscaled, or
 without the bonus, the switch would be a wall to stay below. Scaled by 0.02 the rise's shaping (about 0.03
 per step before the gate) stays below the walk's terms, and the bonus (2.07) makes any state above the
-switch pay more than any below it.
-The course term is ours too. The policy is blind: at a wall its legs are blocked, and the only way on is the
-seed's, to trip across it and get up beyond. Without the term, balancing on the spot in front of the wall pays
-more than a fall within the discount's horizon (0.97 per 20 ms tick: 0.7 s), so the fine-tune learns to stand
-there (loop wall test: 5/5 courses unfinished). With it, standing still costs more than lying down, and a fall
-forward, whose speed lifts v̄ for a while, is paid at once. (Off by default; whether it is enough: LESSONS.)
+switch pay more than any below it. Its metric "wall_course" is 1 per step of a wall-course episode: the
+fine-tune's BC term reads it (student_finetune.py).
 """
 from __future__ import annotations
 
@@ -66,9 +60,8 @@ from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 METRIC_NAMES = ("reward/alive", "reward/height", "reward/tracking_lin_vel", "reward/tracking_ang_vel",
                 "standing")
-SKILLS_METRIC_NAMES = ("reward/getup", "reward/joystick", "reward/course", "failed_rises", "gate", "standing")
+SKILLS_METRIC_NAMES = ("reward/getup", "reward/joystick", "failed_rises", "gate", "standing", "wall_course")
 REWARD_MODES = ("monitor", "skills")
-MIN_COURSE_SPEED_MPS = 1e-3   # a wall approach's command is ≥ 0.3 m/s (wall_course.APPROACH_SPEED_MPS)
 
 
 def default_config() -> config_dict.ConfigDict:
@@ -105,9 +98,7 @@ def default_config() -> config_dict.ConfigDict:
         max_foot_height_m=joy.reward.max_foot_height_m,
         joystick_scales=config_dict.create(**joy.reward.scales.to_dict()),
         # energy_weight: getup_knockdown's; scale: the docstring's
-        getup=config_dict.create(scale=0.02, energy_weight=0.01, failed_rise_cost=0.0),
-        # wall-course episodes: progress_cost [1/s] × the shortfall of the smoothed forward speed (docstring)
-        course=config_dict.create(progress_cost=0.0, speed_tau_s=1.0))
+        getup=config_dict.create(scale=0.02, energy_weight=0.01, failed_rise_cost=0.0))
     return cfg
 
 
@@ -187,8 +178,7 @@ class Unified(GetupBase):
             **self.body_readings(data),
         }
         if self._reward_mode == "skills":
-            info.update(Joystick.initial_feet_info(), rise_track=G.rise_track_start(info["trunk_height"]),
-                        course_speed=command[0])   # smoothed world-x speed [m/s]: no shortfall at the start
+            info.update(Joystick.initial_feet_info(), rise_track=G.rise_track_start(info["trunk_height"]))
         obs = self._observe(data, info, k_obs)
         names = SKILLS_METRIC_NAMES if self._reward_mode == "skills" else METRIC_NAMES
         metrics = {k: jnp.zeros(()) for k in names}
@@ -256,20 +246,10 @@ class Unified(GetupBase):
         info["rise_track"], failed = G.rise_track_step(info["rise_track"], info["trunk_height"], self.standing(info),
                                                        self._stand_hold_ticks)
         self._feet_after_step(info, contact)
-        course = info["course"] * self._course_cost(data, info)
-        reward = (jnp.where(standing, joystick, getup) - course) * self.dt - cfg.getup.failed_rise_cost * failed
+        reward = jnp.where(standing, joystick, getup) * self.dt - cfg.getup.failed_rise_cost * failed
         return reward, {"reward/getup": jnp.where(standing, 0.0, getup),
-                        "reward/joystick": jnp.where(standing, joystick, 0.0), "reward/course": -course,
-                        "failed_rises": failed, "gate": gate, "standing": standing}
-
-    def _course_cost(self, data, info):
-        """progress_cost × the shortfall of the smoothed world-x speed behind the held command [1/s]; advances
-        info["course_speed"] (in place)."""
-        cfg = self._config.reward.course
-        speed = info["course_speed"] + (data.qvel[0] - info["course_speed"]) * self.dt / cfg.speed_tau_s
-        info["course_speed"] = speed
-        held = jnp.maximum(info["command"][0], MIN_COURSE_SPEED_MPS)
-        return cfg.progress_cost * jnp.clip(1.0 - speed / held, 0.0, 1.0)
+                        "reward/joystick": jnp.where(standing, joystick, 0.0),
+                        "failed_rises": failed, "gate": gate, "standing": standing, "wall_course": info["course"]}
 
     def _monitor_terms(self, data, info):
         """The "monitor" reward: (scaled terms, standing flag) for the state after the step."""

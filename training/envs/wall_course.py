@@ -9,8 +9,8 @@ can walk a share of its episodes into one (unified config walls.prob).
 The course is sim_hil's (common/scenarios.py add_low_walls: three walls 6 m apart, the same geoms the
 evaluation builds), moved along +x to config.wall_course.first_wall_x_m (30 m): every other start lies
 within a few metres of the origin, so the walls change nothing there. An approach (course_start) is a
-standing start before the first wall, facing it within ±APPROACH_YAW_RAD, walking at a constant forward
-command as the loop's test does (0.4 m/s there).
+standing start approach_m before the first wall (config; APPROACH_M by default), facing it within
+±APPROACH_YAW_RAD, walking at a constant forward command as the loop's test does (0.4 m/s there).
 """
 from __future__ import annotations
 
@@ -22,15 +22,16 @@ from ml_collections import config_dict
 from common import scenarios
 
 FIRST_WALL_X_M = 30.0               # the training course's first wall [m]; the evaluation's is at 2 m
-APPROACH_M = (0.3, 2.5)             # start this far before the first wall's centre plane [m]
+APPROACH_M = (0.3, 2.5)             # default approach_m: start this far before the first wall's centre plane [m]
 APPROACH_LATERAL_M = 3.0            # |y| of the start [m] (the walls are 40 m long)
 APPROACH_YAW_RAD = 0.3              # heading off +x [rad]
 APPROACH_SPEED_MPS = (0.3, 0.6)     # forward command [m/s], held for the episode (the loop's test: 0.4)
 
 
 def config() -> config_dict.ConfigDict:
-    """enable: the course is in the world (tasks whose wall share is > 0 add it on their own)."""
-    return config_dict.create(enable=False, first_wall_x_m=FIRST_WALL_X_M)
+    """enable: the course is in the world (tasks whose wall share is > 0 add it on their own). approach_m: a
+    longer run-up meets the wall at walking speed, as the loop's test meets its second and third walls."""
+    return config_dict.create(enable=False, first_wall_x_m=FIRST_WALL_X_M, approach_m=list(APPROACH_M))
 
 
 def add_to_spec(spec: mujoco.MjSpec, cfg: config_dict.ConfigDict) -> None:
@@ -40,7 +41,10 @@ def add_to_spec(spec: mujoco.MjSpec, cfg: config_dict.ConfigDict) -> None:
 def course_start(rng: jax.Array, cfg: config_dict.ConfigDict) -> tuple[jax.Array, jax.Array, jax.Array]:
     """(xy [m], yaw [rad], command (vx, vy, yaw rate)) of one approach to the first wall."""
     k_x, k_y, k_yaw, k_v = jax.random.split(rng, 4)
-    x = cfg.first_wall_x_m - jax.random.uniform(k_x, minval=APPROACH_M[0], maxval=APPROACH_M[1])
+    near_m, far_m = cfg.get("approach_m", APPROACH_M)   # (runs made before it was config: the default)
+    if not 0.0 <= near_m <= far_m:
+        raise ValueError(f"wall_course.approach_m must be an ordered pair of distances [m] >= 0, got {near_m, far_m}")
+    x = cfg.first_wall_x_m - jax.random.uniform(k_x, minval=near_m, maxval=far_m)
     y = jax.random.uniform(k_y, minval=-APPROACH_LATERAL_M, maxval=APPROACH_LATERAL_M)
     yaw = jax.random.uniform(k_yaw, minval=-APPROACH_YAW_RAD, maxval=APPROACH_YAW_RAD)
     speed = jax.random.uniform(k_v, minval=APPROACH_SPEED_MPS[0], maxval=APPROACH_SPEED_MPS[1])
