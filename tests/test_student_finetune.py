@@ -154,5 +154,5 @@ def test_wall_course_samples_keep_the_full_bc_weight_where_held(skills_env):
                              extras={"state_extras": {"episode_metrics": {"wall_course": summed}}})
     in_course = F.in_wall_course(batch)
     np.testing.assert_array_equal(in_course, [[False, True], [True, False]])
-    np.testing.assert_allclose(F.sample_weights(jnp.float32(0.25), in_course, 1.0, True), [[0.25, 1.0], [1.0, 0.25]])
-    np.testing.assert_allclose(F.sample_weights(jnp.float32(0.25), in_course, 1.0, False), 0.25)
+    np.testing.assert_allclose(F.sample_weights(jnp.float32(0.25), in_course, 1.0), [[0.25, 1.0], [1.0, 0.25]])
+    np.testing.assert_allclose(F.sample_weights(jnp.float32(0.25), False, 1.0), 0.25)

@@ -84,12 +84,10 @@ def bc_weight(env_steps, weight: float, decay_steps: int):
     return weight * jnp.maximum(0.0, 1.0 - env_steps / float(decay_steps))
 
 
-def sample_weights(decayed, in_course, weight: float, hold_in_course: bool):
-    """Per-sample BC weights (module docstring): `decayed` everywhere, or with hold_in_course `weight` where
-    in_course (bool, the samples' shape)."""
+def sample_weights(decayed, in_course, weight: float):
+    """Per-sample BC weights with teacher.bc_hold_in_course (module docstring): `weight` where in_course (bool
+    per sample, or False: none), `decayed` elsewhere."""
     import jax.numpy as jnp
-    if not hold_in_course:
-        return jnp.broadcast_to(decayed, in_course.shape)
     return jnp.where(in_course, jnp.float32(weight), decayed)
 
 
@@ -137,8 +135,7 @@ def teacher_term(ppo_cfg, env, count_start: float):
         label = teacher(data.observation)[1]["loc"]
         bc = jnp.sum(jnp.square(jnp.tanh(mean) - jnp.tanh(label)), axis=-1)
         decayed = bc_weight(sample_count(normalizer_params, jnp) - count_start, weight, decay)
-        in_course = in_wall_course(data) if hold else jnp.zeros(bc.shape, bool)
-        w = sample_weights(decayed, in_course, weight, hold)
+        w = sample_weights(decayed, in_wall_course(data) if hold else False, weight)
         metrics = {**metrics, "bc_loss": jnp.mean(bc), "bc_weight": jnp.mean(w)}
         return total + jnp.mean(w * bc), metrics
 

@@ -4,7 +4,8 @@ pushes and wall-course episodes (ours). The shipped phase is DAgger-3400: the wa
 `finetune` (issue 47; training/student_finetune.py): PPO on the unified env's "skills" reward from those
 DAgger weights, critic warm-up first, a behaviour-cloning term toward the same teacher that decays to 0 over
 the stage (except in wall-course episodes), starts mixing fallen, kneeling and standing states, knockdowns and
-the push test's torso shoves, and the low-wall course. It ships only where it beats DAgger-3400 in the chapter-6 table (CARD.md)."""
+the push test's torso shoves, and the low-wall course. It ships only where it beats DAgger-3400 in the
+chapter-6 table (CARD.md)."""
 from training.recipe import Recipe, Stage
 
 JOYSTICK = "policies/joystick_handover/joystick_handover.safetensors"
