@@ -107,7 +107,8 @@ def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
 @pytest.fixture(scope="module")
 def skills_env():
     from training import envs
-    return envs.make("unified", config_overrides={"reward.mode": "skills", "fallen_bank_size": 2})
+    return envs.make("unified", config_overrides={"reward.mode": "skills", "fallen_bank_size": 2,
+                                                  "reward.course.progress_weight": 10.0})
 
 
 def _info_at(env, keyframe):
@@ -117,7 +118,7 @@ def _info_at(env, keyframe):
     data = env.make_data(jnp.asarray(t1model.keyframe_qpos(env.mj_model, keyframe)), jnp.zeros(env.mj_model.nv))
     info = {**env.body_readings(data), **Joystick.initial_feet_info(), "command": jnp.zeros(3),
             "last_act": jnp.zeros(obsdef.NUM_JOINTS), "phase": obsdef.initial_gait_phase(jnp),
-            "course": jnp.zeros((), bool)}
+            "course": jnp.zeros((), bool), "course_best_x": data.qpos[0], "course_credit_x": data.qpos[0]}
     info["rise_track"] = G.rise_track_start(info["trunk_height"])
     return data, info
 
@@ -156,3 +157,18 @@ def test_wall_course_samples_keep_the_full_bc_weight_where_held(skills_env):
     np.testing.assert_array_equal(in_course, [[False, True], [True, False]])
     np.testing.assert_allclose(F.sample_weights(jnp.float32(0.25), in_course, 1.0), [[0.25, 1.0], [1.0, 0.25]])
     np.testing.assert_allclose(F.sample_weights(jnp.float32(0.25), False, 1.0), 0.25)
+
+
+def test_wall_course_episodes_are_paid_for_credited_progress_only(skills_env):
+    """reward.course.progress_weight × the metres credited (wall_course.credited_progress), in courses only."""
+    env, cfg = skills_env, skills_env._config.reward
+    data, info = _info_at(env, "home")
+    info.update(command=jnp.array([0.4, 0.0, 0.0]), course_credit_x=data.qpos[0] - 0.5)   # 0.5 m banked
+    walk, terms = env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), dict(info))
+    assert float(terms["course_progress_m"]) == 0.0                                     # not a course episode
+    info["course"] = jnp.ones((), bool)
+    reward, terms = env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)
+    assert float(terms["course_progress_m"]) == pytest.approx(0.4 * env.dt, rel=1e-4)
+    assert float(reward - walk) == pytest.approx(cfg.course.progress_weight * 0.4 * env.dt, rel=1e-3)
+    info["course_credit_x"] = data.qpos[0]                                                # nothing banked: standing
+    assert float(env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)[1]["course_progress_m"]) == 0.0

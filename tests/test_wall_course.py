@@ -55,6 +55,25 @@ def test_approaches_start_before_the_first_wall_facing_it_with_a_forward_command
         wall_course.course_start(jax.random.PRNGKey(0), cfg)
 
 
+def test_course_progress_is_banked_and_paid_at_no_more_than_the_command():
+    dt, cap = 0.02, 0.4
+    best, credit, gained = wall_course.credited_progress(30.0, 30.0, 30.0, cap, dt)     # standing still
+    assert float(gained) == 0.0
+    best, credit, gained = wall_course.credited_progress(best, credit, 30.02, cap, dt)   # sprinting: capped
+    assert float(gained) == pytest.approx(cap * dt, abs=1e-5)
+    best, credit, gained = wall_course.credited_progress(best, credit, 30.8, cap, dt)    # a fall across the wall
+    paid = [float(gained)]
+    for _ in range(200):                                                                # getting up in place
+        best, credit, gained = wall_course.credited_progress(best, credit, 30.6, cap, dt)
+        paid.append(float(gained))
+    assert max(paid) == pytest.approx(cap * dt, abs=1e-5) and paid[-1] == 0.0
+    assert float(credit) == pytest.approx(30.8, abs=1e-5) and sum(paid) == pytest.approx(0.8 - cap * dt, abs=1e-4)
+    for x in (30.5, 30.8, 30.5, 30.8):                                                  # back and forth: nothing new
+        best, credit, gained = wall_course.credited_progress(best, credit, x, cap, dt)
+        assert float(gained) == 0.0
+    assert float(wall_course.credited_progress(30.0, 30.0, 31.0, -0.2, dt)[2]) == 0.0  # a backward command
+
+
 def test_envs_have_the_course_only_when_asked():
     plain = envs.make("getup", config_overrides={"backend": "cpu", "fallen_bank_size": 2})
     assert not plain.has_wall_course() and plain.mj_model.ngeom == envs.make(

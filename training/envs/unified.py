@@ -33,12 +33,20 @@ charge, per control step (× ctrl_dt):
     at or above it:   the joystick env's terms × reward.joystick_scales, clipped at 0 as there,
                       + the most the scaled getup reward can pay below (the standing bonus)
     − reward.getup.failed_rise_cost once per failed getup attempt (events.py's definition)
+    + reward.course.progress_weight [1/m] × the metres credited this step, in wall-course episodes at any
+      height (wall_course.credited_progress: new ground along +x, paid at no more than the held command)
 The scale and the bonus are ours. The gated reward pays 13.4 per step at the kneel keyframe and up to 103.6
 (pose 100·exp(−½‖q − q_init‖²)) for an upright crouch just below the switch, a walk about 2: unscaled, or
 without the bonus, the switch would be a wall to stay below. Scaled by 0.02 the rise's shaping (about 0.03
 per step before the gate) stays below the walk's terms, and the bonus (2.07) makes any state above the
 switch pay more than any below it. Its metric "wall_course" is 1 per step of a wall-course episode: the
-fine-tune's BC term reads it (student_finetune.py).
+fine-tune's BC term reads it (student_finetune.py); "course_progress_m" sums the metres credited.
+The course term is ours too. The policy is blind, and at a wall the only way on is the seed's: trip across it
+and get up beyond. Without the term, standing in front of the wall loses only part of the tracking reward
+(about 0.5 per s) while a getup loses the walk's terms and the bonus for seconds (about 3.5 per s), so the
+fine-tune learns to stand there. A cost on standing still does not help (LESSONS: it charges the getup as
+much as the stall); banked ground does: the fall across the wall banks ground that keeps paying while the
+robot gets up, and standing still earns nothing.
 """
 from __future__ import annotations
 
@@ -60,7 +68,8 @@ from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 METRIC_NAMES = ("reward/alive", "reward/height", "reward/tracking_lin_vel", "reward/tracking_ang_vel",
                 "standing")
-SKILLS_METRIC_NAMES = ("reward/getup", "reward/joystick", "failed_rises", "gate", "standing", "wall_course")
+SKILLS_METRIC_NAMES = ("reward/getup", "reward/joystick", "failed_rises", "gate", "standing", "wall_course",
+                       "course_progress_m")
 REWARD_MODES = ("monitor", "skills")
 
 
@@ -98,7 +107,8 @@ def default_config() -> config_dict.ConfigDict:
         max_foot_height_m=joy.reward.max_foot_height_m,
         joystick_scales=config_dict.create(**joy.reward.scales.to_dict()),
         # energy_weight: getup_knockdown's; scale: the docstring's
-        getup=config_dict.create(scale=0.02, energy_weight=0.01, failed_rise_cost=0.0))
+        getup=config_dict.create(scale=0.02, energy_weight=0.01, failed_rise_cost=0.0),
+        course=config_dict.create(progress_weight=0.0))   # [1/m] of credited progress (docstring); 0: off
     return cfg
 
 
@@ -178,7 +188,8 @@ class Unified(GetupBase):
             **self.body_readings(data),
         }
         if self._reward_mode == "skills":
-            info.update(Joystick.initial_feet_info(), rise_track=G.rise_track_start(info["trunk_height"]))
+            info.update(Joystick.initial_feet_info(), rise_track=G.rise_track_start(info["trunk_height"]),
+                        course_best_x=qpos[0], course_credit_x=qpos[0])   # [m]: nothing banked at the start
         obs = self._observe(data, info, k_obs)
         names = SKILLS_METRIC_NAMES if self._reward_mode == "skills" else METRIC_NAMES
         metrics = {k: jnp.zeros(()) for k in names}
@@ -246,10 +257,17 @@ class Unified(GetupBase):
         info["rise_track"], failed = G.rise_track_step(info["rise_track"], info["trunk_height"], self.standing(info),
                                                        self._stand_hold_ticks)
         self._feet_after_step(info, contact)
-        reward = jnp.where(standing, joystick, getup) * self.dt - cfg.getup.failed_rise_cost * failed
+        info["course_best_x"], info["course_credit_x"], gained = wall_course.credited_progress(
+            info["course_best_x"], info["course_credit_x"], data.qpos[0], info["command"][0], self.dt)
+        progress = info["course"] * gained
+        course = cfg.get("course")   # runs made before the course term have none
+        progress_weight = course.progress_weight if course is not None else 0.0
+        reward = (jnp.where(standing, joystick, getup) * self.dt - cfg.getup.failed_rise_cost * failed
+                  + progress_weight * progress)
         return reward, {"reward/getup": jnp.where(standing, 0.0, getup),
                         "reward/joystick": jnp.where(standing, joystick, 0.0),
-                        "failed_rises": failed, "gate": gate, "standing": standing, "wall_course": info["course"]}
+                        "failed_rises": failed, "gate": gate, "standing": standing, "wall_course": info["course"],
+                        "course_progress_m": progress}
 
     def _monitor_terms(self, data, info):
         """The "monitor" reward: (scaled terms, standing flag) for the state after the step."""

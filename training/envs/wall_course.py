@@ -49,3 +49,14 @@ def course_start(rng: jax.Array, cfg: config_dict.ConfigDict) -> tuple[jax.Array
     yaw = jax.random.uniform(k_yaw, minval=-APPROACH_YAW_RAD, maxval=APPROACH_YAW_RAD)
     speed = jax.random.uniform(k_v, minval=APPROACH_SPEED_MPS[0], maxval=APPROACH_SPEED_MPS[1])
     return jnp.stack([x, y]), yaw, jnp.stack([speed, 0.0, 0.0])
+
+
+def credited_progress(best_x: jax.Array, credit_x: jax.Array, x: jax.Array, speed_cap_mps: jax.Array,
+                      dt: float) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """(best_x, credit_x, gained [m]) after one step at base x [m]: new ground along +x is banked (best_x, the
+    furthest x so far) and paid out at no more than speed_cap_mps (the held command), so a fall forward across
+    a wall keeps paying while the robot gets up beyond it, standing still pays nothing, and neither walking
+    faster than commanded nor stepping back and forth earns more."""
+    best_x = jnp.maximum(best_x, x)
+    new_credit = jnp.minimum(best_x, credit_x + jnp.maximum(speed_cap_mps, 0.0) * dt)
+    return best_x, new_credit, new_credit - credit_x   # ≥ 0: credit_x never passes best_x

@@ -16,8 +16,10 @@ FINETUNE = {
     "env.reward.mode": "skills", "env.reward.getup.failed_rise_cost": 1.0,
     "env.knockdown.prob": 0.5, "env.knockdown.shove": "mixed", "env.walls.prob": 0.2,
     # walls met at walking speed, as in the loop's test; there the teacher's trip-and-getup stays the target
-    # (student_finetune.py), and γ 0.99 (a 2 s horizon) lets a getup beyond the wall pay within it
-    "env.wall_course.approach_m": [1.0, 5.0], "ppo.teacher.bc_hold_in_course": True, "ppo.discounting": 0.99,
+    # (student_finetune.py), and ground banked by a fall across the wall pays through the getup beyond it
+    # (unified.py's course term: 10 per m, about 4 per s at the held command, above a getup's loss)
+    "env.wall_course.approach_m": [1.0, 5.0], "ppo.teacher.bc_hold_in_course": True,
+    "env.reward.course.progress_weight": 10.0,
     # the mean is the DAgger student's; PPO samples ±0.05 action units (0.1 rad) around it at first
     "ppo.policy_distribution": "normal", "ppo.init_noise_std": 0.05, "ppo.entropy_cost": 0.0,
     "ppo.learning_rate": 1e-4, "ppo.value_warmup_steps": 1_000_000,
