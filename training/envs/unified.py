@@ -150,6 +150,8 @@ class Unified(GetupBase):
         if self._reward_mode == "skills":
             Joystick._init_reward_constants(self)
             self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
+            course = self._config.reward.get("course")   # runs made before the course term have none
+            self._progress_weight = course.progress_weight if course is not None else 0.0
             if not self._config.reward.getup.scale > 0:
                 raise ValueError(f"reward.getup.scale must be > 0, got {self._config.reward.getup.scale}")
         self._push_shove = None    # (the joystick env's push.torso_shove_prob; Joystick._apply_push reads it)
@@ -260,10 +262,8 @@ class Unified(GetupBase):
         info["course_best_x"], info["course_credit_x"], gained = wall_course.credited_progress(
             info["course_best_x"], info["course_credit_x"], data.qpos[0], info["command"][0], self.dt)
         progress = info["course"] * gained
-        course = cfg.get("course")   # runs made before the course term have none
-        progress_weight = course.progress_weight if course is not None else 0.0
         reward = (jnp.where(standing, joystick, getup) * self.dt - cfg.getup.failed_rise_cost * failed
-                  + progress_weight * progress)
+                  + self._progress_weight * progress)
         return reward, {"reward/getup": jnp.where(standing, 0.0, getup),
                         "reward/joystick": jnp.where(standing, joystick, 0.0),
                         "failed_rises": failed, "gate": gate, "standing": standing, "wall_course": info["course"],
