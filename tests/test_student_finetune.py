@@ -172,3 +172,20 @@ def test_wall_course_episodes_are_paid_for_credited_progress_only(skills_env):
     assert float(reward - walk) == pytest.approx(cfg.course.progress_weight * 0.4 * env.dt, rel=1e-3)
     info["course_credit_x"] = data.qpos[0]                                                # nothing banked: standing
     assert float(env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)[1]["course_progress_m"]) == 0.0
+
+
+def test_with_walk_after_stand_up_the_walk_pays_only_once_a_getup_has_stood_up(skills_env, monkeypatch):
+    """reward.walk_after_stand_up: above the switch, a getup still down (events.py: not yet standing for
+    STAND_HOLD_S) is paid the getup expert's reward; the hold's last tick hands over to the walk."""
+    env = skills_env
+    monkeypatch.setattr(env, "_walk_after_stand_up", True)
+    data, info = _info_at(env, "home")
+    info["rise_track"] = {**info["rise_track"], "down": jnp.ones((), bool)}   # risen, the hold just begun
+    for _ in range(env._stand_hold_ticks - 1):
+        _, terms = env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)
+        assert float(terms["standing"]) == 0.0 and float(terms["reward/joystick"]) == 0.0
+        assert float(terms["reward/getup"]) > 0.0
+    _, terms = env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)
+    assert float(terms["standing"]) == 1.0 and float(terms["reward/getup"]) == 0.0
+    data, info = _info_at(env, "home")                      # never down (a walk): the walk pays at once
+    assert float(env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)[1]["standing"]) == 1.0

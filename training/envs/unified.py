@@ -33,9 +33,12 @@ charge, per control step (× ctrl_dt):
     at or above it:   the joystick env's terms × reward.joystick_scales, clipped at 0 as there,
                       + the most the scaled getup reward can pay below (the standing bonus)
     − reward.getup.failed_rise_cost once per failed getup attempt (events.py's definition)
+    with reward.walk_after_stand_up, "at or above it" also needs the getup to have stood up (events.py's
+      stand-up: standing held STAND_HOLD_S): until then the getup expert's reward pays, which asks for the
+      upright home pose, not the walk; the reward's form of a hand-over that waits for a settled rise
     + reward.course.progress_weight [1/m] × the metres credited this step, in wall-course episodes at any
       height (wall_course.credited_progress: new ground along +x, paid at no more than the held command)
-The scale and the bonus are ours. The gated reward pays 13.4 per step at the kneel keyframe and up to 103.6
+The scale, the bonus and the stand-up wait are ours. The gated reward pays 13.4 per step at the kneel keyframe and up to 103.6
 (pose 100·exp(−½‖q − q_init‖²)) for an upright crouch just below the switch, a walk about 2: unscaled, or
 without the bonus, the switch would be a wall to stay below. Scaled by 0.02 the rise's shaping (about 0.03
 per step before the gate) stays below the walk's terms, and the bonus (2.07) makes any state above the
@@ -108,7 +111,8 @@ def default_config() -> config_dict.ConfigDict:
         joystick_scales=config_dict.create(**joy.reward.scales.to_dict()),
         # energy_weight: getup_knockdown's; scale: the docstring's
         getup=config_dict.create(scale=0.02, energy_weight=0.01, failed_rise_cost=0.0),
-        course=config_dict.create(progress_weight=0.0))   # [1/m] of credited progress (docstring); 0: off
+        course=config_dict.create(progress_weight=0.0),   # [1/m] of credited progress (docstring); 0: off
+        walk_after_stand_up=False)   # the walk's reward waits for the getup's stand-up (docstring)
     return cfg
 
 
@@ -152,6 +156,7 @@ class Unified(GetupBase):
             self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
             course = self._config.reward.get("course")   # runs made before the course term have none
             self._progress_weight = course.progress_weight if course is not None else 0.0
+            self._walk_after_stand_up = bool(self._config.reward.get("walk_after_stand_up", False))   # (as course)
             if not self._config.reward.getup.scale > 0:
                 raise ValueError(f"reward.getup.scale must be > 0, got {self._config.reward.getup.scale}")
         self._push_shove = None    # (the joystick env's push.torso_shove_prob; Joystick._apply_push reads it)
@@ -258,6 +263,8 @@ class Unified(GetupBase):
         getup = cfg.getup.scale * (height + pose - cfg.getup.energy_weight * self.energy_cost(data))
         info["rise_track"], failed = G.rise_track_step(info["rise_track"], info["trunk_height"], self.standing(info),
                                                        self._stand_hold_ticks)
+        if self._walk_after_stand_up:
+            standing = standing & ~info["rise_track"]["down"]
         self._feet_after_step(info, contact)
         info["course_best_x"], info["course_credit_x"], gained = wall_course.credited_progress(
             info["course_best_x"], info["course_credit_x"], data.qpos[0], info["command"][0], self.dt)
