@@ -20,6 +20,9 @@ FINETUNE = {
     # (unified.py's course term: 10 per m, about 4 per s at the held command, above a getup's loss)
     "env.wall_course.approach_m": [1.0, 5.0], "ppo.teacher.bc_hold_in_course": True,
     "env.reward.course.progress_weight": 10.0,
+    # nearly every extra attempt at a wall is a rise that reaches the switch and drops back before it stands:
+    # the walk pays only once the getup has stood up (unified.py), a hand-over that waits for a settled rise
+    "env.reward.walk_after_stand_up": True,
     # the mean is the DAgger student's; PPO samples ±0.05 action units (0.1 rad) around it at first
     "ppo.policy_distribution": "normal", "ppo.init_noise_std": 0.05, "ppo.entropy_cost": 0.0,
     "ppo.learning_rate": 1e-4, "ppo.value_warmup_steps": 1_000_000,
