@@ -38,8 +38,9 @@ charge, per control step (× ctrl_dt):
       upright home pose, not the walk; the reward's form of a hand-over that waits for a settled rise
     + reward.course.progress_weight [1/m] × the metres credited this step, in wall-course episodes at any
       height (wall_course.credited_progress: new ground along +x, paid at no more than the held command)
-The scale, the bonus and the stand-up wait are ours. The gated reward pays 13.4 per step at the kneel keyframe and up to 103.6
-(pose 100·exp(−½‖q − q_init‖²)) for an upright crouch just below the switch, a walk about 2: unscaled, or
+The scale, the bonus and the stand-up wait are ours. The gated reward pays 13.4 per step at the kneel
+keyframe and up to 103.6 (pose 100·exp(−½‖q − q_init‖²)) for an upright crouch just below the switch, a walk
+about 2: unscaled, or
 without the bonus, the switch would be a wall to stay below. Scaled by 0.02 the rise's shaping (about 0.03
 per step before the gate) stays below the walk's terms, and the bonus (2.07) makes any state above the
 switch pay more than any below it. Its metric "wall_course" is 1 per step of a wall-course episode: the
