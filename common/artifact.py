@@ -152,8 +152,8 @@ def write_artifact(path, layers: Sequence[tuple[Any, Any]], obs_mean, obs_std, m
 
 
 def stitched_teacher(manifest: Mapping[str, Any]) -> dict[str, str] | None:
-    """{"getup": path, "joystick": path}: the teacher a distilled student names in its provenance (paths as
-    given to `python -m training distill`), or None for an artifact that was not distilled."""
+    """{"getup": path, "joystick": path}: the teacher a distilled or fine-tuned student names in its provenance
+    (paths as given to training), or None for an artifact trained without one."""
     teacher = manifest.get("provenance", {}).get("teacher")
     return teacher if isinstance(teacher, dict) and {"getup", "joystick"} <= set(teacher) else None
 

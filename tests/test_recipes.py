@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from common.artifact import read_artifact
+from common.artifact import read_artifact, stitched_teacher
 from training import checkpoints, cli, recipe as R, recipe_runner
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -67,7 +67,8 @@ def test_every_recipe_runs_to_its_policy_at_toy_size(toy_root, name):
 @pytest.mark.slow
 def test_the_student_fine_tune_starts_from_dagger_and_exports_a_student(toy_root):
     """The student's PPO stage starts from the walls stage's DAgger checkpoint and exports, at its end and from
-    any kept checkpoint, the artifact the runtime runs: output rule linear, the student's layer shapes."""
+    any kept checkpoint, the artifact the runtime runs: output rule linear, the student's layer shapes, and
+    the teacher it was fine-tuned toward."""
     from training import export
     run = toy_root / "student" / "finetune"
     state = json.loads((run / checkpoints.RUN_STATE).read_text())
@@ -77,8 +78,10 @@ def test_the_student_fine_tune_starts_from_dagger_and_exports_a_student(toy_root
     kept = read_artifact(export.export_checkpoint(run, checkpoints.checkpoint_steps(run), "kept",
                                                   like=run / "student.safetensors"))
     walls = read_artifact(toy_root / "student" / "walls" / "student_walls.safetensors")
+    teacher = {k: state["ppo_config"]["teacher"][k] for k in ("getup", "joystick")}
     for artifact in (final, kept):
         assert artifact[3]["output_rule"] == "linear"
+        assert stitched_teacher(artifact[3]) == teacher     # the demo and Fig. 5.1 follow it with its teacher
         assert [w.shape for w, _ in artifact[0]] == [w.shape for w, _ in walls[0]]
 
 

@@ -77,14 +77,17 @@ def export_brax_ppo(params, manifest_fields: Mapping[str, Any], path, observatio
 # ---------------------------------------------------------------- golden random policy and vectors
 def run_provenance(state: dict, steps: int, preset: str) -> dict:
     """The manifest's provenance of a run's params at `steps`: its calls so far (a run still going has its
-    current call recorded at every checkpoint)."""
+    current call recorded at every checkpoint). A fine-tune toward a stitched teacher names it, as a distilled
+    student does (`common.artifact.stitched_teacher`: the demo and Fig. 5.1 follow a student with it)."""
     last = state["calls"][-1] if state["calls"] else {}
+    teacher = state.get("ppo_config", {}).get("teacher") or {}
     return {"git_commit": checkpoints.git_commit(), "steps": int(steps), "date": checkpoints.utc_now(),
             "command": " ; ".join(c["command"] for c in state["calls"] if c["command"]) or "unknown",
             "device": last.get("device", "unknown"), "minutes": round(float(state["minutes"]), 2),
             "env_steps_per_s": state.get("env_steps_per_s", 0.0), "algorithm": "brax ppo",
             "preset": preset, "init": state.get("init") or "",
-            **({"recipe": state["recipe"]} if state.get("recipe") else {})}
+            **({"recipe": state["recipe"]} if state.get("recipe") else {}),
+            **({"teacher": {k: teacher[k] for k in ("getup", "joystick")}} if teacher.get("getup") else {})}
 
 
 def _env_fields_artifact(run_dir: Path, state: dict) -> Path:
