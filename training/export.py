@@ -87,7 +87,8 @@ def run_provenance(state: dict, steps: int, preset: str) -> dict:
             "env_steps_per_s": state.get("env_steps_per_s", 0.0), "algorithm": "brax ppo",
             "preset": preset, "init": state.get("init") or "",
             **({"recipe": state["recipe"]} if state.get("recipe") else {}),
-            **({"teacher": {k: teacher[k] for k in ("getup", "joystick")}} if teacher.get("getup") else {})}
+            **({"teacher": {k: teacher[k] for k in ("getup", "joystick")}}
+               if float(teacher.get("bc_weight", 0.0)) > 0 else {})}   # student_finetune.uses_teacher's rule
 
 
 def _env_fields_artifact(run_dir: Path, state: dict) -> Path:

@@ -40,8 +40,7 @@ charge, per control step (× ctrl_dt):
       height (wall_course.credited_progress: new ground along +x, paid at no more than the held command)
 The scale, the bonus and the stand-up wait are ours. The gated reward pays 13.4 per step at the kneel
 keyframe and up to 103.6 (pose 100·exp(−½‖q − q_init‖²)) for an upright crouch just below the switch, a walk
-about 2: unscaled, or
-without the bonus, the switch would be a wall to stay below. Scaled by 0.02 the rise's shaping (about 0.03
+about 2: unscaled, or without the bonus, the switch would be a wall to stay below. Scaled by 0.02 the rise's shaping (about 0.03
 per step before the gate) stays below the walk's terms, and the bonus (2.07) makes any state above the
 switch pay more than any below it. Its metric "wall_course" is 1 per step of a wall-course episode: the
 fine-tune's BC term reads it (student_finetune.py); "course_progress_m" sums the metres credited.
