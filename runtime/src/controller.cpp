@@ -148,6 +148,7 @@ StateView Controller::state_view(double now_s) const {
   s.gyro = transport_.imu.msg.gyro;
   s.have_joint = transport_.joint.have;
   s.joint_time_s = transport_.joint.stamp_s;
+  s.joint_seq = transport_.joint.msg.seq;
   s.q = transport_.joint.msg.q;
   s.dq = transport_.joint.msg.dq;
   s.motor_status = transport_.joint.msg.motor_status;

@@ -21,23 +21,37 @@
 //     Each step picks the point of the allowed interval nearest to the wanted target, so with q outside
 //     the range the target moves toward the range at full allowed torque and never away from it.
 //  R7 A fault also rewrites the status info ("FAULT: <reason>"), so the info never names a stale mode.
-// Rules added by issue 48, counted once per joint state in every mode; FAULT naming the motor in
+// Rules added by issues 48 and 69, counted once per joint state in every mode; FAULT naming the motor in
 // PREPARE/POLICY, in PASSIVE/DAMPING a warning that blocks PREPARE (as R4). Figures: tools/motor_watchdog_figures.py.
 //  R8 Silent motor: > kMotorSilentMaxCycles (10) consecutive states with NO_REPLY (no reply that bus cycle;
 //     on DDS MotorState_.lost changed). At 5 % random loss a run of 11 has odds 0.05^11 = 5e-15 per
 //     motor-cycle, one false trip in ~600 years of 23 motors at 500 Hz (longest run measured: 3). A dead
 //     motor trips 22 ms after its last reply, before its own 50 ms watchdog.
-//  R9 Frozen encoder: q bit-identical on consecutive replies while the last command's PD torque
-//     kp (q_des - q) - kd dq stays above max(0.65 x the motor's limit, 10 N·m) (kFrozenEncoder*) for more than
-//     50 replies in a row (100 ms; counted in states, like R8, so a slow simulator in realtime mode does not
-//     shorten it). Still encoders under load are normal: lying, getting up and standing. Over 29 lockstep
-//     runs without fault (20 s standing and walking, getups from fallen seeds 0-9 and 62, 6 push-test
-//     pushes, 5 % drop, 10 ms delay; the placeholder policy and the baseline composite too) the most load
-//     held 100 ms on a still encoder is 0.78 of that threshold (7.8 N·m, ankle roll, getup; 22.7 N·m on a
-//     hip pitch); without the 10 N·m floor a head (7 N·m limit) came to 0.96, and 200-300 ms caught
-//     fewer freezes. Freezing a knee, hip pitch, hip roll or ankle while walking at 0.4 m/s (32 runs) trips
-//     after 0.22-1.01 s (median 0.56), in 31; one knee stayed under 39 N·m for the 3 s logged.
+//  R9 Frozen encoder, declared only on evidence that the joint moves while its reading does not (issue 69).
+//     A T1 motor reports q from its encoder; dq (and DDS' ddq) are differentiated from it, and the motor's own
+//     PD law and soft stop act on it, so a frozen encoder freezes q, zeroes dq and leaves tau_est the honest
+//     torque of that law on the stuck reading (sim_hil's `frozen` fault does exactly this). Nothing the motor
+//     reports contradicts a still reading; independent of it are the IMU and the other motors. The rule: q
+//     bit-identical on consecutive replies while (a) the last command's PD torque kp (q_des - q) - kd dq
+//     stays above max(0.65 x the motor's limit, 10 N·m) (kFrozenEncoder*), (b) the reading is more than
+//     kFrozenEncoderStopMarginRad inside its range (at a stop, the stop explains a still joint under load) and
+//     (c) the IMU's angular rate, low-passed with a 50 ms time constant, is above 0.1 rad/s: the body turns,
+//     so the loads on every joint change, and a joint that stays still to the encoder's last code under a
+//     large torque and a changing load is not still. More than 50 such replies in a row (100 ms): FAULT.
+//     False-alarm argument: a robot at rest (standing, kneeling, lying, leaning on a wall, on a test stand
+//     replaying one pose) has an IMU at rest; standing after a getup the filtered rate stays below 0.015
+//     rad/s, walking it is 0.23-0.86 rad/s, and an IMU's gyro bias (< 0.03 rad/s) does not reach 0.1.
+//     While the body moves, the old rule's evidence holds: over 29 runs of standing, walking, getups, pushes,
+//     drops and delays the most load held 100 ms on a still encoder was 0.78 of the threshold. A frozen
+//     encoder on a joint that does not move is harmless and undetectable, and is not detected. Latency: 100 ms
+//     of coincident evidence, measured 0.1-1 s after the freeze (tools/motor_watchdog_figures.py).
 //     A frame without a reply is no reading: it neither advances nor resets R9.
+//  R10 Impossible reading: a reply more than kImpossibleRangeMarginRad (0.3 rad) past its joint's range, or
+//     a step from the motor's previous reply faster than 2 x its class's reply range v_max (over the bus
+//     cycles between the two replies, by joint_state_t.seq) plus two q codes. No joint produces either: the
+//     model's getups press joints at most 0.18 rad past a stop and move them at most 1.3 x v_max. Latency:
+//     the first such reply. A state numbered before the motor's last reply (a publisher restart) has no
+//     previous reading to step from.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -57,6 +71,9 @@ namespace {
 constexpr int32_t kMotorFaultMask = T1_STATUS_NOT_FOLLOWING | T1_STATUS_BAD_FRAME | T1_STATUS_BAD_SENSOR;
 constexpr int32_t kMotorInfoMask = T1_STATUS_OVER_LIMIT;
 constexpr double kNever = std::numeric_limits<double>::infinity();
+// One q code of the reply (t1_motor_protocol.h §5) [rad], and R9's body-rate low-pass per 2 ms state.
+constexpr float kQQuantumRad = 2.0f * T1_Q_MAX_RAD / static_cast<float>((1u << T1_Q_BITS) - 1u);
+constexpr float kBodyRateFilterGain = static_cast<float>(kLoopDtS) / kBodyMotionTimeConstantS;
 
 bool all_finite(const float* v, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i)
@@ -194,8 +211,8 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
     fault(fault_bit::kNonFiniteState, "non-finite value in imu_t or joint_state_t");
 
   int32_t watch_bit = 0;
-  char watch_why[128] = "";
-  const int watched = watch_motors(s, &watch_bit, watch_why, sizeof(watch_why));  // rules R8, R9
+  char watch_why[144] = "";
+  const int watched = watch_motors(s, &watch_bit, watch_why, sizeof(watch_why));  // rules R8, R9, R10
 
   bool motor_fault = false;
   int motor_index = -1;
@@ -265,39 +282,81 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
   return mode_ == Mode::kPolicy && !holding_;
 }
 
-// Rules R8 and R9, advanced once per new joint state (a tick that reuses the state counts nothing).
-// Returns the first motor that breaks one (-1: none), with its fault bit and the reason naming it.
-int Supervisor::watch_motors(const StateView& s, int32_t* bit, char* why, std::size_t why_size) {
-  if (s.have_joint && s.joint_time_s != watched_joint_time_s_) {
-    watched_joint_time_s_ = s.joint_time_s;
-    for (std::size_t i = 0; i < kJoints; ++i) {
-      MotorWatch& w = watch_[i];
-      if (s.motor_status[i] & T1_STATUS_NO_REPLY) {  // no reading this cycle: R9 waits for one
-        ++w.silent_cycles;
-        continue;
-      }
-      w.silent_cycles = 0;
-      const float tau = cmd_kp_[i] * (cmd_q_[i] - s.q[i]) - cmd_kd_[i] * s.dq[i];  // dq_des = tau_ff = 0
-      const bool loaded = std::fabs(tau) > frozen_encoder_torque_nm(T1_MOTORS[i].torque_limit_nm);
-      const bool same = w.have_q && std::memcmp(&w.last_q, &s.q[i], sizeof(float)) == 0;
-      w.frozen_cycles = same && loaded ? w.frozen_cycles + 1 : 0;
-      w.have_q = true;
-      w.last_q = s.q[i];
-    }
+// Rules R8-R10, advanced once per new joint state (a tick that reuses the state counts nothing).
+bool Supervisor::advance_watch(const StateView& s) {
+  if (!s.have_joint || s.joint_time_s == watched_joint_time_s_) return false;
+  watched_joint_time_s_ = s.joint_time_s;
+  // R9's evidence that the body moves: the IMU's angular rate, which no joint encoder feeds, low-passed.
+  if (s.have_imu && all_finite(s.gyro, 3)) {
+    const float rate = std::sqrt(s.gyro[0] * s.gyro[0] + s.gyro[1] * s.gyro[1] + s.gyro[2] * s.gyro[2]);
+    body_rate_radps_ += kBodyRateFilterGain * (rate - body_rate_radps_);
   }
+  const bool body_moves = body_rate_radps_ > kBodyMotionMinRateRadS;
+  for (std::size_t i = 0; i < kJoints; ++i) {
+    MotorWatch& w = watch_[i];
+    if (s.motor_status[i] & T1_STATUS_NO_REPLY) {  // no reading this cycle: R9 and R10 wait for one
+      ++w.silent_cycles;
+      continue;
+    }
+    w.silent_cycles = 0;
+    const t1_motor_info_t& m = T1_MOTORS[i];
+    const float q = s.q[i];
+    // A state not newer than this motor's last reply is a publisher restart: no reading to compare with.
+    const bool have_prev = w.have_q && s.joint_seq > w.last_seq;
+    // R10: beyond the range by more than the soft stop's reach, or faster than the reply can say.
+    const bool outside = q < m.q_min_rad - kImpossibleRangeMarginRad || q > m.q_max_rad + kImpossibleRangeMarginRad;
+    const float v_max = kImpossibleSpeedFactor * T1_CLASS_RANGES[m.motor_class].v_max_rads;  // [rad/s]
+    const float max_step = have_prev ? v_max * static_cast<float>(kLoopDtS) *
+                                           static_cast<float>(s.joint_seq - w.last_seq) + kImpossibleJumpQuanta * kQQuantumRad
+                                     : std::numeric_limits<float>::infinity();
+    w.impossible = outside ? MotorWatch::kOutside
+                   : std::fabs(q - w.last_q) > max_step ? MotorWatch::kJump : MotorWatch::kPlausible;
+    w.impossible_from = w.last_q;
+    w.impossible_ms = have_prev ? static_cast<float>(s.joint_seq - w.last_seq) * static_cast<float>(kLoopDtS * 1e3) : 0.0f;
+    // R9: still under load, away from the stops that would explain it, while the body moves.
+    const float tau = cmd_kp_[i] * (cmd_q_[i] - q) - cmd_kd_[i] * s.dq[i];  // dq_des = tau_ff = 0
+    const bool loaded = std::fabs(tau) > frozen_encoder_torque_nm(m.torque_limit_nm);
+    const bool off_stops = q > m.q_min_rad + kFrozenEncoderStopMarginRad && q < m.q_max_rad - kFrozenEncoderStopMarginRad;
+    const bool same = have_prev && std::memcmp(&w.last_q, &q, sizeof(float)) == 0;
+    w.frozen_cycles = same && loaded && off_stops && body_moves ? w.frozen_cycles + 1 : 0;
+    w.have_q = true;
+    w.last_q = q;
+    w.last_seq = s.joint_seq;
+  }
+  return true;
+}
+
+// The first motor that breaks R8, R9 or R10 now (-1: none), with its fault bit and the reason naming it.
+int Supervisor::watch_motors(const StateView& s, int32_t* bit, char* why, std::size_t why_size) {
+  advance_watch(s);
   for (std::size_t i = 0; s.have_joint && i < kJoints; ++i) {
     const MotorWatch& w = watch_[i];
+    const t1_motor_info_t& m = T1_MOTORS[i];
     const int motor = static_cast<int>(i);
     if (w.silent_cycles > kMotorSilentMaxCycles) {
       *bit = fault_bit::kMotorSilent;
       std::snprintf(why, why_size, "motor %d (%s) silent: no reply for %d bus cycles (> %d)", motor,
-                    T1_MOTORS[i].name, static_cast<int>(w.silent_cycles), kMotorSilentMaxCycles);
+                    m.name, static_cast<int>(w.silent_cycles), kMotorSilentMaxCycles);
+      return motor;
+    }
+    if (w.impossible != MotorWatch::kPlausible) {
+      *bit = fault_bit::kImpossibleReading;
+      if (w.impossible == MotorWatch::kOutside)
+        std::snprintf(why, why_size, "motor %d (%s) impossible reading: q %.3f rad, range %.2f..%.2f rad (+- %.2f)",
+                      motor, m.name, static_cast<double>(w.last_q), static_cast<double>(m.q_min_rad),
+                      static_cast<double>(m.q_max_rad), static_cast<double>(kImpossibleRangeMarginRad));
+      else
+        std::snprintf(why, why_size, "motor %d (%s) impossible reading: q %.3f -> %.3f rad in %.0f ms (> %.1f rad/s)",
+                      motor, m.name, static_cast<double>(w.impossible_from), static_cast<double>(w.last_q),
+                      static_cast<double>(w.impossible_ms),
+                      static_cast<double>(kImpossibleSpeedFactor * T1_CLASS_RANGES[m.motor_class].v_max_rads));
       return motor;
     }
     if (w.frozen_cycles > kFrozenEncoderMaxCycles) {
       *bit = fault_bit::kEncoderFrozen;
-      std::snprintf(why, why_size, "motor %d (%s) encoder frozen: q bit-identical for %d replies under |PD torque| > %.1f N*m",
-                    motor, T1_MOTORS[i].name, static_cast<int>(w.frozen_cycles), frozen_encoder_torque_nm(T1_MOTORS[i].torque_limit_nm));
+      std::snprintf(why, why_size, "motor %d (%s) encoder frozen: q bit-identical for %d replies under |PD torque| > %.1f N*m "
+                    "while the body turned", motor, m.name, static_cast<int>(w.frozen_cycles),
+                    static_cast<double>(frozen_encoder_torque_nm(m.torque_limit_nm)));
       return motor;
     }
   }

@@ -1,9 +1,10 @@
-// Rules R8 (silent motor) and R9 (frozen encoder) of src/safety_supervisor.cpp on the Supervisor alone:
-// N cycles, random loss that must never trip, the frozen-encoder torque threshold and time, and the
-// warning that blocks PREPARE in DAMPING/PASSIVE. The out-of-process checks against the simulator are in
+// Rules R8 (silent motor), R9 (frozen encoder) and R10 (impossible reading) of src/safety_supervisor.cpp on
+// the Supervisor alone: N cycles, random loss that must never trip, the frozen-encoder torque threshold,
+// time and motion evidence, the range and speed bounds, and the warning that blocks PREPARE in DAMPING/PASSIVE. The out-of-process checks against the simulator are in
 // tests/test_motor_watchdog.py.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <random>
 #include <string>
@@ -37,6 +38,7 @@ class Robot {
     StateView s;
     s.now_s = s.imu_time_s = s.joint_time_s = now;
     s.have_imu = s.have_joint = true;
+    s.joint_seq = k_ + seq_offset_;
     s.quat = quat_;
     s.gyro = gyro_;
     s.q = q_;
@@ -48,6 +50,16 @@ class Robot {
   void ticks(int n) {
     for (int i = 0; i < n; ++i) tick();
   }
+  // Moves joint i to q [rad] at 5 rad/s, a tick a step (a jump would be R10's impossible reading).
+  void move_to(int i, float q) {
+    constexpr float kStepRad = 0.01f;
+    while (std::fabs(q - q_[i]) > kStepRad) {
+      q_[i] += q > q_[i] ? kStepRad : -kStepRad;
+      tick();
+    }
+    q_[i] = q;
+    tick();
+  }
   void to_policy() {
     sup_.set_autostart(true);
     for (int i = 0; i < 100 && sup_.mode() != Mode::kPolicy; ++i) tick();
@@ -58,8 +70,9 @@ class Robot {
   float q_[kJoints]{}, dq_[kJoints]{}, quat_[4]{1, 0, 0, 0}, gyro_[3]{};
   int32_t status_[kJoints]{};
   t1::joint_command_t out_{};
-  int64_t k_ = 0;
+  int64_t k_ = 0, seq_offset_ = 0;
 };
+constexpr float kTurning = 0.5f;  // [rad/s] a body rate walking keeps (the walk's filtered rate is 0.23-0.86)
 
 bool says(const char* text, const char* what) { return std::string(text).find(what) != std::string::npos; }
 }  // namespace
@@ -131,12 +144,14 @@ TEST(SilentMotor, InDampingAndPassiveItIsAWarningThatBlocksPrepare) {
   EXPECT_FALSE(r.sup_.fault_bits() & fault_bit::kMotorWarning);
 }
 
-TEST(FrozenEncoder, BitIdenticalUnderTorqueAboveTheThresholdFaultsAfterTheTimeNamingTheMotor) {
+TEST(FrozenEncoder, BitIdenticalUnderTorqueAboveTheThresholdWhileTheBodyTurnsFaultsAfterTheTimeNamingTheMotor) {
   Robot r;
+  r.gyro_[1] = kTurning;
+  r.ticks(200);  // the body-rate filter has settled (4 time constants)
   r.to_policy();
-  r.q_[kKnee] += 0.35f;  // target 0.35 rad away at kp 150: |PD torque| 52.5 N·m > 0.65 x 60 N·m
+  r.move_to(kKnee, r.q_[kKnee] + 0.35f);  // target 0.35 rad away at kp 150: |PD torque| 52.5 N·m > 0.65 x 60 N·m
   ASSERT_GT(0.35f * 150.0f, frozen_encoder_torque_nm(60.0f));
-  r.ticks(kFrozenEncoderMaxCycles + 1);  // the first reading of the offset q is not yet a repeat
+  r.ticks(kFrozenEncoderMaxCycles);
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
   r.tick();
   ASSERT_EQ(r.sup_.mode(), Mode::kFault);
@@ -146,12 +161,14 @@ TEST(FrozenEncoder, BitIdenticalUnderTorqueAboveTheThresholdFaultsAfterTheTimeNa
 
 TEST(FrozenEncoder, AStillEncoderUnderStandingLoadsOrAMovingOneUnderFullTorqueNeverTrips) {
   Robot r;
+  r.gyro_[1] = kTurning;
   r.to_policy();
   const float below = 0.95f * frozen_encoder_torque_nm(60.0f) / 150.0f;
-  r.q_[kKnee] += below;  // just below the threshold, for 10 s: a robot standing or lying still
+  r.move_to(kKnee, r.q_[kKnee] + below);  // just below the threshold, for 10 s: a robot standing or lying still
   r.ticks(5000);
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
   const float q = r.artifact_.default_pose[kKnee] + 0.35f;  // 52.5 N·m, but the encoder moves a float step each tick
+  r.move_to(kKnee, q);
   for (int k = 0; k < 5000; ++k) {
     r.q_[kKnee] = k % 2 ? std::nextafter(q, 1.0f) : q;
     r.tick();
@@ -166,18 +183,114 @@ TEST(FrozenEncoder, TheThresholdIsAFractionOfTheLimitWithAFloor) {
 
 TEST(FrozenEncoder, MissedRepliesAreNoReadingAndAQuietTickRestartsTheClock) {
   Robot r;
+  r.gyro_[1] = kTurning;
   r.to_policy();
-  r.q_[kKnee] += 0.35f;
+  const float pose = r.artifact_.default_pose[kKnee];
+  r.move_to(kKnee, pose + 0.35f);
   const int half = kFrozenEncoderMaxCycles / 2;
   for (int round = 0; round < 20; ++round) {
     r.ticks(half);
-    r.q_[kKnee] = r.artifact_.default_pose[kKnee];  // torque ~0 for one tick: not loaded
-    r.tick();
-    r.q_[kKnee] += 0.35f;
+    r.move_to(kKnee, pose);  // torque ~0 on the way: not loaded
+    r.move_to(kKnee, pose + 0.35f);
   }
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
   r.status_[kKnee] = T1_STATUS_NO_REPLY;  // a dead motor's q repeats too: R8 names it, not R9
   r.ticks(kMotorSilentMaxCycles + 1);
   ASSERT_EQ(r.sup_.mode(), Mode::kFault);
   EXPECT_TRUE(says(r.sup_.last_fault(), "silent")) << r.sup_.last_fault();
+}
+
+TEST(FrozenEncoder, AStillBodyIsNoEvidenceHoweverLoadedAndLongItHolds) {
+  // A robot standing, kneeling or on a test stand: every encoder may repeat under load. An IMU at rest (with a
+  // gyro bias well below the motion threshold) says nothing moves, so nothing contradicts the still reading.
+  Robot r;
+  r.gyro_[0] = 0.3f * kBodyMotionMinRateRadS;
+  r.to_policy();
+  r.move_to(kKnee, r.q_[kKnee] + 0.35f);  // 52.5 N·m held for 60 s
+  r.move_to(kAnkle, r.q_[kAnkle] + 0.1f);  // 15 N·m > 13 N·m: the ankle that carried the standing getup expert's weight
+  r.ticks(30000);
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+}
+
+TEST(FrozenEncoder, AJointHeldAtItsStopIsExplainedByTheStopEvenWhileTheBodyTurns) {
+  Robot r;
+  r.gyro_[1] = kTurning;
+  r.to_policy();
+  r.artifact_.default_pose[kKnee] = T1_MOTORS[kKnee].q_min_rad + 0.3f;  // the target pulls 0.3 rad off the stop
+  r.move_to(kKnee, T1_MOTORS[kKnee].q_min_rad - 0.01f);  // pressed a little past it by the load: 46.5 N·m, still
+  r.ticks(5000);
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+}
+
+TEST(FrozenEncoder, TheBodyMustTurnThroughoutTheStillReading) {
+  Robot r;
+  r.gyro_[1] = kTurning;
+  r.ticks(200);
+  r.to_policy();
+  r.move_to(kKnee, r.q_[kKnee] + 0.35f);
+  r.gyro_[1] = 0.0f;  // the body comes to rest: its filtered rate falls below the threshold (in 40 states from
+  r.ticks(200);       // 0.5 rad/s), and the count restarts
+  r.gyro_[1] = kTurning;
+  r.ticks(kFrozenEncoderMaxCycles / 2);
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+  r.ticks(kFrozenEncoderMaxCycles);
+  EXPECT_EQ(r.sup_.mode(), Mode::kFault);
+}
+
+TEST(ImpossibleReading, BeyondTheRangeByMoreThanTheSoftStopFaultsAtOnceNamingTheMotor) {
+  Robot r;
+  r.to_policy();
+  const float q_max = T1_MOTORS[kKnee].q_max_rad;
+  r.move_to(kKnee, q_max);
+  for (float past = 0.0f; past < kImpossibleRangeMarginRad; past += 0.005f) {  // pressed past the stop: fine
+    r.q_[kKnee] = q_max + past;
+    r.tick();
+  }
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+  r.q_[kKnee] = q_max + kImpossibleRangeMarginRad + 0.006f;
+  r.tick();
+  ASSERT_EQ(r.sup_.mode(), Mode::kFault);
+  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kImpossibleReading);
+  EXPECT_TRUE(says(r.sup_.last_fault(), "motor 14 (Left_Knee_Pitch) impossible reading: q 2.646 rad")) << r.sup_.last_fault();
+}
+
+TEST(ImpossibleReading, AStepFasterThanTheReplyCanSayFaultsUnlessRepliesWereMissedOrThePublisherRestarted) {
+  Robot r;
+  r.to_policy();
+  const float v_max = kImpossibleSpeedFactor * T1_CLASS_RANGES[T1_MOTORS[kKnee].motor_class].v_max_rads;
+  const float step = 0.9f * v_max * 0.002f;
+  for (int k = 0; k < 20; ++k) {  // nearly as fast as the rule allows, up and down
+    r.q_[kKnee] += k % 2 ? -step : step;
+    r.tick();
+  }
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+  r.status_[kKnee] = T1_STATUS_NO_REPLY;  // two replies missed: three cycles for the next step
+  r.ticks(2);
+  r.status_[kKnee] = 0;
+  r.q_[kKnee] += 2.5f * step;
+  r.tick();
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+  r.seq_offset_ = -r.k_;  // the publisher restarts its numbering: the next reply has nothing before it
+  r.q_[kKnee] -= 0.3f;
+  r.tick();
+  EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
+  r.q_[kKnee] += 1.2f * step;  // beyond the bound in one cycle
+  r.tick();
+  ASSERT_EQ(r.sup_.mode(), Mode::kFault);
+  EXPECT_TRUE(says(r.sup_.last_fault(), "motor 14 (Left_Knee_Pitch) impossible reading")) << r.sup_.last_fault();
+  EXPECT_TRUE(says(r.sup_.last_fault(), "in 2 ms")) << r.sup_.last_fault();
+}
+
+TEST(ImpossibleReading, InDampingItIsAWarningThatBlocksPrepare) {
+  Robot r;
+  r.tick();
+  r.sup_.request_mode(Mode::kDamping);
+  r.q_[kAnkle] = 3.0f;  // the outside test client's every-joint-at-3-rad pose
+  r.tick();
+  ASSERT_EQ(r.sup_.mode(), Mode::kDamping);
+  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kMotorWarning);
+  r.sup_.request_mode(Mode::kPrepare);
+  r.tick();
+  EXPECT_EQ(r.sup_.mode(), Mode::kDamping);
+  EXPECT_TRUE(says(r.sup_.last_info(), "prepare refused: motor 15 (Left_Ankle_Pitch) impossible reading")) << r.sup_.last_info();
 }

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstddef>
 
+#include "t1_motor_protocol.h"
 #include "t1/controller_status_t.hpp"
 #include "t1/joint_command_t.hpp"
 #include "t1rt/artifact.hpp"
@@ -34,7 +35,8 @@ inline constexpr int32_t kMotorFault = 1 << 5;
 inline constexpr int32_t kSimStatusStale = 1 << 6;     // composite mode: T1_SIM_STATUS older than fault age
 inline constexpr int32_t kNonFiniteSimStatus = 1 << 7; // composite mode: waist height not finite
 inline constexpr int32_t kMotorSilent = 1 << 8;        // rule R8: a motor sent no reply for too many bus cycles
-inline constexpr int32_t kEncoderFrozen = 1 << 9;      // rule R9: an encoder stayed bit-identical under torque
+inline constexpr int32_t kEncoderFrozen = 1 << 9;      // rule R9: an encoder read still while the body moved
+inline constexpr int32_t kImpossibleReading = 1 << 10; // rule R10: a reading no joint can produce
 inline constexpr int32_t kLatchedMask = t1::controller_status_t::LATCHED_FAULT_MASK;  // the bits above: warnings
 inline constexpr int32_t kImuHold = 1 << 16;
 inline constexpr int32_t kJointHold = 1 << 17;
@@ -49,13 +51,25 @@ static_assert(kSimStatusHold > kLatchedMask && kNonFiniteSimStatus <= kLatchedMa
               "fault causes in the latched low bits, warnings above them");
 }  // namespace fault_bit
 
-// Motor reply watchdog and encoder plausibility (rules R8, R9 of src/safety_supervisor.cpp, which says
+// Motor reply watchdog and encoder plausibility (rules R8, R9, R10 of src/safety_supervisor.cpp, which says
 // why these values; tools/motor_watchdog_figures.py measures the figures behind them).
 inline constexpr int kMotorSilentMaxCycles = 10;             // more consecutive NO_REPLY states: FAULT
+// R9: a still reading under load while the body moves, for more replies in a row than kFrozenEncoderMaxCycles.
 inline constexpr float kFrozenEncoderTorqueFraction = 0.65f; // |PD torque| above this x the motor's limit
 inline constexpr float kFrozenEncoderMinTorqueNm = 10.0f;    // and above this [N·m]...
 inline constexpr int kFrozenEncoderMaxCycles = 50;           // ...on a bit-identical encoder for more replies
                                                              // in a row (100 ms of 2 ms bus cycles): FAULT
+inline constexpr float kBodyMotionTimeConstantS = 0.05f;     // low-pass of the IMU's |angular rate| [s]
+inline constexpr float kBodyMotionMinRateRadS = 0.1f;        // the filtered rate above which the body moves [rad/s]
+inline constexpr float kFrozenEncoderStopMarginRad = 0.02f;  // a reading this close to (or past) a range end is
+                                                             // explained by the stop holding the joint [rad]
+// R10: a reply no joint produces. Past a range end by more than kImpossibleRangeMarginRad (the model's
+// getups press joints up to 0.18 rad past a stop: 1.8x the soft stop's full-torque reach), or a step between
+// two replies faster than kImpossibleSpeedFactor x the class's reply range v_max (t1_motor_protocol.h §5;
+// getups reach 1.3x), plus kImpossibleJumpQuanta q codes of rounding.
+inline constexpr float kImpossibleRangeMarginRad = 0.3f;
+inline constexpr float kImpossibleSpeedFactor = 2.0f;
+inline constexpr float kImpossibleJumpQuanta = 2.0f;
 // The torque threshold of R9 for motor i [N·m].
 inline constexpr float frozen_encoder_torque_nm(float torque_limit_nm) {
   return torque_limit_nm * kFrozenEncoderTorqueFraction > kFrozenEncoderMinTorqueNm
@@ -94,6 +108,7 @@ struct StateView {
   const float* gyro = nullptr;  // 3
   bool have_joint = false;
   double joint_time_s = 0.0;
+  int64_t joint_seq = 0;                 // joint_state_t.seq: bus cycles between two states (R10)
   const float* q = nullptr;              // 23 [rad]
   const float* dq = nullptr;             // 23 [rad/s]
   const int32_t* motor_status = nullptr; // 23 firmware bits + host NO_REPLY (t1_motor_protocol.h §7)
@@ -151,15 +166,23 @@ class Supervisor {
   int watch_motors(const StateView& state, int32_t* bit, char* why, std::size_t why_size);
   void remember_command(const t1::joint_command_t& out);
 
-  // Rules R8, R9: per-motor watch, advanced once per joint state.
+  // Rules R8, R9, R10: per-motor watch, advanced once per joint state.
   struct MotorWatch {
     int32_t silent_cycles = 0;   // consecutive states without a reply
     bool have_q = false;         // last_q holds a replied encoder value
     float last_q = 0.0f;         // [rad]
-    int32_t frozen_cycles = 0;   // consecutive replies with q bit-identical to the one before, under torque
+    int64_t last_seq = 0;        // joint_seq of that reply
+    int32_t frozen_cycles = 0;   // consecutive replies with q bit-identical to the one before, under torque,
+                                 // away from the stops, while the body moved
+    enum Reading : int8_t { kPlausible, kOutside, kJump };
+    Reading impossible = kPlausible;  // R10: the latest reply is one no joint can produce
+    float impossible_from = 0.0f;     // [rad] the reply before it, and how long before [ms] (for the message)
+    float impossible_ms = 0.0f;
   };
+  bool advance_watch(const StateView& state);
   std::array<MotorWatch, kJoints> watch_{};
   double watched_joint_time_s_ = -1e300;  // the state watch_ has seen last
+  float body_rate_radps_ = 0.0f;  // low-passed |IMU angular rate|: R9's evidence that the body moves
   JointArray cmd_q_{}, cmd_kp_{}, cmd_kd_{};  // the last command sent: what the motors act on now
 
   SafetyConfig cfg_;
