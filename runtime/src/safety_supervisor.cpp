@@ -27,31 +27,13 @@
 //     on DDS MotorState_.lost changed). At 5 % random loss a run of 11 has odds 0.05^11 = 5e-15 per
 //     motor-cycle, one false trip in ~600 years of 23 motors at 500 Hz (longest run measured: 3). A dead
 //     motor trips 22 ms after its last reply, before its own 50 ms watchdog.
-//  R9 Frozen encoder, declared only on evidence that the joint moves while its reading does not (issue 69).
-//     A T1 motor reports q from its encoder; dq (and DDS' ddq) are differentiated from it, and the motor's own
-//     PD law and soft stop act on it, so a frozen encoder freezes q, zeroes dq and leaves tau_est the honest
-//     torque of that law on the stuck reading (sim_hil's `frozen` fault does exactly this). Nothing the motor
-//     reports contradicts a still reading; independent of it are the IMU and the other motors. The rule: q
-//     bit-identical on consecutive replies while (a) the last command's PD torque kp (q_des - q) - kd dq
-//     stays above max(0.65 x the motor's limit, 10 N·m) (kFrozenEncoder*), (b) the reading is more than
-//     kFrozenEncoderStopMarginRad inside its range (at a stop, the stop explains a still joint under load) and
-//     (c) the IMU's angular rate, low-passed with a 50 ms time constant, is above 0.1 rad/s: the body turns,
-//     so the loads on every joint change, and a joint that stays still to the encoder's last code under a
-//     large torque and a changing load is not still. More than 50 such replies in a row (100 ms): FAULT.
-//     False-alarm argument: a robot at rest (standing, kneeling, lying, leaning on a wall, on a test stand
-//     replaying one pose) has an IMU at rest; standing after a getup the filtered rate stays below 0.015
-//     rad/s, walking it is 0.23-0.86 rad/s, and an IMU's gyro bias (< 0.03 rad/s) does not reach 0.1.
-//     While the body moves, the old rule's evidence holds: over 29 runs of standing, walking, getups, pushes,
-//     drops and delays the most load held 100 ms on a still encoder was 0.78 of the threshold. A frozen
-//     encoder on a joint that does not move is harmless and undetectable, and is not detected. Latency: 100 ms
-//     of coincident evidence, measured 0.1-1 s after the freeze (tools/motor_watchdog_figures.py).
-//     A frame without a reply is no reading: it neither advances nor resets R9.
-//  R10 Impossible reading: a reply more than kImpossibleRangeMarginRad (0.3 rad) past its joint's range, or
-//     a step from the motor's previous reply faster than 2 x its class's reply range v_max (over the bus
-//     cycles between the two replies, by joint_state_t.seq) plus two q codes. No joint produces either: the
-//     model's getups press joints at most 0.18 rad past a stop and move them at most 1.3 x v_max. Latency:
-//     the first such reply. A state numbered before the motor's last reply (a publisher restart) has no
-//     previous reading to step from.
+//  R9 Frozen encoder (issue 69): q bit-identical on consecutive replies under a PD torque above
+//     frozen_encoder_torque_nm, more than kFrozenEncoderStopMarginRad inside the range, while the IMU's
+//     low-passed angular rate says the body turns, for more than 50 replies (100 ms). Missing replies neither
+//     advance nor reset it.
+//  R10 Impossible reading (issue 69): a reply past its range by more than kImpossibleRangeMarginRad, or a step
+//     from the motor's previous reply faster than kImpossibleSpeedFactor x its class's v_max; at once.
+//     Why these signals and values, the latencies and the false-alarm argument: t1rt/safety.hpp.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
