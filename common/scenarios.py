@@ -15,7 +15,7 @@ import numpy as np
 
 from common.model import MODEL_PATH
 
-SCENARIOS = ("flat", "walls", "puddles", "pushes")
+SCENARIOS = ("flat", "walls", "puddles", "pushes", "tall_wall")
 
 # low walls: 3 walls, 0.2 m tall, 0.1 m thick, 40 m long along y, centres 6 m apart from x = 2 m -----
 WALL_COUNT = 3
@@ -24,6 +24,11 @@ WALL_THICKNESS_M = 0.1
 WALL_LENGTH_M = 40.0
 WALL_FIRST_X_M = 2.0   # x of the first wall's centre plane [m]
 WALL_SPACING_M = 6.0
+
+# tall wall: one wall the robot can lean on, its face just ahead of the standing spawn ---------------------
+TALL_WALL_FACE_X_M = 0.35       # x of the face toward the robot [m]: a step and a half ahead of the trunk
+TALL_WALL_HEIGHT_M = 1.5
+TALL_WALL_THICKNESS_M = 0.2
 
 # puddles: low-friction patches on the walking path ----------------------------------------------------
 PUDDLE_FRICTION = 0.4           # sliding μ (floor: 0.6)
@@ -72,6 +77,15 @@ def add_low_walls(spec: mujoco.MjSpec, first_x_m: float = WALL_FIRST_X_M) -> str
             pos=[x, 0.0, WALL_HEIGHT_M / 2], rgba=[0.7, 0.5, 0.3, 1.0])
     return (f"{WALL_COUNT} low walls {WALL_HEIGHT_M} m tall, {WALL_THICKNESS_M} m thick, "
             f"{WALL_LENGTH_M} m long along y, centred at x = {', '.join(f'{x:g}' for x in xs)} m")
+
+
+def add_tall_wall(spec: mujoco.MjSpec) -> str:
+    """A wall taller than the robot across the walking path, for leaning on (supervisor false-alarm tests)."""
+    spec.worldbody.add_geom(
+        name="tall_wall", type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=[TALL_WALL_THICKNESS_M / 2, WALL_LENGTH_M / 2, TALL_WALL_HEIGHT_M / 2],
+        pos=[TALL_WALL_FACE_X_M + TALL_WALL_THICKNESS_M / 2, 0.0, TALL_WALL_HEIGHT_M / 2], rgba=[0.6, 0.6, 0.7, 1.0])
+    return f"a wall {TALL_WALL_HEIGHT_M} m tall, its face at x = {TALL_WALL_FACE_X_M} m"
 
 
 def puddle_layout(seed: int) -> list[tuple[float, float, float, float]]:
@@ -135,6 +149,8 @@ def build_spec(name: str, seed: int = 0) -> tuple[mujoco.MjSpec, ScenarioInfo]:
         description = add_low_walls(spec)
     elif name == "puddles":
         description = _add_puddles(spec, seed)
+    elif name == "tall_wall":
+        description = add_tall_wall(spec)
     else:
         pushes = push_schedule(seed)
         description = (f"flat floor + {len(pushes)} torso impulses of {PUSH_IMPULSE_NS[0]}-"

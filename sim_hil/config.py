@@ -18,5 +18,6 @@ RT_FIFO_PRIORITY = 70           # --rt: SCHED_FIFO priority of the realtime sim 
 VIDEO_FPS = 20
 GL_PROBE_SIZE_PX = 16          # --record checks the GL backend with a renderer this small at start-up
 VIDEO_SIZE = (360, 480)         # (height, width) [px]; software GL renders ~0.1 s per frame here
+CAPTION_MARGIN_PX = 4           # the video caption's inset from the frame's corner [px]
 STATS_WINDOW_S = 1.0            # real-time factor averaging window [s of sim time]
 SIM_LOG_DIR = Path(__file__).resolve().parents[1] / "out" / "sim"   # `python -m sim_hil`'s default LCM logs

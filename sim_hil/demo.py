@@ -83,6 +83,22 @@ def _teacher_getup(student: Path) -> Path:
     return shipped if shipped is not None and shipped.exists() else BASELINE_GETUP
 
 
+def describe_student(manifest: dict) -> str | None:
+    """What a student is, from its provenance: distilled by DAgger (how many phases) from which stitched
+    teacher, and, for a PPO fine-tune of it, for how many env steps. None for a policy without a teacher."""
+    teacher = stitched_teacher(manifest)
+    if not teacher:
+        return None
+    prov = manifest["provenance"]
+    source = f"the stitched teacher getup={teacher['getup']} + joystick={teacher['joystick']}"
+    if "dagger_phases" in prov:
+        return f"a student distilled (DAgger, {prov['dagger_phases']} phases) from {source}"
+    phases = prov.get("init_dagger_phases")
+    dagger = f"DAgger, {phases} phases" if phases else f"DAgger, from {prov.get('init') or 'an unnamed checkpoint'}"
+    return (f"a student distilled ({dagger}) from {source}, then fine-tuned on its own outcomes by PPO for "
+            f"{prov['steps'] / 1e6:.2f} M env steps")
+
+
 def _trained(artifact: Path) -> bool:
     return artifact.exists() and bool(read_artifact(artifact)[3]["trained"])
 
@@ -94,10 +110,9 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
     trained = bool(manifest["trained"])
     banner = "trained" if trained else "UNTRAINED (random-init placeholder: expect flailing, not getting up)"
     print(f"demo: policy {policy.relative_to(ROOT) if policy.is_relative_to(ROOT) else policy} — {banner}")
-    teacher = stitched_teacher(manifest)
-    if teacher:
-        print(f"demo: a student distilled (DAgger, {manifest['provenance'].get('dagger_phases', '?')} phases) from "
-              f"the stitched teacher getup={teacher['getup']} + joystick={teacher['joystick']}")
+    student = describe_student(manifest)
+    if student:
+        print(f"demo: {student}")
     out.mkdir(parents=True, exist_ok=True)
     video = out / f"{name}.mp4"
     lc = lcm.LCM(contract.lcm_url())
@@ -112,7 +127,14 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
             series[key].append(value)
 
     lc.subscribe(contract.CH_SIM_STATUS, on_sim)
-    lc.subscribe(contract.CH_CONTROLLER_STATUS, lambda _c, d: last.__setitem__("rt", controller_status_t.decode(d)))
+    modes: list[tuple[float, str]] = []      # (sim time [s], the runtime's mode) at each status
+
+    def on_status(_c, d):
+        last["rt"] = st = controller_status_t.decode(d)
+        if "sim" in last:
+            modes.append((last["sim"].utime * 1e-6, st.mode_name))
+
+    lc.subscribe(contract.CH_CONTROLLER_STATUS, on_status)
     sim_args = ["--clock", "realtime", "--spawn", spawn, "--duration", str(seconds),
                 "--status-rate", "50", "--record", str(video), *VIEWER_ARGS]
     runtime_args = ["--clock", "realtime", "--autostart"]
@@ -166,7 +188,7 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
     plot = plot_heights_and_velocity(
         {policy.stem: series}, out / f"{name}_plot.png",
         f"{policy.stem} ({'trained' if trained else 'UNTRAINED'}), spawn {spawn}",
-        command_vx=[(t, vx) for t, vx, _, _ in JOYSTICK_SCRIPT])
+        command_vx=[(t, vx) for t, vx, _, _ in JOYSTICK_SCRIPT], modes=modes)
     print(f"demo: runtime ended in {rt.mode_name if rt else '?'}; faults: {rt.last_fault if rt and rt.last_fault else 'none'}")
     print(f"demo: video {video}\ndemo: plot  {plot}")
     if capture is not None:

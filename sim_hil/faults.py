@@ -7,10 +7,15 @@ Spec grammar (several faults separated by ';'):
     drop:rate=0.2@1.0          each CAN frame (command and reply) is lost with probability 0.2
     delay:ticks=3@2.0-4.0      CAN command frames reach the motors 3 bus cycles (2 ms each) late
     dead:joint=Left_Knee_Pitch@5   that motor stops: no torque, no reply frames (joint name or index)
-    frozen:joint=14@3          that motor's encoder sticks at its value at START (PD and replies use it)
+    frozen:joint=14@3          that motor's encoder sticks at its value at START: q holds, dq (differentiated
+                               from it) reads 0, the motor's PD law and soft stop act on the stuck reading, and
+                               tau_est stays the torque the motor applies (its current); IMU and other motors as ever
     imu_noise:gyro=0.05,accel=0.5,quat=0.01@0   zero-mean Gaussian noise, std in rad/s, m/s², quat units
     imu_bias:gyro=0.02,accel=0.3@0              constant offset added to every axis [rad/s, m/s²]
     push:x=30,y=0,z=0@2.0      one torso impulse [N·s] in the world frame, applied over one physics step
+    load:z=-300@0-8            a constant force [N] on the torso in the world frame (someone holding it down)
+    press:joint=Left_Elbow_Yaw,tau=25@1   a constant outside torque [N·m] on that joint about its axis (a hand
+                               holding the limb against its stop)
 
 Random draws (drops, noise) come from one numpy Generator seeded by --seed, so lockstep runs with the same
 seed stay bit-identical with faults on.
@@ -30,6 +35,8 @@ KINDS = {
     "imu_noise": {"gyro", "accel", "quat"},
     "imu_bias": {"gyro", "accel"},
     "push": {"x", "y", "z"},
+    "load": {"x", "y", "z"},
+    "press": {"joint", "tau"},
 }
 
 
@@ -89,13 +96,15 @@ def _parse_one(part: str) -> Fault:
             raise FaultSpecError(f"fault '{part}': '{key}' is not a parameter of {kind} "
                                  f"(allowed: {', '.join(sorted(KINDS[kind]))})")
         params[key] = _parse_joint(value, part) if key == "joint" else _parse_number(key, value, part)
-    if kind in ("dead", "frozen") and "joint" not in params:
+    if kind in ("dead", "frozen", "press") and "joint" not in params:
         raise FaultSpecError(f"fault '{part}': {kind} needs joint=NAME|INDEX")
+    if kind == "press" and "tau" not in params:
+        raise FaultSpecError(f"fault '{part}': press needs tau=N·m")
     if kind == "drop" and not 0.0 <= params.get("rate", -1.0) <= 1.0:
         raise FaultSpecError(f"fault '{part}': drop needs rate in [0, 1]")
     if kind == "delay" and (params.get("ticks", 0) < 1 or params["ticks"] != int(params["ticks"])):
         raise FaultSpecError(f"fault '{part}': delay needs an integer ticks >= 1")
-    if kind in ("imu_noise", "imu_bias", "push") and not params:
+    if kind in ("imu_noise", "imu_bias", "push", "load") and not params:
         raise FaultSpecError(f"fault '{part}': {kind} needs at least one of {', '.join(sorted(KINDS[kind]))}")
     if kind == "imu_noise" and any(v < 0 for v in params.values()):
         raise FaultSpecError(f"fault '{part}': noise standard deviations must be >= 0")
@@ -140,6 +149,20 @@ class FaultSchedule:
     def frozen_joints(self, t_s: float) -> set[int]:
         return {f.params["joint"] for f in self.active(t_s, "frozen")}
 
+    def trunk_load(self, t_s: float) -> tuple[float, float, float] | None:
+        """The sum of the active `load` forces [N], world frame; None when there is none."""
+        loads = self.active(t_s, "load")
+        if not loads:
+            return None
+        return tuple(sum(f.params.get(k, 0.0) for f in loads) for k in ("x", "y", "z"))
+
+    def joint_presses(self, t_s: float) -> dict[int, float]:
+        """joint index -> the sum of the active `press` torques on it [N·m]."""
+        out: dict[int, float] = {}
+        for f in self.active(t_s, "press"):
+            out[f.params["joint"]] = out.get(f.params["joint"], 0.0) + f.params["tau"]
+        return out
+
     def imu_noise(self, t_s: float) -> dict:
         out = {"gyro": 0.0, "accel": 0.0, "quat": 0.0}
         for f in self.active(t_s, "imu_noise"):
@@ -156,10 +179,12 @@ class FaultSchedule:
 
     def needs_python_tick(self, t_s: float, t_end_s: float) -> bool:
         """Whether a fault the C++ lockstep tick does not model acts in the tick [t_s, t_end_s]: IMU noise or
-        bias (read at its start), a frozen encoder (read at every substep and at its end), a push due (dead
-        motors, lost and delayed frames it does)."""
+        bias (read at its start), a frozen encoder (read at every substep and at its end), a push due, a load
+        or a press (dead motors, lost and delayed frames it does)."""
         for i, f in enumerate(self.faults):
             if f.kind in ("imu_noise", "imu_bias") and f.active(t_s):
+                return True
+            if f.kind in ("load", "press") and f.start_s <= t_end_s and t_s < f.end_s:
                 return True
             if f.kind == "frozen" and f.start_s <= t_end_s and t_s < f.end_s:
                 return True

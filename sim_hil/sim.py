@@ -123,7 +123,8 @@ class Simulator:
         self.recorder = None
         if cfg.record:
             from sim_hil.recorder import Recorder
-            self.recorder = Recorder(self.model, cfg.record)
+            from sim_hil.runtime_view import RuntimeView
+            self.recorder = Recorder(self.model, cfg.record, caption=RuntimeView(self.link).caption)
         self.viewer = None
         if cfg.viewer:
             from sim_hil.viewer import LiveViewer
@@ -178,12 +179,16 @@ class Simulator:
         b = self.bus
         self.link.publish_state(self.now_us, self.seq, quat, gyro, accel, b.q, b.dq, b.tau, b.status)
 
-    def _push_force(self) -> np.ndarray | None:
-        """The force of the pushes due now: an impulse J [N·s] is a constant force J/dt over one physics
-        step. The caller adds it to xfrc_applied around that step only, so a force already there (the
-        viewer's mouse perturbation) is kept, not overwritten."""
+    def _trunk_force(self) -> np.ndarray | None:
+        """The outside force on the torso now [N]: the pushes due (an impulse J [N·s] is a constant force J/dt
+        over one physics step) and the active loads. The caller adds it to xfrc_applied around that step
+        only, so a force already there (the viewer's mouse perturbation) is kept, not overwritten."""
         due = self.faults.due_pushes(self.data.time)
-        return np.sum(due, axis=0) / self.model.opt.timestep if due else None
+        load = self.faults.trunk_load(self.data.time)
+        if not due and load is None:
+            return None
+        force = np.sum(due, axis=0) / self.model.opt.timestep if due else np.zeros(3)
+        return force + (load if load is not None else 0.0)
 
     def status_message(self) -> sim_status_t:
         s = sim_status_t()
@@ -282,12 +287,17 @@ class Simulator:
             self.data.ctrl[:] = tau
             if self.viewer is not None:
                 self.viewer.apply_perturbation(self.data)
-            push = self._push_force()
-            if push is not None:
-                self.data.xfrc_applied[self.trunk_id, :3] += push
+            force = self._trunk_force()
+            if force is not None:
+                self.data.xfrc_applied[self.trunk_id, :3] += force
+            presses = self.faults.joint_presses(self.data.time)
+            for i, tau in presses.items():
+                self.data.qfrc_applied[6 + i] += tau
             mujoco.mj_step(self.model, self.data)
-            if push is not None:
-                self.data.xfrc_applied[self.trunk_id, :3] -= push
+            if force is not None:
+                self.data.xfrc_applied[self.trunk_id, :3] -= force
+            for i, tau in presses.items():
+                self.data.qfrc_applied[6 + i] -= tau
         q_enc, dq_enc = self._encoders()
         self.bus.exchange_replies(q_enc, dq_enc, tau, self.now_us, drop, dead)
 

@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from common.events import FALLEN_TRUNK_HEIGHT_M
-from messages import contract
+from sim_hil.runtime_view import RuntimeView
 
 SYNC_HZ = 30.0                 # wall-clock display rate; a sync copies mjData (well under 1 ms)
 LAUNCH_TIMEOUT_S = 20.0        # launch_passive blocks forever if its thread dies (no GLX ...): give up then
@@ -100,11 +100,7 @@ class LiveViewer:
         self._stop = False
         self._syncer = threading.Thread(target=self._sync_loop, daemon=True)
         self._syncer.start()
-        # Raw payloads, decoded at display rate only: the handlers run inside the sim's LCM polling.
-        self._joystick: bytes | None = None
-        self._status: bytes | None = None
-        sim.link.subscribe(contract.CH_JOYSTICK, lambda _c, d: setattr(self, "_joystick", d))
-        sim.link.subscribe(contract.CH_CONTROLLER_STATUS, lambda _c, d: setattr(self, "_status", d))
+        self.runtime = RuntimeView(sim.link)   # decoded at display rate only
         with handle.lock():
             cam = handle.cam
             cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
@@ -116,20 +112,6 @@ class LiveViewer:
         view = mujoco.MjData(sim.model)
         launched = _launch(sim.model, view)
         return None if launched is None else cls(*launched, sim, view)
-
-    def command(self) -> tuple[float, float, float]:
-        if self._joystick is None:
-            return 0.0, 0.0, 0.0
-        from t1 import joystick_t
-        js = joystick_t.decode(self._joystick)
-        return js.vx, js.vy, js.yaw_rate
-
-    def mode(self) -> str:
-        if self._status is None:
-            return "no runtime"
-        from t1 import controller_status_t
-        st = controller_status_t.decode(self._status)
-        return st.mode_name + (f" ({st.last_fault})" if st.mode_name == "FAULT" and st.last_fault else "")
 
     def maybe_sync(self, sim) -> None:
         """Called by the sim after every tick; costs a clock read unless a snapshot is due and taken."""
@@ -169,14 +151,14 @@ class LiveViewer:
             self._perturbed_body = int(pert.select)
 
     def _update_overlays(self) -> None:
-        vx, vy, wz = self.command()
+        vx, vy, wz = self.runtime.command()
         t = self.view.time
         trunk_h = float(self.view.xpos[self.trunk_id][2])
         faults = self._faults
         fallen = "FALLEN" if trunk_h < FALLEN_TRUNK_HEIGHT_M else "upright"
         self.handle.set_texts([(None, mujoco.mjtGridPos.mjGRID_TOPLEFT,
                                 "t\nmode\ncommand\nstate\nfaults",
-                                f"{t:.2f} s\n{self.mode()}\nvx {vx:+.2f} vy {vy:+.2f} m/s, yaw {wz:+.2f} rad/s\n"
+                                f"{t:.2f} s\n{self.runtime.mode()}\nvx {vx:+.2f} vy {vy:+.2f} m/s, yaw {wz:+.2f} rad/s\n"
                                 f"{fallen} (trunk {trunk_h:.2f} m)\n{faults}")])
         with self.handle.lock():
             scn = self.handle.user_scn

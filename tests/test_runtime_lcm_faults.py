@@ -20,7 +20,9 @@ from common.artifact import _serialize_container, _tensors_from, content_hash, r
 STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 FAST_PREPARE = ("--prepare-s", "0.02")   # 10-tick ramp: keeps the ladder short
 N = contract.NUM_JOINTS
-ELBOW_YAW, HIP_PITCH = 5, 11
+ELBOW_YAW, HIP_PITCH, KNEE = 5, 11, 14
+PRESSED_PAST_RAD = 0.4                   # a joint pressed past its stop, inside rule R10's 0.5 rad margin
+RAMP_STEP_RAD = 0.02                     # per tick: 10 rad/s
 MAX_STEP_RAD = 0.05                      # SafetyConfig::max_target_step_rad
 RANGE_FRACTION = 0.95                    # SafetyConfig::joint_range_fraction
 
@@ -174,17 +176,20 @@ def test_motor_that_is_not_following_faults_in_policy(runtime, bit):
 
 
 # ---------------------------------------------------------------------------------------- item 8
-def test_final_target_keeps_the_rate_limit_and_the_torque_limit_with_q_far_outside_the_range(runtime):
+def test_final_target_keeps_the_rate_limit_and_the_torque_limit_with_q_pressed_past_the_range(runtime):
     peer = in_policy(runtime)
     kp, kd = peer.manifest["kp"][HIP_PITCH], peer.manifest["kd"][HIP_PITCH]
     limit = fw.TORQUE_LIMIT[HIP_PITCH]
     mid, half = (fw.Q_MAX + fw.Q_MIN) / 2, (fw.Q_MAX - fw.Q_MIN) / 2 * RANGE_FRACTION
-    far = fw.Q_MAX[HIP_PITCH] + 2.8                             # reported far beyond the joint's end
+    pressed = fw.Q_MAX[HIP_PITCH] + PRESSED_PAST_RAD
+    while peer.q[HIP_PITCH] < pressed:       # there at a speed a joint has (a faster step is rule R10's)
+        peer.q[HIP_PITCH] = min(pressed, peer.q[HIP_PITCH] + RAMP_STEP_RAD)
+        peer.step()
     prev = peer.cmds[-1].q_des[HIP_PITCH]
     prev_excess, reached = np.inf, False
     for k in range(120):
         # The encoder moves a count each tick: a still one under this torque is a frozen encoder (rule R9).
-        peer.q[HIP_PITCH] = far + (k % 2) * 1e-4
+        peer.q[HIP_PITCH] = pressed + (k % 2) * 1e-4
         q_des = peer.step().q_des[HIP_PITCH]
         assert abs(q_des - prev) <= MAX_STEP_RAD + 1e-5, "a target step beyond the rate limit"
         tau = kp * (q_des - peer.q[HIP_PITCH]) - kd * peer.dq[HIP_PITCH]
@@ -196,6 +201,26 @@ def test_final_target_keeps_the_rate_limit_and_the_torque_limit_with_q_far_outsi
         prev, prev_excess = q_des, excess
     assert reached, f"expected torque never came down to {limit} N·m"
     assert prev <= peer.q[HIP_PITCH] and prev > mid[HIP_PITCH] + half[HIP_PITCH]  # between range and q
+    assert peer.last_status().mode_name == "POLICY"
+
+
+# ---------------------------------------------------------------------------------------- issue 69, item 4
+def test_every_joint_reading_3_rad_is_an_impossible_reading_that_faults_and_damps(runtime):
+    """The outside client's case: every joint at 3.0 rad, beyond every joint's range by more than R10's margin."""
+    peer = in_policy(runtime)
+    peer.q[:] = 3.0
+    cmd = peer.step()
+    assert cmd.mode == MODE["FAULT"] and max(cmd.kp) == 0.0, (cmd.mode, max(cmd.kp))
+    status = peer.last_status()
+    assert status.fault_bits & LATCHED_FAULT_MASK
+    assert "motor 0 (AAHead_yaw) impossible reading: q 3.000 rad" in status.last_fault, status.last_fault
+
+
+def test_a_step_no_motor_makes_in_one_bus_cycle_faults_naming_the_motor(runtime):
+    peer = in_policy(runtime)
+    peer.q[KNEE] += 0.3                                  # 150 rad/s for 2 ms: beyond 3 x the knee class's 23.4
+    assert peer.step().mode == MODE["FAULT"]
+    assert "motor 14 (Left_Knee_Pitch) impossible reading" in peer.last_status().last_fault
 
 
 # ---------------------------------------------------------------------------------------- item 9

@@ -32,7 +32,8 @@ def _run(faults: str, duration_s=0.6, target=None, extra=None):
 
 def test_fault_spec_errors_name_the_problem():
     for spec, needle in (("warp:speed=9", "warp"), ("drop", "rate"), ("delay:ticks=1.5", "ticks"),
-                         ("frozen:joint=99", "99"), ("imu_noise:gyro=-1", ">= 0"), ("push:x=1@3-2", "START")):
+                         ("frozen:joint=99", "99"), ("imu_noise:gyro=-1", ">= 0"), ("push:x=1@3-2", "START"),
+                         ("press:joint=Waist", "tau"), ("press:tau=5", "joint"), ("load", "at least one")):
         with pytest.raises(FaultSpecError, match=needle):
             parse_faults(spec)
     assert [f.kind for f in parse_faults("drop:rate=0.1@1;push:x=5@2")] == ["drop", "push"]
@@ -75,6 +76,26 @@ def test_frozen_encoder_reports_a_constant_position(netns):
     during = np.array([s.q[joint] for s, ti in zip(seq, t) if ti > 0.21])
     before = np.array([s.q[joint] for s, ti in zip(seq, t) if ti < 0.2])
     assert np.ptp(before) > 0.05 and np.ptp(during) == 0.0
+    # what a frozen encoder freezes: dq is differentiated from it (reads 0); tau_est is the motor's current, the
+    # honest torque of its PD law on the stuck reading, which changes as the target moves
+    dq = np.array([s.dq[joint] for s, ti in zip(seq, t) if ti > 0.21])
+    tau = np.array([s.tau_est[joint] for s, ti in zip(seq, t) if ti > 0.21])
+    assert np.abs(dq).max() <= fw.V_RANGE[joint] / (2 ** 12 - 1) and np.ptp(tau) > 1.0
+
+
+def test_a_load_holds_the_trunk_down_while_it_lasts(netns):
+    _, _, free = _run("", duration_s=0.5)
+    _, _, held = _run("load:z=-2000@0.1-0.3", duration_s=0.5)
+    z = lambda status, at: {round(s.utime * 1e-6, 1): s.base_pos[2] for s in status.msgs}[at]
+    assert z(held, 0.3) < z(free, 0.3) - 0.01        # pressed down, then released
+    assert "load" in next(s.active_faults for s in held.msgs if 0.1 < s.utime * 1e-6 < 0.3)
+
+
+def test_a_press_holds_a_joint_against_its_stop(netns):
+    joint = contract.joint_index("Left_Elbow_Yaw")     # home -0.4 rad, stop at 0
+    seq, t, _ = _run(f"press:joint={joint},tau=25@0.1", duration_s=0.6)
+    q = np.array([s.q[joint] for s in seq])
+    assert q[t < 0.1].max() < fw.Q_MAX[joint] - 0.3 and q[t > 0.4].min() > fw.Q_MAX[joint] - 0.01
 
 
 def test_imu_noise_and_bias_show_in_the_imu_stream(netns):

@@ -1,18 +1,22 @@
-"""Figures behind the supervisor's silent-motor and frozen-encoder rules (issue 48; rules R8, R9 of
-runtime/src/safety_supervisor.cpp): lockstep trials of the chapter-6 harness (sim_hil.eval.trial) with the
-host's view of every motor recorded each tick.
+"""Figures behind the supervisor's motor rules R8 (silent motor), R9 (frozen encoder) and R10 (impossible
+reading) of runtime/src/safety_supervisor.cpp: lockstep trials of the chapter-6 harness (sim_hil.eval.trial)
+with the host's view of every motor and the trunk's angular rate recorded each tick.
 
-Per run: the runtime's fault, the longest run of NO_REPLY frames, the worst "still load" (the largest |PD
-torque| of the last command held on a bit-identical encoder for longer than R9's time, as a share of R9's
-torque threshold: 1.0 would trip) and when R9 trips. R9's numbers are read from runtime/include/t1rt/safety.hpp.
+Per run: the runtime's fault and how long after the injected fault it came, the longest run of NO_REPLY
+frames, the worst "still load" R9 could see (the largest |PD torque| held on a bit-identical encoder, away
+from the stops, while the body turned, for longer than R9's time, as a share of R9's torque threshold: 1.0
+would trip), the body's filtered rate, and R10's margins (fastest step as a share of its bound, furthest
+reading past a range end). The rules' numbers are read from runtime/include/t1rt/safety.hpp.
 
   tools/netns .venv/bin/python tools/motor_watchdog_figures.py stand walk getup:62 push:0 drop delay \\
-      walk+untrained getup:3+baseline frozen:Left_Knee_Pitch@3 dead:Left_Ankle_Pitch@3
-  --runtime PATH: another t1-runtime build (e.g. one without R9, so frozen runs are not cut short by it)
+      getup:3+knockdown frozen:Left_Knee_Pitch@3 frozen-getup:Left_Knee_Pitch:62 frozen-push:Left_Knee_Pitch:0
+  --matrix: R9's detection matrix (frozen while walking, during getups, during pushes; leg joints)
+  --runtime PATH: another t1-runtime build (e.g. one without R9/R10, so runs are not cut short by them)
 """
 from __future__ import annotations
 
 import argparse
+import math
 import re
 from pathlib import Path
 
@@ -27,84 +31,151 @@ from sim_hil.sim import Simulator
 
 POLICIES = {"": Controller("student", ROOT / "policies/student/student.safetensors"),
             "untrained": Controller("untrained", ROOT / "policies/student_untrained/student_untrained.safetensors"),
+            "knockdown": Controller("getup_knockdown", ROOT / "policies/getup_knockdown/getup_knockdown.safetensors"),
             "baseline": Controller("baseline", ROOT / "policies/getup_baseline/getup_baseline.safetensors",
                                    ROOT / "policies/joystick/joystick.safetensors")}
 DT = 0.002
+LEG_JOINTS = [n for n in contract.JOINT_NAMES if any(k in n for k in ("Hip_Pitch", "Hip_Roll", "Knee", "Ankle"))]
+GETUP_FREEZE_S = 3.0          # 1 s into the rise: POLICY starts after the 2 s PREPARE from a fallen start
+AFTER_FAULT_S = 2.5           # logged after an injected fault
 
 
-def r9_constants() -> tuple[float, float, int]:
+def constants() -> dict[str, float]:
     text = (ROOT / "runtime/include/t1rt/safety.hpp").read_text()
-    get = lambda name: float(re.search(rf"{name} = ([0-9.]+)", text).group(1))   # noqa: E731
-    return get("kFrozenEncoderTorqueFraction"), get("kFrozenEncoderMinTorqueNm"), int(get("kFrozenEncoderMaxCycles"))
+    names = ("kFrozenEncoderTorqueFraction", "kFrozenEncoderMinTorqueNm", "kFrozenEncoderMaxCycles",
+             "kBodyMotionTimeConstantS", "kBodyMotionMinRateRadS", "kFrozenEncoderStopMarginRad",
+             "kImpossibleRangeMarginRad", "kImpossibleSpeedFactor")
+    return {n: float(re.search(rf"{n} = ([0-9.]+)", text).group(1)) for n in names}
 
 
-def spec(name: str) -> TrialSpec:
+def push_faults(index: int) -> tuple[str, float]:
+    p = plans.push_draw(index, index)
+    return (f"push:x={p.impulse_ns * math.cos(p.angle_rad):.2f},y={p.impulse_ns * math.sin(p.angle_rad):.2f},"
+            f"z=0@{p.at_s:.3f}"), p.at_s
+
+
+def spec(name: str) -> tuple[TrialSpec, float | None]:
+    """The trial of a run name, and when its injected motor fault starts [s] (None: none)."""
     kind, _, arg = name.partition(":")
     walk = dict(command_vx_mps=plans.WALK_FORWARD_MPS, prepare_s=plans.STANDING_PREPARE_S)
-    if kind in ("frozen", "dead"):            # frozen:JOINT@T / dead:JOINT@T while walking, 3 s logged after T
+    if kind in ("frozen", "dead"):            # frozen:JOINT@T / dead:JOINT@T while walking
         joint, at = arg.split("@")
-        return TrialSpec("flat", 0, "standing", float(at) + 3.0, faults=f"{kind}:joint={joint}@{at}", **walk)
+        return TrialSpec("flat", 0, "standing", float(at) + AFTER_FAULT_S, faults=f"{kind}:joint={joint}@{at}",
+                         **walk), float(at)
+    if kind == "frozen-getup":                # frozen-getup:JOINT:SEED, 1 s into the rise
+        joint, seed = arg.split(":")
+        return TrialSpec("flat", int(seed), f"fallen:{seed}", GETUP_FREEZE_S + AFTER_FAULT_S,
+                         faults=f"frozen:joint={joint}@{GETUP_FREEZE_S}"), GETUP_FREEZE_S
+    if kind == "frozen-push":                 # frozen-push:JOINT:I, frozen as the push test's push I lands
+        joint, index = arg.split(":")
+        push, at = push_faults(int(index))
+        return TrialSpec("flat", int(index), "standing", at + AFTER_FAULT_S, prepare_s=plans.STANDING_PREPARE_S,
+                         faults=f"{push};frozen:joint={joint}@{at:.3f}"), at
     if kind == "push":
-        return plans.push_specs(int(arg or 0) + 1, plans.PUSH_SECONDS, int(arg or 0))[-1]
+        return plans.push_specs(int(arg or 0) + 1, plans.PUSH_SECONDS, int(arg or 0))[-1], None
     if kind == "getup":
-        return TrialSpec("flat", int(arg or 62), f"fallen:{arg or 62}", plans.GETUP_SECONDS)
+        return TrialSpec("flat", int(arg or 62), f"fallen:{arg or 62}", plans.GETUP_SECONDS), None
     return {"stand": TrialSpec("flat", 0, "standing", 20.0, prepare_s=plans.STANDING_PREPARE_S),
             "walk": TrialSpec("flat", 0, "standing", 20.0, **walk),
             "drop": TrialSpec("flat", 0, "standing", 10.0, faults="drop:rate=0.05@0", **walk),
             "delay": TrialSpec("flat", 0, "standing", 10.0, faults="delay:ticks=5@0", **walk),
-            "prepare": TrialSpec("flat", 0, "standing", 8.0, prepare_s=5.0)}[kind]   # tests/test_dds.py's
+            "prepare": TrialSpec("flat", 0, "standing", 8.0, prepare_s=5.0)}[kind], None   # tests/test_dds.py's
 
 
-def analyse(rows: list[np.ndarray], threshold: np.ndarray, width: int) -> str:
-    q, dq, st, qd, kp, kd = np.split(np.array(rows), 6, axis=1)
+def low_pass(x: np.ndarray, time_constant_s: float) -> np.ndarray:
+    out, gain, y = np.empty_like(x), DT / time_constant_s, 0.0
+    for k, v in enumerate(x):
+        y += gain * (v - y)
+        out[k] = y
+    return out
+
+
+def analyse(rows: list[np.ndarray], c: dict[str, float], fault_at: float | None) -> str:
+    q, dq, st, qd, kp, kd, mode = (np.array(rows)[:, i * 23:(i + 1) * 23] for i in range(7))
+    gyro = np.array(rows)[:, 7 * 23:7 * 23 + 3]
+    threshold = np.maximum(c["kFrozenEncoderTorqueFraction"] * fw.TORQUE_LIMIT, c["kFrozenEncoderMinTorqueNm"])
+    width = int(c["kFrozenEncoderMaxCycles"])
     replied = (st[1:].astype(np.int64) & fw.STATUS_HOST_NO_REPLY) == 0
     # a row holds state k+1 and the command answering state k: the torque the runtime sees at state k+1
     tau = np.abs(kp * (qd - q) - kd * dq)[1:]
-    still = (q[1:] == q[:-1]) & replied
-    longest = 0
-    run = np.zeros(q.shape[1], int)
+    body = low_pass(np.linalg.norm(gyro, axis=1), c["kBodyMotionTimeConstantS"])[1:]
+    margin = c["kFrozenEncoderStopMarginRad"]
+    off_stops = (q[1:] > fw.Q_MIN + margin) & (q[1:] < fw.Q_MAX - margin)
+    evidence = (q[1:] == q[:-1]) & replied & off_stops & (body > c["kBodyMotionMinRateRadS"])[:, None]
+    longest, run = 0, np.zeros(q.shape[1], int)
     for miss in ~replied:
         run = np.where(miss, run + 1, 0)
         longest = max(longest, int(run.max()))
-    load = np.lib.stride_tricks.sliding_window_view(np.where(still, tau, 0.0), width + 1, axis=0).min(axis=-1)
+    load = np.lib.stride_tricks.sliding_window_view(np.where(evidence, tau, 0.0), width + 1, axis=0).min(axis=-1)
     k, j = np.unravel_index(np.argmax(load / threshold), load.shape)
-    hot = load / threshold > 1.0
-    trip = f"{(np.argmax(hot.any(axis=1)) + width + 1) * DT:.2f} s" if hot.any() else "never"
-    return (f"longest NO_REPLY run {longest}; worst still load {load[k, j] / threshold[j]:.2f} of R9's threshold "
-            f"({contract.JOINT_NAMES[j]} {load[k, j]:.1f} N·m at {(k + 1) * DT:.2f} s); R9 trips: {trip}")
+    both = replied & ((st[:-1].astype(np.int64) & fw.STATUS_HOST_NO_REPLY) == 0)
+    speed = np.where(both, np.abs(np.diff(q, axis=0)) / DT, 0.0) / (c["kImpossibleSpeedFactor"] * fw.V_RANGE)
+    past = np.maximum(fw.Q_MIN - q, q - fw.Q_MAX).max()
+    faulted = np.flatnonzero(mode[:, 0] == 4)     # joint_command_t.MODE_FAULT
+    when = "" if not faulted.size or fault_at is None else f" {faulted[0] * DT + DT - fault_at:.2f} s after the fault"
+    return (f"longest NO_REPLY run {longest}; worst still load with evidence {load[k, j] / threshold[j]:.2f} of R9's "
+            f"threshold ({contract.JOINT_NAMES[j]} at {(k + 1) * DT:.2f} s); body rate filtered: "
+            f"max {body.max():.2f}, last 5 s max {body[-2500:].max():.3f} rad/s; R10: fastest step "
+            f"{speed.max():.2f} of its bound, furthest {past:+.3f} rad past a range end (margin "
+            f"{c['kImpossibleRangeMarginRad']:g});{when}")
+
+
+def matrix() -> list[str]:
+    """R9's detection matrix: each leg joint frozen while walking (two moments of the gait), 1 s into a
+    getup (two fallen seeds, the student and the getup expert) and as a push-test push lands (two pushes)."""
+    runs = []
+    for joint in LEG_JOINTS:
+        runs += [f"frozen:{joint}@{at}" for at in (3.0, 3.37)]
+        runs += [f"frozen-getup:{joint}:{seed}{policy}" for seed in (62, 3) for policy in ("", "+knockdown")]
+        runs += [f"frozen-push:{joint}:{index}" for index in (0, 2)]
+    return runs
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("runs", nargs="+", help="stand | walk | getup:SEED | push:I | drop | delay | prepare | "
-                    "frozen:JOINT@T | dead:JOINT@T, each optionally +untrained or +baseline")
+    ap.add_argument("runs", nargs="*", help="stand | walk | getup:SEED | push:I | drop | delay | prepare | "
+                    "frozen:JOINT@T | dead:JOINT@T | frozen-getup:JOINT:SEED | frozen-push:JOINT:I, each "
+                    "optionally +untrained, +knockdown or +baseline")
+    ap.add_argument("--matrix", action="store_true", help="R9's detection matrix (see matrix())")
     ap.add_argument("--runtime", type=Path, default=None)
     args = ap.parse_args()
     if args.runtime:
         launch.RUNTIME = args.runtime
-    fraction, floor_nm, width = r9_constants()
-    threshold = np.maximum(fraction * fw.TORQUE_LIMIT, floor_nm)
+    names = args.runs + (matrix() if args.matrix else [])
+    if not names:
+        ap.error("name runs, or --matrix")
+    c = constants()
     rows: list[np.ndarray] = []
     orig = Simulator.tick
 
     def tick(sim: Simulator) -> None:
         orig(sim)
-        c = sim.link.latest
-        if c is not None:   # state k+1 as the host sees it, and the command answering state k
+        cmd = sim.link.latest
+        if cmd is not None:   # state k+1 as the host sees it, and the command answering state k
             b = sim.bus
-            rows.append(np.concatenate([b.q, b.dq, b.status, c.q_des, c.kp, c.kd]))
+            rows.append(np.concatenate([b.q, b.dq, b.status, cmd.q_des, cmd.kp, cmd.kd,
+                                        np.full(23, cmd.mode), sim.data.qvel[3:6]]))   # trunk rate, body frame
     Simulator.tick = tick
     runs = []
-    for name in args.runs:
+    for name in names:
         base, _, policy = name.partition("+")
         try:
-            runs.append((name, spec(base), POLICIES[policy]))
+            runs.append((name, *spec(base), POLICIES[policy]))
         except (KeyError, ValueError) as exc:
             ap.error(f"run '{name}': not understood ({exc!r}); see the list under 'runs'")
-    for name, trial, controller in runs:
+    tripped, late = 0, []
+    for name, trial, fault_at, controller in runs:
         rows.clear()
         result = run_trial(trial, controller, trial_lcm_url(7))
-        print(f"{name}: runtime fault [{result.runtime_faults or 'none'}]; {analyse(rows, threshold, width)}", flush=True)
+        line = analyse(rows, c, fault_at)
+        print(f"{name}: runtime fault [{result.runtime_faults or 'none'}]; {line}", flush=True)
+        if fault_at is not None:
+            m = re.search(r" ([0-9.]+) s after the fault", line)
+            tripped += bool(m and float(m.group(1)) <= 1.0)
+            late += [name] if not (m and float(m.group(1)) <= 1.0) else []
+    injected = sum(f is not None for _, _, f, _ in runs)
+    if injected:
+        print(f"tripped within 1 s: {tripped} of {injected}; not: {', '.join(late) or 'none'}")
 
 
 if __name__ == "__main__":

@@ -251,7 +251,7 @@ TEST(ImpossibleReading, BeyondTheRangeByMoreThanTheSoftStopFaultsAtOnceNamingThe
   r.tick();
   ASSERT_EQ(r.sup_.mode(), Mode::kFault);
   EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kImpossibleReading);
-  EXPECT_TRUE(says(r.sup_.last_fault(), "motor 14 (Left_Knee_Pitch) impossible reading: q 2.646 rad")) << r.sup_.last_fault();
+  EXPECT_TRUE(says(r.sup_.last_fault(), "motor 14 (Left_Knee_Pitch) impossible reading: q 2.846 rad")) << r.sup_.last_fault();
 }
 
 TEST(ImpossibleReading, AStepFasterThanTheReplyCanSayFaultsUnlessRepliesWereMissedOrThePublisherRestarted) {

@@ -87,12 +87,12 @@ inline constexpr float kBodyMotionTimeConstantS = 0.05f;     // low-pass of the 
 inline constexpr float kBodyMotionMinRateRadS = 0.1f;        // the filtered rate above which the body moves [rad/s]
 inline constexpr float kFrozenEncoderStopMarginRad = 0.02f;  // a reading this close to (or past) a range end is
                                                              // explained by the stop holding the joint [rad]
-// R10: a reply no joint produces. Past a range end by more than kImpossibleRangeMarginRad (the model's
-// getups press joints up to 0.18 rad past a stop: 1.8x the soft stop's full-torque reach), or a step between
-// two replies faster than kImpossibleSpeedFactor x the class's reply range v_max (t1_motor_protocol.h §5;
-// getups reach 1.3x), plus kImpossibleJumpQuanta q codes of rounding.
-inline constexpr float kImpossibleRangeMarginRad = 0.3f;
-inline constexpr float kImpossibleSpeedFactor = 2.0f;
+// R10: a reply no joint produces. Past a range end by more than kImpossibleRangeMarginRad (falls and pushes
+// in the model press joints up to 0.26 rad past a stop, 2.6x the soft stop's full-torque reach), or a step
+// between two replies faster than kImpossibleSpeedFactor x the class's reply range v_max (t1_motor_protocol.h
+// §5; pushes reach 1.74x, on a hip yaw), plus kImpossibleJumpQuanta q codes of rounding.
+inline constexpr float kImpossibleRangeMarginRad = 0.5f;
+inline constexpr float kImpossibleSpeedFactor = 3.0f;
 inline constexpr float kImpossibleJumpQuanta = 2.0f;
 // The torque threshold of R9 for motor i [N·m].
 inline constexpr float frozen_encoder_torque_nm(float torque_limit_nm) {
