@@ -19,5 +19,6 @@ VIDEO_FPS = 20
 GL_PROBE_SIZE_PX = 16          # --record checks the GL backend with a renderer this small at start-up
 VIDEO_SIZE = (360, 480)         # (height, width) [px]; software GL renders ~0.1 s per frame here
 CAPTION_MARGIN_PX = 4           # the video caption's inset from the frame's corner [px]
+CAPTION_WRAP_CHARS = 76         # caption lines wrap here: PIL's default font is 6 px a character
 STATS_WINDOW_S = 1.0            # real-time factor averaging window [s of sim time]
 SIM_LOG_DIR = Path(__file__).resolve().parents[1] / "out" / "sim"   # `python -m sim_hil`'s default LCM logs

@@ -18,8 +18,11 @@ from sim_hil import config
 
 def caption_frame(frame: np.ndarray, text: str) -> np.ndarray:
     """The frame with `text` on a dark band across its top (a FAULT in red)."""
+    import textwrap
+
     import PIL.Image
     import PIL.ImageDraw
+    text = "\n".join(textwrap.fill(line, config.CAPTION_WRAP_CHARS) for line in text.splitlines())
     image = PIL.Image.fromarray(frame)
     draw = PIL.ImageDraw.Draw(image)
     band = draw.multiline_textbbox((config.CAPTION_MARGIN_PX,) * 2, text)[3] + config.CAPTION_MARGIN_PX

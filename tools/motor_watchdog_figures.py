@@ -38,6 +38,7 @@ DT = 0.002
 LEG_JOINTS = [n for n in contract.JOINT_NAMES if any(k in n for k in ("Hip_Pitch", "Hip_Roll", "Knee", "Ankle"))]
 GETUP_FREEZE_S = 3.0          # 1 s into the rise: POLICY starts after the 2 s PREPARE from a fallen start
 AFTER_FAULT_S = 2.5           # logged after an injected fault
+SWEEP_FRACTIONS = (0.45, 0.5, 0.55, 0.6, 0.65)   # R9 torque fractions the evidence runs are also counted at
 
 
 def constants() -> dict[str, float]:
@@ -108,13 +109,22 @@ def analyse(rows: list[np.ndarray], c: dict[str, float], fault_at: float | None)
         longest = max(longest, int(run.max()))
     load = np.lib.stride_tricks.sliding_window_view(np.where(evidence, tau, 0.0), width + 1, axis=0).min(axis=-1)
     k, j = np.unravel_index(np.argmax(load / threshold), load.shape)
+    runs = []          # the longest run of replies with R9's evidence, at this threshold and at others
+    for fraction in SWEEP_FRACTIONS:
+        over = evidence & (tau > np.maximum(fraction * fw.TORQUE_LIMIT, c["kFrozenEncoderMinTorqueNm"]))
+        run, best = np.zeros(q.shape[1], int), 0
+        for row in over:
+            run = np.where(row, run + 1, 0)
+            best = max(best, int(run.max()))
+        runs.append(f"{fraction:g}: {best}")
     both = replied & ((st[:-1].astype(np.int64) & fw.STATUS_HOST_NO_REPLY) == 0)
     speed = np.where(both, np.abs(np.diff(q, axis=0)) / DT, 0.0) / (c["kImpossibleSpeedFactor"] * fw.V_RANGE)
     past = np.maximum(fw.Q_MIN - q, q - fw.Q_MAX).max()
     faulted = np.flatnonzero(mode[:, 0] == 4)     # joint_command_t.MODE_FAULT
     when = "" if not faulted.size or fault_at is None else f" {faulted[0] * DT + DT - fault_at:.2f} s after the fault"
     return (f"longest NO_REPLY run {longest}; worst still load with evidence {load[k, j] / threshold[j]:.2f} of R9's "
-            f"threshold ({contract.JOINT_NAMES[j]} at {(k + 1) * DT:.2f} s); body rate filtered: "
+            f"threshold ({contract.JOINT_NAMES[j]} at {(k + 1) * DT:.2f} s); longest evidence run by torque "
+            f"fraction ({', '.join(runs)}; more than {width} trips); body rate filtered: "
             f"max {body.max():.2f}, last 5 s max {body[-2500:].max():.3f} rad/s; R10: fastest step "
             f"{speed.max():.2f} of its bound, furthest {past:+.3f} rad past a range end (margin "
             f"{c['kImpossibleRangeMarginRad']:g});{when}")

@@ -149,7 +149,7 @@ TEST(FrozenEncoder, BitIdenticalUnderTorqueAboveTheThresholdWhileTheBodyTurnsFau
   r.gyro_[1] = kTurning;
   r.ticks(200);  // the body-rate filter has settled (4 time constants)
   r.to_policy();
-  r.move_to(kKnee, r.q_[kKnee] + 0.35f);  // target 0.35 rad away at kp 150: |PD torque| 52.5 N·m > 0.65 x 60 N·m
+  r.move_to(kKnee, r.q_[kKnee] + 0.35f);  // target 0.35 rad away at kp 150: |PD torque| 52.5 N·m > the knee's threshold
   ASSERT_GT(0.35f * 150.0f, frozen_encoder_torque_nm(60.0f));
   r.ticks(kFrozenEncoderMaxCycles);
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
@@ -177,8 +177,8 @@ TEST(FrozenEncoder, AStillEncoderUnderStandingLoadsOrAMovingOneUnderFullTorqueNe
 }
 
 TEST(FrozenEncoder, TheThresholdIsAFractionOfTheLimitWithAFloor) {
-  EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(60.0f), 39.0f);                 // knee
-  EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(7.0f), kFrozenEncoderMinTorqueNm);  // head: gravity alone is 0.6 of it
+  EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(60.0f), 60.0f * kFrozenEncoderTorqueFraction);  // knee
+  EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(7.0f), kFrozenEncoderMinTorqueNm);  // head: above its 7 N·m limit, never reached
 }
 
 TEST(FrozenEncoder, MissedRepliesAreNoReadingAndAQuietTickRestartsTheClock) {

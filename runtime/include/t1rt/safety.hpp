@@ -79,8 +79,8 @@ static_assert(kSimStatusHold > kLatchedMask && kNonFiniteSimStatus <= kLatchedMa
 // Latency: the first such reply. A state numbered before the motor's last reply (a publisher restart) has
 // no previous reading to step from.
 inline constexpr int kMotorSilentMaxCycles = 10;             // more consecutive NO_REPLY states: FAULT
-inline constexpr float kFrozenEncoderTorqueFraction = 0.65f; // |PD torque| above this x the motor's limit
-inline constexpr float kFrozenEncoderMinTorqueNm = 10.0f;    // and above this [N·m]...
+inline constexpr float kFrozenEncoderTorqueFraction = 0.5f;  // |PD torque| above this x the motor's limit
+inline constexpr float kFrozenEncoderMinTorqueNm = 7.5f;     // and above this [N·m] (above a head's 7 N·m limit)
 inline constexpr int kFrozenEncoderMaxCycles = 50;           // ...on a bit-identical encoder for more replies
                                                              // in a row (100 ms of 2 ms bus cycles): FAULT
 inline constexpr float kBodyMotionTimeConstantS = 0.05f;     // low-pass of the IMU's |angular rate| [s]
