@@ -19,7 +19,7 @@ export PYOPENGL_PLATFORM ?= osmesa
 # Simulator arguments for `make sim`, e.g. make sim SIM_ARGS="--spawn fallen:3 --clock lockstep"
 SIM_ARGS ?= --scenario flat --spawn standing --clock realtime
 
-.PHONY: all setup build test test-fast sim spy spy-dds demo teleop bench bench-env bench-train clean replay plot-log
+.PHONY: all setup build test test-fast sim spy spy-dds demo teleop bench bench-env bench-train bench-soak clean replay plot-log
 
 all: build
 
@@ -90,6 +90,12 @@ bench-train: build
 # make bench BENCH_ARGS=--quick : 10 s loop runs instead of 60 s
 bench: build bench-env
 	$(NETNS) $(PY) -m tests.bench $(BENCH_ARGS)
+
+# The realtime loops' worst case under load: SOAK_MINUTES of t1-runtime --rt against the realtime sim --rt,
+# then as long of cyclictest, the other core loaded; histograms under out/bench/soak (tests/bench/soak.py).
+SOAK_MINUTES ?= 10
+bench-soak: build
+	$(NETNS) $(PY) -m tests.bench.soak --minutes $(SOAK_MINUTES)
 
 clean:
 	rm -rf $(BUILD)

@@ -4,8 +4,9 @@ with the host's view of every motor and the trunk's angular rate recorded each t
 
 Per run: the runtime's fault and how long after the injected fault it came, the longest run of NO_REPLY
 frames, the worst "still load" R9 could see (the largest |PD torque| held on a bit-identical encoder, away
-from the stops, while the body turned, for longer than R9's time, as a share of R9's torque threshold: 1.0
-would trip), the body's filtered rate, and R10's margins (fastest step as a share of its bound, furthest
+from the stops, while the body turned and the limbs moved, for longer than R9's time, as a share of R9's
+torque threshold: 1.0 would trip), the longest such evidence run at several torque thresholds, the filtered
+motion signals, and R10's margins (fastest step as a share of its bound, furthest
 reading past a range end). The rules' numbers are read from runtime/include/t1rt/safety.hpp.
 
   tools/netns .venv/bin/python tools/motor_watchdog_figures.py stand walk getup:62 push:0 drop delay \\
@@ -44,7 +45,7 @@ SWEEP_FRACTIONS = (0.45, 0.5, 0.55, 0.6, 0.65)   # R9 torque fractions the evide
 def constants() -> dict[str, float]:
     text = (ROOT / "runtime/include/t1rt/safety.hpp").read_text()
     names = ("kFrozenEncoderTorqueFraction", "kFrozenEncoderMinTorqueNm", "kFrozenEncoderMaxCycles",
-             "kBodyMotionTimeConstantS", "kBodyMotionMinRateRadS", "kFrozenEncoderStopMarginRad",
+             "kBodyMotionTimeConstantS", "kBodyMotionMinRateRadS", "kJointMotionMinSpeedRadS", "kFrozenEncoderStopMarginRad",
              "kImpossibleRangeMarginRad", "kImpossibleSpeedFactor")
     return {n: float(re.search(rf"{n} = ([0-9.]+)", text).group(1)) for n in names}
 
@@ -100,9 +101,11 @@ def analyse(rows: list[np.ndarray], c: dict[str, float], fault_at: float | None)
     # a row holds state k+1 and the command answering state k: the torque the runtime sees at state k+1
     tau = np.abs(kp * (qd - q) - kd * dq)[1:]
     body = low_pass(np.linalg.norm(gyro, axis=1), c["kBodyMotionTimeConstantS"])[1:]
+    limbs = low_pass(np.abs(dq).mean(axis=1), c["kBodyMotionTimeConstantS"])[1:]
     margin = c["kFrozenEncoderStopMarginRad"]
     off_stops = (q[1:] > fw.Q_MIN + margin) & (q[1:] < fw.Q_MAX - margin)
-    evidence = (q[1:] == q[:-1]) & replied & off_stops & (body > c["kBodyMotionMinRateRadS"])[:, None]
+    moving = (body > c["kBodyMotionMinRateRadS"]) & (limbs > c["kJointMotionMinSpeedRadS"])
+    evidence = (q[1:] == q[:-1]) & replied & off_stops & moving[:, None]
     longest, run = 0, np.zeros(q.shape[1], int)
     for miss in ~replied:
         run = np.where(miss, run + 1, 0)
@@ -124,8 +127,8 @@ def analyse(rows: list[np.ndarray], c: dict[str, float], fault_at: float | None)
     when = "" if not faulted.size or fault_at is None else f" {faulted[0] * DT + DT - fault_at:.2f} s after the fault"
     return (f"longest NO_REPLY run {longest}; worst still load with evidence {load[k, j] / threshold[j]:.2f} of R9's "
             f"threshold ({contract.JOINT_NAMES[j]} at {(k + 1) * DT:.2f} s); longest evidence run by torque "
-            f"fraction ({', '.join(runs)}; more than {width} trips); body rate filtered: "
-            f"max {body.max():.2f}, last 5 s max {body[-2500:].max():.3f} rad/s; R10: fastest step "
+            f"fraction ({', '.join(runs)}; more than {width} trips); filtered body rate max {body.max():.2f}, last "
+            f"5 s max {body[-2500:].max():.3f} rad/s, limb speed last 5 s max {limbs[-2500:].max():.3f} rad/s; R10: fastest step "
             f"{speed.max():.2f} of its bound, furthest {past:+.3f} rad past a range end (margin "
             f"{c['kImpossibleRangeMarginRad']:g});{when}")
 

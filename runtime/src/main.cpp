@@ -35,6 +35,14 @@ void on_stop_signal(int) {
 }
 void on_sighup(int) { t1rt::Controller::notify_sighup(); }
 
+// f: opened when the arguments were read, so a path that cannot be written is refused before the run.
+bool write_histogram(FILE* f, t1rt::PeriodicTask& task) {
+  const std::string bins = task.histogram().json();
+  std::fprintf(f, "{\"lateness_us\": %s, \"max_us\": %.1f, \"overruns\": %lld, \"ticks\": %lld}\n", bins.c_str(),
+               task.lateness().max(), static_cast<long long>(task.overruns()), static_cast<long long>(task.lateness().count()));
+  return std::fclose(f) == 0;
+}
+
 void usage(FILE* out) {
   std::fprintf(out,
       "usage: t1-runtime --policy PATH [--policy-upright PATH] [options]\n"
@@ -56,6 +64,8 @@ void usage(FILE* out) {
       "  --prepare-s S          PREPARE ramp duration in seconds (default 2; 0 < S <= 10)\n"
       "  --duration S           stop after S wall-clock seconds, 0 < S <= 30 days (default: until SIGINT/SIGTERM)\n"
       "  --quiet                no live status line\n"
+      "  --lateness-histogram PATH  realtime: at exit, write every tick's wake-up lateness as a 1 us histogram\n"
+      "                         (JSON: bin_us, count, max_us, overruns, ticks) to PATH (make bench-soak)\n"
       "  --help                 this text\n"
       "signals: SIGHUP reloads the current policy file; SIGINT/SIGTERM stop.\n"
       "exit codes: 0 ok, 2 usage, 3 bad artifact, 4 LCM/DDS init failure, 5 --rt-required setup failure\n");
@@ -67,6 +77,8 @@ int main(int argc, char** argv) {
   std::string cli_url;
   bool rt = false, rt_required = false;
   t1rt::RtOptions rt_options;
+  std::string histogram_path;
+  FILE* histogram_file = nullptr;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* name) -> const char* {
@@ -114,6 +126,14 @@ int main(int argc, char** argv) {
       }
     }
     else if (a == "--quiet") opt.quiet = true;
+    else if (a == "--lateness-histogram") {
+      histogram_path = value("--lateness-histogram");
+      histogram_file = std::fopen(histogram_path.c_str(), "w");
+      if (!histogram_file) {
+        std::fprintf(stderr, "t1-runtime: --lateness-histogram: cannot write %s: %s\n", histogram_path.c_str(), std::strerror(errno));
+        return kExitUsage;
+      }
+    }
     else if (a == "--duration") {
       char* end = nullptr;
       const char* v = value("--duration");
@@ -173,6 +193,10 @@ int main(int argc, char** argv) {
   controller.run();
   g_controller = nullptr;
   auto& task = controller.task();
+  if (histogram_file && !write_histogram(histogram_file, task)) {
+    std::fprintf(stderr, "t1-runtime: --lateness-histogram: cannot write %s: %s\n", histogram_path.c_str(), std::strerror(errno));
+    return kExitUsage;
+  }
   std::fprintf(stderr, "t1-runtime: stopped in %s after %lld ticks (%lld policy); lateness p99 %.1f us max %.1f us; "
                "compute p99 %.1f us max %.1f us; overruns %lld; last fault: %s\n",
                t1rt::mode_name(controller.supervisor().mode()), static_cast<long long>(controller.ticks()),

@@ -51,6 +51,21 @@ double TimingStats::p99() {
   return scratch_[k];
 }
 
+void LatenessHistogram::add(double late_us) {
+  const double clamped = std::min(std::max(late_us, 0.0), static_cast<double>(kMaxUs));
+  ++counts_[static_cast<std::size_t>(clamped)];
+}
+
+std::string LatenessHistogram::json() const {
+  std::string bins, counts;
+  for (std::size_t us = 0; us < counts_.size(); ++us) {
+    if (!counts_[us]) continue;
+    bins += (bins.empty() ? "" : ",") + std::to_string(us);
+    counts += (counts.empty() ? "" : ",") + std::to_string(counts_[us]);
+  }
+  return "{\"bin_us\": [" + bins + "], \"count\": [" + counts + "]}";
+}
+
 RtSetup::~RtSetup() {
   if (dma_latency_fd_ >= 0) close(dma_latency_fd_);
 }
@@ -94,6 +109,7 @@ int64_t PeriodicTask::wait_next() {
   wake_ns_ = monotonic_ns();
   const int64_t late_ns = wake_ns_ - deadline_ns_;
   lateness_.add(static_cast<double>(late_ns) / kNsPerUs);
+  histogram_.add(static_cast<double>(late_ns) / kNsPerUs);
   deadline_ns_ += period_ns_;
   if (late_ns > period_ns_) {
     // Missed at least one whole period: count it and re-phase instead of bursting to catch up.

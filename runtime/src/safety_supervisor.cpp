@@ -29,8 +29,8 @@
 //     motor trips 22 ms after its last reply, before its own 50 ms watchdog.
 //  R9 Frozen encoder (issue 69): q bit-identical on consecutive replies under a PD torque above
 //     frozen_encoder_torque_nm, more than kFrozenEncoderStopMarginRad inside the range, while the IMU's
-//     low-passed angular rate says the body turns, for more than 50 replies (100 ms). Missing replies neither
-//     advance nor reset it.
+//     low-passed angular rate says the body turns and the motors' low-passed speed says the limbs move, for
+//     more than kFrozenEncoderMaxCycles replies (80 ms). Missing replies neither advance nor reset it.
 //  R10 Impossible reading (issue 69): a reply past its range by more than kImpossibleRangeMarginRad, or a step
 //     from the motor's previous reply faster than kImpossibleSpeedFactor x its class's v_max; at once.
 //     Why these signals and values, the latencies and the false-alarm argument: t1rt/safety.hpp.
@@ -53,9 +53,9 @@ namespace {
 constexpr int32_t kMotorFaultMask = T1_STATUS_NOT_FOLLOWING | T1_STATUS_BAD_FRAME | T1_STATUS_BAD_SENSOR;
 constexpr int32_t kMotorInfoMask = T1_STATUS_OVER_LIMIT;
 constexpr double kNever = std::numeric_limits<double>::infinity();
-// One q code of the reply (t1_motor_protocol.h §5) [rad], and R9's body-rate low-pass per 2 ms state.
+// One q code of the reply (t1_motor_protocol.h §5) [rad], and R9's motion low-pass gain per 2 ms state.
 constexpr float kQQuantumRad = 2.0f * T1_Q_MAX_RAD / static_cast<float>((1u << T1_Q_BITS) - 1u);
-constexpr float kBodyRateFilterGain = static_cast<float>(kLoopDtS) / kBodyMotionTimeConstantS;
+constexpr float kMotionFilterGain = static_cast<float>(kLoopDtS) / kBodyMotionTimeConstantS;
 
 bool all_finite(const float* v, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i)
@@ -268,12 +268,17 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
 bool Supervisor::advance_watch(const StateView& s) {
   if (!s.have_joint || s.joint_time_s == watched_joint_time_s_) return false;
   watched_joint_time_s_ = s.joint_time_s;
-  // R9's evidence that the body moves: the IMU's angular rate, which no joint encoder feeds, low-passed.
+  // R9's evidence that the robot moves, low-passed: the IMU's angular rate and the motors' mean speed.
   if (s.have_imu && all_finite(s.gyro, 3)) {
     const float rate = std::sqrt(s.gyro[0] * s.gyro[0] + s.gyro[1] * s.gyro[1] + s.gyro[2] * s.gyro[2]);
-    body_rate_radps_ += kBodyRateFilterGain * (rate - body_rate_radps_);
+    body_rate_radps_ += kMotionFilterGain * (rate - body_rate_radps_);
   }
-  const bool body_moves = body_rate_radps_ > kBodyMotionMinRateRadS;
+  if (all_finite(s.dq, kJoints)) {
+    float speed = 0.0f;
+    for (std::size_t i = 0; i < kJoints; ++i) speed += std::fabs(s.dq[i]);
+    joint_speed_radps_ += kMotionFilterGain * (speed / static_cast<float>(kJoints) - joint_speed_radps_);
+  }
+  const bool body_moves = body_rate_radps_ > kBodyMotionMinRateRadS && joint_speed_radps_ > kJointMotionMinSpeedRadS;
   for (std::size_t i = 0; i < kJoints; ++i) {
     MotorWatch& w = watch_[i];
     if (s.motor_status[i] & T1_STATUS_NO_REPLY) {  // no reading this cycle: R9 and R10 wait for one

@@ -2,14 +2,17 @@
 the same run. Runs inside the project network namespace (make bench wraps it in tools/netns)."""
 import sys
 
-from tests.bench import sim_rtf, state_jitter
+from tests.bench import sim_rtf, soak, state_jitter
 
 JITTER_S = {True: 5.0, False: 20.0}      # realtime run per row [s]: --quick, full
+SOAK_MINUTES = {True: 0.25, False: 1.0}  # the soak's short row (make bench-soak: 10 min each)
 
 
 def main() -> None:
+    quick = "--quick" in sys.argv[1:]
     sim_rtf.main()
-    state_jitter.main(JITTER_S["--quick" in sys.argv[1:]])
+    state_jitter.main(JITTER_S[quick])
+    soak.main(["--minutes", str(SOAK_MINUTES[quick])])
     try:
         from tests.bench import runtime_bench
     except ImportError:

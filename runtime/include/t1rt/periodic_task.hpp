@@ -51,6 +51,18 @@ class RtSetup {
   bool all_ok_ = true;
 };
 
+// Every wake-up's lateness in 1 us bins up to kMaxUs (and one bin above), as cyclictest -h keeps it: the whole
+// run's worst case and tail, not the status window's. Fixed array: no allocation in the loop.
+class LatenessHistogram {
+ public:
+  static constexpr int kMaxUs = 20000;
+  void add(double late_us);
+  // {"bin_us": [...], "count": [...]} of the non-empty bins (the last bin is "kMaxUs or more") as JSON text.
+  std::string json() const;
+ private:
+  std::array<uint32_t, kMaxUs + 1> counts_{};
+};
+
 class PeriodicTask {
  public:
   explicit PeriodicTask(int64_t period_ns = kLoopPeriodNs) : period_ns_(period_ns) {}
@@ -59,6 +71,7 @@ class PeriodicTask {
   void end_compute();        // records compute time since the last wake-up
   int64_t overruns() const { return overruns_; }
   TimingStats& lateness() { return lateness_; }
+  const LatenessHistogram& histogram() const { return histogram_; }
   TimingStats& compute() { return compute_; }
 
  private:
@@ -67,6 +80,7 @@ class PeriodicTask {
   int64_t wake_ns_ = 0;
   int64_t overruns_ = 0;
   TimingStats lateness_, compute_;
+  LatenessHistogram histogram_;
 };
 
 }  // namespace t1rt

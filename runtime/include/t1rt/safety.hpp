@@ -61,17 +61,21 @@ static_assert(kSimStatusHold > kLatchedMask && kNonFiniteSimStatus <= kLatchedMa
 // contradicts a still reading; independent of it are the IMU and the other motors. Evidence, per reply:
 // q bit-identical to the motor's previous reply, (a) under the last command's PD torque kp (q_des - q) -
 // kd dq above frozen_encoder_torque_nm, (b) more than kFrozenEncoderStopMarginRad inside the joint's range
-// (at a stop, the stop explains a still joint under load), (c) while the IMU's angular rate, low-passed with
-// kBodyMotionTimeConstantS, is above kBodyMotionMinRateRadS: the body turns, so the loads on every joint
-// change, and a joint that keeps its encoder's last code under a large torque and a changing load is not
-// still. More than kFrozenEncoderMaxCycles such replies in a row: FAULT, 100 ms of coincident evidence
-// (latency from the freeze: see the README's rule table).
+// (at a stop, the stop explains a still joint under load), (c) while the robot is in motion by two signals
+// the frozen encoder does not feed, each low-passed with kBodyMotionTimeConstantS: the IMU's angular rate is
+// above kBodyMotionMinRateRadS (the body turns) and the motors' mean |dq| is above kJointMotionMinSpeedRadS
+// (the limbs move; a frozen encoder's own dq of 0 only lowers it). Then the loads on every joint change, and
+// a joint that keeps its encoder's last code under a large torque and a changing load is not still. (A
+// robot swaying after a push turns at 0.1-0.2 rad/s with its limbs still, 0.02-0.07 rad/s: the IMU alone
+// held a loaded hip pitch still for 49 replies there.) More than kFrozenEncoderMaxCycles such replies in a
+// row: FAULT, 80 ms of coincident evidence (latency from the freeze: see the README's rule table).
 // False alarms: a robot at rest (standing, kneeling, lying, leaning on a wall, a test stand replaying one
-// pose) has an IMU at rest. Standing after a getup the filtered rate stays below 0.015 rad/s, walking it is
-// 0.23-0.86 rad/s, and a MEMS gyro's bias (< 0.03 rad/s) does not reach 0.1. While the body moves the
-// issue-48 evidence holds: over 29 runs of standing, walking, getups, pushes, drops and delays, the most
-// load held 100 ms on a still encoder was 0.78 of the torque threshold. A frozen encoder on a joint that
-// does not move is harmless and undetectable, and is not detected.
+// pose) has an IMU and motors at rest: standing after a getup the filtered rate stays below 0.015 rad/s
+// and the motors' mean speed at their quantisation floor, 0.008 rad/s; walking they are 0.23-0.86 and
+// 0.36-1.1 rad/s; a MEMS gyro's bias (< 0.03 rad/s) does not reach 0.1. In motion, over 44 runs of
+// standing, walking, getups of three policies, 16 push-test pushes, 5 % drop and 10 ms delay, the longest
+// run of replies with this evidence was 17 (a getup), less than half of the 40 that trip. A frozen encoder
+// on a joint that does not move is harmless and undetectable, and is not detected.
 //
 // R10, an impossible reading: a reply past its joint's range by more than kImpossibleRangeMarginRad, or a
 // step from the motor's previous reply faster than kImpossibleSpeedFactor x its class's reply range v_max
@@ -81,10 +85,13 @@ static_assert(kSimStatusHold > kLatchedMask && kNonFiniteSimStatus <= kLatchedMa
 inline constexpr int kMotorSilentMaxCycles = 10;             // more consecutive NO_REPLY states: FAULT
 inline constexpr float kFrozenEncoderTorqueFraction = 0.5f;  // |PD torque| above this x the motor's limit
 inline constexpr float kFrozenEncoderMinTorqueNm = 7.5f;     // and above this [N·m] (above a head's 7 N·m limit)
-inline constexpr int kFrozenEncoderMaxCycles = 50;           // ...on a bit-identical encoder for more replies
-                                                             // in a row (100 ms of 2 ms bus cycles): FAULT
-inline constexpr float kBodyMotionTimeConstantS = 0.05f;     // low-pass of the IMU's |angular rate| [s]
-inline constexpr float kBodyMotionMinRateRadS = 0.1f;        // the filtered rate above which the body moves [rad/s]
+inline constexpr int kFrozenEncoderMaxCycles = 40;           // ...on a bit-identical encoder for more replies
+                                                             // in a row (80 ms of 2 ms bus cycles): FAULT
+inline constexpr float kBodyMotionTimeConstantS = 0.05f;     // low-pass of both motion signals below [s]
+inline constexpr float kBodyMotionMinRateRadS = 0.1f;        // the IMU's filtered |angular rate| above which
+                                                             // the body turns [rad/s]
+inline constexpr float kJointMotionMinSpeedRadS = 0.1f;      // the joints' filtered mean |dq| above which
+                                                             // the limbs move [rad/s]
 inline constexpr float kFrozenEncoderStopMarginRad = 0.02f;  // a reading this close to (or past) a range end is
                                                              // explained by the stop holding the joint [rad]
 // R10: a reply no joint produces. Past a range end by more than kImpossibleRangeMarginRad (falls and pushes
@@ -206,7 +213,8 @@ class Supervisor {
   bool advance_watch(const StateView& state);
   std::array<MotorWatch, kJoints> watch_{};
   double watched_joint_time_s_ = -1e300;  // the state watch_ has seen last
-  float body_rate_radps_ = 0.0f;  // low-passed |IMU angular rate|: R9's evidence that the body moves
+  float body_rate_radps_ = 0.0f;     // low-passed |IMU angular rate|: R9's evidence that the body turns
+  float joint_speed_radps_ = 0.0f;   // low-passed mean |dq| of the motors: R9's evidence that the limbs move
   JointArray cmd_q_{}, cmd_kp_{}, cmd_kd_{};  // the last command sent: what the motors act on now
 
   SafetyConfig cfg_;
