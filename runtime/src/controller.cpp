@@ -1,5 +1,6 @@
 #include "t1rt/controller.hpp"
 
+#include <chrono>
 #include <cstdio>
 #include <cstring>
 
@@ -303,20 +304,36 @@ void Controller::publish_status(double now_s) {
                 reload_info_, dds_info[0] ? " | " : "", dds_info);
   assign_bounded(status_.info, info);
   transport_.publish(t1::CH_CONTROLLER_STATUS, status_);
-  if (!opt_.quiet) print_live_line(now_s);
+  if (!opt_.quiet) post_live_line();
 }
 
-void Controller::print_live_line(double) {
-  const int64_t now = monotonic_ns();
-  if (now - last_live_ns_ < kLiveLinePeriodNs) return;
-  last_live_ns_ = now;
+void Controller::post_live_line() {
+  LiveLine line{};
+  std::snprintf(line.mode, sizeof(line.mode), "%s", status_.mode_name.c_str());
+  std::snprintf(line.last_fault, sizeof(line.last_fault), "%s", status_.last_fault.c_str());
   if (upright_)  // composite mode: say it runs on a privileged sim signal, and which member acts
-    std::fprintf(stderr, "\rCOMPOSITE(sim waist %.2f m -> %-7s) ", transport_.sim_status.msg.waist_height,
-                 member_name(member_));
-  std::fprintf(stderr, "%s%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint %5.1f ms | ovr %lld | %.60s   ",
-               upright_ ? "" : "\r", status_.mode_name.c_str(), static_cast<long long>(ticks_), static_cast<long long>(policy_ticks_),
-               status_.lateness_us_p99, status_.compute_us_p99, status_.imu_age_ms, status_.joint_age_ms,
-               static_cast<long long>(task_.overruns()), status_.last_fault.c_str());
+    std::snprintf(line.composite, sizeof(line.composite), "COMPOSITE(sim waist %.2f m -> %-7s) ",
+                  transport_.sim_status.msg.waist_height, member_name(member_));
+  line.ticks = ticks_;
+  line.policy_ticks = policy_ticks_;
+  line.overruns = task_.overruns();
+  line.lateness_p99_us = status_.lateness_us_p99;
+  line.compute_p99_us = status_.compute_us_p99;
+  line.imu_age_ms = status_.imu_age_ms;
+  line.joint_age_ms = status_.joint_age_ms;
+  live_line_.write(line);
+}
+
+void Controller::live_line_worker() {
+  LiveLine line{};
+  while (!stop_.load()) {
+    std::this_thread::sleep_for(std::chrono::nanoseconds(kLiveLinePeriodNs));
+    if (!live_line_.read(&line)) continue;
+    std::fprintf(stderr, "\r%s%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint %5.1f ms | ovr %lld | %.60s   ",
+                 line.composite, line.mode, static_cast<long long>(line.ticks), static_cast<long long>(line.policy_ticks),
+                 line.lateness_p99_us, line.compute_p99_us, line.imu_age_ms, line.joint_age_ms,
+                 static_cast<long long>(line.overruns), line.last_fault);
+  }
 }
 
 bool Controller::step_lockstep(int timeout_ms) {
@@ -344,6 +361,7 @@ void Controller::step_realtime() {
 }
 
 void Controller::run() {
+  if (!opt_.quiet) live_line_thread_ = std::thread(&Controller::live_line_worker, this);
   const int64_t start = monotonic_ns();
   const int64_t end = opt_.duration_s > 0 ? start + static_cast<int64_t>(opt_.duration_s * 1e9) : INT64_MAX;
   task_.start();
@@ -352,6 +370,8 @@ void Controller::run() {
     else step_realtime();
   }
   send_exit_damping();
+  stop_.store(true);
+  if (live_line_thread_.joinable()) live_line_thread_.join();
   if (!opt_.quiet) std::fprintf(stderr, "\n");
 }
 

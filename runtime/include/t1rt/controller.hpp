@@ -14,6 +14,7 @@
 #include "t1/observation_t.hpp"
 #include "t1rt/composite.hpp"
 #include "t1rt/dds_transport.hpp"
+#include "t1rt/handover.hpp"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/policy.hpp"
 #include "t1rt/safety.hpp"
@@ -80,7 +81,8 @@ class Controller {
   void publish_policy_telemetry(double now_s);  // T1_OBS / T1_ACTION of this policy tick, after its command
   void adopt_ready_policy();
   void publish_status(double now_s);
-  void print_live_line(double now_s);
+  void post_live_line();   // the loop's side: a snapshot into live_line_
+  void live_line_worker(); // its own thread: prints the newest snapshot at 5 Hz
   void reload_worker();
   StateView state_view(double now_s) const;
   void select_member(float waist_height_m);
@@ -103,8 +105,18 @@ class Controller {
   t1::controller_status_t status_{};
   float command_vel_[3] = {0, 0, 0};  // gated joystick command [m/s, m/s, rad/s]
   int64_t ticks_ = 0, policy_ticks_ = 0, policy_phase_ = 0, cmd_seq_ = 0;
-  int64_t last_live_ns_ = 0;
   std::atomic<bool> stop_{false};
+
+  // The live status line leaves the loop through a lock-free hand-over: stderr may block, the loop may not.
+  struct LiveLine {
+    char mode[16];
+    char last_fault[64];
+    char composite[64];  // empty unless composite mode
+    int64_t ticks, policy_ticks, overruns;
+    float lateness_p99_us, compute_p99_us, imu_age_ms, joint_age_ms;
+  };
+  Latest<LiveLine> live_line_;
+  std::thread live_line_thread_;
 
   // reload worker state (guarded by reload_mutex_)
   std::mutex reload_mutex_;
