@@ -291,13 +291,13 @@ class Simulator:
             if force is not None:
                 self.data.xfrc_applied[self.trunk_id, :3] += force
             presses = self.faults.joint_presses(self.data.time)
-            for i, tau in presses.items():
-                self.data.qfrc_applied[6 + i] += tau
+            for i, press_nm in presses.items():
+                self.data.qfrc_applied[6 + i] += press_nm
             mujoco.mj_step(self.model, self.data)
             if force is not None:
                 self.data.xfrc_applied[self.trunk_id, :3] -= force
-            for i, tau in presses.items():
-                self.data.qfrc_applied[6 + i] -= tau
+            for i, press_nm in presses.items():
+                self.data.qfrc_applied[6 + i] -= press_nm
         q_enc, dq_enc = self._encoders()
         self.bus.exchange_replies(q_enc, dq_enc, tau, self.now_us, drop, dead)
 

@@ -96,6 +96,8 @@ def test_a_press_holds_a_joint_against_its_stop(netns):
     seq, t, _ = _run(f"press:joint={joint},tau=25@0.1", duration_s=0.6)
     q = np.array([s.q[joint] for s in seq])
     assert q[t < 0.1].max() < fw.Q_MAX[joint] - 0.3 and q[t > 0.4].min() > fw.Q_MAX[joint] - 0.01
+    tau = np.array([s.tau_est for s, ti in zip(seq, t) if ti > 0.2])   # each motor still reports its own torque
+    assert (np.ptp(tau, axis=1) > 1.0).all() and not np.isclose(tau[:, joint], 25.0).any()
 
 
 def test_imu_noise_and_bias_show_in_the_imu_stream(netns):

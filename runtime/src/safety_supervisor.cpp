@@ -265,8 +265,8 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
 }
 
 // Rules R8-R10, advanced once per new joint state (a tick that reuses the state counts nothing).
-bool Supervisor::advance_watch(const StateView& s) {
-  if (!s.have_joint || s.joint_time_s == watched_joint_time_s_) return false;
+void Supervisor::advance_watch(const StateView& s) {
+  if (!s.have_joint || s.joint_time_s == watched_joint_time_s_) return;
   watched_joint_time_s_ = s.joint_time_s;
   // R9's evidence that the robot moves, low-passed: the IMU's angular rate and the motors' mean speed.
   if (s.have_imu && all_finite(s.gyro, 3)) {
@@ -290,7 +290,7 @@ bool Supervisor::advance_watch(const StateView& s) {
     const float q = s.q[i];
     // A state not newer than this motor's last reply is a publisher restart: no reading to compare with.
     const bool have_prev = w.have_q && s.joint_seq > w.last_seq;
-    // R10: beyond the range by more than the soft stop's reach, or faster than the reply can say.
+    // R10: further past the range, or faster, than any joint of the model went in falls, getups and pushes.
     const bool outside = q < m.q_min_rad - kImpossibleRangeMarginRad || q > m.q_max_rad + kImpossibleRangeMarginRad;
     const float v_max = kImpossibleSpeedFactor * T1_CLASS_RANGES[m.motor_class].v_max_rads;  // [rad/s]
     const float max_step = have_prev ? v_max * static_cast<float>(kLoopDtS) *
@@ -310,7 +310,6 @@ bool Supervisor::advance_watch(const StateView& s) {
     w.last_q = q;
     w.last_seq = s.joint_seq;
   }
-  return true;
 }
 
 // The first motor that breaks R8, R9 or R10 now (-1: none), with its fault bit and the reason naming it.

@@ -210,7 +210,7 @@ class Supervisor {
     float impossible_from = 0.0f;     // [rad] the reply before it, and how long before [ms] (for the message)
     float impossible_ms = 0.0f;
   };
-  bool advance_watch(const StateView& state);
+  void advance_watch(const StateView& state);
   std::array<MotorWatch, kJoints> watch_{};
   double watched_joint_time_s_ = -1e300;  // the state watch_ has seen last
   float body_rate_radps_ = 0.0f;     // low-passed |IMU angular rate|: R9's evidence that the body turns
