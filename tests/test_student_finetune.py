@@ -13,7 +13,7 @@ from ml_collections import config_dict
 from common import observation as obsdef
 from training import student_finetune as F
 from training import ppo_networks
-from training.train import ppo_config
+from training.configs import ppo_config
 
 OBS = {"state": (82,), "privileged_state": (125,), "waist_height": (1,)}
 HIDDEN = (16, 8)

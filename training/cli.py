@@ -58,8 +58,8 @@ def _cmd_export_phase(args, command: str) -> int:
 
 
 def _cmd_export_checkpoint(args, command: str) -> int:
-    from training import export
-    path = export.export_checkpoint(args.run, args.steps, args.name, like=args.like)
+    from training import train
+    path = train.export_checkpoint(args.run, args.steps, args.name, like=args.like)
     print(f"{path}: the checkpoint at {args.steps} env steps of {args.run}")
     return 0
 

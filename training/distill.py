@@ -156,7 +156,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     cfg, env_cfg = bc_config(preset), envs.default_config(task)
     env_cfg.obs_terms = [list(t) for t in obsdef.TERMS_UNION]
     if preset == "toy":
-        from training.train import TOY_ENV_OVERRIDES
+        from training.configs import TOY_ENV_OVERRIDES
         env_cfg.update({k: v for k, v in TOY_ENV_OVERRIDES.items() if k in env_cfg})
     apply_overrides({"bc": cfg, "env": env_cfg}, overrides)
     if num_envs is not None:

@@ -56,7 +56,7 @@ def init_params(restored, ppo_cfg):
     initialises it); anything else is returned as it is."""
     if restored is None or not is_student_checkpoint(restored):
         return restored
-    if ppo_cfg.get("policy_distribution", "tanh_normal") != NORMAL:
+    if ppo_cfg.policy_distribution != NORMAL:
         raise ValueError("a DAgger student checkpoint fine-tunes only with ppo.policy_distribution='normal' "
                          "(it acts with its mean, no tanh)")
     if not float(ppo_cfg.init_noise_std) > 0:
@@ -98,8 +98,7 @@ def in_wall_course(data):
 
 
 def uses_teacher(ppo_cfg) -> bool:
-    t = ppo_cfg.get("teacher")
-    return bool(t) and float(t.bc_weight) > 0
+    return float(ppo_cfg.teacher.bc_weight) > 0
 
 
 def wrap_env_fn(ppo_cfg, env, full_reset: bool):
@@ -125,7 +124,7 @@ def teacher_term(ppo_cfg, env, count_start: float):
     teacher = make_teacher(load_expert(t.getup, "getup"), load_expert(t.joystick, "joystick"), env.obs_terms,
                            env.manifest_fields()["action_scale"], student_tanh_squash=False)
     weight, decay = float(t.bc_weight), int(t.bc_decay_steps)
-    hold = bool(t.get("bc_hold_in_course", False))
+    hold = bool(t.bc_hold_in_course)
     ppo_loss = ppo_losses.compute_ppo_loss
 
     def loss(params, normalizer_params, data, rng, ppo_network, **kwargs):

@@ -19,75 +19,13 @@ from typing import Sequence
 
 from ml_collections import config_dict
 
-from training import checkpoints, curves, ppo_networks, student_finetune
+from common.artifact import read_artifact
+from training import checkpoints, curves, migration, ppo_networks, student_finetune
+from training.configs import build_configs
 from training.export import export_brax_ppo, exported_as_trained, exported_policy, run_provenance
 from training.checkpoints import REPO_ROOT
 from training.overrides import apply_overrides
 from training.ppo_networks import ACTIVATION
-
-PRESETS = ("gpu", "cpu", "toy")
-# Env settings of the toy preset (applied where the task's config has the key): 0.4 s episodes and a
-# small bank of host-precomputed fallen starts.
-TOY_ENV_OVERRIDES = {"episode_length": 20, "fallen_bank_size": 2}
-
-
-def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
-    """Per-task PPO config. `gpu`: Playground's T1 joystick recipe (locomotion_params.py, T1Joystick*),
-    the seed's getup runs on the same settings; `cpu`: the same recipe sized for the CPU backend
-    (a few thousand env-steps/s); `toy`: tiny networks and batches for CPU smoke tests."""
-    if preset not in PRESETS:
-        raise ValueError(f"preset: {preset!r} is not one of {PRESETS}")
-    cfg = config_dict.create(
-        num_timesteps=200_000_000 if task == "joystick" else 100_000_000,
-        num_envs=8192, batch_size=256, num_minibatches=32, unroll_length=20, num_updates_per_batch=4,
-        discounting=0.97, learning_rate=3e-4, entropy_cost=0.005, clipping_epsilon=0.2, max_grad_norm=1.0,
-        reward_scaling=1.0, normalize_observations=True, num_resets_per_eval=1,
-        # getup episodes must restart from freshly sampled fallen/kneeling/standing states
-        full_reset=task != "joystick",
-        domain_randomization=task == "joystick",  # Playground T1: friction, gains, masses (envs.domain_randomize)
-        policy_hidden_layer_sizes=(512, 256, 128), value_hidden_layer_sizes=(512, 256, 128),
-        policy_obs_key="state", value_obs_key="privileged_state",
-        # exploration: the sampling std × this (1 = brax's tanh-normal, std ≈ 0.69 at init). The same
-        # pre-tanh noise moves a getup target 4× as far as a joystick one (action scale 2 vs 0.5 rad)
-        policy_std_scale=1.0,
-        # steps at the start of a run in which only the critic learns (the policy gets no gradient): a
-        # fine-tune on new starts first fits the value of states the pretrained critic never saw, so the
-        # first policy updates do not follow its errors (issue 14: full getup from stage 2)
-        value_warmup_steps=0,
-        # the student's RL fine-tune (training/student_finetune.py): "normal" = a Gaussian around the mean the
-        # policy acts with (no tanh), std starting at init_noise_std [action units]; teacher: the stitched
-        # teacher's experts and the decaying behaviour-cloning term toward its labels (bc_weight 0 = none;
-        # bc_hold_in_course: no decay in wall-course episodes)
-        policy_distribution="tanh_normal", init_noise_std=0.1,
-        teacher=config_dict.create(getup="", joystick="", bc_weight=0.0, bc_decay_steps=0, bc_hold_in_course=False),
-        # one epoch ≈ 1 min on an H100 (joystick ~100k env-steps/s; the full-body getup 40–76k: half as many)
-        checkpoint_every_steps=10_000_000 if task == "joystick" else 5_000_000,
-        run_evals=True, num_eval_envs=128, deterministic_eval=True,
-        log_training_metrics=True, training_metrics_steps=1_000_000,
-    )
-    if preset == "cpu":
-        cfg.update(dict(
-            # 256 envs: one host call steps them all on every core; more envs only lengthen the call
-            # (the physics is ~linear in envs) while fewer updates per env step waste samples.
-            num_envs=256,
-            # 256 · 4 · 20 = 20 480 env steps per update (GPU: 163 840): 8× more updates per env step,
-            # the sample-efficient end at this throughput; minibatches of 256 · 20 = 5 120 samples.
-            batch_size=256, num_minibatches=4,
-            # unroll, epochs, discount, lr, entropy, clipping: Playground's values (tuned for this task)
-            # Networks as the GPU preset: a CPU run can be resumed on the GPU and vice versa, and the
-            # runtime's MLP benchmark stays representative. Smaller nets would shave only the learner
-            # share (~30 % of a step here).
-            checkpoint_every_steps=1_000_000,   # one epoch ≈ 4–6 min at ~3–5 k env-steps/s
-            num_eval_envs=64, training_metrics_steps=200_000))
-    elif preset == "toy":
-        cfg.update(dict(
-            num_timesteps=2_000, num_envs=8, batch_size=8, num_minibatches=2, unroll_length=5,
-            num_updates_per_batch=1, policy_hidden_layer_sizes=(16, 16), value_hidden_layer_sizes=(16, 16),
-            checkpoint_every_steps=80, num_eval_envs=4, training_metrics_steps=80,
-            # each of these compiles the MJX step once more: minutes on a CPU
-            run_evals=False, domain_randomization=False, num_resets_per_eval=0))
-    return cfg
-
 
 @dataclass
 class TrainResult:
@@ -129,22 +67,6 @@ def make_env(task: str, env_cfg: config_dict.ConfigDict):
     if task not in envs.TASKS:
         raise ValueError(f"task: {task!r} is not one of {envs.TASKS}")
     return envs.make(task, config=env_cfg)
-
-
-def build_configs(task: str, preset: str, stage: str | None, overrides: Sequence[str]):
-    """(ppo config, env config) with --stage and --config key=value applied."""
-    from training import envs
-    if task not in envs.TASKS:
-        raise ValueError(f"task: {task!r} is not one of {envs.TASKS}")
-    ppo_cfg, env_cfg = ppo_config(task, preset), envs.default_config(task)
-    if stage is not None:
-        if "stage" not in env_cfg:
-            raise ValueError(f"--stage: task {task!r} has no stages (only the getup task has)")
-        env_cfg.stage = stage
-    if preset == "toy":
-        env_cfg.update({k: v for k, v in TOY_ENV_OVERRIDES.items() if k in env_cfg})
-    apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)
-    return ppo_cfg, env_cfg
 
 
 # What --config may change on --resume: how the run is computed and logged, not what it learns (a
@@ -205,10 +127,9 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
         if state["task"] != task:
             raise ValueError(f"--resume: {run_dir} is a {state['task']!r} run, not {task!r}")
         preset = state["preset"]  # a toy run stays a toy run (and its artifact untrained)
-        ppo_cfg = config_dict.ConfigDict(state["ppo_config"])
-        env_cfg = config_dict.ConfigDict(state["env_config"])
+        ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
         apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)
-        state["ppo_config"] = ppo_cfg.to_dict()
+        state["ppo_config"], state["env_config"] = ppo_cfg.to_dict(), env_cfg.to_dict()
         if steps is not None:
             state["target_steps"] = int(steps)  # extending a finished run is allowed
         restore = checkpoints.load_checkpoint(run_dir) if state["env_steps"] > 0 else state.get("init")
@@ -312,7 +233,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
             restore_value_fn=latest["params"] is not None and latest["params"][2] is not None)
 
     # (end step, networks): the critic-only warm-up, then PPO proper
-    warmup_end = min(target, int(ppo_cfg.get("value_warmup_steps", 0)))
+    warmup_end = min(target, int(ppo_cfg.value_warmup_steps))
     phases = ((warmup_end, ppo_networks.frozen_policy_factory(factory)), (target, factory))
     stopped = False
     try:
@@ -358,10 +279,49 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     return path
 
 
+def _env_fields_artifact(run_dir: Path, state: dict) -> Path:
+    """An artifact with the run's env and network fields: its own newest export, or, mid-run (no export
+    yet), the export of the run it was started --from (same model, observation and network)."""
+    own = run_dir / f"{state['name']}.safetensors"
+    init = Path(state.get("init") or "")
+    if own.exists() or init.parent.name != checkpoints.CHECKPOINT_DIR:
+        return own
+    parent = init.parent.parent
+    try:
+        return parent / f"{checkpoints.load_run_state(parent)['name']}.safetensors"
+    except (OSError, ValueError, KeyError):
+        return own     # named in the error below
+
+
+def export_checkpoint(run_dir, env_steps: int, name: str, like=None) -> Path:
+    """A run's kept checkpoint at `env_steps` → run_dir/<name>.safetensors: the env and network fields of
+    `like` (default: the run's export, mid-run its --from run's), this run's provenance at that checkpoint's
+    steps. A campaign screens its checkpoints and keeps the best one (e.g. the cheapest getup that still stands)."""
+    run_dir = Path(run_dir)
+    state = checkpoints.load_run_state(run_dir)
+    ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
+    state = {**state, "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict()}
+    ckpt = checkpoints.kept_checkpoint(run_dir, env_steps, f"{env_steps} env steps")
+    like = Path(like) if like else _env_fields_artifact(run_dir, state)
+    if not like.exists():
+        raise FileNotFoundError(f"{like}: no export of the run (nor of a --from run) to take the manifest's "
+                                "env fields from (name one with --like)")
+    manifest = {k: v for k, v in read_artifact(like)[3].items() if k not in ("content_hash", "provenance")}
+    manifest["provenance"] = {**run_provenance(state, env_steps, state["preset"]),
+                              "exported_from": f"{ckpt} (env fields from {like})"}
+    params = checkpoints.load_checkpoint(ckpt)
+    policy, rule = exported_policy(params[1], ppo_cfg)
+    manifest.update(name=name, output_rule=rule,
+                    trained=exported_as_trained(int(env_steps), state["preset"], env_cfg))
+    path = run_dir / f"{name}.safetensors"
+    export_brax_ppo((params[0], policy), manifest, path,
+                    observations_normalized=bool(ppo_cfg.normalize_observations))
+    return path
+
+
 def ship_artifact(artifact: Path, state: dict, policies_root=checkpoints.POLICIES_ROOT) -> Path:
     """Copy the artifact to policies/<name>/<name>.safetensors and append its provenance row to that folder's
     CARD.md (created from the card template for a new policy)."""
-    from common.artifact import read_artifact
     manifest = read_artifact(artifact)[3]
     prov = manifest["provenance"]
     folder = checkpoints.policy_dir(manifest["name"], policies_root)

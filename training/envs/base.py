@@ -99,7 +99,7 @@ class T1Env(mjx_env.MjxEnv):
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ValueError(f"ctrl_dt {cfg.ctrl_dt} s is not a whole multiple of sim_dt {cfg.sim_dt} s")
         obsdef.check_terms(cfg.obs_terms)
-        backend = cfg.get("backend", "mjx")
+        backend = cfg.backend
         if backend not in BACKENDS:
             raise ValueError(f"backend {backend!r}: expected one of {BACKENDS}")
         if backend != "cpu" and self.has_wall_course():
@@ -152,9 +152,8 @@ class T1Env(mjx_env.MjxEnv):
 
     def has_wall_course(self) -> bool:
         """Whether this env's world holds the low-wall course: config wall_course.enable (tasks with a wall
-        share override this to add it on their own). Runs made before the course existed have no such key."""
-        course = self._config.get("wall_course")
-        return bool(course is not None and course.enable)
+        share override this to add it on their own)."""
+        return bool(self._config.wall_course.enable)
 
     def _compile(self, model: mujoco.MjModel) -> mujoco.MjModel:
         """The env's copy of a compiled variant: its timestep and the ONE gain set in the PD slots."""

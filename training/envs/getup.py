@@ -53,7 +53,7 @@ from training.envs import base
 from training.envs import getup_rewards as G
 from training.envs import handover, kneel_collapse, prone_path, rise_bank, start_path, upright
 from common.events import FALLEN_TRUNK_HEIGHT_M, STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
-from training.envs.fallen import PREPARE_S, fallen_states
+from training.envs.fallen import fallen_states
 from training.envs.getup_config import default_config   # envs.make's config of this task
 
 STAGES = ("stage1", "stage2", "full")
@@ -66,8 +66,7 @@ class GetupBase(base.T1Env):
     WALL_SHARE_CONFIG = ""   # the config group whose `prob` is the task's share of wall-course starts
 
     def _wall_share(self) -> float:
-        group = self._config.get(self.WALL_SHARE_CONFIG) if self.WALL_SHARE_CONFIG else None
-        return 0.0 if group is None else float(group.prob)   # runs made before the course have no such group
+        return float(self._config[self.WALL_SHARE_CONFIG].prob) if self.WALL_SHARE_CONFIG else 0.0
 
     def has_wall_course(self) -> bool:
         return super().has_wall_course() or self._wall_share() > 0
@@ -94,10 +93,8 @@ class GetupBase(base.T1Env):
 
     def fallen_starts(self, num: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """(qpos, qvel) of this env's fallen starts for seeds seed … seed + num − 1 (training and evaluation):
-        after the runtime's PREPARE ramp, under this env's supervisor settings. Runs configured before the
-        hand-over was modelled get it too (they resume onto the loop's starts)."""
-        prepare_s = float(self._config.get("fallen_prepare_s", PREPARE_S))
-        return fallen_states(num, seed, prepare_s, self._host_supervisor())
+        after the runtime's PREPARE ramp, under this env's supervisor settings."""
+        return fallen_states(num, seed, float(self._config.fallen_prepare_s), self._host_supervisor())
 
     def _host_supervisor(self) -> tuple[float, float]:
         """Rule R6 as the host rollouts of the start banks take it: (max target speed [rad/s], range fraction)."""
@@ -201,24 +198,21 @@ class Getup(GetupBase):
             raise ValueError(f"reverse_curriculum: max_progress must be in [0, {start_path.PATH_END}] and "
                              f"kneel_prob in [0, 1], got {rc.max_progress} and {rc.kneel_prob}")
         if self._config.stage == "stage2" and rc.max_progress > 0:
-            # runs started before min_progress existed keep its default on --resume
-            starts = start_path.bank_range(rc.get("min_progress", 0.0), rc.max_progress, int(rc.bank_size))
+            starts = start_path.bank_range(rc.min_progress, rc.max_progress, int(rc.bank_size))
             bank = start_path.path_bank(self._mj_model, np.asarray(self._home_qpos), np.asarray(self._kneel_qpos),
                                         rc.left_leg_waypoints, int(rc.bank_size))
             self._path_bank = jnp.asarray(bank[starts], jnp.float32)
         self._fallen_banks = self._load_fallen_banks()
-        path = self._config.get("upright_policy", "")   # runs made before it have none
+        path = self._config.upright_policy
         self._upright = upright.UprightMember(path, self) if path else None
-        pace = self._config.get("rise_pace")   # runs made before it have none: off
-        self._pace_weight, self._pace_waist_m = (pace.weight, pace.waist_from_m) if pace else (0.0, 0.0)
+        self._pace_weight, self._pace_waist_m = self._config.rise_pace.weight, self._config.rise_pace.waist_from_m
         if self._pace_weight < 0.0:
             raise ValueError(f"rise_pace.weight must be >= 0 (a cost), got {self._pace_weight}")
-        failed_rise = self._config.get("failed_rise")   # runs made before it have none: off
-        self._failed_rise_cost = float(failed_rise.cost) if failed_rise else 0.0
+        self._failed_rise_cost = float(self._config.failed_rise.cost)
         if self._failed_rise_cost < 0.0:
             raise ValueError(f"failed_rise.cost must be >= 0, got {self._failed_rise_cost}")
         self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
-        self._stage1_gate_reward = float(self._config.get("stage1_gate_reward", 0.0))   # older runs: none
+        self._stage1_gate_reward = float(self._config.stage1_gate_reward)
         if self._stage1_gate_reward < 0.0:
             raise ValueError(f"stage1_gate_reward must be >= 0, got {self._stage1_gate_reward}")
 
@@ -232,9 +226,7 @@ class Getup(GetupBase):
                                        ("rise_starts", "getup_policy", self._rise_bank),
                                        ("collapse_starts", None, self._collapse_bank),
                                        ("prone_starts", None, self._prone_bank)):
-            b = self._config.get(name)   # runs made before a bank existed have no such key
-            if b is None:
-                continue
+            b = self._config[name]
             if not 0.0 <= b.prob <= 1.0:
                 raise ValueError(f"{name}.prob must be in [0, 1], got {b.prob}")
             if b.prob > 0:
@@ -258,7 +250,7 @@ class Getup(GetupBase):
         """kneel_collapse's settings of this env's collapse starts (training and evaluation)."""
         c = self._config.collapse_starts
         return dict(gain_scale=float(c.gain_scale), push_rad_s=float(c.push_rad_s), duration_s=float(c.duration_s),
-                    push_axis_deg=tuple(c.get("push_axis_deg", kneel_collapse.ANY_AXIS_DEG)),   # runs made before it: any axis
+                    push_axis_deg=tuple(c.push_axis_deg),
                     ctrl_dt=float(self._config.ctrl_dt), supervisor=self._host_supervisor())
 
     def _collapse_bank(self, make_env, _policy: str, num_starts: int, seed: int):
@@ -324,7 +316,7 @@ class Getup(GetupBase):
         now = G.gate(info["trunk_height"], info["up"])
         if self._upright is not None:   # the upright member's stand counts as past the kneel (upright.py)
             now = now | self._upright.holds_standing(info["waist_height"], self.standing(info))
-        if not self._config.get("gate_latches", True):
+        if not self._config.gate_latches:
             return now
         return (now | was_on) & (info["trunk_height"] >= FALLEN_TRUNK_HEIGHT_M)
 
@@ -333,9 +325,8 @@ class Getup(GetupBase):
 
     def start_probabilities(self):
         stage = self._config.stage
-        if stage in ("stage1", "stage2"):   # a run state older than these keys gets the seed's starts
-            key = f"{stage}_start_probs"
-            return list(self._config.get(key, default_config()[key]))
+        if stage in ("stage1", "stage2"):
+            return list(self._config[f"{stage}_start_probs"])
         return list(self._config.start_probs)
 
     def reset(self, rng: jax.Array) -> mjx_env.State:

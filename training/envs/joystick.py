@@ -64,9 +64,9 @@ def default_config() -> config_dict.ConfigDict:
 
 def _landing_overrides(h: config_dict.ConfigDict) -> dict:
     """The getup env's config overrides that start `h.push_prob` / `h.knockdown_prob` of the hand-over bank's
-    rises from push-test / knockdown landings (runs made before these keys existed have none: fallen only)."""
-    shares = {"push_starts": h.get("push_prob", 0.0), "knockdown_starts": h.get("knockdown_prob", 0.0)}
-    if any(p > 0 for p in shares.values()) and not h.get("joystick_policy"):
+    rises from push-test / knockdown landings."""
+    shares = {"push_starts": h.push_prob, "knockdown_starts": h.knockdown_prob}
+    if any(p > 0 for p in shares.values()) and not h.joystick_policy:
         raise ValueError("handover.push_prob or handover.knockdown_prob > 0 needs handover.joystick_policy "
                          "(the joystick artifact or checkpoint that is pushed over)")
     return {f"{group}.{key}": value for group, prob in shares.items() if prob > 0
@@ -82,15 +82,15 @@ class Joystick(base.T1Env):
         mj = self._mj_model
         self._init_reward_constants()
         self._handover = None
-        h = self._config.get("handover")   # runs made before hand-over starts existed have none
-        for key in ("prob", "push_prob", "knockdown_prob", "zero_command_prob") if h is not None else ():
-            if not 0.0 <= h.get(key, 0.0) <= 1.0:
+        h = self._config.handover
+        for key in ("prob", "push_prob", "knockdown_prob", "zero_command_prob"):
+            if not 0.0 <= h[key] <= 1.0:
                 raise ValueError(f"handover.{key} must be in [0, 1], got {h[key]}")
-        shove_prob = self._config.push.get("torso_shove_prob", 0.0)   # runs made before shoves have none
+        shove_prob = self._config.push.torso_shove_prob
         if not 0.0 <= shove_prob <= 1.0:
             raise ValueError(f"push.torso_shove_prob must be in [0, 1], got {shove_prob}")
         self._push_shove = handover.TorsoShove(mj, self._home_qpos) if shove_prob > 0 else None
-        if h is not None and h.prob > 0:
+        if h.prob > 0:
             if not h.getup_policy:
                 raise ValueError("handover.prob > 0 needs handover.getup_policy (a getup artifact or checkpoint)")
             bank = handover.handover_bank(self._make_env, h.getup_policy, int(h.bank_starts), int(h.seed),
@@ -170,7 +170,7 @@ class Joystick(base.T1Env):
         hq, hv = handover.place(bank.qpos[idx], bank.qvel[idx], qpos[0:2], yaw)
         h_act = obsdef.targets_to_action(self._default_pose, self._action_scale, bank.joint_targets[idx], jnp)
         use = jax.random.uniform(k_use) < self._config.handover.prob
-        zero = use & jax.random.bernoulli(k_zero, self._config.handover.get("zero_command_prob", 0.0))
+        zero = use & jax.random.bernoulli(k_zero, self._config.handover.zero_command_prob)
         return (jnp.where(use, hq, qpos), jnp.where(use, hv, qvel), jnp.where(use, h_act, last_act),
                 jnp.where(zero, jnp.zeros(3), command))
 

@@ -142,26 +142,25 @@ class Unified(GetupBase):
                              f"[m/s] >= 0, got {kd.prob} and {list(kd.magnitude_range_mps)}")
         if not 0.0 <= self._wall_share() <= 1.0:
             raise ValueError(f"walls.prob must be in [0, 1], got {self._wall_share()}")
-        shove = kd.get("shove", "velocity")   # runs made before torso shoves have no such key
+        shove = kd.shove
         if shove not in self.SHOVES:
             raise ValueError(f"knockdown.shove {shove!r}: one of {', '.join(self.SHOVES)}")
-        if self._config.push.get("torso_shove_prob", 0.0) > 0:
+        if self._config.push.torso_shove_prob > 0:
             raise ValueError("push.torso_shove_prob is the joystick env's: the unified env's shoves are "
                              "knockdown.prob with knockdown.shove \"torso\"")
-        self._reward_mode = self._config.reward.get("mode", "monitor")   # runs made before the fine-tune: none
+        self._reward_mode = self._config.reward.mode
         if self._reward_mode not in REWARD_MODES:
             raise ValueError(f"reward.mode {self._reward_mode!r}: one of {', '.join(REWARD_MODES)}")
         if self._reward_mode == "skills":
             Joystick._init_reward_constants(self)
             self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
-            course = self._config.reward.get("course")   # runs made before the course term have none
-            self._progress_weight = course.progress_weight if course is not None else 0.0
-            self._walk_after_stand_up = bool(self._config.reward.get("walk_after_stand_up", False))   # (as course)
+            self._progress_weight = self._config.reward.course.progress_weight
+            self._walk_after_stand_up = bool(self._config.reward.walk_after_stand_up)
             if not self._config.reward.getup.scale > 0:
                 raise ValueError(f"reward.getup.scale must be > 0, got {self._config.reward.getup.scale}")
         self._push_shove = None    # (the joystick env's push.torso_shove_prob; Joystick._apply_push reads it)
         # the share of knockdowns that are torso shoves
-        self._torso_share = {"velocity": 0.0, "torso": 1.0}.get(shove, float(kd.get("torso_share", 0.5)))
+        self._torso_share = {"velocity": 0.0, "torso": 1.0}.get(shove, float(kd.torso_share))
         if not 0.0 <= self._torso_share <= 1.0:
             raise ValueError(f"knockdown.torso_share must be in [0, 1], got {self._torso_share}")
         self._torso_shove = handover.TorsoShove(self._mj_model, self._home_qpos) if self._torso_share > 0 else None

@@ -41,7 +41,7 @@ def add_to_spec(spec: mujoco.MjSpec, cfg: config_dict.ConfigDict) -> None:
 def course_start(rng: jax.Array, cfg: config_dict.ConfigDict) -> tuple[jax.Array, jax.Array, jax.Array]:
     """(xy [m], yaw [rad], command (vx, vy, yaw rate)) of one approach to the first wall."""
     k_x, k_y, k_yaw, k_v = jax.random.split(rng, 4)
-    near_m, far_m = cfg.get("approach_m", APPROACH_M)   # (runs made before it was config: the default)
+    near_m, far_m = cfg.approach_m
     if not 0.0 <= near_m <= far_m:
         raise ValueError(f"wall_course.approach_m must be an ordered pair of distances [m] >= 0, got {near_m, far_m}")
     x = cfg.first_wall_x_m - jax.random.uniform(k_x, minval=near_m, maxval=far_m)
