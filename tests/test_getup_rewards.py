@@ -58,12 +58,6 @@ def test_energy_cost():
     assert float(G.energy_cost(jnp.asarray(dq), jnp.asarray(tau), jnp.asarray(tau_max))) == pytest.approx(expected, rel=1e-6)
 
 
-@pytest.mark.parametrize("waist, expected", [(0.39, 0.0), (0.4, 1.0 ** 2 + 0.5 ** 2), (0.6, 1.25)])
-def test_rise_pace_cost_counts_from_its_waist_height(waist, expected):
-    cost = G.rise_pace_cost(jnp.asarray([1.0, -0.5]), jnp.asarray(waist), 0.4)
-    assert float(cost) == pytest.approx(expected, rel=1e-6)
-
-
 @pytest.mark.parametrize("h, up, ok", [
     (0.405, UP, True), (0.3951, UP, True), (0.3949, UP, False),     # 0.4 − min(h, 0.4) < 0.005
     (0.67, UP, True), (0.9, UP, True),                              # stays on while rising (min)
@@ -137,18 +131,6 @@ def test_full_task_terms_by_hand(full_env, gate_on):
         assert float(terms["pose"]) == pytest.approx(pose_kneel, rel=1e-5)
     limits = np.asarray(full_env._tau_limit)
     assert float(terms["energy"]) == pytest.approx(float(np.sum(0.3 * 2.0 / limits)), rel=1e-5)
-    assert float(terms["pace"]) == 0.0                   # the trunk is still (and the waist below 0.4 m)
-
-
-def test_rise_pace_is_the_trunks_horizontal_speed_above_its_waist_height(full_env):
-    data = _state(full_env)
-    data.qvel = data.qvel.at[0:3].set(jnp.asarray([0.6, 0.8, 2.0]))       # vz is no pace
-    info = {"trunk_height": jnp.asarray(0.6), "waist_height": jnp.asarray(0.45), "up_z": jnp.asarray(1.0),
-            "up": jnp.asarray(UP), "gate": jnp.asarray(False)}
-    assert float(full_env.reward_terms(data, info)["pace"]) == pytest.approx(1.0, rel=1e-6)
-    assert full_env.config.rise_pace.weight == 0.0                       # off unless a run sets it
-    with pytest.raises(ValueError, match="rise_pace.weight"):
-        envs.make("getup", config_overrides={"fallen_bank_size": 2, "rise_pace.weight": -1.0})
 
 
 def test_gate_latches_until_the_trunk_is_down(full_env):

@@ -43,7 +43,7 @@ def test_place_turns_the_root_and_its_world_velocity_only():
 @pytest.mark.parametrize("over, why", [({"handover.prob": 0.5}, "needs handover.getup_policy"),
                                        ({"handover.prob": 1.5, "handover.getup_policy": GETUP}, r"in \[0, 1\]"),
                                        ({"handover.prob": 0.5, "handover.getup_policy": GETUP,
-                                         "handover.push_prob": 0.3}, "needs handover.joystick_policy"),
+                                         "handover.knockdown_prob": 0.3}, "needs handover.joystick_policy"),
                                        ({"handover.zero_command_prob": 1.5}, r"zero_command_prob must be in \[0, 1\]")])
 def test_joystick_env_refuses_a_bad_handover_config(over, why):
     with pytest.raises(ValueError, match=why):
@@ -157,16 +157,15 @@ def test_evaluate_refuses_bad_starts(over, why, tmp_path):
 
 def _landings(**shares) -> dict:
     config = envs.default_config("joystick").handover
-    config.update(prob=1.0, getup_policy=GETUP, joystick_policy=JOYSTICK, **shares)
+    config.update({"prob": 1.0, "getup_policy": GETUP, "joystick_policy": JOYSTICK, **shares})
     return joystick._landing_overrides(config)
 
 
 def test_landing_shares_become_the_getup_envs_bank_overrides():
     assert _landings() == {}
     assert _landings(knockdown_prob=1.0) == {"knockdown_starts.prob": 1.0, "knockdown_starts.joystick_policy": JOYSTICK}
-    assert _landings(push_prob=0.4, knockdown_prob=0.2) == {
-        "push_starts.prob": 0.4, "push_starts.joystick_policy": JOYSTICK,
-        "knockdown_starts.prob": 0.2, "knockdown_starts.joystick_policy": JOYSTICK}
+    with pytest.raises(ValueError, match="needs handover.joystick_policy"):
+        _landings(knockdown_prob=0.2, joystick_policy="")
 
 
 @pytest.mark.slow

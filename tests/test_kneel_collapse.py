@@ -73,7 +73,7 @@ def test_collapse_start_settings_are_checked():
     with pytest.raises(ValueError, match="at most 1"):
         envs.make("getup", config_overrides={
             "stage": "stage1", "fallen_bank_size": 2, "collapse_starts.prob": 0.6,
-            "push_starts.prob": 0.6, "push_starts.joystick_policy": "policies/joystick/joystick.safetensors"})
+            "knockdown_starts.prob": 0.6, "knockdown_starts.joystick_policy": "policies/joystick/joystick.safetensors"})
 
 
 def test_evaluate_from_the_collapse(tmp_path):

@@ -84,3 +84,24 @@ def test_a_campaign_checkpoint_resumes_on_today_s_code(tmp_path):
     assert read_artifact(result.artifact)[3]["provenance"]["steps"] == steps
     state = json.loads((run / "run_state.json").read_text())
     assert set(state["env_config"]) == set(envs.default_config("getup").to_dict())   # saved back in today's schema
+
+
+@pytest.mark.parametrize("key, value", [("gravity_scale", 0.5), ("upright_policy", "policies/joystick/joystick.safetensors"),
+                                        ("rise_pace", {"weight": 5.0, "waist_from_m": 0.4}),
+                                        ("wall_starts", {"prob": 0.3, "joystick_policy": "j", "bank_starts": 8,
+                                                         "seed": 1}),
+                                        ("push_starts", {"prob": 0.3, "joystick_policy": "j", "bank_starts": 8,
+                                                         "seed": 1})])
+def test_a_run_that_used_a_finished_experiment_s_knob_is_refused_by_name(key, value):
+    saved = {**envs.default_config("getup").to_dict(), key: value}
+    with pytest.raises(migration.MigrationError, match=rf"env\.{key}=.*removed with its finished experiment"):
+        migration.migrate(saved, envs.default_config("getup"), "env", "runs/old/run_state.json")
+
+
+def test_the_joystick_hand_over_s_push_share_is_refused_unless_zero():
+    saved = envs.default_config("joystick").to_dict()
+    saved["handover"] = {**saved["handover"], "push_prob": 0.0}
+    assert "push_prob" not in migration.migrate(saved, envs.default_config("joystick"), "env").handover
+    saved["handover"]["push_prob"] = 0.2
+    with pytest.raises(migration.MigrationError, match=r"env\.handover\.push_prob=0\.2"):
+        migration.migrate(saved, envs.default_config("joystick"), "env")

@@ -23,7 +23,10 @@ RENAMED: dict[str, dict[str, str]] = {"env": {}, "ppo": {}}
 
 # removed dotted path → its neutral value: a scalar the saved value must equal, or, for a group, the
 # {field: value} that switches the group off (its other fields are then irrelevant)
-REMOVED: dict[str, dict[str, Any]] = {"env": {}, "ppo": {}}
+REMOVED: dict[str, dict[str, Any]] = {
+    "env": {"upright_policy": "", "rise_pace": {"weight": 0.0}, "gravity_scale": 1.0, "wall_starts": {"prob": 0.0},
+            "push_starts": {"prob": 0.0}, "handover.push_prob": 0.0},
+    "ppo": {}}
 
 
 class MigrationError(ValueError):

@@ -137,8 +137,7 @@ def _overrides(config: dict, toy: bool) -> list[str]:
 
 
 TOY_KEEPS = ("ppo.teacher.", "ppo.policy_distribution", "ppo.init_noise_std")   # a student fine-tune's learner
-BANKED = ("env.knockdown_starts", "env.wall_starts", "env.push_starts", "env.handover", "env.rise_starts",
-          "env.collapse_starts")
+BANKED = ("env.knockdown_starts", "env.handover", "env.rise_starts", "env.collapse_starts")
 
 
 def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: bool = False,

@@ -159,7 +159,6 @@ class T1Env(mjx_env.MjxEnv):
         """The env's copy of a compiled variant: its timestep and the ONE gain set in the PD slots."""
         mj = copy.copy(model)
         mj.opt.timestep = self._config.sim_dt
-        mj.opt.gravity[:] = model.opt.gravity * assists.gravity_scale(self._config)
         self._kp, self._kd = t1model.pd_gains(mj)
         mj.actuator_biasprm[:, KP_SLOT] = self._kp
         mj.actuator_biasprm[:, KD_SLOT] = self._kd

@@ -17,8 +17,8 @@ Stages (config.stage), rewards from getup_rewards.py (formulas there):
   so a per-step-gated fine-tune of stage 2 paid the kneel reward for every small tilt and unlearned the
   stand-up (training/LESSONS.md). Latched,
   the kneel keyframe (trunk 0.405 m, upright) is where the standing phase begins, as §4.8 describes it.
-reward per control step = (Height + Pose − energy_weight·energy − rise_pace.weight·pace) × ctrl_dt
-− failed_rise.cost·[a getup attempt failed this step] (pace and failed rise: ours; metric failed_rises counts
+reward per control step = (Height + Pose − energy_weight·energy) × ctrl_dt
+− failed_rise.cost·[a getup attempt failed this step] (failed rise: ours; metric failed_rises counts
 them per episode whatever the cost).
 Fine-tunes: energy_weight > 0 (the energy fine-tune; 0 before it, §4.7), obs_noise_scale > 0 (the
 robustness fine-tune: U(−1, 1)·obs_noise_scale added to EVERY observation entry, §4.6; the seed's is 1).
@@ -34,7 +34,7 @@ posture (pose(q, q_init)) about as much as height, so without it PPO learned to 
 legs (v3: 1.23 per step lying against 0.90 holding the kneel), and with a trunk-height bound of 0.30 m
 alone it learned to lean back to trunk 0.32 m, up_z 0.72, straightening its legs (v5: 1.0 per step).
 Assist stages (ours, for stage 2; never exported as trained, off by default): config.harness (an elastic rope
-from above), config.gravity_scale (assists.py). Stage 2's reverse curriculum (config.reverse_curriculum,
+from above (assists.py). Stage 2's reverse curriculum (config.reverse_curriculum,
 start_path.py; ours, off by default) moves only where episodes start up the lunge: not an assist.
 Stage 1 and the full task start on the floor and pay pose(q, q_kneel) before the gate, where lying
 straight earns nothing, so they keep the seed's episodes.
@@ -51,7 +51,7 @@ from mujoco_playground._src import mjx_env
 from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
-from training.envs import handover, kneel_collapse, prone_path, rise_bank, start_path, upright
+from training.envs import handover, kneel_collapse, prone_path, rise_bank, start_path
 from common.events import FALLEN_TRUNK_HEIGHT_M, STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import fallen_states
 from training.envs.getup_config import default_config   # envs.make's config of this task
@@ -62,14 +62,6 @@ START_KINDS = ("fallen", "kneeling", "standing")
 
 class GetupBase(base.T1Env):
     """Starts (fallen / kneeling / standing), observation and bookkeeping of the getup tasks."""
-
-    WALL_SHARE_CONFIG = ""   # the config group whose `prob` is the task's share of wall-course starts
-
-    def _wall_share(self) -> float:
-        return float(self._config[self.WALL_SHARE_CONFIG].prob) if self.WALL_SHARE_CONFIG else 0.0
-
-    def has_wall_course(self) -> bool:
-        return super().has_wall_course() or self._wall_share() > 0
 
     def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None, make_env=None):
         super().__init__(config, config_overrides, make_env)
@@ -156,17 +148,11 @@ class GetupBase(base.T1Env):
     def _physics(self, state, action):
         info = dict(state.info)
         info["rng"], k_obs = jax.random.split(info["rng"])
-        data, info["runtime_target"] = self.physics_step(state.data, self._joint_targets(state, action, info),
+        data, info["runtime_target"] = self.physics_step(state.data, self.motor_targets(action),
                                                          info["runtime_target"])
         info.update(self.body_readings(data))
         info["up"] = self.up_vector(data)
         return data, info, k_obs
-
-    def _joint_targets(self, state, action, info):
-        """The joint targets [rad] applied this tick (the keyframe expert's env may hand some to its upright
-        member, updating info)."""
-        del state, info
-        return self.motor_targets(action)
 
     def _privileged_extra(self, info):
         """Critic extras of the getup tasks: gate met, ‖u − e_z‖."""
@@ -183,8 +169,6 @@ class GetupBase(base.T1Env):
 
 class Getup(GetupBase):
     """The keyframe-curriculum getup expert."""
-
-    WALL_SHARE_CONFIG = "wall_starts"
 
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
                  make_env=None):
@@ -203,11 +187,6 @@ class Getup(GetupBase):
                                         rc.left_leg_waypoints, int(rc.bank_size))
             self._path_bank = jnp.asarray(bank[starts], jnp.float32)
         self._fallen_banks = self._load_fallen_banks()
-        path = self._config.upright_policy
-        self._upright = upright.UprightMember(path, self) if path else None
-        self._pace_weight, self._pace_waist_m = self._config.rise_pace.weight, self._config.rise_pace.waist_from_m
-        if self._pace_weight < 0.0:
-            raise ValueError(f"rise_pace.weight must be >= 0 (a cost), got {self._pace_weight}")
         self._failed_rise_cost = float(self._config.failed_rise.cost)
         if self._failed_rise_cost < 0.0:
             raise ValueError(f"failed_rise.cost must be >= 0, got {self._failed_rise_cost}")
@@ -221,8 +200,6 @@ class Getup(GetupBase):
         shares are checked before any bank is rolled."""
         wanted = []
         for name, policy_key, make in (("knockdown_starts", "joystick_policy", handover.knockdown_bank),
-                                       ("wall_starts", "joystick_policy", self._wall_bank),
-                                       ("push_starts", "joystick_policy", handover.push_test_bank),
                                        ("rise_starts", "getup_policy", self._rise_bank),
                                        ("collapse_starts", None, self._collapse_bank),
                                        ("prone_starts", None, self._prone_bank)):
@@ -268,13 +245,9 @@ class Getup(GetupBase):
         return prone_path.prone_bank(num_starts, seed, float(p.min_progress), float(p.max_progress),
                                      **self.prone_settings())
 
-    def _wall_bank(self, make_env, joystick_policy: str, num_starts: int, seed: int):
-        return handover.wall_bank(make_env, joystick_policy, num_starts, seed,
-                                  float(self._config.wall_course.first_wall_x_m))
-
     def _start_state(self, rng):
         """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path; with
-        knockdown, wall or push-test starts, a share of the fallen ones from those banks."""
+        start banks (knockdown, rise, collapse, prone), a share of the fallen ones from those banks."""
         if self._path_bank is None and not self._fallen_banks:
             return super()._start_state(rng)
         if self._path_bank is None:
@@ -298,24 +271,12 @@ class Getup(GetupBase):
         info = super()._start_info(rng, data, kind)
         info["gate"] = self.gate_state(info, jnp.zeros((), dtype=bool))
         info["rise_track"] = G.rise_track_start(info["trunk_height"])
-        if self._upright is not None:
-            info["upright_last_act"] = self._upright.initial_last_action()
         return info
-
-    def _joint_targets(self, state, action, info):
-        q_des = self.motor_targets(action)
-        if self._upright is None:
-            return q_des
-        q_des, info["upright_last_act"] = self._upright.targets(
-            self, state.data, state.info["waist_height"], q_des, state.info["upright_last_act"])
-        return q_des
 
     def gate_state(self, info, was_on) -> jax.Array:
         """The gate the full task's rewards use: §4.8's per-step condition, latched from the step it first
         holds until the trunk is down (config.gate_latches; the module docstring says why)."""
         now = G.gate(info["trunk_height"], info["up"])
-        if self._upright is not None:   # the upright member's stand counts as past the kneel (upright.py)
-            now = now | self._upright.holds_standing(info["waist_height"], self.standing(info))
         if not self._config.gate_latches:
             return now
         return (now | was_on) & (info["trunk_height"] >= FALLEN_TRUNK_HEIGHT_M)
@@ -340,11 +301,11 @@ class Getup(GetupBase):
 
     @staticmethod
     def metric_names():
-        return ("reward/height", "reward/pose", "reward/energy", "reward/pace", "failed_rises", "gate", "success",
+        return ("reward/height", "reward/pose", "reward/energy", "failed_rises", "gate", "success",
                 "success_from_kneel", "success_from_fallen")
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
-        """Height and Pose Rewards (the stage's form), the energy and rise-pace costs of the state after the step."""
+        """Height and Pose Rewards (the stage's form) and the energy cost of the state after the step."""
         q, stage = data.qpos[7:], self._config.stage
         if stage == "stage1":
             kneel_h = self.height_orientation(info, self._kneel_targets)
@@ -354,16 +315,14 @@ class Getup(GetupBase):
             height, pose = self.height_orientation(info, self._standing_targets), G.pose_reward(q, self._default_pose)
         else:
             height, pose = self.full_task_rewards(q, info, info["gate"])
-        pace = G.rise_pace_cost(data.qvel[0:2], info["waist_height"], self._pace_waist_m)
-        return {"height": height, "pose": pose, "gate": info["gate"], "energy": self.energy_cost(data), "pace": pace}
+        return {"height": height, "pose": pose, "gate": info["gate"], "energy": self.energy_cost(data)}
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         data, info, k_obs = self._physics(state, action)
         info["gate"] = self.gate_state(info, state.info["gate"])
         terms = self.reward_terms(data, info)
         scaled = {"height": terms["height"], "pose": terms["pose"],
-                  "energy": -self._config.energy_weight * terms["energy"],
-                  "pace": -self._pace_weight * terms["pace"]}
+                  "energy": -self._config.energy_weight * terms["energy"]}
         info["rise_track"], failed = G.rise_track_step(state.info["rise_track"], info["trunk_height"],
                                                        self.standing(info), self._stand_hold_ticks)
         reward = sum(scaled.values()) * self.dt - self._failed_rise_cost * failed

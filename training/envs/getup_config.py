@@ -30,9 +30,7 @@ def getup_common_config() -> config_dict.ConfigDict:
     # the loop hands the policy that robot, not the settled fall); 0 = the settled fall itself
     cfg.fallen_prepare_s = PREPARE_S
     cfg.standing_targets_m = [G.STANDING_TORSO_M, G.STANDING_WAIST_M]   # (torso, waist) after the gate
-    # assist stages (training/envs/assists.py; ours, not the seed's): × the model's gravity, and the
-    # elastic harness (stiffness 0 = none)
-    cfg.gravity_scale = 1.0
+    # assist stage (training/envs/assists.py; ours, not the seed's): the elastic harness (stiffness 0 = none)
     cfg.harness = config_dict.create(stiffness_n_per_m=0.0, anchor_height_m=3.0, attach_above_trunk_m=0.3,
                                      slack_trunk_height_m=G.STANDING_TORSO_M)
     return cfg
@@ -54,16 +52,9 @@ def default_config() -> config_dict.ConfigDict:
     cfg.stage2_fall_up_z = 0.7              # ... or when the trunk's up_z falls below this (46° of tilt)
     # knockdown starts (training/envs/handover.py knockdown_bank; ours): this share of the fallen starts is
     # instead where the teacher hands `joystick_policy`, knocked over by a push, to the getup expert mid-fall
-    # (from `bank_starts` standing starts, seeds from `seed`); 0 = the seed's fallen starts only
+    # (from `bank_starts` standing starts, seeds from `seed`); 0 = the seed's fallen starts only. The shares of
+    # these, rise_starts, collapse_starts and prone_starts sum to at most 1
     cfg.knockdown_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=200_000)
-    # wall starts (handover.wall_bank; ours): this share of the fallen starts is where the teacher hands
-    # `joystick_policy` over after it walked into the low-wall course (wall_course.py; the course is then in
-    # the world), from `bank_starts` approaches
-    cfg.wall_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=400_000)
-    # push-test starts (handover.push_test_bank; ours): this share of the fallen starts is where the teacher
-    # hands `joystick_policy` over after the loop's push test shoved it (a torso impulse, forward or backward),
-    # from `bank_starts` standing starts. The shares of these, rise_starts, collapse_starts and prone_starts sum to at most 1
-    cfg.push_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=500_000)
     # rise starts (rise_bank.py; ours, stage 1's reverse curriculum): this share of the fallen starts is instead
     # a state along the rises `getup_policy` makes with the harness (stiffness [N/m], slack [m]) from
     # `bank_starts` fallen starts (seeds from `seed`), at progress min_progress … 1 toward the kneel
@@ -82,11 +73,6 @@ def default_config() -> config_dict.ConfigDict:
     cfg.prone_starts = config_dict.create(prob=0.0, min_progress=0.0, max_progress=2.0, bank_starts=256,
                                           seed=800_000, hands_knees_pitch_rad=1.4, target_noise_rad=0.1,
                                           settle_s=1.0)
-    # the composite's upright member in the world (training/envs/upright.py; ours): a joystick artifact that
-    # drives whenever the waist is at or above the teacher's switch height; "" = the getup expert alone
-    cfg.upright_policy = ""
-    # the rise's pace (getup_rewards.rise_pace_cost; ours): weight·‖v_xy‖² [m²/s²] at waist ≥ waist_from_m [m]
-    cfg.rise_pace = config_dict.create(weight=0.0, waist_from_m=0.4)
     # a failed getup attempt (getup_rewards.rise_track_step, events.py's definition; ours): this cost [in
     # return units, i.e. after the per-step rewards' × ctrl_dt] once per failed attempt; 0 = off
     cfg.failed_rise = config_dict.create(cost=0.0)

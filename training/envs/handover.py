@@ -28,7 +28,7 @@ the base velocity moves the whole robot at once and is far easier to catch, so o
 reproduce the loop's forward-push attempts (figures: training/LESSONS.md).
 
 `wall_bank` is the same hand-over after the joystick expert walked into the low-wall course
-(training/envs/wall_course.py): the landings beside, on and across a wall (getup config wall_starts).
+(training/envs/wall_course.py): the landings beside, on and across a wall (`evaluate --starts wall`).
 """
 from __future__ import annotations
 
@@ -71,7 +71,7 @@ def handover_bank(make_env: Callable, getup_policy: str, num_starts: int, seed: 
                   ) -> HandoverBank:
     """Hand-over states of `getup_policy` (artifact or checkpoint) from `num_starts` random draws of a bank of
     `num_starts` seeded fallen starts (seed, seed + 1, …); identical states (a start drawn twice) kept once.
-    `landing_overrides` (getup config keys such as "push_starts.prob") replace shares of those fallen starts
+    `landing_overrides` (getup config keys such as "knockdown_starts.prob") replace shares of those fallen starts
     with the getup env's landing banks, so that the rises begin where a push or knockdown left the robot."""
     env = make_env("getup", config_overrides={"backend": "cpu", "start_probs": [1.0, 0.0, 0.0],
                                                "fallen_bank_size": int(num_starts), "fallen_seed": int(seed),

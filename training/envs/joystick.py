@@ -44,12 +44,12 @@ def default_config() -> config_dict.ConfigDict:
     # hand-over starts (training/envs/handover.py; ours): this share of episodes starts in the state where the
     # stitched teacher hands the getup expert `getup_policy`'s rise over, from `bank_starts` fallen starts
     # (seeds from `seed`, apart from the evaluations' 0 …); 0 = standing starts only, as Playground's.
-    # push_prob / knockdown_prob of those rises begin instead where `joystick_policy` landed after the loop's
-    # push test / a knockdown (the getup env's push_starts / knockdown_starts banks), not at a fallen start.
+    # knockdown_prob of those rises begin instead where `joystick_policy` landed after a knockdown (the getup
+    # env's knockdown_starts bank), not at a fallen start.
     # zero_command_prob: a hand-over episode's command is zero with this probability (the loop's push and
     # getup tests stand the risen robot at zero command), else drawn as any episode's
     cfg.handover = config_dict.create(prob=0.0, getup_policy="", bank_starts=256, seed=100_000,
-                                      push_prob=0.0, knockdown_prob=0.0, joystick_policy="",
+                                      knockdown_prob=0.0, joystick_policy="",
                                       zero_command_prob=0.0)
     cfg.reward = config_dict.create(
         scales=config_dict.create(
@@ -63,14 +63,14 @@ def default_config() -> config_dict.ConfigDict:
 
 
 def _landing_overrides(h: config_dict.ConfigDict) -> dict:
-    """The getup env's config overrides that start `h.push_prob` / `h.knockdown_prob` of the hand-over bank's
-    rises from push-test / knockdown landings."""
-    shares = {"push_starts": h.push_prob, "knockdown_starts": h.knockdown_prob}
-    if any(p > 0 for p in shares.values()) and not h.joystick_policy:
-        raise ValueError("handover.push_prob or handover.knockdown_prob > 0 needs handover.joystick_policy "
-                         "(the joystick artifact or checkpoint that is pushed over)")
-    return {f"{group}.{key}": value for group, prob in shares.items() if prob > 0
-            for key, value in (("prob", float(prob)), ("joystick_policy", h.joystick_policy))}
+    """The getup env's config overrides that start `h.knockdown_prob` of the hand-over bank's rises from
+    knockdown landings."""
+    if h.knockdown_prob <= 0:
+        return {}
+    if not h.joystick_policy:
+        raise ValueError("handover.knockdown_prob > 0 needs handover.joystick_policy (the joystick artifact or "
+                         "checkpoint that is pushed over)")
+    return {"knockdown_starts.prob": float(h.knockdown_prob), "knockdown_starts.joystick_policy": h.joystick_policy}
 
 
 class Joystick(base.T1Env):
@@ -83,7 +83,7 @@ class Joystick(base.T1Env):
         self._init_reward_constants()
         self._handover = None
         h = self._config.handover
-        for key in ("prob", "push_prob", "knockdown_prob", "zero_command_prob"):
+        for key in ("prob", "knockdown_prob", "zero_command_prob"):
             if not 0.0 <= h[key] <= 1.0:
                 raise ValueError(f"handover.{key} must be in [0, 1], got {h[key]}")
         shove_prob = self._config.push.torso_shove_prob

@@ -130,8 +130,13 @@ class Unified(GetupBase):
     _push_interval_steps = Joystick._push_interval_steps
     _walking_push_magnitude = Joystick._push_magnitude
     _advance_clock_and_command = Joystick._advance_clock_and_command
-    WALL_SHARE_CONFIG = "walls"
     SHOVES = ("velocity", "torso", "mixed")   # knockdown.shove
+
+    def _wall_share(self) -> float:
+        return float(self._config.walls.prob)
+
+    def has_wall_course(self) -> bool:
+        return super().has_wall_course() or self._wall_share() > 0
 
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
                  make_env=None):
