@@ -9,27 +9,10 @@ import numpy as np
 from common.artifact import write_artifact
 from common.golden import base_manifest
 from training import checkpoints
+from training.envs.policy_files import brax_policy_layers
 
 
 # ---------------------------------------------------------------- brax PPO
-def brax_policy_layers(policy_params: Mapping[str, Any]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """brax MLP params {'params': {'hidden_i': {'kernel' (in, out), 'bias'}}} → [(W (out, in), b)]."""
-    inner = policy_params.get("params", policy_params)
-    names = sorted(inner, key=lambda n: int(n.split("_")[-1]) if n.startswith("hidden_") else -1)
-    if not names or any(not n.startswith("hidden_") for n in names):
-        raise ValueError(f"policy_params: expected only brax MLP layers hidden_0..hidden_N, got {sorted(inner)} "
-                         "(layer norm / separate-std policies are not supported by schema 1)")
-    if [int(n.split("_")[-1]) for n in names] != list(range(len(names))):
-        raise ValueError(f"policy_params: layer names are not contiguous: {names}")
-    layers = []
-    for n in names:
-        if set(inner[n]) != {"kernel", "bias"}:
-            raise ValueError(f"policy_params: {n} must hold exactly kernel and bias, has {sorted(inner[n])}")
-        kernel = np.asarray(inner[n]["kernel"], dtype=np.float32)
-        layers.append((np.ascontiguousarray(kernel.T), np.asarray(inner[n]["bias"], dtype=np.float32)))
-    return layers
-
-
 NORMAL = "normal"   # ppo.policy_distribution of a fine-tuned student (training/student_finetune.py)
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 
-ACTIVATION = "swish"  # brax's PPO/BC default (flax linen.swish); the artifact's activation must match
+from training.envs.policy_files import ACTIVATION  # noqa: F401 (the networks' activation, brax's default)
 
 
 def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observations_fn=None,

@@ -48,7 +48,7 @@ from common.scenarios import TORSO_BODY
 from common import observation as obsdef
 from training.envs import wall_course
 from messages.contract import WAIST_SWITCH_HEIGHT_M
-from training.experts import STUDENT_OBS_KEY, load_expert
+from training.envs.experts import STUDENT_OBS_KEY, load_expert
 
 MAX_RISE_S = 10.0   # [s] a fallen start that has not handed over by then is left out
 # A knockdown: a base speed change [m/s] as hard as the loop's push test (common/push_test.py: 40 N·s ±

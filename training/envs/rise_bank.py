@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from training.experts import STUDENT_OBS_KEY, load_expert
+from training.envs.experts import STUDENT_OBS_KEY, load_expert
 
 ARRIVE_TRUNK_M = 0.38    # a rise arrives near the kneel (trunk 0.405 m there) at this trunk height [m] ...
 ARRIVE_UP_Z = 0.95       # ... with the trunk this upright (18° of tilt at most)
