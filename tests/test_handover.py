@@ -155,6 +155,12 @@ def test_evaluate_refuses_bad_starts(over, why, tmp_path):
         evaluate(GETUP, tmp_path, seeds=1, seconds=0.2, backend="cpu", **over)
 
 
+def test_evaluate_cli_keeps_the_start_joystick_with_its_starts(capsys):
+    from training import cli
+    assert cli.main(["evaluate", "--policy", GETUP, "--start-joystick", JOYSTICK]) == 2
+    assert "--start-joystick goes with" in capsys.readouterr().err
+
+
 def _landings(**shares) -> dict:
     config = envs.default_config("joystick").handover
     config.update({"prob": 1.0, "getup_policy": GETUP, "joystick_policy": JOYSTICK, **shares})

@@ -88,7 +88,7 @@ BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
 # = training.evaluate.START_KINDS and JOYSTICK_STARTS (not imported: parsing needs no JAX)
-START_CHOICES = ("fallen", "knockdown", "wall", "push", "collapse", "prone")
+START_CHOICES = ("fallen", "knockdown", "wall", "push")
 JOYSTICK_STARTS = ("knockdown", "wall", "push")
 START_JOYSTICK = "policies/joystick/joystick.safetensors"   # evaluate --starts knockdown|wall|push: the shipped joystick expert
 
@@ -98,14 +98,6 @@ def _cmd_evaluate(args, command: str) -> int:
     out = args.out or f"out/eval_{args.task}"
     if args.start_joystick and args.starts not in JOYSTICK_STARTS:
         raise ValueError("--start-joystick goes with --starts knockdown, wall or push")
-    collapse = {k: v for k, v in (("gain_scale", args.collapse_gain_scale),
-                                  ("duration_s", args.collapse_seconds),
-                                  ("push_axis_deg", args.collapse_push_axis_deg)) if v is not None}
-    if (args.collapse_progress is not None or collapse) and args.starts != "collapse":
-        raise ValueError("--collapse-progress, --collapse-gain-scale, --collapse-seconds and "
-                         "--collapse-push-axis-deg go with --starts collapse")
-    if args.prone_progress is not None and args.starts != "prone":
-        raise ValueError("--prone-progress goes with --starts prone")
     if args.starts in JOYSTICK_STARTS and not args.start_joystick:
         args.start_joystick = START_JOYSTICK
     if args.task == "joystick":
@@ -121,10 +113,7 @@ def _cmd_evaluate(args, command: str) -> int:
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
                                    command=command, backend=args.backend, starts=args.starts,
-                                   start_joystick=args.start_joystick,
-                                   collapse_progress=1.0 if args.collapse_progress is None else args.collapse_progress,
-                                   collapse=collapse,
-                                   prone_progress=args.prone_progress)
+                                   start_joystick=args.start_joystick)
     print(report.read_text())
     return 0
 
@@ -224,21 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "wall = the same after --start-joystick walked into the low-wall course from SEEDS approaches "
                    "(training/envs/wall_course.py), those that stepped over it left out; push = the same in the "
                    "loop's push test: SEEDS standing starts shoved on the torso forward or backward (2 : 1), "
-                   "the ones it caught left out; collapse = SEEDS collapses from the kneel (stage 1's reverse "
-                   "curriculum, training/envs/kneel_collapse.py) at --collapse-progress; prone = SEEDS settled starts on "
-                   "the path kneel → hands and knees → face down (training/envs/prone_path.py) at --prone-progress")
-    p.add_argument("--prone-progress", type=float, metavar="P",
-                   help="with --starts prone: 0 the kneel, 1 hands and knees, 2 face down (default 2)")
-    p.add_argument("--collapse-progress", type=float, metavar="P",
-                   help="with --starts collapse: 0 the kneel … 1 the end of the collapse (default 1)")
-    p.add_argument("--collapse-gain-scale", type=float, metavar="G",
-                   help="with --starts collapse: the kneel's PD gains × G while it collapses (default: the getup "
-                   "env's collapse_starts.gain_scale; a stage's own is in its recipe)")
-    p.add_argument("--collapse-seconds", type=float, metavar="S",
-                   help="with --starts collapse: how long the collapse lasts [s] (default: the env's duration_s)")
-    p.add_argument("--collapse-push-axis-deg", type=float, nargs=2, metavar=("LOW", "HIGH"),
-                   help="with --starts collapse: the tipping push's axis, uniform in [LOW, HIGH] degrees from "
-                   "world x (20 160: it falls face down; default: any axis)")
+                   "the ones it caught left out")
     p.add_argument("--start-joystick", "--knockdown-joystick", metavar="ARTIFACT", dest="start_joystick",
                    help="with --starts knockdown, wall or push: the joystick expert that walks and is pushed over or "
                    f"trips (default {START_JOYSTICK})")

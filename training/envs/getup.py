@@ -224,7 +224,7 @@ class Getup(GetupBase):
                                    num_starts, seed, float(r.min_progress))
 
     def collapse_settings(self) -> dict:
-        """kneel_collapse's settings of this env's collapse starts (training and evaluation)."""
+        """kneel_collapse's settings of this env's collapse starts."""
         c = self._config.collapse_starts
         return dict(gain_scale=float(c.gain_scale), push_rad_s=float(c.push_rad_s), duration_s=float(c.duration_s),
                     push_axis_deg=tuple(c.push_axis_deg),
@@ -235,7 +235,7 @@ class Getup(GetupBase):
                                             **self.collapse_settings())
 
     def prone_settings(self) -> dict:
-        """prone_path's settings of this env's prone starts (training and evaluation)."""
+        """prone_path's settings of this env's prone starts."""
         p = self._config.prone_starts
         return dict(hands_knees_pitch_rad=float(p.hands_knees_pitch_rad), target_noise_rad=float(p.target_noise_rad),
                     settle_s=float(p.settle_s), supervisor=self._host_supervisor())

@@ -43,17 +43,6 @@ def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale
     return bank
 
 
-def collapse_states(num_starts: int, seed: int, progress: float, *, gain_scale: float, push_rad_s: float,
-                    duration_s: float, ctrl_dt: float, supervisor: tuple[float, float],
-                    push_axis_deg: tuple[float, float] = ANY_AXIS_DEG) -> tuple[np.ndarray, np.ndarray]:
-    """(qpos [num_starts, nq], qvel [num_starts, nv]): each collapse at `progress` (evaluate --starts collapse)."""
-    if not 0.0 <= progress <= 1.0:
-        raise ValueError(f"collapse progress must be in [0, 1], got {progress}")
-    qpos, qvel = _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor, push_axis_deg)
-    tick = int(round(progress * (qpos.shape[1] - 1)))
-    return qpos[:, tick].copy(), qvel[:, tick].copy()
-
-
 def _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor, push_axis_deg):
     """collapses() with its arguments in the types its cache keys on (a numpy or JAX scalar would miss it)."""
     return collapses(int(num_starts), int(seed), float(gain_scale), float(push_rad_s), float(duration_s),
