@@ -277,25 +277,14 @@ def test_failed_rises_count_as_the_events_definition(segments):
     assert _failed_rises(h, up_z, int(round(STAND_HOLD_S / dt))) == expected
 
 
-def test_failed_rise_cost_is_off_by_default_and_refused_negative(full_env):
-    assert full_env.config.failed_rise.cost == 0.0
-    assert "failed_rises" in full_env.metric_names()
-    with pytest.raises(ValueError, match="failed_rise.cost"):
-        envs.make("getup", config_overrides={"fallen_bank_size": 2, "failed_rise.cost": -1.0})
-
-
-def test_a_failed_rise_costs_its_cost_once_in_the_step_reward():
+def test_a_failed_rise_counts_once_in_the_metric():
     """One step of the CPU-backend getup env from a state whose tracker holds an attempt that peaked 1 m up:
-    the trunk is far below peak − 0.15 m, so the attempt fails and the reward is lower by the cost."""
-    rewards = []
-    for cost in (0.0, 5.0):
-        env = envs.make("getup", config_overrides={"backend": "cpu", "fallen_bank_size": 2, "episode_length": 20,
-                                                   "failed_rise.cost": cost})
-        state = jax.jit(env.reset)(jax.random.PRNGKey(0))
-        track = dict(state.info["rise_track"], down=jnp.asarray(True), rising=jnp.asarray(True),
-                     high=jnp.asarray(1.0, jnp.float32))
-        state = state.replace(info={**state.info, "rise_track": track})
-        after = jax.jit(env.step)(state, jnp.zeros(23))
-        assert float(after.metrics["failed_rises"]) == 1.0 and not bool(after.info["rise_track"]["rising"])
-        rewards.append(float(after.reward))
-    assert rewards[0] - rewards[1] == pytest.approx(5.0, abs=1e-4)
+    the trunk is far below peak − 0.15 m, so the attempt fails and the metric counts it."""
+    env = envs.make("getup", config_overrides={"backend": "cpu", "fallen_bank_size": 2, "episode_length": 20})
+    assert "failed_rises" in env.metric_names()
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    track = dict(state.info["rise_track"], down=jnp.asarray(True), rising=jnp.asarray(True),
+                 high=jnp.asarray(1.0, jnp.float32))
+    state = state.replace(info={**state.info, "rise_track": track})
+    after = jax.jit(env.step)(state, jnp.zeros(23))
+    assert float(after.metrics["failed_rises"]) == 1.0 and not bool(after.info["rise_track"]["rising"])

@@ -140,22 +140,3 @@ def test_unified_push_is_a_shove_only_when_due_and_drawn():
         moved = np.abs(np.asarray(after.qvel)).max() > 0.1
         assert moved == pushed and int(info["push_step"]) == step + 1
         assert np.allclose(np.asarray(info["push"]), np.asarray(after.qvel)[:2])
-
-
-def test_joystick_torso_shoves_replace_that_share_of_the_pushes():
-    """push.torso_shove_prob: a due push is the push test's torso shove (handover.TorsoShove) with that
-    probability, else the joystick env's base-speed push; never when not due; off by default."""
-    assert envs.default_config("joystick").push.torso_shove_prob == 0.0
-    env = envs.make("joystick", config_overrides={"push.torso_shove_prob": 1.0})
-    qpos = jax.numpy.asarray(t1model.keyframe_qpos(env.mj_model, "home"))
-    data = env.make_data(qpos, jax.numpy.zeros(env.mj_model.nv))
-    keys = jax.random.split(jax.random.PRNGKey(3), 2)
-    for step, pushed in ((8, True), (3, False)):           # due when push_step + 1 hits the interval
-        info = {"push_step": jax.numpy.array(step), "push_interval_steps": jax.numpy.array(9)}
-        after = np.asarray(env._apply_push(data, info, *keys).qvel)
-        assert (np.abs(after[6:]).max() > 0.1) == pushed       # a shove turns the joints too, a base push cannot
-        assert np.allclose(np.asarray(info["push"]), after[:2])
-    with pytest.raises(ValueError, match="push.torso_shove_prob must be in"):
-        envs.make("joystick", config_overrides={"push.torso_shove_prob": 1.5})
-    with pytest.raises(ValueError, match="push.torso_shove_prob is the joystick env's"):
-        envs.make("unified", config_overrides={"push.torso_shove_prob": 0.5, "fallen_bank_size": 2})

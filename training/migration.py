@@ -25,7 +25,9 @@ RENAMED: dict[str, dict[str, str]] = {"env": {}, "ppo": {}}
 # {field: value} that switches the group off (its other fields are then irrelevant)
 REMOVED: dict[str, dict[str, Any]] = {
     "env": {"upright_policy": "", "rise_pace": {"weight": 0.0}, "gravity_scale": 1.0, "wall_starts": {"prob": 0.0},
-            "push_starts": {"prob": 0.0}, "handover.push_prob": 0.0},
+            "push_starts": {"prob": 0.0}, "handover.push_prob": 0.0, "failed_rise": {"cost": 0.0},
+            "handover.knockdown_prob": 0.0, "handover.joystick_policy": "", "handover.zero_command_prob": 0.0,
+            "push.torso_shove_prob": 0.0},
     "ppo": {}}
 
 

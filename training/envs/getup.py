@@ -17,9 +17,8 @@ Stages (config.stage), rewards from getup_rewards.py (formulas there):
   so a per-step-gated fine-tune of stage 2 paid the kneel reward for every small tilt and unlearned the
   stand-up (training/LESSONS.md). Latched,
   the kneel keyframe (trunk 0.405 m, upright) is where the standing phase begins, as §4.8 describes it.
-reward per control step = (Height + Pose − energy_weight·energy) × ctrl_dt
-− failed_rise.cost·[a getup attempt failed this step] (failed rise: ours; metric failed_rises counts
-them per episode whatever the cost).
+reward per control step = (Height + Pose − energy_weight·energy) × ctrl_dt; metric failed_rises counts the
+getup attempts that fail by common/events.py's definition (ours).
 Fine-tunes: energy_weight > 0 (the energy fine-tune; 0 before it, §4.7), obs_noise_scale > 0 (the
 robustness fine-tune: U(−1, 1)·obs_noise_scale added to EVERY observation entry, §4.6; the seed's is 1).
 Kneel targets: the model's `kneel` keyframe (trunk 0.405 m, waist from its kinematics), q_kneel its joints;
@@ -187,9 +186,6 @@ class Getup(GetupBase):
                                         rc.left_leg_waypoints, int(rc.bank_size))
             self._path_bank = jnp.asarray(bank[starts], jnp.float32)
         self._fallen_banks = self._load_fallen_banks()
-        self._failed_rise_cost = float(self._config.failed_rise.cost)
-        if self._failed_rise_cost < 0.0:
-            raise ValueError(f"failed_rise.cost must be >= 0, got {self._failed_rise_cost}")
         self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
         self._stage1_gate_reward = float(self._config.stage1_gate_reward)
         if self._stage1_gate_reward < 0.0:
@@ -325,7 +321,7 @@ class Getup(GetupBase):
                   "energy": -self._config.energy_weight * terms["energy"]}
         info["rise_track"], failed = G.rise_track_step(state.info["rise_track"], info["trunk_height"],
                                                        self.standing(info), self._stand_hold_ticks)
-        reward = sum(scaled.values()) * self.dt - self._failed_rise_cost * failed
+        reward = sum(scaled.values()) * self.dt
         info["last_act"] = action
         obs = self._observe(data, info, k_obs, self._privileged_extra(info))
         metrics = dict(state.metrics)   # keep what wrappers added (brax's EvalWrapper adds "reward")

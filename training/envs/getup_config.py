@@ -73,9 +73,6 @@ def default_config() -> config_dict.ConfigDict:
     cfg.prone_starts = config_dict.create(prob=0.0, min_progress=0.0, max_progress=2.0, bank_starts=256,
                                           seed=800_000, hands_knees_pitch_rad=1.4, target_noise_rad=0.1,
                                           settle_s=1.0)
-    # a failed getup attempt (getup_rewards.rise_track_step, events.py's definition; ours): this cost [in
-    # return units, i.e. after the per-step rewards' × ctrl_dt] once per failed attempt; 0 = off
-    cfg.failed_rise = config_dict.create(cost=0.0)
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
     # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
     # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with

@@ -67,15 +67,12 @@ class HandoverBank(NamedTuple):
     joint_targets: np.ndarray   # (n, 23) the getup expert's last joint targets [rad]
 
 
-def handover_bank(make_env: Callable, getup_policy: str, num_starts: int, seed: int, landing_overrides: dict | None = None
-                  ) -> HandoverBank:
+def handover_bank(make_env: Callable, getup_policy: str, num_starts: int, seed: int) -> HandoverBank:
     """Hand-over states of `getup_policy` (artifact or checkpoint) from `num_starts` random draws of a bank of
-    `num_starts` seeded fallen starts (seed, seed + 1, …); identical states (a start drawn twice) kept once.
-    `landing_overrides` (getup config keys such as "knockdown_starts.prob") replace shares of those fallen starts
-    with the getup env's landing banks, so that the rises begin where a push or knockdown left the robot."""
+    `num_starts` seeded fallen starts (seed, seed + 1, …); identical states (a start drawn twice) kept once."""
     env = make_env("getup", config_overrides={"backend": "cpu", "start_probs": [1.0, 0.0, 0.0],
                                                "fallen_bank_size": int(num_starts), "fallen_seed": int(seed),
-                                               "obs_noise_scale": 0.0, **(landing_overrides or {})})
+                                               "obs_noise_scale": 0.0})
     getup = load_expert(getup_policy, "getup")
     if tuple(map(tuple, env.obs_terms)) != getup.obs_terms:
         raise ValueError(f"{getup_policy}: observation terms {getup.obs_terms} are not the getup env's")
@@ -203,7 +200,7 @@ def torso_shove_response(model: mujoco.MjModel, home_qpos: np.ndarray) -> np.nda
 class TorsoShove:
     """The loop's push-test shove drawn in JAX (push_test.push_draw's distribution: forward or backward 2 : 1
     off the heading, impulse and angle spread as the test's), as the change of qvel it makes: the unified
-    env's torso knockdowns and the joystick env's push.torso_shove_prob use it."""
+    env's torso knockdowns use it."""
 
     def __init__(self, model: mujoco.MjModel, home_qpos: np.ndarray):
         self._impulse_ns, self._impulse_spread = push_test.PUSH_IMPULSE_NS, push_test.PUSH_IMPULSE_SPREAD

@@ -150,9 +150,6 @@ class Unified(GetupBase):
         shove = kd.shove
         if shove not in self.SHOVES:
             raise ValueError(f"knockdown.shove {shove!r}: one of {', '.join(self.SHOVES)}")
-        if self._config.push.torso_shove_prob > 0:
-            raise ValueError("push.torso_shove_prob is the joystick env's: the unified env's shoves are "
-                             "knockdown.prob with knockdown.shove \"torso\"")
         self._reward_mode = self._config.reward.mode
         if self._reward_mode not in REWARD_MODES:
             raise ValueError(f"reward.mode {self._reward_mode!r}: one of {', '.join(REWARD_MODES)}")
@@ -163,7 +160,6 @@ class Unified(GetupBase):
             self._walk_after_stand_up = bool(self._config.reward.walk_after_stand_up)
             if not self._config.reward.getup.scale > 0:
                 raise ValueError(f"reward.getup.scale must be > 0, got {self._config.reward.getup.scale}")
-        self._push_shove = None    # (the joystick env's push.torso_shove_prob; Joystick._apply_push reads it)
         # the share of knockdowns that are torso shoves
         self._torso_share = {"velocity": 0.0, "torso": 1.0}.get(shove, float(kd.torso_share))
         if not 0.0 <= self._torso_share <= 1.0:
