@@ -61,5 +61,5 @@ def test_the_stage1_env_draws_its_fallen_share_from_the_path():
         "stage": "stage1", "fallen_bank_size": 2, "prone_starts.prob": 0.5, "prone_starts.bank_starts": STARTS,
         "prone_starts.seed": SEED, "prone_starts.min_progress": 0.7})
     ((prob, (qpos, qvel)),) = env._fallen_banks
-    bank = prone_path.prone_bank(STARTS, SEED, 0.7, prone_path.PATH_END, **env.prone_settings())
+    bank = prone_path.prone_starts(env, env.config.prone_starts)
     assert prob == 0.5 and np.array_equal(np.asarray(qpos), bank[0]) and np.array_equal(np.asarray(qvel), bank[1])

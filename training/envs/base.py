@@ -165,6 +165,11 @@ class T1Env(mjx_env.MjxEnv):
         return mj
 
     @property
+    def make_env(self) -> Callable | None:
+        """The task registry's envs.make, for start banks that roll another task's env (None: no bank)."""
+        return self._make_env
+
+    @property
     def backend(self) -> str:
         return "cpu" if self._cpu is not None else "mjx"
 

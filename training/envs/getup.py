@@ -50,7 +50,7 @@ from mujoco_playground._src import mjx_env
 from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
-from training.envs import handover, kneel_collapse, prone_path, rise_bank, start_path
+from training.envs import start_banks, start_path
 from common.events import FALLEN_TRUNK_HEIGHT_M, STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.fallen import fallen_states
 from training.envs.getup_config import default_config   # envs.make's config of this task
@@ -85,9 +85,9 @@ class GetupBase(base.T1Env):
     def fallen_starts(self, num: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """(qpos, qvel) of this env's fallen starts for seeds seed … seed + num − 1 (training and evaluation):
         after the runtime's PREPARE ramp, under this env's supervisor settings."""
-        return fallen_states(num, seed, float(self._config.fallen_prepare_s), self._host_supervisor())
+        return fallen_states(num, seed, float(self._config.fallen_prepare_s), self.host_supervisor())
 
-    def _host_supervisor(self) -> tuple[float, float]:
+    def host_supervisor(self) -> tuple[float, float]:
         """Rule R6 as the host rollouts of the start banks take it: (max target speed [rad/s], range fraction)."""
         step_per_substep, fraction = self._supervisor_settings(self._config)
         return step_per_substep / float(self._config.sim_dt), fraction
@@ -192,54 +192,9 @@ class Getup(GetupBase):
             raise ValueError(f"stage1_gate_reward must be >= 0, got {self._stage1_gate_reward}")
 
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
-        """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn. The
-        shares are checked before any bank is rolled."""
-        wanted = []
-        for name, policy_key, make in (("knockdown_starts", "joystick_policy", handover.knockdown_bank),
-                                       ("rise_starts", "getup_policy", self._rise_bank),
-                                       ("collapse_starts", None, self._collapse_bank),
-                                       ("prone_starts", None, self._prone_bank)):
-            b = self._config[name]
-            if not 0.0 <= b.prob <= 1.0:
-                raise ValueError(f"{name}.prob must be in [0, 1], got {b.prob}")
-            if b.prob > 0:
-                if policy_key and not b[policy_key]:
-                    raise ValueError(f"{name}.prob > 0 needs {name}.{policy_key} (an artifact, checkpoint or run "
-                                     "directory)")
-                wanted.append((name, float(b.prob), make, b[policy_key] if policy_key else "", int(b.bank_starts),
-                               int(b.seed)))
-        if sum(w[1] for w in wanted) > 1.0 + 1e-9:
-            raise ValueError(f"the start banks' shares must sum to at most 1, got "
-                             f"{' + '.join(f'{w[0]}.prob {w[1]}' for w in wanted)}")
-        return [(prob, tuple(jnp.asarray(x) for x in make(self._make_env, policy, n, seed)))
-                for _, prob, make, policy, n, seed in wanted]
-
-    def _rise_bank(self, make_env, getup_policy: str, num_starts: int, seed: int):
-        r = self._config.rise_starts
-        return rise_bank.rise_bank(make_env, getup_policy, float(r.harness_n_per_m), float(r.harness_slack_m),
-                                   num_starts, seed, float(r.min_progress))
-
-    def collapse_settings(self) -> dict:
-        """kneel_collapse's settings of this env's collapse starts."""
-        c = self._config.collapse_starts
-        return dict(gain_scale=float(c.gain_scale), push_rad_s=float(c.push_rad_s), duration_s=float(c.duration_s),
-                    push_axis_deg=tuple(c.push_axis_deg),
-                    ctrl_dt=float(self._config.ctrl_dt), supervisor=self._host_supervisor())
-
-    def _collapse_bank(self, make_env, _policy: str, num_starts: int, seed: int):
-        return kneel_collapse.collapse_bank(num_starts, seed, float(self._config.collapse_starts.max_progress),
-                                            **self.collapse_settings())
-
-    def prone_settings(self) -> dict:
-        """prone_path's settings of this env's prone starts."""
-        p = self._config.prone_starts
-        return dict(hands_knees_pitch_rad=float(p.hands_knees_pitch_rad), target_noise_rad=float(p.target_noise_rad),
-                    settle_s=float(p.settle_s), supervisor=self._host_supervisor())
-
-    def _prone_bank(self, make_env, _policy: str, num_starts: int, seed: int):
-        p = self._config.prone_starts
-        return prone_path.prone_bank(num_starts, seed, float(p.min_progress), float(p.max_progress),
-                                     **self.prone_settings())
+        """(share of the fallen starts, (qpos, qvel)) of the configured start sources (start_banks.py)."""
+        return [(prob, tuple(jnp.asarray(x) for x in bank))
+                for prob, bank in start_banks.fallen_share_banks(self, self._config)]
 
     def _start_state(self, rng):
         """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path; with

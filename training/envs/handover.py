@@ -41,6 +41,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 from brax import math as brax_math
+from ml_collections import config_dict
 
 from common.events import heading_from_quat
 from common import push_test
@@ -151,6 +152,24 @@ def _frozen_bank(found, qpos, qvel) -> tuple[np.ndarray, np.ndarray]:
     for array in bank:
         array.flags.writeable = False
     return bank
+
+
+def handover_config() -> config_dict.ConfigDict:
+    """The joystick env's hand-over starts: this share of episodes starts where the stitched teacher hands the
+    getup expert `getup_policy`'s rise over, from `bank_starts` fallen starts (seeds from `seed`, apart from the
+    evaluations' 0 …); 0 = standing starts only, as Playground's."""
+    return config_dict.create(prob=0.0, getup_policy="", bank_starts=256, seed=100_000)
+
+
+def knockdown_config() -> config_dict.ConfigDict:
+    """The getup env's knockdown starts: this share of its fallen starts is instead where the teacher hands
+    `joystick_policy`, knocked over by a push, to the getup expert mid-fall (from `bank_starts` standing starts,
+    seeds from `seed`)."""
+    return config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=200_000)
+
+
+def knockdown_starts(env, group) -> tuple[np.ndarray, np.ndarray]:
+    return knockdown_bank(env.make_env, group.joystick_policy, int(group.bank_starts), int(group.seed))
 
 
 @functools.lru_cache(maxsize=4)

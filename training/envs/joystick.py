@@ -17,7 +17,7 @@ from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
 from common import observation as obsdef
-from training.envs import base, handover
+from training.envs import base, handover, start_banks
 from training.envs import joystick_rewards as R
 
 # Playground's pose-cost weights per joint (head, arms, waist, legs), joint order.
@@ -37,10 +37,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.reset = config_dict.create(xy_range_m=0.5, yaw_range_rad=3.14, joint_scale=[0.5, 1.5],
                                    root_vel_range=0.5)
     cfg.push = config_dict.create(enable=True, interval_range_s=[5.0, 10.0], magnitude_range_mps=[0.1, 1.0])
-    # hand-over starts (training/envs/handover.py; ours): this share of episodes starts in the state where the
-    # stitched teacher hands the getup expert `getup_policy`'s rise over, from `bank_starts` fallen starts
-    # (seeds from `seed`, apart from the evaluations' 0 …); 0 = standing starts only, as Playground's.
-    cfg.handover = config_dict.create(prob=0.0, getup_policy="", bank_starts=256, seed=100_000)
+    start_banks.add_config_groups(cfg, "joystick")   # hand-over starts (handover.handover_config; ours)
     cfg.reward = config_dict.create(
         scales=config_dict.create(
             tracking_lin_vel=1.0, tracking_ang_vel=0.5, lin_vel_z=0.0, ang_vel_xy=-0.15, orientation=-1.0,
