@@ -71,6 +71,18 @@ def test_a_student_checkpoint_needs_the_normal_policy_and_a_teacher():
     assert F.init_params(ppo_params, cfg) is ppo_params
 
 
+def test_the_trainer_gets_the_fine_tune_only_where_asked():
+    """train.py knows one PPOExtension: plain PPO unless the config or the checkpoint asks for the fine-tune."""
+    from training.ppo_extension import PPOExtension
+    _, normalizer, policy = _student()
+    plain = ppo_config("unified", "toy")
+    assert type(F.extension(plain)) is PPOExtension and F.extension(plain).state_fields(None) == {}
+    finetune = F.extension(_ppo_cfg(), [normalizer, policy])
+    assert isinstance(finetune, F.StudentFinetune) and finetune.state_fields(None) == {"bc_count_start": 0.0}
+    with pytest.raises(ValueError, match="policy_distribution='normal'"):   # a DAgger checkpoint under plain PPO
+        F.extension(plain, [normalizer, policy]).initial_params([normalizer, policy])
+
+
 def test_the_bc_weight_decays_linearly_to_zero_and_counts_samples():
     assert float(F.bc_weight(0.0, 2.0, 1000)) == 2.0
     assert float(F.bc_weight(250.0, 2.0, 1000)) == pytest.approx(1.5)

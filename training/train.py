@@ -108,6 +108,162 @@ def run_name(task: str, env_cfg) -> str:
     return f"{task}_{env_cfg.stage}" if task.startswith("getup") and "stage" in env_cfg else task
 
 
+@dataclass
+class _Run:
+    """A call's run: its directory and state, its configs, the params it starts from and its PPO extension."""
+    dir: Path
+    state: dict
+    ppo_cfg: config_dict.ConfigDict
+    env_cfg: config_dict.ConfigDict
+    params: object
+    extension: object
+
+
+def _resume_run(task: str, run_dir: Path, steps, overrides: Sequence[str]) -> _Run:
+    _check_resume_overrides(overrides)
+    state = checkpoints.load_run_state(run_dir)
+    if state["task"] != task:
+        raise ValueError(f"--resume: {run_dir} is a {state['task']!r} run, not {task!r}")
+    ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
+    apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)
+    state["ppo_config"], state["env_config"] = ppo_cfg.to_dict(), env_cfg.to_dict()
+    if steps is not None:
+        state["target_steps"] = int(steps)  # extending a finished run is allowed
+    started = state["env_steps"] > 0
+    source = run_dir if started else state.get("init")
+    restored = checkpoints.load_checkpoint(source) if source else None
+    ext = student_finetune.extension(ppo_cfg, restored)
+    return _Run(run_dir, state, ppo_cfg, env_cfg, restored if started else ext.initial_params(restored), ext)
+
+
+def _new_run(task: str, run_dir: Path, *, steps, overrides, preset, stage, from_checkpoint, name, seed, recipe) -> _Run:
+    if (run_dir / checkpoints.RUN_STATE).exists():
+        raise FileExistsError(f"{run_dir} already holds a run: pass --resume to continue it or pick another --out")
+    ppo_cfg, env_cfg = build_configs(task, preset, stage, overrides)
+    init = str(checkpoints.resolve_checkpoint(from_checkpoint)) if from_checkpoint else None
+    restored = checkpoints.load_checkpoint(init) if init else None
+    ext = student_finetune.extension(ppo_cfg, restored)
+    params = ext.initial_params(restored)
+    state = {"task": task, "name": name or run_name(task, env_cfg), "preset": preset, "seed": seed,
+             "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
+             "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
+             "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {}),
+             **ext.state_fields(params)}
+    run_dir.mkdir(parents=True, exist_ok=True)
+    checkpoints.save_run_state(run_dir, state)
+    return _Run(run_dir, state, ppo_cfg, env_cfg, params, ext)
+
+
+class _Epochs:
+    """brax's progress and checkpoint hooks for one call: the metrics log and bar, a checkpoint and the run
+    state after every epoch (a call killed mid-run still says what made it), and the --max-minutes stop."""
+
+    def __init__(self, run: _Run, env, net_cfg, command: str, max_minutes, progress: bool, t_start: float):
+        import tqdm
+        self.run, self.net_cfg, self.max_minutes, self.t_start = run, net_cfg, max_minutes, t_start
+        self.offset = int(run.state["env_steps"])
+        self.phase_offset = self.offset   # env steps before the running ppo.train call (which counts from 0)
+        self.latest = {"params": run.params, "steps": self.offset}
+        self.sps, self.epoch_end, self.last_total = [], time.monotonic(), self.offset
+        self.minutes_before = float(run.state["minutes"])
+        self.log = curves.MetricsLog(run.dir)
+        self.bar = tqdm.tqdm(total=int(run.state["target_steps"]), initial=self.offset, unit="step",
+                             unit_scale=True, disable=not progress, desc=run.state["name"], dynamic_ncols=True)
+        self.call = {"date": checkpoints.utc_now(), "command": command, "from_steps": self.offset,
+                     "to_steps": self.offset, "minutes": 0.0, "device": checkpoints.device_description(),
+                     "backend": env.backend, "finished": False}
+        run.state["calls"].append(self.call)
+
+    def progress_fn(self, step, metrics):
+        total = self.phase_offset + int(step)
+        recorded = self.log.log(total, metrics)
+        self.sps += [recorded[k] for k in ("training/sps", "episode/sps") if k in recorded]   # per epoch / step
+        self.bar.update(max(0, total - self.bar.n))
+        sps = recorded.get("training/sps", recorded.get("episode/sps"))
+        if sps is not None:
+            self.bar.set_postfix(env_steps_per_s=f"{sps:,.0f}", refresh=False)
+
+    def policy_params_fn(self, step, _make_policy, params):
+        if step == 0:
+            return
+        now, state = time.monotonic(), self.run.state
+        epoch_s, self.epoch_end = now - self.epoch_end, now
+        total = self.phase_offset + int(step)
+        checkpoints.save_checkpoint(self.run.dir, total, params, self.net_cfg)
+        self.latest.update(params=params, steps=total)
+        state["env_steps"] = total
+        self.call.update(to_steps=total, minutes=round((now - self.t_start) / 60.0, 2))
+        state["minutes"] = self.minutes_before + (now - self.t_start) / 60.0
+        checkpoints.save_run_state(self.run.dir, state)
+        next_s = next_epoch_estimate_s(epoch_s, total - self.last_total, self.sps[-1] if self.sps else None,
+                                       first_of_call=self.last_total == self.offset)
+        self.last_total = total
+        if self.max_minutes is not None and now - self.t_start + next_s > 60.0 * self.max_minutes:
+            raise _StopAtCheckpoint()
+
+    def close(self, stopped: bool) -> float:
+        """Record the call's end in the run state and curve; returns its steady env steps per second."""
+        self.bar.close()
+        minutes = (time.monotonic() - self.t_start) / 60.0
+        steady = self.sps[1:]  # the first epoch includes jit compilation
+        done_now = self.latest["steps"] - self.offset
+        sps = sorted(steady)[len(steady) // 2] if steady else (done_now / (60 * minutes) if minutes else 0.0)
+        state = self.run.state
+        state["minutes"] = self.minutes_before + minutes
+        self.call.update(to_steps=self.latest["steps"], minutes=round(minutes, 2), env_steps_per_s=round(sps, 1),
+                         stopped_by_max_minutes=stopped, finished=True)
+        state["env_steps_per_s"] = round(sps, 1)
+        checkpoints.save_run_state(self.run.dir, state)
+        self.log.close()
+        curves.plot_curves(self.log.csv_path, self.run.dir / curves.PNG_NAME, title=f"{state['name']} (PPO)")
+        return sps
+
+
+def _run_ppo(run: _Run, env, epochs: _Epochs, num_steps: int, network_factory, seed: int) -> None:
+    """One brax ppo.train call of num_steps from the newest params (the warm-up and PPO proper are one each)."""
+    from brax.training.agents.ppo import train as ppo
+    cfg, latest = run.ppo_cfg, epochs.latest
+    epochs.phase_offset = latest["steps"]
+    ppo.train(
+        environment=env, num_timesteps=num_steps, num_envs=cfg.num_envs,
+        episode_length=int(run.env_cfg.episode_length),
+        wrap_env_fn=run.extension.wrap_env_fn(env, full_reset=bool(cfg.full_reset)),
+        seed=seed + epochs.phase_offset,
+        learning_rate=cfg.learning_rate, entropy_cost=cfg.entropy_cost, discounting=cfg.discounting,
+        unroll_length=cfg.unroll_length, batch_size=cfg.batch_size, num_minibatches=cfg.num_minibatches,
+        num_updates_per_batch=cfg.num_updates_per_batch, num_resets_per_eval=cfg.num_resets_per_eval,
+        normalize_observations=cfg.normalize_observations, reward_scaling=cfg.reward_scaling,
+        clipping_epsilon=cfg.clipping_epsilon, max_grad_norm=cfg.max_grad_norm,
+        network_factory=network_factory, num_evals=_epochs(cfg, num_steps),
+        run_evals=cfg.run_evals, num_eval_envs=cfg.num_eval_envs, deterministic_eval=cfg.deterministic_eval,
+        log_training_metrics=cfg.log_training_metrics, training_metrics_steps=cfg.training_metrics_steps,
+        progress_fn=epochs.progress_fn, policy_params_fn=epochs.policy_params_fn,
+        randomization_fn=_randomization(cfg, env, seed + epochs.phase_offset),
+        restore_params=None if latest["params"] is None else tuple(latest["params"]),
+        restore_value_fn=latest["params"] is not None and latest["params"][2] is not None)
+
+
+def _train_phases(run: _Run, env, epochs: _Epochs, seed: int) -> bool:
+    """The critic-only warm-up, then PPO proper, inside the extension's loss term; True when --max-minutes
+    stopped the call."""
+    from brax.training import checkpoint as brax_checkpoint
+    factory = ppo_networks.network_factory(run.ppo_cfg)
+    epochs.net_cfg = brax_checkpoint.network_config(
+        observation_size={k: tuple(v) for k, v in env.observation_size.items()},
+        action_size=env.action_size, normalize_observations=run.ppo_cfg.normalize_observations,
+        network_factory=factory)
+    target = int(run.state["target_steps"])
+    warmup_end = min(target, int(run.ppo_cfg.value_warmup_steps))
+    try:
+        with run.extension.loss_term(env, run.state):
+            for end, network_factory in ((warmup_end, ppo_networks.frozen_policy_factory(factory)), (target, factory)):
+                if end > epochs.latest["steps"]:
+                    _run_ppo(run, env, epochs, end - epochs.latest["steps"], network_factory, seed)
+    except _StopAtCheckpoint:
+        return True
+    return False
+
+
 def train(task: str, out, steps: int | None = None, num_envs: int | None = None, seed: int = 0,
           resume: bool = False, max_minutes: float | None = None, overrides: Sequence[str] = (),
           stage: str | None = None, from_checkpoint=None, preset: str = "gpu", ship: bool = False,
@@ -115,153 +271,30 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
           backend: str | None = None, recipe: dict | None = None) -> TrainResult:
     """One PPO run (or a call that resumes one). `recipe` ({"name", "stage", "sha256"}) is recorded in the run
     state and the artifact's provenance when a recipe runs it (training/recipe_runner.py)."""
-    from brax.training.agents.ppo import train as ppo
-    import tqdm
-
     checkpoints.jax_setup()
     t_start = time.monotonic()
     run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
     if resume:
-        _check_resume_overrides(overrides)
-        state = checkpoints.load_run_state(run_dir)
-        if state["task"] != task:
-            raise ValueError(f"--resume: {run_dir} is a {state['task']!r} run, not {task!r}")
-        preset = state["preset"]  # a toy run stays a toy run (and its artifact untrained)
-        ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
-        apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)
-        state["ppo_config"], state["env_config"] = ppo_cfg.to_dict(), env_cfg.to_dict()
-        if steps is not None:
-            state["target_steps"] = int(steps)  # extending a finished run is allowed
-        restore = checkpoints.load_checkpoint(run_dir) if state["env_steps"] > 0 else state.get("init")
-        if isinstance(restore, str):
-            restore = student_finetune.init_params(checkpoints.load_checkpoint(restore), ppo_cfg)
+        run = _resume_run(task, run_dir, steps, overrides)
     else:
-        if (run_dir / checkpoints.RUN_STATE).exists():
-            raise FileExistsError(f"{run_dir} already holds a run: pass --resume to continue it or pick "
-                                  "another --out")
-        ppo_cfg, env_cfg = build_configs(task, preset, stage, overrides)
-        init = str(checkpoints.resolve_checkpoint(from_checkpoint)) if from_checkpoint else None
-        restore = student_finetune.init_params(checkpoints.load_checkpoint(init) if init else None, ppo_cfg)
-        state = {"task": task, "name": name or run_name(task, env_cfg), "preset": preset, "seed": seed,
-                 "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
-                 "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
-                 "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {}),
-                 # where the BC term's decay counts from (student_finetune.py)
-                 "bc_count_start": float(student_finetune.sample_count(restore[0])) if restore else 0.0}
-        run_dir.mkdir(parents=True, exist_ok=True)
-        checkpoints.save_run_state(run_dir, state)
+        run = _new_run(task, run_dir, steps=steps, overrides=overrides, preset=preset, stage=stage,
+                       from_checkpoint=from_checkpoint, name=name, seed=seed, recipe=recipe)
+    preset = run.state["preset"]  # a resumed toy run stays a toy run (and its artifact untrained)
     if num_envs is not None:
-        ppo_cfg.num_envs = state["ppo_config"]["num_envs"] = int(num_envs)
-    _check_batch_shape(ppo_cfg)
+        run.ppo_cfg.num_envs = run.state["ppo_config"]["num_envs"] = int(num_envs)
+    _check_batch_shape(run.ppo_cfg)
     # the physics engine is this call's choice (a run may move between GPU and CPU sessions)
-    env_cfg.backend = backend or default_backend()
-
-    env = make_env(task, env_cfg)
-    offset, target = int(state["env_steps"]), int(state["target_steps"])
-    factory = ppo_networks.network_factory(ppo_cfg)
-    from brax.training import checkpoint as brax_checkpoint
-    net_cfg = brax_checkpoint.network_config(
-        observation_size={k: tuple(v) for k, v in env.observation_size.items()},
-        action_size=env.action_size, normalize_observations=ppo_cfg.normalize_observations,
-        network_factory=factory)
-
-    log = curves.MetricsLog(run_dir)
-    bar = tqdm.tqdm(total=target, initial=offset, unit="step", unit_scale=True, disable=not progress,
-                    desc=state["name"], dynamic_ncols=True)
-    clock = {"last_epoch_end": time.monotonic(), "epoch_s": 0.0, "sps": [], "last_total": offset}
-    latest = {"params": restore, "steps": offset}
-    phase = {"offset": offset}   # env steps before the running ppo.train call (which counts from 0)
-    # this call's record is written with every checkpoint, so a run killed mid-call still says what made it
-    minutes_before = float(state["minutes"])
-    call = {"date": checkpoints.utc_now(), "command": command, "from_steps": offset, "to_steps": offset,
-            "minutes": 0.0, "device": checkpoints.device_description(), "backend": env_cfg.backend,
-            "finished": False}
-    state["calls"].append(call)
-
-    def progress_fn(step, metrics):
-        total = phase["offset"] + int(step)
-        recorded = log.log(total, metrics)
-        for key in ("training/sps", "episode/sps"):  # per epoch / per training step
-            if key in recorded:
-                clock["sps"].append(recorded[key])
-        bar.update(max(0, total - bar.n))
-        sps = recorded.get("training/sps", recorded.get("episode/sps"))
-        if sps is not None:
-            bar.set_postfix(env_steps_per_s=f"{sps:,.0f}", refresh=False)
-
-    def policy_params_fn(step, _make_policy, params):
-        if step == 0:
-            return
-        now = time.monotonic()
-        clock["epoch_s"], clock["last_epoch_end"] = now - clock["last_epoch_end"], now
-        total = phase["offset"] + int(step)
-        checkpoints.save_checkpoint(run_dir, total, params, net_cfg)
-        latest.update(params=params, steps=total)
-        state["env_steps"] = total
-        call.update(to_steps=total, minutes=round((now - t_start) / 60.0, 2))
-        state["minutes"] = minutes_before + (now - t_start) / 60.0
-        checkpoints.save_run_state(run_dir, state)
-        epoch_steps = total - clock["last_total"]
-        next_s = next_epoch_estimate_s(clock["epoch_s"], epoch_steps, clock["sps"][-1] if clock["sps"] else None,
-                                       first_of_call=clock["last_total"] == offset)
-        clock["last_total"] = total
-        if max_minutes is not None and now - t_start + next_s > 60.0 * max_minutes:
-            raise _StopAtCheckpoint()
-
-    def run_ppo(num_steps: int, network_factory):
-        phase["offset"] = latest["steps"]
-        ppo.train(
-            environment=env, num_timesteps=num_steps, num_envs=ppo_cfg.num_envs,
-            episode_length=int(env_cfg.episode_length),
-            wrap_env_fn=student_finetune.wrap_env_fn(ppo_cfg, env, full_reset=bool(ppo_cfg.full_reset)),
-            seed=seed + phase["offset"],
-            learning_rate=ppo_cfg.learning_rate, entropy_cost=ppo_cfg.entropy_cost,
-            discounting=ppo_cfg.discounting, unroll_length=ppo_cfg.unroll_length,
-            batch_size=ppo_cfg.batch_size, num_minibatches=ppo_cfg.num_minibatches,
-            num_updates_per_batch=ppo_cfg.num_updates_per_batch,
-            num_resets_per_eval=ppo_cfg.num_resets_per_eval,
-            normalize_observations=ppo_cfg.normalize_observations, reward_scaling=ppo_cfg.reward_scaling,
-            clipping_epsilon=ppo_cfg.clipping_epsilon, max_grad_norm=ppo_cfg.max_grad_norm,
-            network_factory=network_factory, num_evals=_epochs(ppo_cfg, num_steps),
-            run_evals=ppo_cfg.run_evals, num_eval_envs=ppo_cfg.num_eval_envs,
-            deterministic_eval=ppo_cfg.deterministic_eval,
-            log_training_metrics=ppo_cfg.log_training_metrics,
-            training_metrics_steps=ppo_cfg.training_metrics_steps,
-            progress_fn=progress_fn, policy_params_fn=policy_params_fn,
-            randomization_fn=_randomization(ppo_cfg, env, seed + phase["offset"]),
-            restore_params=None if latest["params"] is None else tuple(latest["params"]),
-            restore_value_fn=latest["params"] is not None and latest["params"][2] is not None)
-
-    # (end step, networks): the critic-only warm-up, then PPO proper
-    warmup_end = min(target, int(ppo_cfg.value_warmup_steps))
-    phases = ((warmup_end, ppo_networks.frozen_policy_factory(factory)), (target, factory))
-    stopped = False
-    try:
-        with student_finetune.teacher_term(ppo_cfg, env, float(state.get("bc_count_start", 0.0))):
-            for end, network_factory in phases:
-                if end > latest["steps"]:
-                    run_ppo(end - latest["steps"], network_factory)
-    except _StopAtCheckpoint:
-        stopped = True
-    bar.close()
-    minutes = (time.monotonic() - t_start) / 60.0
-    steady = clock["sps"][1:]  # the first epoch includes jit compilation
-    done_now = latest["steps"] - offset
-    sps = sorted(steady)[len(steady) // 2] if steady else (done_now / (60 * minutes) if minutes else 0.0)
-    state["minutes"] = minutes_before + minutes
-    call.update(to_steps=latest["steps"], minutes=round(minutes, 2), env_steps_per_s=round(sps, 1),
-                stopped_by_max_minutes=stopped, finished=True)
-    state["env_steps_per_s"] = round(sps, 1)
-    checkpoints.save_run_state(run_dir, state)
-    log.close()
-    curves.plot_curves(log.csv_path, run_dir / curves.PNG_NAME, title=f"{state['name']} (PPO)")
-
+    run.env_cfg.backend = backend or default_backend()
+    env = make_env(task, run.env_cfg)
+    epochs = _Epochs(run, env, None, command, max_minutes, progress, t_start)
+    sps = epochs.close(_train_phases(run, env, epochs, seed))
+    latest, target = epochs.latest, int(run.state["target_steps"])
     if latest["params"] is None:
         raise RuntimeError(f"{run_dir}: no parameters to export (zero steps trained and no --from)")
-    artifact = export_run(run_dir, env, state, latest["params"], preset)
+    artifact = export_run(run_dir, env, run.state, latest["params"], preset)
     if ship and latest["steps"] >= target:
-        ship_artifact(artifact, state)
-    return TrainResult(run_dir, artifact, latest["steps"], target, state["minutes"], sps,
+        ship_artifact(artifact, run.state)
+    return TrainResult(run_dir, artifact, latest["steps"], target, run.state["minutes"], sps,
                        complete=latest["steps"] >= target)
 
 
