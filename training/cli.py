@@ -118,15 +118,13 @@ def _cmd_evaluate(args, command: str) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="python -m training", description=__doc__.split("\n")[0])
-    sub = ap.add_subparsers(dest="command", required=True)
+def _common(p, seed=True):
+    if seed:
+        p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--no-progress", action="store_true", help="no tqdm bar (logs, CI)")
 
-    def common(p, seed=True):
-        if seed:
-            p.add_argument("--seed", type=int, default=0)
-        p.add_argument("--no-progress", action="store_true", help="no tqdm bar (logs, CI)")
 
+def _add_train(sub) -> None:
     p = sub.add_parser("train", help="PPO run (brax ppo.train), resumable, time-boxed")
     p.add_argument("task", choices=TASKS)
     p.add_argument("--out", help="run directory (checkpoints, curves, artifact); default runs/<name>")
@@ -146,17 +144,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--name", help="policy name (default: task, or getup_<stage>)")
     p.add_argument("--ship", action="store_true",
                    help="when complete: copy the artifact to policies/<name>/ and append a row to its CARD.md")
-    common(p)
+    _common(p)
     p.set_defaults(func=_cmd_train)
 
+
+def _add_teacher(sub) -> None:
     p = sub.add_parser("teacher", help="build the stitched teacher and roll it out briefly as a check")
     p.add_argument("--getup", required=True, help="getup expert: artifact (.safetensors) or checkpoint/run dir")
     p.add_argument("--joystick", required=True, help="joystick expert: artifact or checkpoint/run dir")
     p.add_argument("--envs", type=int, default=16)
     p.add_argument("--check-steps", type=int, default=50, help="control steps of the check rollout")
-    common(p)
+    _common(p)
     p.set_defaults(func=_cmd_teacher)
 
+
+def _add_distill(sub) -> None:
     p = sub.add_parser("distill", help="DAgger (brax bc) student from the stitched teacher")
     p.add_argument("--getup", required=True)
     p.add_argument("--joystick", required=True)
@@ -176,9 +178,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="go on from a distill run's checkpoint (or its run directory → the newest) into a new --out; "
                         "the phase count, curve and provenance continue")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
-    common(p)
+    _common(p)
     p.set_defaults(func=_cmd_distill)
 
+
+def _add_export_phase(sub) -> None:
     p = sub.add_parser("export-phase", help="export a finished distill run's checkpoint at an earlier DAgger "
                        "phase (e.g. the seed's DAgger-400 / DAgger-1000 of Fig. 5.1)")
     p.add_argument("--run", required=True, help="distill run directory")
@@ -188,6 +192,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "RUN/distill_state.json names)")
     p.set_defaults(func=_cmd_export_phase)
 
+
+def _add_export_checkpoint(sub) -> None:
     p = sub.add_parser("export-checkpoint", help="export a PPO run's kept checkpoint at an earlier epoch "
                        "(the run keeps its last few)")
     p.add_argument("--run", required=True, help="train run directory")
@@ -197,6 +203,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: the run's own export, or mid-run its --from run's)")
     p.set_defaults(func=_cmd_export_checkpoint)
 
+
+def _add_evaluate(sub) -> None:
     p = sub.add_parser("evaluate", help="batched rollouts of an artifact: getup from seeded fallen "
                        "starts, or joystick command tracking")
     p.add_argument("--policy", required=True, help="policy artifact (.safetensors); for getup also GETUP,UPRIGHT: "
@@ -222,6 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     p.set_defaults(func=_cmd_evaluate)
 
+
+def _add_recipe(sub) -> None:
     p = sub.add_parser("recipe", help="run a named recipe (training/recipes/): a shipped policy's chain of stages")
     p.add_argument("name", nargs="?", help="recipe name (see --list)")
     p.add_argument("--list", action="store_true", help="list the recipes, their policies and stages")
@@ -238,6 +248,14 @@ def build_parser() -> argparse.ArgumentParser:
                    "and curve into training/campaigns/<name>/ (no training)")
     p.add_argument("--no-progress", action="store_true", help="no tqdm bar (logs, CI)")
     p.set_defaults(func=_cmd_recipe)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="python -m training", description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+    for add in (_add_train, _add_teacher, _add_distill, _add_export_phase, _add_export_checkpoint, _add_evaluate,
+                _add_recipe):
+        add(sub)
     return ap
 
 

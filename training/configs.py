@@ -6,6 +6,7 @@ from typing import Sequence
 
 from ml_collections import config_dict
 
+from training import student_finetune
 from training.overrides import apply_overrides
 
 PRESETS = ("gpu", "cpu", "toy")
@@ -37,12 +38,10 @@ def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
         # fine-tune on new starts first fits the value of states the pretrained critic never saw, so the
         # first policy updates do not follow its errors (issue 14: full getup from stage 2)
         value_warmup_steps=0,
-        # the student's RL fine-tune (training/student_finetune.py): "normal" = a Gaussian around the mean the
-        # policy acts with (no tanh), std starting at init_noise_std [action units]; teacher: the stitched
-        # teacher's experts and the decaying behaviour-cloning term toward its labels (bc_weight 0 = none;
-        # bc_hold_in_course: no decay in wall-course episodes)
+        # "normal" = a Gaussian around the mean the policy acts with (no tanh), std starting at init_noise_std
+        # [action units]: the student's fine-tune (ppo_networks.py)
         policy_distribution="tanh_normal", init_noise_std=0.1,
-        teacher=config_dict.create(getup="", joystick="", bc_weight=0.0, bc_decay_steps=0, bc_hold_in_course=False),
+        teacher=student_finetune.teacher_config(),   # the fine-tune's BC term (its extension's own group)
         # one epoch ≈ 1 min on an H100 (joystick ~100k env-steps/s; the full-body getup 40–76k: half as many)
         checkpoint_every_steps=10_000_000 if task == "joystick" else 5_000_000,
         run_evals=True, num_eval_envs=128, deterministic_eval=True,

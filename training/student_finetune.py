@@ -30,6 +30,17 @@ from training.export import NORMAL
 from training.ppo_extension import PPOExtension
 
 
+# the keys that make a PPO stage this fine-tune: a toy run keeps them (recipe_runner.py), as it keeps the learner
+LEARNER_KEYS = ("ppo.teacher.", "ppo.policy_distribution", "ppo.init_noise_std")
+
+
+def teacher_config():
+    """The PPO config's `teacher` group: the stitched teacher's experts and the decaying BC term toward its labels
+    (bc_weight 0 = none; bc_hold_in_course: no decay in wall-course episodes)."""
+    from ml_collections import config_dict
+    return config_dict.create(getup="", joystick="", bc_weight=0.0, bc_decay_steps=0, bc_hold_in_course=False)
+
+
 def is_student_checkpoint(params) -> bool:
     """A brax bc (DAgger) checkpoint: (normaliser, MLP policy with 2·23 outputs: loc, scale) and no critic."""
     if len(params) != 2:
