@@ -1,42 +1,23 @@
 """Getup expert: the seed's keyframe curriculum (thesis §4.5–4.8) on the full-body-collision model.
 
 Stages (config.stage), rewards from getup_rewards.py (formulas there):
-* "stage1" fallen → kneel: starts fallen; Height = HO(kneel targets), Pose = pose(q, q_kneel); ours, off by
-  default: config.stage1_gate_reward per step while the gate holds (getup_rewards.kneel_height_reward).
-* "stage2" kneel → stand: starts kneeling; Height = HO(torso 0.67, waist 0.55), Pose = pose(q, q_init): the
-  same two §4.7 rewards as stage 1, toward the standing reference. The 1.83 / 0.6 bonuses and the 100·
-  weight belong to the gate, which §4.8 introduces "to train the full getup controller"; without a gate
-  they are wrong here: taking the gate as always met (this project's first stage-2 runs) pays
-  0.6 + 100·pose for standing-like joint angles in ANY posture, and PPO learned to lie on the floor with
-  straight legs (training/LESSONS.md).
-* "full" (fine-tuned from the stage-2 checkpoint, §4.5): starts fallen / kneeling / standing with
-  config.start_probs = (0.4, 0.4, 0.2); Height and Pose gated (§4.8). The gate is the seed's per-step
-  condition, latched (config.gate_latches, ours: the seed is silent on it): once met it stays on until the
-  trunk is down again (below sim_hil's fallen height, 0.35 m), then the keyframe reward is back. Why: the
-  per-step gate needs the trunk within 0.573° of vertical, which a standing robot keeps only now and then,
-  so a per-step-gated fine-tune of stage 2 paid the kneel reward for every small tilt and unlearned the
-  stand-up (training/LESSONS.md). Latched,
-  the kneel keyframe (trunk 0.405 m, upright) is where the standing phase begins, as §4.8 describes it.
+* "stage1" fallen → kneel: Height = HO(kneel targets), Pose = pose(q, q_kneel); ours, off by default:
+  config.stage1_gate_reward per step while the gate holds.
+* "stage2" kneel → stand: Height = HO(torso 0.67, waist 0.55), Pose = pose(q, q_init). The gate's 1.83 / 0.6
+  bonuses and 100· weight belong to the full task (§4.8): without a gate they pay standing-like joint angles in
+  any posture (LESSONS, `getup_stage2`).
+* "full" (from stage 2, §4.5): fallen / kneeling / standing starts (config.start_probs), Height and Pose gated.
+  Ours: the gate latches (config.gate_latches) until the trunk is down (0.35 m), because a standing robot keeps
+  the per-step gate's 0.573° only now and then (LESSONS, `getup_full*`).
 reward per control step = (Height + Pose − energy_weight·energy) × ctrl_dt; metric failed_rises counts the
-getup attempts that fail by common/events.py's definition (ours).
-Fine-tunes: energy_weight > 0 (the energy fine-tune; 0 before it, §4.7), obs_noise_scale > 0 (the
-robustness fine-tune: U(−1, 1)·obs_noise_scale added to EVERY observation entry, §4.6; the seed's is 1).
-Kneel targets: the model's `kneel` keyframe (trunk 0.405 m, waist from its kinematics), q_kneel its joints;
-q_init = the standing default pose. Actor obs = Table 4.2, TERMS_GETUP: gyro, gravity, joint offsets,
-joint velocities (52; no last action: the seed's observation, and nothing here shows it would help).
-"success" = standing by common/events.py's definition (trunk ≥ 0.6 m, up_z ≥ 0.9), the one the
-evaluations use. Episodes run their whole length (10 s) and end early only on non-finite physics, and —
-in stage 2 alone — when the robot leaves the kneel downward: trunk below config.stage2_fall_trunk_height_m
-(0.35 m; the kneel start is at 0.405 m) or tilted past config.stage2_fall_up_z (up_z 0.7, 46°). The seed
-says nothing of terminations; this one is ours, and why: stage 2's rewards pay straight legs in any
-posture (pose(q, q_init)) about as much as height, so without it PPO learned to fall and lie with straight
-legs (v3: 1.23 per step lying against 0.90 holding the kneel), and with a trunk-height bound of 0.30 m
-alone it learned to lean back to trunk 0.32 m, up_z 0.72, straightening its legs (v5: 1.0 per step).
-Assist stages (ours, for stage 2; never exported as trained, off by default): config.harness (an elastic rope
-from above (assists.py). Stage 2's reverse curriculum (config.reverse_curriculum,
-start_path.py; ours, off by default) moves only where episodes start up the lunge: not an assist.
-Stage 1 and the full task start on the floor and pay pose(q, q_kneel) before the gate, where lying
-straight earns nothing, so they keep the seed's episodes.
+attempts that fail by common/events.py's definition. Fine-tunes: energy_weight (§4.7), obs_noise_scale
+(U(−1, 1)·scale on every observation entry, §4.6).
+Actor obs = Table 4.2, TERMS_GETUP (52). "success" = standing by common/events.py (trunk ≥ 0.6 m, up_z ≥ 0.9).
+Episodes end early only on non-finite physics and, in stage 2 alone (ours), when the robot leaves the kneel
+downward (config.stage2_fall_trunk_height_m, stage2_fall_up_z): stage 2's Pose pays straight legs in any
+posture, and without the end PPO learned to lie or lean back with straight legs (LESSONS, `getup_stage2`).
+Ours, off by default: the harness (assists.py), stage 2's reverse curriculum (start_path.py) and a share of the
+fallen starts from the start banks (start_banks.py).
 """
 from __future__ import annotations
 
