@@ -215,6 +215,12 @@ def mlp_forward(layers: Sequence[tuple[Any, Any]], obs_normalized, activation: s
     return h
 
 
+def policy_forward(layers, obs, obs_mean, obs_std, activation: str, output_rule: str, xp=np):
+    """The one policy runner in Python (golden vectors, experts, evaluations): raw observation → normalised →
+    MLP → output rule."""
+    return mlp_forward(layers, normalize(obs, obs_mean, obs_std), activation, output_rule, xp=xp)
+
+
 def action_to_targets(default_pose, action_scale, action):
     """Joint position targets [rad] = default_pose + action_scale · action (scale: scalar or per joint)."""
     return default_pose + action_scale * action
@@ -230,7 +236,6 @@ def policy_step(terms, state: ObservationState, layers, obs_mean, obs_std, activ
                 action_scale, xp=np):
     """observation → normalised → action → targets, the whole per-tick computation. Returns a dict."""
     obs = build_observation(terms, state, xp)
-    obs_n = normalize(obs, obs_mean, obs_std)
-    action = mlp_forward(layers, obs_n, activation, output_rule, xp=xp)
-    return {"obs": obs, "obs_normalized": obs_n, "action": action,
+    action = policy_forward(layers, obs, obs_mean, obs_std, activation, output_rule, xp=xp)
+    return {"obs": obs, "obs_normalized": normalize(obs, obs_mean, obs_std), "action": action,
             "q_target": action_to_targets(state.default_pose, action_scale, action)}

@@ -11,7 +11,7 @@ import pytest
 
 from common import model as t1model
 from training import envs
-from training.envs import handover, joystick
+from training.envs import handover
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 GETUP = "policies/getup_knockdown/getup_knockdown.safetensors"
@@ -41,10 +41,7 @@ def test_place_turns_the_root_and_its_world_velocity_only():
 
 
 @pytest.mark.parametrize("over, why", [({"handover.prob": 0.5}, "needs handover.getup_policy"),
-                                       ({"handover.prob": 1.5, "handover.getup_policy": GETUP}, r"in \[0, 1\]"),
-                                       ({"handover.prob": 0.5, "handover.getup_policy": GETUP,
-                                         "handover.push_prob": 0.3}, "needs handover.joystick_policy"),
-                                       ({"handover.zero_command_prob": 1.5}, r"zero_command_prob must be in \[0, 1\]")])
+                                       ({"handover.prob": 1.5, "handover.getup_policy": GETUP}, r"in \[0, 1\]")])
 def test_joystick_env_refuses_a_bad_handover_config(over, why):
     with pytest.raises(ValueError, match=why):
         envs.make("joystick", config_overrides=over)
@@ -76,8 +73,7 @@ def test_bank_holds_the_states_where_the_waist_passes_the_switch(bank):
 @pytest.mark.slow
 def test_joystick_env_starts_from_the_bank(bank):
     env = envs.make("joystick", config_overrides={"handover.prob": 1.0, "handover.getup_policy": GETUP,
-                                                  "handover.bank_starts": BANK_STARTS, "episode_length": 20,
-                                                  "handover.zero_command_prob": 1.0})
+                                                  "handover.bank_starts": BANK_STARTS, "episode_length": 20})
     state = jax.jit(env.reset)(jax.random.PRNGKey(3))
     q = np.asarray(state.data.qpos)
     row = int(np.argmin(np.abs(bank.qpos[:, 7:] - q[7:]).sum(axis=1)))
@@ -85,7 +81,6 @@ def test_joystick_env_starts_from_the_bank(bank):
     np.testing.assert_allclose(q[2], bank.qpos[row, 2], atol=1e-6)             # its height
     expected = np.clip((bank.joint_targets[row] - np.asarray(env._default_pose)) / 0.5, -1.0, 1.0)
     np.testing.assert_allclose(np.asarray(state.info["last_act"]), expected, atol=1e-6)
-    np.testing.assert_array_equal(np.asarray(state.info["command"]), 0.0)      # stand, as in the push test
 
 
 # ------------------------------------------------------------------ knockdown starts (the other hand-over)
@@ -155,30 +150,9 @@ def test_evaluate_refuses_bad_starts(over, why, tmp_path):
         evaluate(GETUP, tmp_path, seeds=1, seconds=0.2, backend="cpu", **over)
 
 
-def _landings(**shares) -> dict:
-    config = envs.default_config("joystick").handover
-    config.update(prob=1.0, getup_policy=GETUP, joystick_policy=JOYSTICK, **shares)
-    return joystick._landing_overrides(config)
+def test_evaluate_cli_keeps_the_start_joystick_with_its_starts(capsys):
+    from training import cli
+    assert cli.main(["evaluate", "--policy", GETUP, "--start-joystick", JOYSTICK]) == 2
+    assert "--start-joystick goes with" in capsys.readouterr().err
 
 
-def test_landing_shares_become_the_getup_envs_bank_overrides():
-    assert _landings() == {}
-    assert _landings(knockdown_prob=1.0) == {"knockdown_starts.prob": 1.0, "knockdown_starts.joystick_policy": JOYSTICK}
-    assert _landings(push_prob=0.4, knockdown_prob=0.2) == {
-        "push_starts.prob": 0.4, "push_starts.joystick_policy": JOYSTICK,
-        "knockdown_starts.prob": 0.2, "knockdown_starts.joystick_policy": JOYSTICK}
-
-
-@pytest.mark.slow
-def test_handover_bank_rises_from_knockdown_landings(bank, knock_bank):
-    landings = _landings(knockdown_prob=1.0)
-    landed = handover.handover_bank(envs.make, GETUP, BANK_STARTS, handover_seed(),
-                                    {**landings, "knockdown_starts.bank_starts": KNOCK_STARTS})
-    mj = t1model.load_model()
-    data = mujoco.MjData(mj)
-    for qpos in landed.qpos:
-        data.qpos[:] = qpos
-        mujoco.mj_kinematics(mj, data)
-        assert WAIST_SWITCH_HEIGHT_M <= data.xpos[mj.body("Waist").id, 2] < WAIST_SWITCH_HEIGHT_M + 0.1
-    # the rises began at the knockdown landings, not at the fallen starts of the same seeds
-    assert not any(np.allclose(q, p, atol=1e-4) for q in landed.qpos for p in bank.qpos)

@@ -10,7 +10,6 @@ from training import envs
 from training.envs import kneel_collapse
 
 STARTS, SEED = 8, 700_000
-GETUP = "policies/getup_knockdown/getup_knockdown.safetensors"
 SETTINGS = dict(gain_scale=0.1, push_rad_s=2.0, duration_s=2.0, ctrl_dt=0.02, supervisor=(25.0, 0.95))
 
 
@@ -73,26 +72,4 @@ def test_collapse_start_settings_are_checked():
     with pytest.raises(ValueError, match="at most 1"):
         envs.make("getup", config_overrides={
             "stage": "stage1", "fallen_bank_size": 2, "collapse_starts.prob": 0.6,
-            "push_starts.prob": 0.6, "push_starts.joystick_policy": "policies/joystick/joystick.safetensors"})
-
-
-def test_evaluate_from_the_collapse(tmp_path):
-    """`evaluate --starts collapse`: one episode per collapse, from the state at the progress asked for; the
-    report names the starts and drops the seed's fallen-start figures."""
-    from training.evaluate import evaluate
-    report = evaluate(GETUP, tmp_path, seeds=2, seconds=0.1, first_seed=SEED, backend="cpu", starts="collapse",
-                      collapse_progress=0.5, collapse={"gain_scale": 0.05, "duration_s": 3.0}).read_text()
-    assert "2 collapses from the kneel at progress 0.5 (bank seed 700000; kneel targets at PD × 0.05, 3.0 s, " \
-        "push axis 0–360°)" in report
-    assert "| reached the kneel" in report and "seed: policy" not in report
-    assert "| … from starts lying face down" in report      # mid-fall starts: neither face down nor up → n/a
-
-
-def test_evaluate_cli_keeps_collapse_and_joystick_options_apart(capsys):
-    from training import cli
-    assert cli.main(["evaluate", "--policy", GETUP, "--collapse-progress", "0.5"]) == 2
-    assert "--collapse-push-axis-deg go with --starts collapse" in capsys.readouterr().err
-    assert cli.main(["evaluate", "--policy", GETUP, "--collapse-seconds", "3"]) == 2
-    assert "go with --starts collapse" in capsys.readouterr().err
-    assert cli.main(["evaluate", "--policy", GETUP, "--starts", "collapse", "--start-joystick", "j"]) == 2
-    assert "--start-joystick goes with" in capsys.readouterr().err
+            "knockdown_starts.prob": 0.6, "knockdown_starts.joystick_policy": "policies/joystick/joystick.safetensors"})

@@ -64,3 +64,12 @@ def test_no_import_circle():
     for module in sorted(edges):
         if module not in state:
             visit(module, [module])
+
+
+def test_training_envs_import_nothing_of_training_above_them():
+    """The envs are training's lowest layer: what their start banks need (experts, checkpoint reading) lives in
+    training.envs, so the trainer, evaluations and recipes build on them and never the other way round."""
+    edges = _imports(_modules())
+    wrong = sorted(f"{m} → {t}" for m, ts in edges.items() if m.startswith("training.envs")
+                   for t in ts if t.startswith("training") and not t.startswith("training.envs"))
+    assert not wrong, f"training.envs reaching up: {wrong}"

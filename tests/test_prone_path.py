@@ -10,7 +10,6 @@ from training import envs
 from training.envs import prone_path
 
 STARTS, SEED = 8, 800_000
-GETUP = "policies/getup_knockdown/getup_knockdown.safetensors"
 SETTINGS = dict(hands_knees_pitch_rad=1.4, target_noise_rad=0.1, settle_s=1.0, supervisor=(25.0, 0.95))
 
 
@@ -62,19 +61,5 @@ def test_the_stage1_env_draws_its_fallen_share_from_the_path():
         "stage": "stage1", "fallen_bank_size": 2, "prone_starts.prob": 0.5, "prone_starts.bank_starts": STARTS,
         "prone_starts.seed": SEED, "prone_starts.min_progress": 0.7})
     ((prob, (qpos, qvel)),) = env._fallen_banks
-    bank = prone_path.prone_bank(STARTS, SEED, 0.7, prone_path.PATH_END, **env.prone_settings())
+    bank = prone_path.prone_starts(env, env.config.prone_starts)
     assert prob == 0.5 and np.array_equal(np.asarray(qpos), bank[0]) and np.array_equal(np.asarray(qvel), bank[1])
-
-
-def test_evaluate_from_the_prone_path(tmp_path, capsys):
-    """`evaluate --starts prone`: one episode per settled start at the progress asked for; the report names them."""
-    from training import cli
-    from training.evaluate import evaluate
-    report = evaluate(GETUP, tmp_path, seeds=2, seconds=0.1, first_seed=SEED, backend="cpu", starts="prone",
-                      prone_progress=1.0).read_text()
-    assert "2 settled starts at progress 1 on the path kneel (0) → hands and knees (1) → face down (2)" in report
-    assert "| … from starts lying face down" in report and "seed: policy" not in report
-    assert cli.main(["evaluate", "--policy", GETUP, "--prone-progress", "1"]) == 2
-    assert "--prone-progress goes with --starts prone" in capsys.readouterr().err
-    with pytest.raises(ValueError, match="prone_progress"):
-        evaluate(GETUP, tmp_path, seeds=2, seconds=0.1, backend="cpu", starts="prone", prone_progress=3.0)

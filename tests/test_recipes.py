@@ -69,13 +69,13 @@ def test_the_student_fine_tune_starts_from_dagger_and_exports_a_student(toy_root
     """The student's PPO stage starts from the walls stage's DAgger checkpoint and exports, at its end and from
     any kept checkpoint, the artifact the runtime runs: output rule linear, the student's layer shapes, and
     the teacher it was fine-tuned toward."""
-    from training import export
+    from training import train
     run = toy_root / "student" / "finetune"
     state = json.loads((run / checkpoints.RUN_STATE).read_text())
     assert Path(state["init"]).parent.parent == toy_root / "student" / "walls"
     assert state["ppo_config"]["teacher"]["bc_weight"] > 0 and state["bc_count_start"] > 0
     final = read_artifact(run / "student.safetensors")
-    kept = read_artifact(export.export_checkpoint(run, checkpoints.checkpoint_steps(run), "kept",
+    kept = read_artifact(train.export_checkpoint(run, checkpoints.checkpoint_steps(run), "kept",
                                                   like=run / "student.safetensors"))
     walls = read_artifact(toy_root / "student" / "walls" / "student_walls.safetensors")
     teacher = {k: state["ppo_config"]["teacher"][k] for k in ("getup", "joystick")}

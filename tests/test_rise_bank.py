@@ -56,4 +56,4 @@ def test_rise_start_settings_are_checked():
         envs.make("getup", config_overrides={
             "stage": "stage1", "fallen_bank_size": 2, "rise_starts.prob": 0.6, "rise_starts.getup_policy": HARNESSED,
             "rise_starts.bank_starts": STARTS, "rise_starts.seed": SEED, "rise_starts.min_progress": 0.5,
-            "push_starts.prob": 0.6, "push_starts.joystick_policy": "policies/joystick/joystick.safetensors"})
+            "knockdown_starts.prob": 0.6, "knockdown_starts.joystick_policy": "policies/joystick/joystick.safetensors"})

@@ -13,7 +13,7 @@ from ml_collections import config_dict
 from common import observation as obsdef
 from training import student_finetune as F
 from training import ppo_networks
-from training.train import ppo_config
+from training.configs import ppo_config
 
 OBS = {"state": (82,), "privileged_state": (125,), "waist_height": (1,)}
 HIDDEN = (16, 8)
@@ -69,6 +69,18 @@ def test_a_student_checkpoint_needs_the_normal_policy_and_a_teacher():
         F.init_params([normalizer, policy], _ppo_cfg(bc_weight=0.0))
     ppo_params = [normalizer, policy, {"params": {}}]               # a PPO checkpoint passes unchanged
     assert F.init_params(ppo_params, cfg) is ppo_params
+
+
+def test_the_trainer_gets_the_fine_tune_only_where_asked():
+    """train.py knows one PPOExtension: plain PPO unless the config or the checkpoint asks for the fine-tune."""
+    from training.ppo_extension import PPOExtension
+    _, normalizer, policy = _student()
+    plain = ppo_config("unified", "toy")
+    assert type(F.extension(plain)) is PPOExtension and F.extension(plain).state_fields(None) == {}
+    finetune = F.extension(_ppo_cfg(), [normalizer, policy])
+    assert isinstance(finetune, F.StudentFinetune) and finetune.state_fields(None) == {"bc_count_start": 0.0}
+    with pytest.raises(ValueError, match="policy_distribution='normal'"):   # a DAgger checkpoint under plain PPO
+        F.extension(plain, [normalizer, policy]).initial_params([normalizer, policy])
 
 
 def test_the_bc_weight_decays_linearly_to_zero_and_counts_samples():

@@ -262,7 +262,7 @@ def test_export_phase_writes_an_earlier_checkpoint(toy_runs, capsys):
 
 @pytest.mark.slow
 def test_export_checkpoint_writes_an_earlier_epoch(toy_runs, capsys):
-    from training.export import export_checkpoint
+    from training.train import export_checkpoint
     run, first = toy_runs["joystick"], toy_runs["joystick_first"]   # resumed: checkpoints at two step counts
     final_layers, _, _, final = read_artifact(run / "joystick.safetensors")
     path = export_checkpoint(run, first, "joystick_early")
@@ -280,7 +280,7 @@ def test_export_checkpoint_mid_run_takes_env_fields_from_the_from_run(toy_runs, 
     """A run still going has no export yet: the manifest's env fields come from its --from run's export,
     the provenance from its own state."""
     import shutil
-    from training.export import export_checkpoint
+    from training.train import export_checkpoint
     parent = toy_runs["joystick"]
     child = tmp_path / "child"
     shutil.copytree(parent / checkpoints.CHECKPOINT_DIR, child / checkpoints.CHECKPOINT_DIR)

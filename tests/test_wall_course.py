@@ -1,6 +1,6 @@
 """The low-wall course in the training worlds (training/envs/wall_course.py): the evaluation's walls moved
 down +x, approaches to them, the landings of a joystick expert that walked into one (handover.wall_bank),
-and the getup and unified envs that start from those. The slow tests roll the shipped joystick expert on
+and the unified env and the evaluation that start there. The slow tests roll the shipped joystick expert on
 the CPU physics."""
 from __future__ import annotations
 
@@ -85,9 +85,6 @@ def test_envs_have_the_course_only_when_asked():
 
 @pytest.mark.parametrize("task, over, why", [
     ("getup", {"wall_course.enable": True}, "needs backend 'cpu'"),
-    ("getup", {"backend": "cpu", "wall_starts.prob": 0.5}, "needs wall_starts.joystick_policy"),
-    ("getup", {"backend": "cpu", "wall_starts.prob": 0.6, "wall_starts.joystick_policy": JOYSTICK,
-               "knockdown_starts.prob": 0.6, "knockdown_starts.joystick_policy": JOYSTICK}, "at most 1"),
     ("unified", {"backend": "cpu", "walls.prob": 1.5}, r"walls.prob must be in \[0, 1\]")])
 def test_bad_wall_configs_are_refused(task, over, why):
     with pytest.raises(ValueError, match=why):
@@ -113,19 +110,6 @@ def test_wall_bank_holds_falls_at_the_first_wall(wall_bank):
     # the trunk is over or just before the wall it walked into (the walls are 0.1 m thick)
     near = np.abs(qpos[:, 0] - wall_course.FIRST_WALL_X_M) < 1.0
     assert near.mean() >= 0.5
-
-
-@pytest.mark.slow
-def test_getup_env_starts_fallen_episodes_from_the_wall_bank(wall_bank):
-    env = envs.make("getup", config_overrides={
-        "backend": "cpu", "start_probs": [1.0, 0.0, 0.0], "fallen_bank_size": 2, "episode_length": 20,
-        "wall_starts.prob": 1.0, "wall_starts.joystick_policy": JOYSTICK, "wall_starts.bank_starts": APPROACHES,
-        "wall_starts.seed": SEED})
-    assert env.has_wall_course()
-    state = jax.jit(env.reset)(jax.random.PRNGKey(3))
-    q = np.asarray(state.data.qpos)
-    assert np.min(np.abs(wall_bank[0] - q).sum(axis=1)) < 1e-5
-    assert int(state.info["start_kind"]) == 0                      # counted with the fallen starts
 
 
 @pytest.mark.slow

@@ -147,5 +147,4 @@ def policy_action(manifest: dict, params, obs_state: obsdef.ObservationState):
     import jax.numpy as jnp
     layers, mean, std = params
     obs = obsdef.build_observation(manifest["obs_terms"], obs_state, jnp)
-    return obsdef.mlp_forward(layers, obsdef.normalize(obs, mean, std), manifest["activation"],
-                              manifest["output_rule"], xp=jnp)
+    return obsdef.policy_forward(layers, obs, mean, std, manifest["activation"], manifest["output_rule"], xp=jnp)

@@ -20,9 +20,11 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+# the reading side of the layout, below the envs (their start banks read policies too); part of this module's API
+from training.envs.policy_files import (  # noqa: F401
+    CHECKPOINT_DIR, RUN_STATE, list_checkpoints, load_checkpoint, resolve_checkpoint)
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
-RUN_STATE = "run_state.json"
-CHECKPOINT_DIR = "checkpoints"
 KEEP_CHECKPOINTS = 3  # older ones are deleted: each T1 PPO checkpoint is a few MB, GPU disks are small
 STEP_DIGITS = 12      # brax names checkpoint folders f"{step:012d}"
 
@@ -83,33 +85,6 @@ def kept_checkpoint(run_dir, count: int, what: str) -> Path:
         found = [int(p.name) for p in list_checkpoints(run_dir)]
         raise FileNotFoundError(f"{path}: no checkpoint at {what} (the run keeps {found})")
     return path
-
-
-def list_checkpoints(run_dir) -> list[Path]:
-    root = Path(run_dir) / CHECKPOINT_DIR
-    if not root.is_dir():
-        return []
-    return sorted(p for p in root.iterdir() if p.is_dir() and p.name.isdigit())
-
-
-def resolve_checkpoint(path) -> Path:
-    """A checkpoint folder, or a run directory (→ its newest checkpoint)."""
-    path = Path(path)
-    if (path / RUN_STATE).exists() or (path / CHECKPOINT_DIR).is_dir():
-        found = list_checkpoints(path)
-        if not found:
-            raise FileNotFoundError(f"{path}: run directory without checkpoints")
-        return found[-1]
-    if path.is_dir() and path.name.isdigit():
-        return path
-    raise FileNotFoundError(f"{path}: neither a checkpoint folder (<steps>/) nor a run directory with "
-                            f"{CHECKPOINT_DIR}/")
-
-
-def load_checkpoint(path) -> list:
-    """[normalizer_state, policy_params, (value_params)] as numpy trees (brax checkpoint.load)."""
-    from brax.training import checkpoint as brax_checkpoint
-    return brax_checkpoint.load(resolve_checkpoint(path).resolve())
 
 
 def checkpoint_steps(path) -> int:

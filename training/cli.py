@@ -58,8 +58,8 @@ def _cmd_export_phase(args, command: str) -> int:
 
 
 def _cmd_export_checkpoint(args, command: str) -> int:
-    from training import export
-    path = export.export_checkpoint(args.run, args.steps, args.name, like=args.like)
+    from training import train
+    path = train.export_checkpoint(args.run, args.steps, args.name, like=args.like)
     print(f"{path}: the checkpoint at {args.steps} env steps of {args.run}")
     return 0
 
@@ -88,7 +88,7 @@ BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
 # = training.evaluate.START_KINDS and JOYSTICK_STARTS (not imported: parsing needs no JAX)
-START_CHOICES = ("fallen", "knockdown", "wall", "push", "collapse", "prone")
+START_CHOICES = ("fallen", "knockdown", "wall", "push")
 JOYSTICK_STARTS = ("knockdown", "wall", "push")
 START_JOYSTICK = "policies/joystick/joystick.safetensors"   # evaluate --starts knockdown|wall|push: the shipped joystick expert
 
@@ -98,14 +98,6 @@ def _cmd_evaluate(args, command: str) -> int:
     out = args.out or f"out/eval_{args.task}"
     if args.start_joystick and args.starts not in JOYSTICK_STARTS:
         raise ValueError("--start-joystick goes with --starts knockdown, wall or push")
-    collapse = {k: v for k, v in (("gain_scale", args.collapse_gain_scale),
-                                  ("duration_s", args.collapse_seconds),
-                                  ("push_axis_deg", args.collapse_push_axis_deg)) if v is not None}
-    if (args.collapse_progress is not None or collapse) and args.starts != "collapse":
-        raise ValueError("--collapse-progress, --collapse-gain-scale, --collapse-seconds and "
-                         "--collapse-push-axis-deg go with --starts collapse")
-    if args.prone_progress is not None and args.starts != "prone":
-        raise ValueError("--prone-progress goes with --starts prone")
     if args.starts in JOYSTICK_STARTS and not args.start_joystick:
         args.start_joystick = START_JOYSTICK
     if args.task == "joystick":
@@ -121,23 +113,18 @@ def _cmd_evaluate(args, command: str) -> int:
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
                                    command=command, backend=args.backend, starts=args.starts,
-                                   start_joystick=args.start_joystick,
-                                   collapse_progress=1.0 if args.collapse_progress is None else args.collapse_progress,
-                                   collapse=collapse,
-                                   prone_progress=args.prone_progress)
+                                   start_joystick=args.start_joystick)
     print(report.read_text())
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="python -m training", description=__doc__.split("\n")[0])
-    sub = ap.add_subparsers(dest="command", required=True)
+def _common(p, seed=True):
+    if seed:
+        p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--no-progress", action="store_true", help="no tqdm bar (logs, CI)")
 
-    def common(p, seed=True):
-        if seed:
-            p.add_argument("--seed", type=int, default=0)
-        p.add_argument("--no-progress", action="store_true", help="no tqdm bar (logs, CI)")
 
+def _add_train(sub) -> None:
     p = sub.add_parser("train", help="PPO run (brax ppo.train), resumable, time-boxed")
     p.add_argument("task", choices=TASKS)
     p.add_argument("--out", help="run directory (checkpoints, curves, artifact); default runs/<name>")
@@ -157,17 +144,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--name", help="policy name (default: task, or getup_<stage>)")
     p.add_argument("--ship", action="store_true",
                    help="when complete: copy the artifact to policies/<name>/ and append a row to its CARD.md")
-    common(p)
+    _common(p)
     p.set_defaults(func=_cmd_train)
 
+
+def _add_teacher(sub) -> None:
     p = sub.add_parser("teacher", help="build the stitched teacher and roll it out briefly as a check")
     p.add_argument("--getup", required=True, help="getup expert: artifact (.safetensors) or checkpoint/run dir")
     p.add_argument("--joystick", required=True, help="joystick expert: artifact or checkpoint/run dir")
     p.add_argument("--envs", type=int, default=16)
     p.add_argument("--check-steps", type=int, default=50, help="control steps of the check rollout")
-    common(p)
+    _common(p)
     p.set_defaults(func=_cmd_teacher)
 
+
+def _add_distill(sub) -> None:
     p = sub.add_parser("distill", help="DAgger (brax bc) student from the stitched teacher")
     p.add_argument("--getup", required=True)
     p.add_argument("--joystick", required=True)
@@ -187,9 +178,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="go on from a distill run's checkpoint (or its run directory → the newest) into a new --out; "
                         "the phase count, curve and provenance continue")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
-    common(p)
+    _common(p)
     p.set_defaults(func=_cmd_distill)
 
+
+def _add_export_phase(sub) -> None:
     p = sub.add_parser("export-phase", help="export a finished distill run's checkpoint at an earlier DAgger "
                        "phase (e.g. the seed's DAgger-400 / DAgger-1000 of Fig. 5.1)")
     p.add_argument("--run", required=True, help="distill run directory")
@@ -199,6 +192,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "RUN/distill_state.json names)")
     p.set_defaults(func=_cmd_export_phase)
 
+
+def _add_export_checkpoint(sub) -> None:
     p = sub.add_parser("export-checkpoint", help="export a PPO run's kept checkpoint at an earlier epoch "
                        "(the run keeps its last few)")
     p.add_argument("--run", required=True, help="train run directory")
@@ -208,6 +203,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: the run's own export, or mid-run its --from run's)")
     p.set_defaults(func=_cmd_export_checkpoint)
 
+
+def _add_evaluate(sub) -> None:
     p = sub.add_parser("evaluate", help="batched rollouts of an artifact: getup from seeded fallen "
                        "starts, or joystick command tracking")
     p.add_argument("--policy", required=True, help="policy artifact (.safetensors); for getup also GETUP,UPRIGHT: "
@@ -224,21 +221,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "wall = the same after --start-joystick walked into the low-wall course from SEEDS approaches "
                    "(training/envs/wall_course.py), those that stepped over it left out; push = the same in the "
                    "loop's push test: SEEDS standing starts shoved on the torso forward or backward (2 : 1), "
-                   "the ones it caught left out; collapse = SEEDS collapses from the kneel (stage 1's reverse "
-                   "curriculum, training/envs/kneel_collapse.py) at --collapse-progress; prone = SEEDS settled starts on "
-                   "the path kneel → hands and knees → face down (training/envs/prone_path.py) at --prone-progress")
-    p.add_argument("--prone-progress", type=float, metavar="P",
-                   help="with --starts prone: 0 the kneel, 1 hands and knees, 2 face down (default 2)")
-    p.add_argument("--collapse-progress", type=float, metavar="P",
-                   help="with --starts collapse: 0 the kneel … 1 the end of the collapse (default 1)")
-    p.add_argument("--collapse-gain-scale", type=float, metavar="G",
-                   help="with --starts collapse: the kneel's PD gains × G while it collapses (default: the getup "
-                   "env's collapse_starts.gain_scale; a stage's own is in its recipe)")
-    p.add_argument("--collapse-seconds", type=float, metavar="S",
-                   help="with --starts collapse: how long the collapse lasts [s] (default: the env's duration_s)")
-    p.add_argument("--collapse-push-axis-deg", type=float, nargs=2, metavar=("LOW", "HIGH"),
-                   help="with --starts collapse: the tipping push's axis, uniform in [LOW, HIGH] degrees from "
-                   "world x (20 160: it falls face down; default: any axis)")
+                   "the ones it caught left out")
     p.add_argument("--start-joystick", "--knockdown-joystick", metavar="ARTIFACT", dest="start_joystick",
                    help="with --starts knockdown, wall or push: the joystick expert that walks and is pushed over or "
                    f"trips (default {START_JOYSTICK})")
@@ -247,6 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     p.set_defaults(func=_cmd_evaluate)
 
+
+def _add_recipe(sub) -> None:
     p = sub.add_parser("recipe", help="run a named recipe (training/recipes/): a shipped policy's chain of stages")
     p.add_argument("name", nargs="?", help="recipe name (see --list)")
     p.add_argument("--list", action="store_true", help="list the recipes, their policies and stages")
@@ -263,6 +248,14 @@ def build_parser() -> argparse.ArgumentParser:
                    "and curve into training/campaigns/<name>/ (no training)")
     p.add_argument("--no-progress", action="store_true", help="no tqdm bar (logs, CI)")
     p.set_defaults(func=_cmd_recipe)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="python -m training", description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+    for add in (_add_train, _add_teacher, _add_distill, _add_export_phase, _add_export_checkpoint, _add_evaluate,
+                _add_recipe):
+        add(sub)
     return ap
 
 

@@ -128,35 +128,15 @@ def export_student(params, env, path, name: str, tanh_squash: bool, trained: boo
     return output_rule
 
 
-def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides: Sequence[str] = (),
-            preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
-            command: str = "", progress: bool = True, max_minutes: float | None = None,
-            name: str = "student", backend: str | None = None, from_checkpoint=None,
-            recipe: dict | None = None) -> DistillResult:
-    """One DAgger run; with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
-    student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
-    and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
-    continue from that run's (STATE_FILE), so a campaign goes on across sessions."""
-    import jax
-    import tqdm
-    from brax.training.agents.bc import networks as bc_networks
-    from brax.training.agents.bc import train as bc
-    from mujoco_playground import wrapper
+def dagger_configs(task: str, preset: str, overrides: Sequence[str], num_envs: int | None):
+    """(bc config, env config) of a DAgger run: the env with the student's full term layout, the toy preset's
+    env sizes, --config applied; the batch shape checked."""
     from training import envs
     from training.overrides import apply_overrides
-
-    checkpoints.jax_setup()
-    t_start = time.monotonic()
-    run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
-    if checkpoints.list_checkpoints(run_dir):
-        raise FileExistsError(f"{run_dir}: already holds DAgger checkpoints; give a new --out "
-                              f"(continue a run with --from {run_dir})")
-    before = prior_progress(from_checkpoint)
-    run_dir.mkdir(parents=True, exist_ok=True)
     cfg, env_cfg = bc_config(preset), envs.default_config(task)
     env_cfg.obs_terms = [list(t) for t in obsdef.TERMS_UNION]
     if preset == "toy":
-        from training.train import TOY_ENV_OVERRIDES
+        from training.configs import TOY_ENV_OVERRIDES
         env_cfg.update({k: v for k, v in TOY_ENV_OVERRIDES.items() if k in env_cfg})
     apply_overrides({"bc": cfg, "env": env_cfg}, overrides)
     if num_envs is not None:
@@ -167,16 +147,69 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     evals_after_init = max(cfg.num_evals - 1, 1)
     if cfg.dagger_steps % evals_after_init:
         raise ValueError(f"dagger_steps {cfg.dagger_steps} must be a multiple of num_evals − 1 = {evals_after_init}")
+    return cfg, env_cfg
+
+
+def _newest_params(run_dir: Path, params):
+    """(params as numpy, phases done): bc.train's, or after a stop the newest checkpoint's."""
+    import jax
+    done = checkpoints.list_checkpoints(run_dir)
+    if params is None:
+        if not done:
+            raise RuntimeError(f"{run_dir}: stopped before the first checkpoint; nothing to export")
+        params = checkpoints.load_checkpoint(done[-1])
+    return jax.tree.map(np.asarray, tuple(params)), int(done[-1].name) if done else 0
+
+
+def _dagger_env(task: str, env_cfg):
+    """(env, the env brax bc trains in: Playground's wrapper with the teacher's waist height in the observation)."""
+    from mujoco_playground import wrapper
+    from training import envs
+    env = envs.make(task, config=env_cfg)
+    wrapped = wrapper.wrap_for_brax_training(env, episode_length=int(env_cfg.episode_length), full_reset=True)
+    return env, WaistObservation(wrapped, env)
+
+
+def _provenance(before: dict, phases: int, phase_env_steps: int, minutes: float, command: str) -> dict:
+    """The artifact's provenance of a call that made `phases` DAgger phases after `before` (prior_progress)."""
+    return {"git_commit": checkpoints.git_commit(), "steps": before["steps"] + int(phases * phase_env_steps),
+            "date": checkpoints.utc_now(), "command": command or "unknown",
+            "device": checkpoints.device_description(), "minutes": round(minutes, 2),
+            # this call's env steps per wall second (evaluations and compilation included)
+            "env_steps_per_s": round(phases * phase_env_steps / max(60.0 * minutes, 1e-9), 1),
+            "algorithm": "brax bc (online DAgger)", "dagger_phases": before["phases"] + phases,
+            "dagger_phases_before": before["phases"], "from": before["checkpoint"]}
+
+
+def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides: Sequence[str] = (),
+            preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
+            command: str = "", progress: bool = True, max_minutes: float | None = None,
+            name: str = "student", backend: str | None = None, from_checkpoint=None,
+            recipe: dict | None = None) -> DistillResult:
+    """One DAgger run; with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
+    student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
+    and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
+    continue from that run's (STATE_FILE), so a campaign goes on across sessions."""
+    import tqdm
+    from brax.training.agents.bc import networks as bc_networks
+    from brax.training.agents.bc import train as bc
+
+    checkpoints.jax_setup()
+    t_start = time.monotonic()
+    run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
+    if checkpoints.list_checkpoints(run_dir):
+        raise FileExistsError(f"{run_dir}: already holds DAgger checkpoints; give a new --out "
+                              f"(continue a run with --from {run_dir})")
+    before = prior_progress(from_checkpoint)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    cfg, env_cfg = dagger_configs(task, preset, overrides, num_envs)
 
     from training.train import default_backend
     env_cfg.backend = backend or default_backend()
-    env = envs.make(task, config=env_cfg)
-    student_terms = env.obs_terms
-    teacher = make_teacher(load_expert(getup_path, "getup"), load_expert(joystick_path, "joystick"), student_terms,
+    env, wrapped = _dagger_env(task, env_cfg)
+    teacher = make_teacher(load_expert(getup_path, "getup"), load_expert(joystick_path, "joystick"), env.obs_terms,
                            env.manifest_fields()["action_scale"], student_tanh_squash=cfg.tanh_squash)
     episode_length = int(env_cfg.episode_length)
-    wrapped = WaistObservation(wrapper.wrap_for_brax_training(env, episode_length=episode_length,
-                                                              full_reset=True), env)
     factory = functools.partial(bc_networks.make_bc_networks,
                                 policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),
                                 policy_obs_key=STUDENT_OBS_KEY)
@@ -215,23 +248,10 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     bar.close()
     log.close()
     curves.plot_curves(log.csv_path, run_dir / curves.PNG_NAME, title=f"{name} (DAgger)")
-    done = checkpoints.list_checkpoints(run_dir)
-    phases = int(done[-1].name) if done else 0
-    if params is None:
-        if not done:
-            raise RuntimeError(f"{run_dir}: stopped before the first checkpoint; nothing to export")
-        params = checkpoints.load_checkpoint(done[-1])
-    params = jax.tree.map(np.asarray, tuple(params))
+    params, phases = _newest_params(run_dir, params)
     minutes = (time.monotonic() - t_start) / 60.0
-    provenance = {"git_commit": checkpoints.git_commit(), "steps": before["steps"] + int(phases * phase_env_steps),
-                  "date": checkpoints.utc_now(), "command": command or "unknown",
-                  "device": checkpoints.device_description(), "minutes": round(minutes, 2),
-                  # this call's env steps per wall second (evaluations and compilation included)
-                  "env_steps_per_s": round(phases * phase_env_steps / max(60.0 * minutes, 1e-9), 1),
-                  "algorithm": "brax bc (online DAgger)", "dagger_phases": before["phases"] + phases,
-                  "dagger_phases_before": before["phases"], "from": before["checkpoint"], "preset": preset,
-                  "backend": env_cfg.backend,
-                  "teacher": {"getup": str(getup_path), "joystick": str(joystick_path)},
+    provenance = {**_provenance(before, phases, phase_env_steps, minutes, command), "preset": preset,
+                  "backend": env_cfg.backend, "teacher": {"getup": str(getup_path), "joystick": str(joystick_path)},
                   "stopped_by_max_minutes": stopped, **({"recipe": recipe} if recipe else {})}
     artifact = run_dir / f"{name}.safetensors"
     trained = provenance["dagger_phases"] > 0 and preset != "toy"

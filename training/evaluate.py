@@ -176,11 +176,9 @@ def summarize(rows: list[dict]) -> dict:
             **{k: mean(k) for k in EFFORT_KEYS}}
 
 
-START_KINDS = ("fallen", "knockdown", "wall", "push", "collapse", "prone")   # fallen: the loop's fallen starts; knockdown:
-# mid-fall after a push; wall: mid-fall after walking into the low-wall course (the getup env then has the course);
-# push: mid-fall in the loop's push test (handover.push_test_bank: its torso shoves, forward and backward 2 : 1);
-# collapse: part-way down the kneel's collapse (kneel_collapse.py; stage 1's reverse curriculum); prone: at rest on
-# the path kneel → hands and knees → face down (prone_path.py; the same)
+START_KINDS = ("fallen", "knockdown", "wall", "push")   # fallen: the loop's fallen starts; knockdown: mid-fall after
+# a push; wall: mid-fall after walking into the low-wall course (the getup env then has the course); push: mid-fall
+# in the loop's push test (handover.push_test_bank: its torso shoves, forward and backward 2 : 1)
 JOYSTICK_STARTS = ("knockdown", "wall", "push")   # the banks a joystick expert makes
 ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attempts_per_fall", "{:.2f}"),
         ("attempts per episode (the loop's push test counts per trial)", "attempts_per_episode", "{:.2f}"),
@@ -213,7 +211,7 @@ def _fmt(fmt, value):
 def markdown_report(results: dict, meta: dict) -> str:
     names = list(results)
     starts = meta.get("starts", "fallen")
-    from_bank = starts != "fallen"   # a bank of starts (landings, collapses): the seed's figures do not apply
+    from_bank = starts != "fallen"   # a bank of landings: the seed's figures do not apply
     if starts == "knockdown":
         title = (f"{meta['episodes']} knockdown landings (of {meta['seeds']} pushed standing starts, bank seed "
                  f"{meta['first_seed']}, knocked over by `{meta['start_joystick']}`)")
@@ -223,14 +221,6 @@ def markdown_report(results: dict, meta: dict) -> str:
     elif starts == "wall":
         title = (f"{meta['episodes']} landings at a low wall (of {meta['seeds']} approaches, bank seed "
                  f"{meta['first_seed']}, walked into it by `{meta['start_joystick']}`)")
-    elif starts == "collapse":
-        c = meta.get("collapse") or {}
-        title = (f"{meta['seeds']} collapses from the kneel at progress {meta['collapse_progress']:g} (bank seed "
-                 f"{meta['first_seed']}; kneel targets at PD × {c.get('gain_scale', 'n/a')}, "
-                 f"{c.get('duration_s', 'n/a')} s, push axis {'–'.join(f'{a:g}' for a in c.get('push_axis_deg', ()))}°)")
-    elif starts == "prone":
-        title = (f"{meta['seeds']} settled starts at progress {meta['prone_progress']:g} on the path kneel (0) → hands "
-                 f"and knees (1) → face down (2) (bank seed {meta['first_seed']})")
     else:
         title = f"{meta['seeds']} seeded fallen starts from seed {meta['first_seed']}"
     lines = [f"# Getup evaluation ({title}, {meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]
@@ -292,17 +282,12 @@ def plot_heights(results: dict, png: Path) -> None:
 
 def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 32, seconds: float = 10.0,
              first_seed: int = 0, command: str = "", backend: str | None = None, starts: str = "fallen",
-             start_joystick: str | None = None, collapse_progress: float = 1.0,
-             collapse: dict | None = None, prone_progress: float | None = None) -> Path:
+             start_joystick: str | None = None) -> Path:
     """Run the evaluation; returns the path of report.md. starts="knockdown": instead of fallen starts, the
     states where `start_joystick`, knocked over from `seeds` standing starts (bank seed `first_seed`),
     hands over to the getup policy mid-fall (training/envs/handover.py); the ones it caught are left out.
     starts="wall": the same after `start_joystick` walked into the low-wall course from `seeds` approaches
-    (the getup env then has the course in its world); starts="push": after the loop's push test shoved it;
-    starts="collapse": `seeds` collapses from the kneel (bank seed `first_seed`), each at `collapse_progress`;
-    `collapse` overrides the env's `collapse_starts` settings (gain_scale, duration_s, push_axis_deg: the
-    collapse a stage trained on); starts="prone": `seeds` settled starts at `prone_progress` on the prone
-    path (0 the kneel, 1 hands and knees, 2 face down, the default; bank seed `first_seed`)."""
+    (the getup env then has the course in its world); starts="push": after the loop's push test shoved it."""
     from training import checkpoints, envs
     from training.train import default_backend
     checkpoints.jax_setup()
@@ -314,24 +299,10 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         raise ValueError("a start joystick policy goes with knockdown, wall or push starts, and only with them")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    if collapse and starts != "collapse":
-        raise ValueError("collapse settings go with starts='collapse'")
     env = envs.make(task, config_overrides={"backend": backend or default_backend(),
-                                            "wall_course.enable": starts == "wall",
-                                            **{f"collapse_starts.{k}": v for k, v in (collapse or {}).items()}})
+                                            "wall_course.enable": starts == "wall"})
     if starts == "fallen":
         qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
-    elif starts == "collapse":
-        from training.envs import kneel_collapse
-        qpos, qvel = kneel_collapse.collapse_states(seeds, first_seed, collapse_progress, **env.collapse_settings())
-    elif starts == "prone":
-        from training.envs import prone_path
-        prone_progress = prone_path.PATH_END if prone_progress is None else float(prone_progress)
-        if not 0.0 <= prone_progress <= prone_path.PATH_END:
-            raise ValueError(f"prone_progress must be in [0, {prone_path.PATH_END}] (the kneel … face down), got "
-                             f"{prone_progress}")
-        qpos, qvel = (np.array(x) for x in prone_path.prone_bank(seeds, first_seed, prone_progress, prone_progress,
-                                                                  **env.prone_settings()))
     else:
         from training.envs import handover
         if starts == "knockdown":
@@ -351,9 +322,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         run = run_policy(env, policy, qpos, qvel, seconds)
         results[role] = {"policy": policy, "run": run, "summary": summarize(run["rows"])}
     meta = {"seeds": seeds, "first_seed": first_seed, "seconds": seconds, "command": command or "evaluate()",
-            "backend": env.backend, "starts": starts, "episodes": len(qpos), "start_joystick": start_joystick,
-            "collapse_progress": collapse_progress, "collapse": env.collapse_settings() if starts == "collapse" else None,
-            "prone_progress": prone_progress if starts == "prone" else None}
+            "backend": env.backend, "starts": starts, "episodes": len(qpos), "start_joystick": start_joystick}
     report = out / "report.md"
     report.write_text(markdown_report(results, meta))
     with (out / "per_env.csv").open("w", newline="") as f:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 
-ACTIVATION = "swish"  # brax's PPO/BC default (flax linen.swish); the artifact's activation must match
+from training.envs.policy_files import ACTIVATION  # noqa: F401 (the networks' activation, brax's default)
 
 
 def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observations_fn=None,
@@ -39,10 +39,8 @@ def network_factory(cfg):
         policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),
         value_hidden_layer_sizes=tuple(cfg.value_hidden_layer_sizes),
         policy_obs_key=cfg.policy_obs_key, value_obs_key=cfg.value_obs_key,
-        # runs recorded before the knob existed sampled with brax's std
-        policy_std_scale=float(cfg.get("policy_std_scale", 1.0)),
-        policy_distribution=cfg.get("policy_distribution", "tanh_normal"),
-        init_noise_std=float(cfg.get("init_noise_std", 1.0)))
+        policy_std_scale=float(cfg.policy_std_scale), policy_distribution=cfg.policy_distribution,
+        init_noise_std=float(cfg.init_noise_std))
 
 
 def frozen_policy_factory(factory):

@@ -126,19 +126,20 @@ def resolve_ref(value, root: Path, shipped: bool = False):
 
 def _overrides(config: dict, toy: bool) -> list[str]:
     """A stage's config diff as `key=value`; at toy size the PPO/DAgger sizes and rates stay the toy preset's
-    (what the learner is, TOY_KEEPS, stays the stage's) and the landing banks are small."""
+    (what the learner is, the fine-tune's LEARNER_KEYS, stays the stage's) and the start banks are small."""
     if not toy:
         return [f"{k}={v!r}" for k, v in config.items()]
-    out = [f"{k}={v!r}" for k, v in config.items() if k.startswith(TOY_KEEPS) or not k.startswith(("ppo.", "bc."))]
+    from training.envs import start_banks
+    from training.student_finetune import LEARNER_KEYS
+    banked = tuple(f"env.{s.group}" for s in start_banks.SOURCES)
+    out = [f"{k}={v!r}" for k, v in config.items()
+           if k.startswith(LEARNER_KEYS) or not k.startswith(("ppo.", "bc."))]
     for k, v in config.items():
-        if k.endswith(".prob") and isinstance(v, float) and v > 0 and k[:-len(".prob")] in BANKED:
+        if k.endswith(".prob") and isinstance(v, float) and v > 0 and k[:-len(".prob")] in banked:
             out.append(f"{k[:-len('.prob')]}.bank_starts={TOY_BANK_STARTS}")
     return out
 
 
-TOY_KEEPS = ("ppo.teacher.", "ppo.policy_distribution", "ppo.init_noise_std")   # a student fine-tune's learner
-BANKED = ("env.knockdown_starts", "env.wall_starts", "env.push_starts", "env.handover", "env.rise_starts",
-          "env.collapse_starts")
 
 
 def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: bool = False,

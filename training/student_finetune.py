@@ -17,16 +17,28 @@ env step; the only step counter brax hands its loss) minus the count it started 
 while PPO alone learned to balance in front of it (training/LESSONS.md). They are told apart by the unified
 env's "wall_course" metric, which brax hands the loss summed over the episode so far.
 The teacher reads the privileged waist height: the env is wrapped in WaistObservation.
+The trainer reaches all this through one PPOExtension (ppo_extension.py): `extension(ppo_cfg, restored)`.
 """
 from __future__ import annotations
 
 import contextlib
-import functools
 
 import numpy as np
 
 from common import observation as obsdef
 from training.export import NORMAL
+from training.ppo_extension import PPOExtension
+
+
+# the keys that make a PPO stage this fine-tune: a toy run keeps them (recipe_runner.py), as it keeps the learner
+LEARNER_KEYS = ("ppo.teacher.", "ppo.policy_distribution", "ppo.init_noise_std")
+
+
+def teacher_config():
+    """The PPO config's `teacher` group: the stitched teacher's experts and the decaying BC term toward its labels
+    (bc_weight 0 = none; bc_hold_in_course: no decay in wall-course episodes)."""
+    from ml_collections import config_dict
+    return config_dict.create(getup="", joystick="", bc_weight=0.0, bc_decay_steps=0, bc_hold_in_course=False)
 
 
 def is_student_checkpoint(params) -> bool:
@@ -56,7 +68,7 @@ def init_params(restored, ppo_cfg):
     initialises it); anything else is returned as it is."""
     if restored is None or not is_student_checkpoint(restored):
         return restored
-    if ppo_cfg.get("policy_distribution", "tanh_normal") != NORMAL:
+    if ppo_cfg.policy_distribution != NORMAL:
         raise ValueError("a DAgger student checkpoint fine-tunes only with ppo.policy_distribution='normal' "
                          "(it acts with its mean, no tanh)")
     if not float(ppo_cfg.init_noise_std) > 0:
@@ -98,18 +110,40 @@ def in_wall_course(data):
 
 
 def uses_teacher(ppo_cfg) -> bool:
-    t = ppo_cfg.get("teacher")
-    return bool(t) and float(t.bc_weight) > 0
+    return float(ppo_cfg.teacher.bc_weight) > 0
 
 
-def wrap_env_fn(ppo_cfg, env, full_reset: bool):
-    """brax's wrap_env_fn: Playground's training wrapper, and the teacher's waist height where a BC term reads it."""
-    from mujoco_playground import wrapper
-    wrap = functools.partial(wrapper.wrap_for_brax_training, full_reset=full_reset)
-    if not uses_teacher(ppo_cfg):
-        return wrap
-    from training.teacher import WaistObservation
-    return lambda inner, **kw: WaistObservation(wrap(inner, **kw), env)
+class StudentFinetune(PPOExtension):
+    """The fine-tune's hooks: the DAgger checkpoint as the first policy, the teacher's waist height in the
+    observation and the decaying BC term (module docstring)."""
+
+    def __init__(self, ppo_cfg):
+        self._cfg = ppo_cfg
+
+    def initial_params(self, restored):
+        return init_params(restored, self._cfg)
+
+    def state_fields(self, params) -> dict:
+        # where the BC term's decay counts from: the normaliser's count when the fine-tune starts
+        return {"bc_count_start": float(sample_count(params[0])) if params else 0.0}
+
+    def wrap_env_fn(self, env, full_reset: bool):
+        wrap = super().wrap_env_fn(env, full_reset)
+        if not uses_teacher(self._cfg):
+            return wrap
+        from training.teacher import WaistObservation
+        return lambda inner, **kw: WaistObservation(wrap(inner, **kw), env)
+
+    def loss_term(self, env, state: dict):
+        return teacher_term(self._cfg, env, float(state.get("bc_count_start", 0.0)))
+
+
+def extension(ppo_cfg, restored=None) -> PPOExtension:
+    """The student fine-tune where the config (a Gaussian policy, a BC term) or the checkpoint it starts from
+    (a DAgger student) asks for it, else plain PPO."""
+    wanted = ppo_cfg.policy_distribution == NORMAL or uses_teacher(ppo_cfg)
+    return StudentFinetune(ppo_cfg) if wanted or (restored is not None and is_student_checkpoint(restored)) \
+        else PPOExtension()
 
 
 @contextlib.contextmanager
@@ -125,7 +159,7 @@ def teacher_term(ppo_cfg, env, count_start: float):
     teacher = make_teacher(load_expert(t.getup, "getup"), load_expert(t.joystick, "joystick"), env.obs_terms,
                            env.manifest_fields()["action_scale"], student_tanh_squash=False)
     weight, decay = float(t.bc_weight), int(t.bc_decay_steps)
-    hold = bool(t.get("bc_hold_in_course", False))
+    hold = bool(t.bc_hold_in_course)
     ppo_loss = ppo_losses.compute_ppo_loss
 
     def loss(params, normalizer_params, data, rng, ppo_network, **kwargs):

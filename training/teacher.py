@@ -1,4 +1,4 @@
-"""The stitched teacher of the distillation, from two experts (training/experts.py).
+"""The stitched teacher of the distillation, from two experts (training/envs/experts.py).
 
 Stitched teacher (ARCHITECTURE.md, Training): the getup expert while the waist is below
 WAIST_SWITCH_HEIGHT_M, else the joystick expert. Waist height is privileged (state.info["waist_height"]);
@@ -13,7 +13,7 @@ import numpy as np
 
 from common import observation as obsdef
 from messages.contract import WAIST_SWITCH_HEIGHT_M
-from training.experts import STUDENT_OBS_KEY, WAIST_OBS_KEY, Expert, TermAdapter, load_expert, per_joint
+from training.envs.experts import STUDENT_OBS_KEY, WAIST_OBS_KEY, Expert, TermAdapter, load_expert, per_joint
 
 CHECK_FALLEN_STARTS = 16  # host-precomputed fallen starts for the `teacher` check rollout (seconds each)
 

@@ -19,75 +19,13 @@ from typing import Sequence
 
 from ml_collections import config_dict
 
-from training import checkpoints, curves, ppo_networks, student_finetune
+from common.artifact import read_artifact
+from training import checkpoints, curves, migration, ppo_networks, student_finetune
+from training.configs import build_configs
 from training.export import export_brax_ppo, exported_as_trained, exported_policy, run_provenance
 from training.checkpoints import REPO_ROOT
 from training.overrides import apply_overrides
 from training.ppo_networks import ACTIVATION
-
-PRESETS = ("gpu", "cpu", "toy")
-# Env settings of the toy preset (applied where the task's config has the key): 0.4 s episodes and a
-# small bank of host-precomputed fallen starts.
-TOY_ENV_OVERRIDES = {"episode_length": 20, "fallen_bank_size": 2}
-
-
-def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
-    """Per-task PPO config. `gpu`: Playground's T1 joystick recipe (locomotion_params.py, T1Joystick*),
-    the seed's getup runs on the same settings; `cpu`: the same recipe sized for the CPU backend
-    (a few thousand env-steps/s); `toy`: tiny networks and batches for CPU smoke tests."""
-    if preset not in PRESETS:
-        raise ValueError(f"preset: {preset!r} is not one of {PRESETS}")
-    cfg = config_dict.create(
-        num_timesteps=200_000_000 if task == "joystick" else 100_000_000,
-        num_envs=8192, batch_size=256, num_minibatches=32, unroll_length=20, num_updates_per_batch=4,
-        discounting=0.97, learning_rate=3e-4, entropy_cost=0.005, clipping_epsilon=0.2, max_grad_norm=1.0,
-        reward_scaling=1.0, normalize_observations=True, num_resets_per_eval=1,
-        # getup episodes must restart from freshly sampled fallen/kneeling/standing states
-        full_reset=task != "joystick",
-        domain_randomization=task == "joystick",  # Playground T1: friction, gains, masses (envs.domain_randomize)
-        policy_hidden_layer_sizes=(512, 256, 128), value_hidden_layer_sizes=(512, 256, 128),
-        policy_obs_key="state", value_obs_key="privileged_state",
-        # exploration: the sampling std × this (1 = brax's tanh-normal, std ≈ 0.69 at init). The same
-        # pre-tanh noise moves a getup target 4× as far as a joystick one (action scale 2 vs 0.5 rad)
-        policy_std_scale=1.0,
-        # steps at the start of a run in which only the critic learns (the policy gets no gradient): a
-        # fine-tune on new starts first fits the value of states the pretrained critic never saw, so the
-        # first policy updates do not follow its errors (issue 14: full getup from stage 2)
-        value_warmup_steps=0,
-        # the student's RL fine-tune (training/student_finetune.py): "normal" = a Gaussian around the mean the
-        # policy acts with (no tanh), std starting at init_noise_std [action units]; teacher: the stitched
-        # teacher's experts and the decaying behaviour-cloning term toward its labels (bc_weight 0 = none;
-        # bc_hold_in_course: no decay in wall-course episodes)
-        policy_distribution="tanh_normal", init_noise_std=0.1,
-        teacher=config_dict.create(getup="", joystick="", bc_weight=0.0, bc_decay_steps=0, bc_hold_in_course=False),
-        # one epoch ≈ 1 min on an H100 (joystick ~100k env-steps/s; the full-body getup 40–76k: half as many)
-        checkpoint_every_steps=10_000_000 if task == "joystick" else 5_000_000,
-        run_evals=True, num_eval_envs=128, deterministic_eval=True,
-        log_training_metrics=True, training_metrics_steps=1_000_000,
-    )
-    if preset == "cpu":
-        cfg.update(dict(
-            # 256 envs: one host call steps them all on every core; more envs only lengthen the call
-            # (the physics is ~linear in envs) while fewer updates per env step waste samples.
-            num_envs=256,
-            # 256 · 4 · 20 = 20 480 env steps per update (GPU: 163 840): 8× more updates per env step,
-            # the sample-efficient end at this throughput; minibatches of 256 · 20 = 5 120 samples.
-            batch_size=256, num_minibatches=4,
-            # unroll, epochs, discount, lr, entropy, clipping: Playground's values (tuned for this task)
-            # Networks as the GPU preset: a CPU run can be resumed on the GPU and vice versa, and the
-            # runtime's MLP benchmark stays representative. Smaller nets would shave only the learner
-            # share (~30 % of a step here).
-            checkpoint_every_steps=1_000_000,   # one epoch ≈ 4–6 min at ~3–5 k env-steps/s
-            num_eval_envs=64, training_metrics_steps=200_000))
-    elif preset == "toy":
-        cfg.update(dict(
-            num_timesteps=2_000, num_envs=8, batch_size=8, num_minibatches=2, unroll_length=5,
-            num_updates_per_batch=1, policy_hidden_layer_sizes=(16, 16), value_hidden_layer_sizes=(16, 16),
-            checkpoint_every_steps=80, num_eval_envs=4, training_metrics_steps=80,
-            # each of these compiles the MJX step once more: minutes on a CPU
-            run_evals=False, domain_randomization=False, num_resets_per_eval=0))
-    return cfg
-
 
 @dataclass
 class TrainResult:
@@ -131,22 +69,6 @@ def make_env(task: str, env_cfg: config_dict.ConfigDict):
     return envs.make(task, config=env_cfg)
 
 
-def build_configs(task: str, preset: str, stage: str | None, overrides: Sequence[str]):
-    """(ppo config, env config) with --stage and --config key=value applied."""
-    from training import envs
-    if task not in envs.TASKS:
-        raise ValueError(f"task: {task!r} is not one of {envs.TASKS}")
-    ppo_cfg, env_cfg = ppo_config(task, preset), envs.default_config(task)
-    if stage is not None:
-        if "stage" not in env_cfg:
-            raise ValueError(f"--stage: task {task!r} has no stages (only the getup task has)")
-        env_cfg.stage = stage
-    if preset == "toy":
-        env_cfg.update({k: v for k, v in TOY_ENV_OVERRIDES.items() if k in env_cfg})
-    apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)
-    return ppo_cfg, env_cfg
-
-
 # What --config may change on --resume: how the run is computed and logged, not what it learns (a
 # different task or learner is a new run: --from CHECKPOINT). num_envs has its own flag (--envs).
 FIRST_EPOCH_MARGIN = 1.5   # next_epoch_estimate_s: the share an evaluation may add to an epoch's training time
@@ -186,6 +108,162 @@ def run_name(task: str, env_cfg) -> str:
     return f"{task}_{env_cfg.stage}" if task.startswith("getup") and "stage" in env_cfg else task
 
 
+@dataclass
+class _Run:
+    """A call's run: its directory and state, its configs, the params it starts from and its PPO extension."""
+    dir: Path
+    state: dict
+    ppo_cfg: config_dict.ConfigDict
+    env_cfg: config_dict.ConfigDict
+    params: object
+    extension: object
+
+
+def _resume_run(task: str, run_dir: Path, steps, overrides: Sequence[str]) -> _Run:
+    _check_resume_overrides(overrides)
+    state = checkpoints.load_run_state(run_dir)
+    if state["task"] != task:
+        raise ValueError(f"--resume: {run_dir} is a {state['task']!r} run, not {task!r}")
+    ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
+    apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)
+    state["ppo_config"], state["env_config"] = ppo_cfg.to_dict(), env_cfg.to_dict()
+    if steps is not None:
+        state["target_steps"] = int(steps)  # extending a finished run is allowed
+    started = state["env_steps"] > 0
+    source = run_dir if started else state.get("init")
+    restored = checkpoints.load_checkpoint(source) if source else None
+    ext = student_finetune.extension(ppo_cfg, restored)
+    return _Run(run_dir, state, ppo_cfg, env_cfg, restored if started else ext.initial_params(restored), ext)
+
+
+def _new_run(task: str, run_dir: Path, *, steps, overrides, preset, stage, from_checkpoint, name, seed, recipe) -> _Run:
+    if (run_dir / checkpoints.RUN_STATE).exists():
+        raise FileExistsError(f"{run_dir} already holds a run: pass --resume to continue it or pick another --out")
+    ppo_cfg, env_cfg = build_configs(task, preset, stage, overrides)
+    init = str(checkpoints.resolve_checkpoint(from_checkpoint)) if from_checkpoint else None
+    restored = checkpoints.load_checkpoint(init) if init else None
+    ext = student_finetune.extension(ppo_cfg, restored)
+    params = ext.initial_params(restored)
+    state = {"task": task, "name": name or run_name(task, env_cfg), "preset": preset, "seed": seed,
+             "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
+             "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
+             "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {}),
+             **ext.state_fields(params)}
+    run_dir.mkdir(parents=True, exist_ok=True)
+    checkpoints.save_run_state(run_dir, state)
+    return _Run(run_dir, state, ppo_cfg, env_cfg, params, ext)
+
+
+class _Epochs:
+    """brax's progress and checkpoint hooks for one call: the metrics log and bar, a checkpoint and the run
+    state after every epoch (a call killed mid-run still says what made it), and the --max-minutes stop."""
+
+    def __init__(self, run: _Run, env, net_cfg, command: str, max_minutes, progress: bool, t_start: float):
+        import tqdm
+        self.run, self.net_cfg, self.max_minutes, self.t_start = run, net_cfg, max_minutes, t_start
+        self.offset = int(run.state["env_steps"])
+        self.phase_offset = self.offset   # env steps before the running ppo.train call (which counts from 0)
+        self.latest = {"params": run.params, "steps": self.offset}
+        self.sps, self.epoch_end, self.last_total = [], time.monotonic(), self.offset
+        self.minutes_before = float(run.state["minutes"])
+        self.log = curves.MetricsLog(run.dir)
+        self.bar = tqdm.tqdm(total=int(run.state["target_steps"]), initial=self.offset, unit="step",
+                             unit_scale=True, disable=not progress, desc=run.state["name"], dynamic_ncols=True)
+        self.call = {"date": checkpoints.utc_now(), "command": command, "from_steps": self.offset,
+                     "to_steps": self.offset, "minutes": 0.0, "device": checkpoints.device_description(),
+                     "backend": env.backend, "finished": False}
+        run.state["calls"].append(self.call)
+
+    def progress_fn(self, step, metrics):
+        total = self.phase_offset + int(step)
+        recorded = self.log.log(total, metrics)
+        self.sps += [recorded[k] for k in ("training/sps", "episode/sps") if k in recorded]   # per epoch / step
+        self.bar.update(max(0, total - self.bar.n))
+        sps = recorded.get("training/sps", recorded.get("episode/sps"))
+        if sps is not None:
+            self.bar.set_postfix(env_steps_per_s=f"{sps:,.0f}", refresh=False)
+
+    def policy_params_fn(self, step, _make_policy, params):
+        if step == 0:
+            return
+        now, state = time.monotonic(), self.run.state
+        epoch_s, self.epoch_end = now - self.epoch_end, now
+        total = self.phase_offset + int(step)
+        checkpoints.save_checkpoint(self.run.dir, total, params, self.net_cfg)
+        self.latest.update(params=params, steps=total)
+        state["env_steps"] = total
+        self.call.update(to_steps=total, minutes=round((now - self.t_start) / 60.0, 2))
+        state["minutes"] = self.minutes_before + (now - self.t_start) / 60.0
+        checkpoints.save_run_state(self.run.dir, state)
+        next_s = next_epoch_estimate_s(epoch_s, total - self.last_total, self.sps[-1] if self.sps else None,
+                                       first_of_call=self.last_total == self.offset)
+        self.last_total = total
+        if self.max_minutes is not None and now - self.t_start + next_s > 60.0 * self.max_minutes:
+            raise _StopAtCheckpoint()
+
+    def close(self, stopped: bool) -> float:
+        """Record the call's end in the run state and curve; returns its steady env steps per second."""
+        self.bar.close()
+        minutes = (time.monotonic() - self.t_start) / 60.0
+        steady = self.sps[1:]  # the first epoch includes jit compilation
+        done_now = self.latest["steps"] - self.offset
+        sps = sorted(steady)[len(steady) // 2] if steady else (done_now / (60 * minutes) if minutes else 0.0)
+        state = self.run.state
+        state["minutes"] = self.minutes_before + minutes
+        self.call.update(to_steps=self.latest["steps"], minutes=round(minutes, 2), env_steps_per_s=round(sps, 1),
+                         stopped_by_max_minutes=stopped, finished=True)
+        state["env_steps_per_s"] = round(sps, 1)
+        checkpoints.save_run_state(self.run.dir, state)
+        self.log.close()
+        curves.plot_curves(self.log.csv_path, self.run.dir / curves.PNG_NAME, title=f"{state['name']} (PPO)")
+        return sps
+
+
+def _run_ppo(run: _Run, env, epochs: _Epochs, num_steps: int, network_factory, seed: int) -> None:
+    """One brax ppo.train call of num_steps from the newest params (the warm-up and PPO proper are one each)."""
+    from brax.training.agents.ppo import train as ppo
+    cfg, latest = run.ppo_cfg, epochs.latest
+    epochs.phase_offset = latest["steps"]
+    ppo.train(
+        environment=env, num_timesteps=num_steps, num_envs=cfg.num_envs,
+        episode_length=int(run.env_cfg.episode_length),
+        wrap_env_fn=run.extension.wrap_env_fn(env, full_reset=bool(cfg.full_reset)),
+        seed=seed + epochs.phase_offset,
+        learning_rate=cfg.learning_rate, entropy_cost=cfg.entropy_cost, discounting=cfg.discounting,
+        unroll_length=cfg.unroll_length, batch_size=cfg.batch_size, num_minibatches=cfg.num_minibatches,
+        num_updates_per_batch=cfg.num_updates_per_batch, num_resets_per_eval=cfg.num_resets_per_eval,
+        normalize_observations=cfg.normalize_observations, reward_scaling=cfg.reward_scaling,
+        clipping_epsilon=cfg.clipping_epsilon, max_grad_norm=cfg.max_grad_norm,
+        network_factory=network_factory, num_evals=_epochs(cfg, num_steps),
+        run_evals=cfg.run_evals, num_eval_envs=cfg.num_eval_envs, deterministic_eval=cfg.deterministic_eval,
+        log_training_metrics=cfg.log_training_metrics, training_metrics_steps=cfg.training_metrics_steps,
+        progress_fn=epochs.progress_fn, policy_params_fn=epochs.policy_params_fn,
+        randomization_fn=_randomization(cfg, env, seed + epochs.phase_offset),
+        restore_params=None if latest["params"] is None else tuple(latest["params"]),
+        restore_value_fn=latest["params"] is not None and latest["params"][2] is not None)
+
+
+def _train_phases(run: _Run, env, epochs: _Epochs, seed: int) -> bool:
+    """The critic-only warm-up, then PPO proper, inside the extension's loss term; True when --max-minutes
+    stopped the call."""
+    from brax.training import checkpoint as brax_checkpoint
+    factory = ppo_networks.network_factory(run.ppo_cfg)
+    epochs.net_cfg = brax_checkpoint.network_config(
+        observation_size={k: tuple(v) for k, v in env.observation_size.items()},
+        action_size=env.action_size, normalize_observations=run.ppo_cfg.normalize_observations,
+        network_factory=factory)
+    target = int(run.state["target_steps"])
+    warmup_end = min(target, int(run.ppo_cfg.value_warmup_steps))
+    try:
+        with run.extension.loss_term(env, run.state):
+            for end, network_factory in ((warmup_end, ppo_networks.frozen_policy_factory(factory)), (target, factory)):
+                if end > epochs.latest["steps"]:
+                    _run_ppo(run, env, epochs, end - epochs.latest["steps"], network_factory, seed)
+    except _StopAtCheckpoint:
+        return True
+    return False
+
+
 def train(task: str, out, steps: int | None = None, num_envs: int | None = None, seed: int = 0,
           resume: bool = False, max_minutes: float | None = None, overrides: Sequence[str] = (),
           stage: str | None = None, from_checkpoint=None, preset: str = "gpu", ship: bool = False,
@@ -193,154 +271,30 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
           backend: str | None = None, recipe: dict | None = None) -> TrainResult:
     """One PPO run (or a call that resumes one). `recipe` ({"name", "stage", "sha256"}) is recorded in the run
     state and the artifact's provenance when a recipe runs it (training/recipe_runner.py)."""
-    from brax.training.agents.ppo import train as ppo
-    import tqdm
-
     checkpoints.jax_setup()
     t_start = time.monotonic()
     run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
     if resume:
-        _check_resume_overrides(overrides)
-        state = checkpoints.load_run_state(run_dir)
-        if state["task"] != task:
-            raise ValueError(f"--resume: {run_dir} is a {state['task']!r} run, not {task!r}")
-        preset = state["preset"]  # a toy run stays a toy run (and its artifact untrained)
-        ppo_cfg = config_dict.ConfigDict(state["ppo_config"])
-        env_cfg = config_dict.ConfigDict(state["env_config"])
-        apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)
-        state["ppo_config"] = ppo_cfg.to_dict()
-        if steps is not None:
-            state["target_steps"] = int(steps)  # extending a finished run is allowed
-        restore = checkpoints.load_checkpoint(run_dir) if state["env_steps"] > 0 else state.get("init")
-        if isinstance(restore, str):
-            restore = student_finetune.init_params(checkpoints.load_checkpoint(restore), ppo_cfg)
+        run = _resume_run(task, run_dir, steps, overrides)
     else:
-        if (run_dir / checkpoints.RUN_STATE).exists():
-            raise FileExistsError(f"{run_dir} already holds a run: pass --resume to continue it or pick "
-                                  "another --out")
-        ppo_cfg, env_cfg = build_configs(task, preset, stage, overrides)
-        init = str(checkpoints.resolve_checkpoint(from_checkpoint)) if from_checkpoint else None
-        restore = student_finetune.init_params(checkpoints.load_checkpoint(init) if init else None, ppo_cfg)
-        state = {"task": task, "name": name or run_name(task, env_cfg), "preset": preset, "seed": seed,
-                 "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
-                 "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
-                 "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {}),
-                 # where the BC term's decay counts from (student_finetune.py)
-                 "bc_count_start": float(student_finetune.sample_count(restore[0])) if restore else 0.0}
-        run_dir.mkdir(parents=True, exist_ok=True)
-        checkpoints.save_run_state(run_dir, state)
+        run = _new_run(task, run_dir, steps=steps, overrides=overrides, preset=preset, stage=stage,
+                       from_checkpoint=from_checkpoint, name=name, seed=seed, recipe=recipe)
+    preset = run.state["preset"]  # a resumed toy run stays a toy run (and its artifact untrained)
     if num_envs is not None:
-        ppo_cfg.num_envs = state["ppo_config"]["num_envs"] = int(num_envs)
-    _check_batch_shape(ppo_cfg)
+        run.ppo_cfg.num_envs = run.state["ppo_config"]["num_envs"] = int(num_envs)
+    _check_batch_shape(run.ppo_cfg)
     # the physics engine is this call's choice (a run may move between GPU and CPU sessions)
-    env_cfg.backend = backend or default_backend()
-
-    env = make_env(task, env_cfg)
-    offset, target = int(state["env_steps"]), int(state["target_steps"])
-    factory = ppo_networks.network_factory(ppo_cfg)
-    from brax.training import checkpoint as brax_checkpoint
-    net_cfg = brax_checkpoint.network_config(
-        observation_size={k: tuple(v) for k, v in env.observation_size.items()},
-        action_size=env.action_size, normalize_observations=ppo_cfg.normalize_observations,
-        network_factory=factory)
-
-    log = curves.MetricsLog(run_dir)
-    bar = tqdm.tqdm(total=target, initial=offset, unit="step", unit_scale=True, disable=not progress,
-                    desc=state["name"], dynamic_ncols=True)
-    clock = {"last_epoch_end": time.monotonic(), "epoch_s": 0.0, "sps": [], "last_total": offset}
-    latest = {"params": restore, "steps": offset}
-    phase = {"offset": offset}   # env steps before the running ppo.train call (which counts from 0)
-    # this call's record is written with every checkpoint, so a run killed mid-call still says what made it
-    minutes_before = float(state["minutes"])
-    call = {"date": checkpoints.utc_now(), "command": command, "from_steps": offset, "to_steps": offset,
-            "minutes": 0.0, "device": checkpoints.device_description(), "backend": env_cfg.backend,
-            "finished": False}
-    state["calls"].append(call)
-
-    def progress_fn(step, metrics):
-        total = phase["offset"] + int(step)
-        recorded = log.log(total, metrics)
-        for key in ("training/sps", "episode/sps"):  # per epoch / per training step
-            if key in recorded:
-                clock["sps"].append(recorded[key])
-        bar.update(max(0, total - bar.n))
-        sps = recorded.get("training/sps", recorded.get("episode/sps"))
-        if sps is not None:
-            bar.set_postfix(env_steps_per_s=f"{sps:,.0f}", refresh=False)
-
-    def policy_params_fn(step, _make_policy, params):
-        if step == 0:
-            return
-        now = time.monotonic()
-        clock["epoch_s"], clock["last_epoch_end"] = now - clock["last_epoch_end"], now
-        total = phase["offset"] + int(step)
-        checkpoints.save_checkpoint(run_dir, total, params, net_cfg)
-        latest.update(params=params, steps=total)
-        state["env_steps"] = total
-        call.update(to_steps=total, minutes=round((now - t_start) / 60.0, 2))
-        state["minutes"] = minutes_before + (now - t_start) / 60.0
-        checkpoints.save_run_state(run_dir, state)
-        epoch_steps = total - clock["last_total"]
-        next_s = next_epoch_estimate_s(clock["epoch_s"], epoch_steps, clock["sps"][-1] if clock["sps"] else None,
-                                       first_of_call=clock["last_total"] == offset)
-        clock["last_total"] = total
-        if max_minutes is not None and now - t_start + next_s > 60.0 * max_minutes:
-            raise _StopAtCheckpoint()
-
-    def run_ppo(num_steps: int, network_factory):
-        phase["offset"] = latest["steps"]
-        ppo.train(
-            environment=env, num_timesteps=num_steps, num_envs=ppo_cfg.num_envs,
-            episode_length=int(env_cfg.episode_length),
-            wrap_env_fn=student_finetune.wrap_env_fn(ppo_cfg, env, full_reset=bool(ppo_cfg.full_reset)),
-            seed=seed + phase["offset"],
-            learning_rate=ppo_cfg.learning_rate, entropy_cost=ppo_cfg.entropy_cost,
-            discounting=ppo_cfg.discounting, unroll_length=ppo_cfg.unroll_length,
-            batch_size=ppo_cfg.batch_size, num_minibatches=ppo_cfg.num_minibatches,
-            num_updates_per_batch=ppo_cfg.num_updates_per_batch,
-            num_resets_per_eval=ppo_cfg.num_resets_per_eval,
-            normalize_observations=ppo_cfg.normalize_observations, reward_scaling=ppo_cfg.reward_scaling,
-            clipping_epsilon=ppo_cfg.clipping_epsilon, max_grad_norm=ppo_cfg.max_grad_norm,
-            network_factory=network_factory, num_evals=_epochs(ppo_cfg, num_steps),
-            run_evals=ppo_cfg.run_evals, num_eval_envs=ppo_cfg.num_eval_envs,
-            deterministic_eval=ppo_cfg.deterministic_eval,
-            log_training_metrics=ppo_cfg.log_training_metrics,
-            training_metrics_steps=ppo_cfg.training_metrics_steps,
-            progress_fn=progress_fn, policy_params_fn=policy_params_fn,
-            randomization_fn=_randomization(ppo_cfg, env, seed + phase["offset"]),
-            restore_params=None if latest["params"] is None else tuple(latest["params"]),
-            restore_value_fn=latest["params"] is not None and latest["params"][2] is not None)
-
-    # (end step, networks): the critic-only warm-up, then PPO proper
-    warmup_end = min(target, int(ppo_cfg.get("value_warmup_steps", 0)))
-    phases = ((warmup_end, ppo_networks.frozen_policy_factory(factory)), (target, factory))
-    stopped = False
-    try:
-        with student_finetune.teacher_term(ppo_cfg, env, float(state.get("bc_count_start", 0.0))):
-            for end, network_factory in phases:
-                if end > latest["steps"]:
-                    run_ppo(end - latest["steps"], network_factory)
-    except _StopAtCheckpoint:
-        stopped = True
-    bar.close()
-    minutes = (time.monotonic() - t_start) / 60.0
-    steady = clock["sps"][1:]  # the first epoch includes jit compilation
-    done_now = latest["steps"] - offset
-    sps = sorted(steady)[len(steady) // 2] if steady else (done_now / (60 * minutes) if minutes else 0.0)
-    state["minutes"] = minutes_before + minutes
-    call.update(to_steps=latest["steps"], minutes=round(minutes, 2), env_steps_per_s=round(sps, 1),
-                stopped_by_max_minutes=stopped, finished=True)
-    state["env_steps_per_s"] = round(sps, 1)
-    checkpoints.save_run_state(run_dir, state)
-    log.close()
-    curves.plot_curves(log.csv_path, run_dir / curves.PNG_NAME, title=f"{state['name']} (PPO)")
-
+    run.env_cfg.backend = backend or default_backend()
+    env = make_env(task, run.env_cfg)
+    epochs = _Epochs(run, env, None, command, max_minutes, progress, t_start)
+    sps = epochs.close(_train_phases(run, env, epochs, seed))
+    latest, target = epochs.latest, int(run.state["target_steps"])
     if latest["params"] is None:
         raise RuntimeError(f"{run_dir}: no parameters to export (zero steps trained and no --from)")
-    artifact = export_run(run_dir, env, state, latest["params"], preset)
+    artifact = export_run(run_dir, env, run.state, latest["params"], preset)
     if ship and latest["steps"] >= target:
-        ship_artifact(artifact, state)
-    return TrainResult(run_dir, artifact, latest["steps"], target, state["minutes"], sps,
+        ship_artifact(artifact, run.state)
+    return TrainResult(run_dir, artifact, latest["steps"], target, run.state["minutes"], sps,
                        complete=latest["steps"] >= target)
 
 
@@ -358,10 +312,49 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     return path
 
 
+def _env_fields_artifact(run_dir: Path, state: dict) -> Path:
+    """An artifact with the run's env and network fields: its own newest export, or, mid-run (no export
+    yet), the export of the run it was started --from (same model, observation and network)."""
+    own = run_dir / f"{state['name']}.safetensors"
+    init = Path(state.get("init") or "")
+    if own.exists() or init.parent.name != checkpoints.CHECKPOINT_DIR:
+        return own
+    parent = init.parent.parent
+    try:
+        return parent / f"{checkpoints.load_run_state(parent)['name']}.safetensors"
+    except (OSError, ValueError, KeyError):
+        return own     # named in the error below
+
+
+def export_checkpoint(run_dir, env_steps: int, name: str, like=None) -> Path:
+    """A run's kept checkpoint at `env_steps` → run_dir/<name>.safetensors: the env and network fields of
+    `like` (default: the run's export, mid-run its --from run's), this run's provenance at that checkpoint's
+    steps. A campaign screens its checkpoints and keeps the best one (e.g. the cheapest getup that still stands)."""
+    run_dir = Path(run_dir)
+    state = checkpoints.load_run_state(run_dir)
+    ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
+    state = {**state, "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict()}
+    ckpt = checkpoints.kept_checkpoint(run_dir, env_steps, f"{env_steps} env steps")
+    like = Path(like) if like else _env_fields_artifact(run_dir, state)
+    if not like.exists():
+        raise FileNotFoundError(f"{like}: no export of the run (nor of a --from run) to take the manifest's "
+                                "env fields from (name one with --like)")
+    manifest = {k: v for k, v in read_artifact(like)[3].items() if k not in ("content_hash", "provenance")}
+    manifest["provenance"] = {**run_provenance(state, env_steps, state["preset"]),
+                              "exported_from": f"{ckpt} (env fields from {like})"}
+    params = checkpoints.load_checkpoint(ckpt)
+    policy, rule = exported_policy(params[1], ppo_cfg)
+    manifest.update(name=name, output_rule=rule,
+                    trained=exported_as_trained(int(env_steps), state["preset"], env_cfg))
+    path = run_dir / f"{name}.safetensors"
+    export_brax_ppo((params[0], policy), manifest, path,
+                    observations_normalized=bool(ppo_cfg.normalize_observations))
+    return path
+
+
 def ship_artifact(artifact: Path, state: dict, policies_root=checkpoints.POLICIES_ROOT) -> Path:
     """Copy the artifact to policies/<name>/<name>.safetensors and append its provenance row to that folder's
     CARD.md (created from the card template for a new policy)."""
-    from common.artifact import read_artifact
     manifest = read_artifact(artifact)[3]
     prov = manifest["provenance"]
     folder = checkpoints.policy_dir(manifest["name"], policies_root)

@@ -1,17 +1,14 @@
-"""Assist stages of the getup tasks: training aids of ours, not the seed's, both changes of the model (so
-both physics backends get them with no code of their own), both off by default, and a policy trained with
-either is never exported as trained (`assisted`, used by export.exported_as_trained).
+"""The assist stage of the getup tasks: a training aid of ours, not the seed's, a change of the model (so both
+physics backends get it with no code of their own), off by default, and a policy trained with it is never
+exported as trained (`assisted`, used by export.exported_as_trained).
 
-* gravity_scale: gravity × a fraction in (0, 1] (T1Env._compile).
-* the elastic harness (config.harness): a spatial tendon from a world site above the start (x = y = 0,
-  where stage 2's kneel starts; `anchor_height_m`) to a trunk site `attach_above_trunk_m` above the trunk
-  origin. Its spring is slack while the trunk is at or above `slack_trunk_height_m` (the standing torso
-  height) and pulls with stiffness × (how far below) [N] when the trunk is lower: × 0.26 m at the kneel.
-  At stiffness 0 the model has no harness at all.
+The elastic harness (config.harness): a spatial tendon from a world site above the start (x = y = 0, where stage
+2's kneel starts; `anchor_height_m`) to a trunk site `attach_above_trunk_m` above the trunk origin. Its spring is
+slack while the trunk is at or above `slack_trunk_height_m` (the standing torso height) and pulls with stiffness ×
+(how far below) [N] when the trunk is lower: × 0.26 m at the kneel. At stiffness 0 the model has no harness.
 
-Why: at full gravity, and at half (gravity_scale 0.5, 6 M steps), PPO from the kneel never found a way
-up: every exploratory move that tips the robot ends a stage-2 episode, so the policy learned to hold the
-kneel. The harness carries part of the weight where it is heaviest and, attached above the centre of
+Why: at full gravity (and at half: LESSONS), PPO from the kneel never found a way up: every exploratory move that
+tips the robot ends a stage-2 episode, so the policy learned to hold the kneel. The harness carries part of the weight where it is heaviest and, attached above the centre of
 mass, holds the robot like a pendulum (attached at the trunk origin it tipped even a held kneel over:
 measured), so leg motions that rise are tried without falling (with targets at home from the kneel, no
 harness: the robot falls; 1100 N/m: it rises to standing height). Later
@@ -27,15 +24,6 @@ ANCHOR_SITE, TRUNK_SITE = "harness_anchor", "harness_trunk"
 TRUNK_BODY = "Trunk"
 
 
-def gravity_scale(cfg) -> float:
-    """The config's gravity_scale (1 where a task has none), checked: an assist lowers gravity, never
-    removes or raises it."""
-    scale = float(cfg.get("gravity_scale", 1.0))
-    if not 0.0 < scale <= 1.0:
-        raise ValueError(f"gravity_scale {scale}: expected 0 < scale <= 1 (a fraction of the model's 9.81 m/s²)")
-    return scale
-
-
 def stiffness(cfg) -> float:
     """The config's harness stiffness [N/m] (0 where a task has no harness), checked."""
     k = float(cfg.get("harness", {}).get("stiffness_n_per_m", 0.0))
@@ -46,7 +34,7 @@ def stiffness(cfg) -> float:
 
 def assisted(cfg) -> bool:
     """Whether an env config trains with an assist (a policy from it is only a start for the next stage)."""
-    return gravity_scale(cfg) != 1.0 or stiffness(cfg) != 0.0
+    return stiffness(cfg) != 0.0
 
 
 def add_harness(spec: mujoco.MjSpec, cfg) -> None:

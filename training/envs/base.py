@@ -99,7 +99,7 @@ class T1Env(mjx_env.MjxEnv):
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ValueError(f"ctrl_dt {cfg.ctrl_dt} s is not a whole multiple of sim_dt {cfg.sim_dt} s")
         obsdef.check_terms(cfg.obs_terms)
-        backend = cfg.get("backend", "mjx")
+        backend = cfg.backend
         if backend not in BACKENDS:
             raise ValueError(f"backend {backend!r}: expected one of {BACKENDS}")
         if backend != "cpu" and self.has_wall_course():
@@ -152,19 +152,22 @@ class T1Env(mjx_env.MjxEnv):
 
     def has_wall_course(self) -> bool:
         """Whether this env's world holds the low-wall course: config wall_course.enable (tasks with a wall
-        share override this to add it on their own). Runs made before the course existed have no such key."""
-        course = self._config.get("wall_course")
-        return bool(course is not None and course.enable)
+        share override this to add it on their own)."""
+        return bool(self._config.wall_course.enable)
 
     def _compile(self, model: mujoco.MjModel) -> mujoco.MjModel:
         """The env's copy of a compiled variant: its timestep and the ONE gain set in the PD slots."""
         mj = copy.copy(model)
         mj.opt.timestep = self._config.sim_dt
-        mj.opt.gravity[:] = model.opt.gravity * assists.gravity_scale(self._config)
         self._kp, self._kd = t1model.pd_gains(mj)
         mj.actuator_biasprm[:, KP_SLOT] = self._kp
         mj.actuator_biasprm[:, KD_SLOT] = self._kd
         return mj
+
+    @property
+    def make_env(self) -> Callable | None:
+        """The task registry's envs.make, for start banks that roll another task's env (None: no bank)."""
+        return self._make_env
 
     @property
     def backend(self) -> str:

@@ -35,8 +35,8 @@ import numpy as np
 from flax import struct
 from mujoco import batch as mj_batch
 
-from training.checkpoints import REPO_ROOT
 
+REPO_ROOT = Path(__file__).resolve().parents[2]
 LIBRARY = Path("training") / "cpu_physics" / "libt1_mjcb_motor.so"   # under the CMake build folder
 FOOT_FLOOR_SENSORS = ("left_foot_floor", "right_foot_floor")
 FEET_SENSOR = "feet_touching"

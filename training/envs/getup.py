@@ -1,43 +1,23 @@
 """Getup expert: the seed's keyframe curriculum (thesis §4.5–4.8) on the full-body-collision model.
 
 Stages (config.stage), rewards from getup_rewards.py (formulas there):
-* "stage1" fallen → kneel: starts fallen; Height = HO(kneel targets), Pose = pose(q, q_kneel); ours, off by
-  default: config.stage1_gate_reward per step while the gate holds (getup_rewards.kneel_height_reward).
-* "stage2" kneel → stand: starts kneeling; Height = HO(torso 0.67, waist 0.55), Pose = pose(q, q_init): the
-  same two §4.7 rewards as stage 1, toward the standing reference. The 1.83 / 0.6 bonuses and the 100·
-  weight belong to the gate, which §4.8 introduces "to train the full getup controller"; without a gate
-  they are wrong here: taking the gate as always met (this project's first stage-2 runs) pays
-  0.6 + 100·pose for standing-like joint angles in ANY posture, and PPO learned to lie on the floor with
-  straight legs (training/LESSONS.md).
-* "full" (fine-tuned from the stage-2 checkpoint, §4.5): starts fallen / kneeling / standing with
-  config.start_probs = (0.4, 0.4, 0.2); Height and Pose gated (§4.8). The gate is the seed's per-step
-  condition, latched (config.gate_latches, ours: the seed is silent on it): once met it stays on until the
-  trunk is down again (below sim_hil's fallen height, 0.35 m), then the keyframe reward is back. Why: the
-  per-step gate needs the trunk within 0.573° of vertical, which a standing robot keeps only now and then,
-  so a per-step-gated fine-tune of stage 2 paid the kneel reward for every small tilt and unlearned the
-  stand-up (training/LESSONS.md). Latched,
-  the kneel keyframe (trunk 0.405 m, upright) is where the standing phase begins, as §4.8 describes it.
-reward per control step = (Height + Pose − energy_weight·energy − rise_pace.weight·pace) × ctrl_dt
-− failed_rise.cost·[a getup attempt failed this step] (pace and failed rise: ours; metric failed_rises counts
-them per episode whatever the cost).
-Fine-tunes: energy_weight > 0 (the energy fine-tune; 0 before it, §4.7), obs_noise_scale > 0 (the
-robustness fine-tune: U(−1, 1)·obs_noise_scale added to EVERY observation entry, §4.6; the seed's is 1).
-Kneel targets: the model's `kneel` keyframe (trunk 0.405 m, waist from its kinematics), q_kneel its joints;
-q_init = the standing default pose. Actor obs = Table 4.2, TERMS_GETUP: gyro, gravity, joint offsets,
-joint velocities (52; no last action: the seed's observation, and nothing here shows it would help).
-"success" = standing by common/events.py's definition (trunk ≥ 0.6 m, up_z ≥ 0.9), the one the
-evaluations use. Episodes run their whole length (10 s) and end early only on non-finite physics, and —
-in stage 2 alone — when the robot leaves the kneel downward: trunk below config.stage2_fall_trunk_height_m
-(0.35 m; the kneel start is at 0.405 m) or tilted past config.stage2_fall_up_z (up_z 0.7, 46°). The seed
-says nothing of terminations; this one is ours, and why: stage 2's rewards pay straight legs in any
-posture (pose(q, q_init)) about as much as height, so without it PPO learned to fall and lie with straight
-legs (v3: 1.23 per step lying against 0.90 holding the kneel), and with a trunk-height bound of 0.30 m
-alone it learned to lean back to trunk 0.32 m, up_z 0.72, straightening its legs (v5: 1.0 per step).
-Assist stages (ours, for stage 2; never exported as trained, off by default): config.harness (an elastic rope
-from above), config.gravity_scale (assists.py). Stage 2's reverse curriculum (config.reverse_curriculum,
-start_path.py; ours, off by default) moves only where episodes start up the lunge: not an assist.
-Stage 1 and the full task start on the floor and pay pose(q, q_kneel) before the gate, where lying
-straight earns nothing, so they keep the seed's episodes.
+* "stage1" fallen → kneel: Height = HO(kneel targets), Pose = pose(q, q_kneel); ours, off by default:
+  config.stage1_gate_reward per step while the gate holds.
+* "stage2" kneel → stand: Height = HO(torso 0.67, waist 0.55), Pose = pose(q, q_init). The gate's 1.83 / 0.6
+  bonuses and 100· weight belong to the full task (§4.8): without a gate they pay standing-like joint angles in
+  any posture (LESSONS, `getup_stage2`).
+* "full" (from stage 2, §4.5): fallen / kneeling / standing starts (config.start_probs), Height and Pose gated.
+  Ours: the gate latches (config.gate_latches) until the trunk is down (0.35 m), because a standing robot keeps
+  the per-step gate's 0.573° only now and then (LESSONS, `getup_full*`).
+reward per control step = (Height + Pose − energy_weight·energy) × ctrl_dt; metric failed_rises counts the
+attempts that fail by common/events.py's definition. Fine-tunes: energy_weight (§4.7), obs_noise_scale
+(U(−1, 1)·scale on every observation entry, §4.6).
+Actor obs = Table 4.2, TERMS_GETUP (52). "success" = standing by common/events.py (trunk ≥ 0.6 m, up_z ≥ 0.9).
+Episodes end early only on non-finite physics and, in stage 2 alone (ours), when the robot leaves the kneel
+downward (config.stage2_fall_trunk_height_m, stage2_fall_up_z): stage 2's Pose pays straight legs in any
+posture, and without the end PPO learned to lie or lean back with straight legs (LESSONS, `getup_stage2`).
+Ours, off by default: the harness (assists.py), stage 2's reverse curriculum (start_path.py) and a share of the
+fallen starts from the start banks (start_banks.py).
 """
 from __future__ import annotations
 
@@ -51,9 +31,9 @@ from mujoco_playground._src import mjx_env
 from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
-from training.envs import handover, kneel_collapse, prone_path, rise_bank, start_path, upright
+from training.envs import start_banks, start_path
 from common.events import FALLEN_TRUNK_HEIGHT_M, STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
-from training.envs.fallen import PREPARE_S, fallen_states
+from training.envs.fallen import fallen_states
 from training.envs.getup_config import default_config   # envs.make's config of this task
 
 STAGES = ("stage1", "stage2", "full")
@@ -62,15 +42,6 @@ START_KINDS = ("fallen", "kneeling", "standing")
 
 class GetupBase(base.T1Env):
     """Starts (fallen / kneeling / standing), observation and bookkeeping of the getup tasks."""
-
-    WALL_SHARE_CONFIG = ""   # the config group whose `prob` is the task's share of wall-course starts
-
-    def _wall_share(self) -> float:
-        group = self._config.get(self.WALL_SHARE_CONFIG) if self.WALL_SHARE_CONFIG else None
-        return 0.0 if group is None else float(group.prob)   # runs made before the course have no such group
-
-    def has_wall_course(self) -> bool:
-        return super().has_wall_course() or self._wall_share() > 0
 
     def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None, make_env=None):
         super().__init__(config, config_overrides, make_env)
@@ -94,12 +65,10 @@ class GetupBase(base.T1Env):
 
     def fallen_starts(self, num: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """(qpos, qvel) of this env's fallen starts for seeds seed … seed + num − 1 (training and evaluation):
-        after the runtime's PREPARE ramp, under this env's supervisor settings. Runs configured before the
-        hand-over was modelled get it too (they resume onto the loop's starts)."""
-        prepare_s = float(self._config.get("fallen_prepare_s", PREPARE_S))
-        return fallen_states(num, seed, prepare_s, self._host_supervisor())
+        after the runtime's PREPARE ramp, under this env's supervisor settings."""
+        return fallen_states(num, seed, float(self._config.fallen_prepare_s), self.host_supervisor())
 
-    def _host_supervisor(self) -> tuple[float, float]:
+    def host_supervisor(self) -> tuple[float, float]:
         """Rule R6 as the host rollouts of the start banks take it: (max target speed [rad/s], range fraction)."""
         step_per_substep, fraction = self._supervisor_settings(self._config)
         return step_per_substep / float(self._config.sim_dt), fraction
@@ -159,17 +128,11 @@ class GetupBase(base.T1Env):
     def _physics(self, state, action):
         info = dict(state.info)
         info["rng"], k_obs = jax.random.split(info["rng"])
-        data, info["runtime_target"] = self.physics_step(state.data, self._joint_targets(state, action, info),
+        data, info["runtime_target"] = self.physics_step(state.data, self.motor_targets(action),
                                                          info["runtime_target"])
         info.update(self.body_readings(data))
         info["up"] = self.up_vector(data)
         return data, info, k_obs
-
-    def _joint_targets(self, state, action, info):
-        """The joint targets [rad] applied this tick (the keyframe expert's env may hand some to its upright
-        member, updating info)."""
-        del state, info
-        return self.motor_targets(action)
 
     def _privileged_extra(self, info):
         """Critic extras of the getup tasks: gate met, ‖u − e_z‖."""
@@ -187,8 +150,6 @@ class GetupBase(base.T1Env):
 class Getup(GetupBase):
     """The keyframe-curriculum getup expert."""
 
-    WALL_SHARE_CONFIG = "wall_starts"
-
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
                  make_env=None):
         super().__init__(config if config is not None else default_config(), config_overrides, make_env)
@@ -201,88 +162,24 @@ class Getup(GetupBase):
             raise ValueError(f"reverse_curriculum: max_progress must be in [0, {start_path.PATH_END}] and "
                              f"kneel_prob in [0, 1], got {rc.max_progress} and {rc.kneel_prob}")
         if self._config.stage == "stage2" and rc.max_progress > 0:
-            # runs started before min_progress existed keep its default on --resume
-            starts = start_path.bank_range(rc.get("min_progress", 0.0), rc.max_progress, int(rc.bank_size))
+            starts = start_path.bank_range(rc.min_progress, rc.max_progress, int(rc.bank_size))
             bank = start_path.path_bank(self._mj_model, np.asarray(self._home_qpos), np.asarray(self._kneel_qpos),
                                         rc.left_leg_waypoints, int(rc.bank_size))
             self._path_bank = jnp.asarray(bank[starts], jnp.float32)
         self._fallen_banks = self._load_fallen_banks()
-        path = self._config.get("upright_policy", "")   # runs made before it have none
-        self._upright = upright.UprightMember(path, self) if path else None
-        pace = self._config.get("rise_pace")   # runs made before it have none: off
-        self._pace_weight, self._pace_waist_m = (pace.weight, pace.waist_from_m) if pace else (0.0, 0.0)
-        if self._pace_weight < 0.0:
-            raise ValueError(f"rise_pace.weight must be >= 0 (a cost), got {self._pace_weight}")
-        failed_rise = self._config.get("failed_rise")   # runs made before it have none: off
-        self._failed_rise_cost = float(failed_rise.cost) if failed_rise else 0.0
-        if self._failed_rise_cost < 0.0:
-            raise ValueError(f"failed_rise.cost must be >= 0, got {self._failed_rise_cost}")
         self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
-        self._stage1_gate_reward = float(self._config.get("stage1_gate_reward", 0.0))   # older runs: none
+        self._stage1_gate_reward = float(self._config.stage1_gate_reward)
         if self._stage1_gate_reward < 0.0:
             raise ValueError(f"stage1_gate_reward must be >= 0, got {self._stage1_gate_reward}")
 
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
-        """(share of the fallen starts, (qpos, qvel)) of the configured start banks, in the order drawn. The
-        shares are checked before any bank is rolled."""
-        wanted = []
-        for name, policy_key, make in (("knockdown_starts", "joystick_policy", handover.knockdown_bank),
-                                       ("wall_starts", "joystick_policy", self._wall_bank),
-                                       ("push_starts", "joystick_policy", handover.push_test_bank),
-                                       ("rise_starts", "getup_policy", self._rise_bank),
-                                       ("collapse_starts", None, self._collapse_bank),
-                                       ("prone_starts", None, self._prone_bank)):
-            b = self._config.get(name)   # runs made before a bank existed have no such key
-            if b is None:
-                continue
-            if not 0.0 <= b.prob <= 1.0:
-                raise ValueError(f"{name}.prob must be in [0, 1], got {b.prob}")
-            if b.prob > 0:
-                if policy_key and not b[policy_key]:
-                    raise ValueError(f"{name}.prob > 0 needs {name}.{policy_key} (an artifact, checkpoint or run "
-                                     "directory)")
-                wanted.append((name, float(b.prob), make, b[policy_key] if policy_key else "", int(b.bank_starts),
-                               int(b.seed)))
-        if sum(w[1] for w in wanted) > 1.0 + 1e-9:
-            raise ValueError(f"the start banks' shares must sum to at most 1, got "
-                             f"{' + '.join(f'{w[0]}.prob {w[1]}' for w in wanted)}")
-        return [(prob, tuple(jnp.asarray(x) for x in make(self._make_env, policy, n, seed)))
-                for _, prob, make, policy, n, seed in wanted]
-
-    def _rise_bank(self, make_env, getup_policy: str, num_starts: int, seed: int):
-        r = self._config.rise_starts
-        return rise_bank.rise_bank(make_env, getup_policy, float(r.harness_n_per_m), float(r.harness_slack_m),
-                                   num_starts, seed, float(r.min_progress))
-
-    def collapse_settings(self) -> dict:
-        """kneel_collapse's settings of this env's collapse starts (training and evaluation)."""
-        c = self._config.collapse_starts
-        return dict(gain_scale=float(c.gain_scale), push_rad_s=float(c.push_rad_s), duration_s=float(c.duration_s),
-                    push_axis_deg=tuple(c.get("push_axis_deg", kneel_collapse.ANY_AXIS_DEG)),   # runs made before it: any axis
-                    ctrl_dt=float(self._config.ctrl_dt), supervisor=self._host_supervisor())
-
-    def _collapse_bank(self, make_env, _policy: str, num_starts: int, seed: int):
-        return kneel_collapse.collapse_bank(num_starts, seed, float(self._config.collapse_starts.max_progress),
-                                            **self.collapse_settings())
-
-    def prone_settings(self) -> dict:
-        """prone_path's settings of this env's prone starts (training and evaluation)."""
-        p = self._config.prone_starts
-        return dict(hands_knees_pitch_rad=float(p.hands_knees_pitch_rad), target_noise_rad=float(p.target_noise_rad),
-                    settle_s=float(p.settle_s), supervisor=self._host_supervisor())
-
-    def _prone_bank(self, make_env, _policy: str, num_starts: int, seed: int):
-        p = self._config.prone_starts
-        return prone_path.prone_bank(num_starts, seed, float(p.min_progress), float(p.max_progress),
-                                     **self.prone_settings())
-
-    def _wall_bank(self, make_env, joystick_policy: str, num_starts: int, seed: int):
-        return handover.wall_bank(make_env, joystick_policy, num_starts, seed,
-                                  float(self._config.wall_course.first_wall_x_m))
+        """(share of the fallen starts, (qpos, qvel)) of the configured start sources (start_banks.py)."""
+        return [(prob, tuple(jnp.asarray(x) for x in bank))
+                for prob, bank in start_banks.fallen_share_banks(self, self._config)]
 
     def _start_state(self, rng):
         """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path; with
-        knockdown, wall or push-test starts, a share of the fallen ones from those banks."""
+        start banks (knockdown, rise, collapse, prone), a share of the fallen ones from those banks."""
         if self._path_bank is None and not self._fallen_banks:
             return super()._start_state(rng)
         if self._path_bank is None:
@@ -306,25 +203,13 @@ class Getup(GetupBase):
         info = super()._start_info(rng, data, kind)
         info["gate"] = self.gate_state(info, jnp.zeros((), dtype=bool))
         info["rise_track"] = G.rise_track_start(info["trunk_height"])
-        if self._upright is not None:
-            info["upright_last_act"] = self._upright.initial_last_action()
         return info
-
-    def _joint_targets(self, state, action, info):
-        q_des = self.motor_targets(action)
-        if self._upright is None:
-            return q_des
-        q_des, info["upright_last_act"] = self._upright.targets(
-            self, state.data, state.info["waist_height"], q_des, state.info["upright_last_act"])
-        return q_des
 
     def gate_state(self, info, was_on) -> jax.Array:
         """The gate the full task's rewards use: §4.8's per-step condition, latched from the step it first
         holds until the trunk is down (config.gate_latches; the module docstring says why)."""
         now = G.gate(info["trunk_height"], info["up"])
-        if self._upright is not None:   # the upright member's stand counts as past the kneel (upright.py)
-            now = now | self._upright.holds_standing(info["waist_height"], self.standing(info))
-        if not self._config.get("gate_latches", True):
+        if not self._config.gate_latches:
             return now
         return (now | was_on) & (info["trunk_height"] >= FALLEN_TRUNK_HEIGHT_M)
 
@@ -333,9 +218,8 @@ class Getup(GetupBase):
 
     def start_probabilities(self):
         stage = self._config.stage
-        if stage in ("stage1", "stage2"):   # a run state older than these keys gets the seed's starts
-            key = f"{stage}_start_probs"
-            return list(self._config.get(key, default_config()[key]))
+        if stage in ("stage1", "stage2"):
+            return list(self._config[f"{stage}_start_probs"])
         return list(self._config.start_probs)
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
@@ -349,11 +233,11 @@ class Getup(GetupBase):
 
     @staticmethod
     def metric_names():
-        return ("reward/height", "reward/pose", "reward/energy", "reward/pace", "failed_rises", "gate", "success",
+        return ("reward/height", "reward/pose", "reward/energy", "failed_rises", "gate", "success",
                 "success_from_kneel", "success_from_fallen")
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
-        """Height and Pose Rewards (the stage's form), the energy and rise-pace costs of the state after the step."""
+        """Height and Pose Rewards (the stage's form) and the energy cost of the state after the step."""
         q, stage = data.qpos[7:], self._config.stage
         if stage == "stage1":
             kneel_h = self.height_orientation(info, self._kneel_targets)
@@ -363,19 +247,17 @@ class Getup(GetupBase):
             height, pose = self.height_orientation(info, self._standing_targets), G.pose_reward(q, self._default_pose)
         else:
             height, pose = self.full_task_rewards(q, info, info["gate"])
-        pace = G.rise_pace_cost(data.qvel[0:2], info["waist_height"], self._pace_waist_m)
-        return {"height": height, "pose": pose, "gate": info["gate"], "energy": self.energy_cost(data), "pace": pace}
+        return {"height": height, "pose": pose, "gate": info["gate"], "energy": self.energy_cost(data)}
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         data, info, k_obs = self._physics(state, action)
         info["gate"] = self.gate_state(info, state.info["gate"])
         terms = self.reward_terms(data, info)
         scaled = {"height": terms["height"], "pose": terms["pose"],
-                  "energy": -self._config.energy_weight * terms["energy"],
-                  "pace": -self._pace_weight * terms["pace"]}
+                  "energy": -self._config.energy_weight * terms["energy"]}
         info["rise_track"], failed = G.rise_track_step(state.info["rise_track"], info["trunk_height"],
                                                        self.standing(info), self._stand_hold_ticks)
-        reward = sum(scaled.values()) * self.dt - self._failed_rise_cost * failed
+        reward = sum(scaled.values()) * self.dt
         info["last_act"] = action
         obs = self._observe(data, info, k_obs, self._privileged_extra(info))
         metrics = dict(state.metrics)   # keep what wrappers added (brax's EvalWrapper adds "reward")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from ml_collections import config_dict
 
 from common import observation as obsdef
-from training.envs import base
+from training.envs import base, start_banks
 from training.envs import getup_rewards as G
 from training.envs.fallen import PREPARE_S
 
@@ -30,9 +30,7 @@ def getup_common_config() -> config_dict.ConfigDict:
     # the loop hands the policy that robot, not the settled fall); 0 = the settled fall itself
     cfg.fallen_prepare_s = PREPARE_S
     cfg.standing_targets_m = [G.STANDING_TORSO_M, G.STANDING_WAIST_M]   # (torso, waist) after the gate
-    # assist stages (training/envs/assists.py; ours, not the seed's): × the model's gravity, and the
-    # elastic harness (stiffness 0 = none)
-    cfg.gravity_scale = 1.0
+    # assist stage (training/envs/assists.py; ours, not the seed's): the elastic harness (stiffness 0 = none)
     cfg.harness = config_dict.create(stiffness_n_per_m=0.0, anchor_height_m=3.0, attach_above_trunk_m=0.3,
                                      slack_trunk_height_m=G.STANDING_TORSO_M)
     return cfg
@@ -52,44 +50,9 @@ def default_config() -> config_dict.ConfigDict:
     cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)
     cfg.stage2_fall_trunk_height_m = 0.35   # stage 2 ends when the trunk drops below this [m] (docstring)
     cfg.stage2_fall_up_z = 0.7              # ... or when the trunk's up_z falls below this (46° of tilt)
-    # knockdown starts (training/envs/handover.py knockdown_bank; ours): this share of the fallen starts is
-    # instead where the teacher hands `joystick_policy`, knocked over by a push, to the getup expert mid-fall
-    # (from `bank_starts` standing starts, seeds from `seed`); 0 = the seed's fallen starts only
-    cfg.knockdown_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=200_000)
-    # wall starts (handover.wall_bank; ours): this share of the fallen starts is where the teacher hands
-    # `joystick_policy` over after it walked into the low-wall course (wall_course.py; the course is then in
-    # the world), from `bank_starts` approaches
-    cfg.wall_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=400_000)
-    # push-test starts (handover.push_test_bank; ours): this share of the fallen starts is where the teacher
-    # hands `joystick_policy` over after the loop's push test shoved it (a torso impulse, forward or backward),
-    # from `bank_starts` standing starts. The shares of these, rise_starts, collapse_starts and prone_starts sum to at most 1
-    cfg.push_starts = config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=500_000)
-    # rise starts (rise_bank.py; ours, stage 1's reverse curriculum): this share of the fallen starts is instead
-    # a state along the rises `getup_policy` makes with the harness (stiffness [N/m], slack [m]) from
-    # `bank_starts` fallen starts (seeds from `seed`), at progress min_progress … 1 toward the kneel
-    cfg.rise_starts = config_dict.create(prob=0.0, getup_policy="", harness_n_per_m=400.0, harness_slack_m=0.45,
-                                         bank_starts=128, seed=600_000, min_progress=0.5)
-    # collapse starts (kneel_collapse.py; ours, stage 1's reverse curriculum): this share of the fallen starts is
-    # instead a state along the collapse from the kneel (PD gains × gain_scale, a tipping push of push_rad_s
-    # [rad/s] about an axis push_axis_deg [deg] from world x: (0, 180) tips it face down, duration_s [s]) of
-    # `bank_starts` starts, at progress 0 … max_progress toward the floor
-    cfg.collapse_starts = config_dict.create(prob=0.0, max_progress=1.0, bank_starts=256, seed=700_000,
-                                             gain_scale=0.1, push_rad_s=2.0, duration_s=2.0,
-                                             push_axis_deg=[0.0, 360.0])
-    # prone starts (prone_path.py; ours, stage 1's reverse curriculum): this share of the fallen starts is instead
-    # a settled state along kneel (0) → hands and knees (1, trunk pitched forward hands_knees_pitch_rad) → lying
-    # face down (2), at progress U(min_progress, max_progress), joint targets ± target_noise_rad, held settle_s [s]
-    cfg.prone_starts = config_dict.create(prob=0.0, min_progress=0.0, max_progress=2.0, bank_starts=256,
-                                          seed=800_000, hands_knees_pitch_rad=1.4, target_noise_rad=0.1,
-                                          settle_s=1.0)
-    # the composite's upright member in the world (training/envs/upright.py; ours): a joystick artifact that
-    # drives whenever the waist is at or above the teacher's switch height; "" = the getup expert alone
-    cfg.upright_policy = ""
-    # the rise's pace (getup_rewards.rise_pace_cost; ours): weight·‖v_xy‖² [m²/s²] at waist ≥ waist_from_m [m]
-    cfg.rise_pace = config_dict.create(weight=0.0, waist_from_m=0.4)
-    # a failed getup attempt (getup_rewards.rise_track_step, events.py's definition; ours): this cost [in
-    # return units, i.e. after the per-step rewards' × ctrl_dt] once per failed attempt; 0 = off
-    cfg.failed_rise = config_dict.create(cost=0.0)
+    # a share of the fallen starts from the start banks (start_banks.py: knockdown, rise, collapse, prone; ours),
+    # shares summing to at most 1; all off by default
+    start_banks.add_config_groups(cfg, "getup")
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
     # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
     # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with

@@ -62,13 +62,6 @@ def pose_reward(q, q_ref):
     return jnp.exp(-0.5 * jnp.sum(jnp.square(q - q_ref), axis=-1))
 
 
-def rise_pace_cost(trunk_vel_xy, waist_height, waist_from_m):
-    """‖v_xy‖² [m²/s²] of the trunk (world frame) while the waist is at or above waist_from_m [m], else 0.
-    Why: the hand-overs the joystick expert drops arrive at the switch faster than the ones it holds
-    (training/LESSONS.md)."""
-    return jnp.where(waist_height >= waist_from_m, jnp.sum(jnp.square(trunk_vel_xy), axis=-1), 0.0)
-
-
 def rise_track_start(h_torso):
     """The failed-rise tracker's state at an episode start, events.py's (down, in attempt, low, high [m],
     ticks standing): down from the start when the trunk is below the fallen height."""

@@ -28,7 +28,7 @@ the base velocity moves the whole robot at once and is far easier to catch, so o
 reproduce the loop's forward-push attempts (figures: training/LESSONS.md).
 
 `wall_bank` is the same hand-over after the joystick expert walked into the low-wall course
-(training/envs/wall_course.py): the landings beside, on and across a wall (getup config wall_starts).
+(training/envs/wall_course.py): the landings beside, on and across a wall (`evaluate --starts wall`).
 """
 from __future__ import annotations
 
@@ -41,6 +41,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 from brax import math as brax_math
+from ml_collections import config_dict
 
 from common.events import heading_from_quat
 from common import push_test
@@ -48,7 +49,7 @@ from common.scenarios import TORSO_BODY
 from common import observation as obsdef
 from training.envs import wall_course
 from messages.contract import WAIST_SWITCH_HEIGHT_M
-from training.experts import STUDENT_OBS_KEY, load_expert
+from training.envs.experts import STUDENT_OBS_KEY, load_expert
 
 MAX_RISE_S = 10.0   # [s] a fallen start that has not handed over by then is left out
 # A knockdown: a base speed change [m/s] as hard as the loop's push test (common/push_test.py: 40 N·s ±
@@ -67,15 +68,12 @@ class HandoverBank(NamedTuple):
     joint_targets: np.ndarray   # (n, 23) the getup expert's last joint targets [rad]
 
 
-def handover_bank(make_env: Callable, getup_policy: str, num_starts: int, seed: int, landing_overrides: dict | None = None
-                  ) -> HandoverBank:
+def handover_bank(make_env: Callable, getup_policy: str, num_starts: int, seed: int) -> HandoverBank:
     """Hand-over states of `getup_policy` (artifact or checkpoint) from `num_starts` random draws of a bank of
-    `num_starts` seeded fallen starts (seed, seed + 1, …); identical states (a start drawn twice) kept once.
-    `landing_overrides` (getup config keys such as "push_starts.prob") replace shares of those fallen starts
-    with the getup env's landing banks, so that the rises begin where a push or knockdown left the robot."""
+    `num_starts` seeded fallen starts (seed, seed + 1, …); identical states (a start drawn twice) kept once."""
     env = make_env("getup", config_overrides={"backend": "cpu", "start_probs": [1.0, 0.0, 0.0],
                                                "fallen_bank_size": int(num_starts), "fallen_seed": int(seed),
-                                               "obs_noise_scale": 0.0, **(landing_overrides or {})})
+                                               "obs_noise_scale": 0.0})
     getup = load_expert(getup_policy, "getup")
     if tuple(map(tuple, env.obs_terms)) != getup.obs_terms:
         raise ValueError(f"{getup_policy}: observation terms {getup.obs_terms} are not the getup env's")
@@ -156,6 +154,24 @@ def _frozen_bank(found, qpos, qvel) -> tuple[np.ndarray, np.ndarray]:
     return bank
 
 
+def handover_config() -> config_dict.ConfigDict:
+    """The joystick env's hand-over starts: this share of episodes starts where the stitched teacher hands the
+    getup expert `getup_policy`'s rise over, from `bank_starts` fallen starts (seeds from `seed`, apart from the
+    evaluations' 0 …); 0 = standing starts only, as Playground's."""
+    return config_dict.create(prob=0.0, getup_policy="", bank_starts=256, seed=100_000)
+
+
+def knockdown_config() -> config_dict.ConfigDict:
+    """The getup env's knockdown starts: this share of its fallen starts is instead where the teacher hands
+    `joystick_policy`, knocked over by a push, to the getup expert mid-fall (from `bank_starts` standing starts,
+    seeds from `seed`)."""
+    return config_dict.create(prob=0.0, joystick_policy="", bank_starts=256, seed=200_000)
+
+
+def knockdown_starts(env, group) -> tuple[np.ndarray, np.ndarray]:
+    return knockdown_bank(env.make_env, group.joystick_policy, int(group.bank_starts), int(group.seed))
+
+
 @functools.lru_cache(maxsize=4)
 def knockdown_bank(make_env: Callable, joystick_policy: str, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) where the teacher hands `joystick_policy` (artifact or checkpoint), knocked over from
@@ -182,7 +198,7 @@ def torso_impulse_dqvel(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.nda
                         impulse_ns: np.ndarray) -> np.ndarray:
     """The change of qvel [nv] that a world-frame impulse [N·s] on the Trunk's centre of mass makes at `qpos`:
     M⁻¹ Jᵀ impulse. sim_hil delivers a push as the force impulse / dt on the Trunk over one physics step
-    (sim_hil/sim.py _apply_pushes), the same up to what the contacts take in that step."""
+    (sim_hil/sim.py _push_force), the same up to what the contacts take in that step."""
     data.qpos[:] = qpos
     mujoco.mj_forward(model, data)
     jacp = np.zeros((3, model.nv))
@@ -203,7 +219,7 @@ def torso_shove_response(model: mujoco.MjModel, home_qpos: np.ndarray) -> np.nda
 class TorsoShove:
     """The loop's push-test shove drawn in JAX (push_test.push_draw's distribution: forward or backward 2 : 1
     off the heading, impulse and angle spread as the test's), as the change of qvel it makes: the unified
-    env's torso knockdowns and the joystick env's push.torso_shove_prob use it."""
+    env's torso knockdowns use it."""
 
     def __init__(self, model: mujoco.MjModel, home_qpos: np.ndarray):
         self._impulse_ns, self._impulse_spread = push_test.PUSH_IMPULSE_NS, push_test.PUSH_IMPULSE_SPREAD

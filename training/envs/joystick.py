@@ -17,7 +17,7 @@ from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
 from common import observation as obsdef
-from training.envs import base, handover
+from training.envs import base, handover, start_banks
 from training.envs import joystick_rewards as R
 
 # Playground's pose-cost weights per joint (head, arms, waist, legs), joint order.
@@ -36,21 +36,8 @@ def default_config() -> config_dict.ConfigDict:
     cfg.zero_command_prob = 0.1
     cfg.reset = config_dict.create(xy_range_m=0.5, yaw_range_rad=3.14, joint_scale=[0.5, 1.5],
                                    root_vel_range=0.5)
-    cfg.push = config_dict.create(enable=True, interval_range_s=[5.0, 10.0], magnitude_range_mps=[0.1, 1.0],
-                                  torso_shove_prob=0.0)
-    # torso_shove_prob (ours): this share of the pushes is instead the loop's push-test shove on the Trunk
-    # (handover.TorsoShove), which tips the robot over its feet where a base-speed push moves it whole: the
-    # teacher's joystick expert caught 13 of 128 forward shoves, and every one it drops is a getup attempt
-    # hand-over starts (training/envs/handover.py; ours): this share of episodes starts in the state where the
-    # stitched teacher hands the getup expert `getup_policy`'s rise over, from `bank_starts` fallen starts
-    # (seeds from `seed`, apart from the evaluations' 0 …); 0 = standing starts only, as Playground's.
-    # push_prob / knockdown_prob of those rises begin instead where `joystick_policy` landed after the loop's
-    # push test / a knockdown (the getup env's push_starts / knockdown_starts banks), not at a fallen start.
-    # zero_command_prob: a hand-over episode's command is zero with this probability (the loop's push and
-    # getup tests stand the risen robot at zero command), else drawn as any episode's
-    cfg.handover = config_dict.create(prob=0.0, getup_policy="", bank_starts=256, seed=100_000,
-                                      push_prob=0.0, knockdown_prob=0.0, joystick_policy="",
-                                      zero_command_prob=0.0)
+    cfg.push = config_dict.create(enable=True, interval_range_s=[5.0, 10.0], magnitude_range_mps=[0.1, 1.0])
+    start_banks.add_config_groups(cfg, "joystick")   # hand-over starts (handover.handover_config; ours)
     cfg.reward = config_dict.create(
         scales=config_dict.create(
             tracking_lin_vel=1.0, tracking_ang_vel=0.5, lin_vel_z=0.0, ang_vel_xy=-0.15, orientation=-1.0,
@@ -62,39 +49,21 @@ def default_config() -> config_dict.ConfigDict:
     return cfg
 
 
-def _landing_overrides(h: config_dict.ConfigDict) -> dict:
-    """The getup env's config overrides that start `h.push_prob` / `h.knockdown_prob` of the hand-over bank's
-    rises from push-test / knockdown landings (runs made before these keys existed have none: fallen only)."""
-    shares = {"push_starts": h.get("push_prob", 0.0), "knockdown_starts": h.get("knockdown_prob", 0.0)}
-    if any(p > 0 for p in shares.values()) and not h.get("joystick_policy"):
-        raise ValueError("handover.push_prob or handover.knockdown_prob > 0 needs handover.joystick_policy "
-                         "(the joystick artifact or checkpoint that is pushed over)")
-    return {f"{group}.{key}": value for group, prob in shares.items() if prob > 0
-            for key, value in (("prob", float(prob)), ("joystick_policy", h.joystick_policy))}
-
-
 class Joystick(base.T1Env):
     """Track (vx, vy, yaw_rate) commands; actor obs TERMS_UNION (82), critic privileged."""
 
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
                  make_env=None):
         super().__init__(config if config is not None else default_config(), config_overrides, make_env)
-        mj = self._mj_model
         self._init_reward_constants()
         self._handover = None
-        h = self._config.get("handover")   # runs made before hand-over starts existed have none
-        for key in ("prob", "push_prob", "knockdown_prob", "zero_command_prob") if h is not None else ():
-            if not 0.0 <= h.get(key, 0.0) <= 1.0:
-                raise ValueError(f"handover.{key} must be in [0, 1], got {h[key]}")
-        shove_prob = self._config.push.get("torso_shove_prob", 0.0)   # runs made before shoves have none
-        if not 0.0 <= shove_prob <= 1.0:
-            raise ValueError(f"push.torso_shove_prob must be in [0, 1], got {shove_prob}")
-        self._push_shove = handover.TorsoShove(mj, self._home_qpos) if shove_prob > 0 else None
-        if h is not None and h.prob > 0:
+        h = self._config.handover
+        if not 0.0 <= h.prob <= 1.0:
+            raise ValueError(f"handover.prob must be in [0, 1], got {h.prob}")
+        if h.prob > 0:
             if not h.getup_policy:
                 raise ValueError("handover.prob > 0 needs handover.getup_policy (a getup artifact or checkpoint)")
-            bank = handover.handover_bank(self._make_env, h.getup_policy, int(h.bank_starts), int(h.seed),
-                                          _landing_overrides(h))
+            bank = handover.handover_bank(self._make_env, h.getup_policy, int(h.bank_starts), int(h.seed))
             self._handover = jax.tree.map(jnp.asarray, bank)
 
     def _init_reward_constants(self) -> None:
@@ -162,17 +131,14 @@ class Joystick(base.T1Env):
 
     def _maybe_handover_start(self, rng, qpos, qvel, last_act, yaw, command):
         """With probability handover.prob, a hand-over state instead of the standing start, at the standing
-        start's place and heading; its last action = the getup expert's last targets in this env's map; its
-        command zero with probability handover.zero_command_prob."""
-        k_use, k_idx, k_zero = jax.random.split(rng, 3)
+        start's place and heading; its last action = the getup expert's last targets in this env's map."""
+        k_use, k_idx, _ = jax.random.split(rng, 3)   # three keys: the stream the hand-over stage trained on
         bank = self._handover
         idx = jax.random.randint(k_idx, (), 0, bank.qpos.shape[0])
         hq, hv = handover.place(bank.qpos[idx], bank.qvel[idx], qpos[0:2], yaw)
         h_act = obsdef.targets_to_action(self._default_pose, self._action_scale, bank.joint_targets[idx], jnp)
         use = jax.random.uniform(k_use) < self._config.handover.prob
-        zero = use & jax.random.bernoulli(k_zero, self._config.handover.get("zero_command_prob", 0.0))
-        return (jnp.where(use, hq, qpos), jnp.where(use, hv, qvel), jnp.where(use, h_act, last_act),
-                jnp.where(zero, jnp.zeros(3), command))
+        return jnp.where(use, hq, qpos), jnp.where(use, hv, qvel), jnp.where(use, h_act, last_act), command
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         info = dict(state.info)
@@ -247,15 +213,8 @@ class Joystick(base.T1Env):
         due = jnp.mod(info["push_step"] + 1, info["push_interval_steps"]) == 0
         push = jnp.array([jnp.cos(theta), jnp.sin(theta)]) * mag * due * float(p.enable)
         info["push_step"] = info["push_step"] + 1
-        qvel = data.qvel.at[:2].add(push)
-        if self._push_shove is not None:   # (kept out otherwise: the random streams of earlier runs stay)
-            k_pick, k_shove = jax.random.split(jax.random.fold_in(k_mag, 1))
-            shoved = due & jax.random.bernoulli(k_pick, p.torso_shove_prob) & bool(p.enable)
-            dqvel = self._push_shove.dqvel(data.qpos, k_shove)
-            qvel = jnp.where(shoved, data.qvel + dqvel, qvel)
-            push = jnp.where(shoved, dqvel[:2], push)
         info["push"] = push
-        return data.replace(qvel=qvel)
+        return data.replace(qvel=data.qvel.at[:2].add(push))
 
     # ------------------------------------------------------------------ observation / reward
     def _observe(self, data, info, contact, rng) -> dict[str, jax.Array]:

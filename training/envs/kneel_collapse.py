@@ -20,12 +20,29 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from ml_collections import config_dict
 
 from common import model as t1model
 from training.envs.fallen import backend_model
 
 PUSH_SPREAD = (0.5, 1.0)    # the push's magnitude as a fraction of push_rad_s, uniform in this range
 ANY_AXIS_DEG = (0.0, 360.0)  # push_axis_deg: a tip in any horizontal direction
+
+
+def collapse_config() -> config_dict.ConfigDict:
+    """Stage 1's collapse starts: this share of the getup env's fallen starts is instead a state along the collapse
+    from the kneel (PD gains × gain_scale, a tipping push of push_rad_s [rad/s] about an axis push_axis_deg [deg]
+    from world x: (0, 180) tips it face down, duration_s [s]) of `bank_starts` starts, at progress 0 …
+    max_progress toward the floor."""
+    return config_dict.create(prob=0.0, max_progress=1.0, bank_starts=256, seed=700_000, gain_scale=0.1,
+                              push_rad_s=2.0, duration_s=2.0, push_axis_deg=[0.0, 360.0])
+
+
+def collapse_starts(env, group) -> tuple[np.ndarray, np.ndarray]:
+    return collapse_bank(int(group.bank_starts), int(group.seed), float(group.max_progress),
+                         gain_scale=float(group.gain_scale), push_rad_s=float(group.push_rad_s),
+                         duration_s=float(group.duration_s), push_axis_deg=tuple(group.push_axis_deg),
+                         ctrl_dt=float(env.dt), supervisor=env.host_supervisor())
 
 
 def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale: float,
@@ -41,17 +58,6 @@ def collapse_bank(num_starts: int, seed: int, max_progress: float, *, gain_scale
     for array in bank:
         array.flags.writeable = False
     return bank
-
-
-def collapse_states(num_starts: int, seed: int, progress: float, *, gain_scale: float, push_rad_s: float,
-                    duration_s: float, ctrl_dt: float, supervisor: tuple[float, float],
-                    push_axis_deg: tuple[float, float] = ANY_AXIS_DEG) -> tuple[np.ndarray, np.ndarray]:
-    """(qpos [num_starts, nq], qvel [num_starts, nv]): each collapse at `progress` (evaluate --starts collapse)."""
-    if not 0.0 <= progress <= 1.0:
-        raise ValueError(f"collapse progress must be in [0, 1], got {progress}")
-    qpos, qvel = _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor, push_axis_deg)
-    tick = int(round(progress * (qpos.shape[1] - 1)))
-    return qpos[:, tick].copy(), qvel[:, tick].copy()
 
 
 def _rollouts(num_starts, seed, gain_scale, push_rad_s, duration_s, ctrl_dt, supervisor, push_axis_deg):

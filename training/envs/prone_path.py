@@ -26,6 +26,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from ml_collections import config_dict
 
 from common import model as t1model
 from training.envs.fallen import backend_model
@@ -59,6 +60,21 @@ def pose_at(points, progress: float) -> tuple[np.ndarray, float]:
     (p0, a, pa), (p1, b, pb) = next(seg for seg in zip(points[:-1], points[1:]) if progress <= seg[1][0])
     t = (progress - p0) / (p1 - p0)
     return (1.0 - t) * a + t * b, (1.0 - t) * pa + t * pb
+
+
+def prone_config() -> config_dict.ConfigDict:
+    """Stage 1's prone starts: this share of the getup env's fallen starts is instead a settled state along
+    kneel (0) → hands and knees (1, trunk pitched forward hands_knees_pitch_rad) → lying face down (2), at
+    progress U(min_progress, max_progress), joint targets ± target_noise_rad, held settle_s [s]."""
+    return config_dict.create(prob=0.0, min_progress=0.0, max_progress=2.0, bank_starts=256, seed=800_000,
+                              hands_knees_pitch_rad=1.4, target_noise_rad=0.1, settle_s=1.0)
+
+
+def prone_starts(env, group) -> tuple[np.ndarray, np.ndarray]:
+    return prone_bank(int(group.bank_starts), int(group.seed), float(group.min_progress), float(group.max_progress),
+                      hands_knees_pitch_rad=float(group.hands_knees_pitch_rad),
+                      target_noise_rad=float(group.target_noise_rad), settle_s=float(group.settle_s),
+                      supervisor=env.host_supervisor())
 
 
 def prone_bank(num_starts: int, seed: int, min_progress: float, max_progress: float, *,

@@ -21,12 +21,26 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 import numpy as np
+from ml_collections import config_dict
 
-from training.experts import STUDENT_OBS_KEY, load_expert
+from training.envs.experts import STUDENT_OBS_KEY, load_expert
 
 ARRIVE_TRUNK_M = 0.38    # a rise arrives near the kneel (trunk 0.405 m there) at this trunk height [m] ...
 ARRIVE_UP_Z = 0.95       # ... with the trunk this upright (18° of tilt at most)
 MAX_RISE_S = 10.0        # [s] an episode that has not arrived by then gives no starts
+
+
+def rise_config() -> config_dict.ConfigDict:
+    """Stage 1's rise starts: this share of the getup env's fallen starts is instead a state along the rises
+    `getup_policy` makes with the harness (stiffness [N/m], slack [m]) from `bank_starts` fallen starts (seeds from
+    `seed`), at progress min_progress … 1 toward the kneel."""
+    return config_dict.create(prob=0.0, getup_policy="", harness_n_per_m=400.0, harness_slack_m=0.45,
+                              bank_starts=128, seed=600_000, min_progress=0.5)
+
+
+def rise_starts(env, group) -> tuple[np.ndarray, np.ndarray]:
+    return rise_bank(env.make_env, group.getup_policy, float(group.harness_n_per_m), float(group.harness_slack_m),
+                     int(group.bank_starts), int(group.seed), float(group.min_progress))
 
 
 def rise_bank(make_env: Callable, getup_policy: str, harness_n_per_m: float, harness_slack_m: float,

@@ -1,55 +1,28 @@
-"""Unified walk–fall–getup task: the env the student is distilled in (training/distill.py default).
+"""Unified walk–fall–getup task: the env the student is distilled in (training/distill.py default) and
+fine-tuned in (student_finetune.py).
 
-The seed's student is distilled on the whole task, so one episode mixes everything the two experts do:
-* full-body collision (collision.py "full_body"): falls and getups must be physical, not masked;
-* starts fallen / kneeling / standing with start_probs = (0.4, 0.4, 0.2), fallen starts from
-  envs.fallen_states (getup.GetupBase's sampler, reused);
-* joystick commands sampled and resampled exactly as the joystick env (Playground T1 ranges, zero with
-  zero_command_prob 0.1, resampled every command_resample_steps 500 ticks) and the same random pushes
-  (joystick.Joystick's sample_command / _apply_push, reused); with knockdown.prob, a push is instead as hard as
-  the loop's push test (handover.KNOCKDOWN_MPS, or with knockdown.shove "torso" the test's own torso shove), so
-  the student also sees falls with momentum, the hand-over to the getup expert mid-fall and getups from where
-  such a fall lands (0 by default: the seed's unified env has only the joystick env's pushes);
-* with walls.prob, that share of episodes instead starts standing before the low-wall course
-  (wall_course.py, course_start) and holds its forward command for the whole episode, so the student
-  meets the teacher at a wall too: the trip, the getup beside or across it, the walk on (0 by default);
-* 1000-step episodes, no termination on falls (only on non-finite physics): the student must get up;
-* actor observation TERMS_UNION (82) with the gait clock advanced by observation.advance_gait_phase, and
-  uniform observation noise at noise.level as in the joystick env (0 for exact teacher labels);
-* privileged observation = privileged_base + foot site positions; info carries trunk_height,
-  waist_height and up_z (the teacher switch reads waist_height).
+The seed's student learns the whole task, so one episode mixes what the two experts do: full-body collision;
+the getup expert's fallen / kneeling / standing starts (getup.GetupBase); the joystick env's commands and pushes
+(borrowed from joystick.Joystick); 1000-step episodes that end only on non-finite physics (the student must get
+up); actor observation TERMS_UNION (82). Ours, off by default: knockdown.prob of the pushes are as hard as the
+loop's push test (handover.KNOCKDOWN_MPS, or knockdown.shove "torso": the test's own torso shove), and
+walls.prob of the episodes walk into the low-wall course (wall_course.py) at a held forward command.
 
-Reward (reward.mode). "monitor" (default): brax bc ignores it (the student is trained on teacher actions
-only), but DAgger's evaluation curves (eval/episode_reward) should still mean something, so it is a small
-named sum per control step (× ctrl_dt):
-    alive + w_height·HO(standing targets)   (the seed's height & orientation reward, getup_rewards.py)
-    + standing·(w_lin·tracking_lin_vel + w_ang·tracking_ang_vel)
-with standing = waist height ≥ the teacher's switch height (0.5 m): tracking only counts while the
-joystick expert would be in charge, so a fallen robot is scored on getting up, a standing one on walking.
-"skills": the student's RL fine-tune (training/student_finetune.py): each expert's own reward where it is in
-charge, per control step (× ctrl_dt):
-    below the switch: reward.getup.scale × the teacher getup expert's (§4.8's gated Height + Pose, per-step
-        gate, as getup_knockdown trained, − reward.getup.energy_weight·energy)
-    at or above it:   the joystick env's terms × reward.joystick_scales, clipped at 0 as there,
-                      + the most the scaled getup reward can pay below (the standing bonus)
-    − reward.getup.failed_rise_cost once per failed getup attempt (events.py's definition)
-    with reward.walk_after_stand_up, "at or above it" also needs the getup to have stood up (events.py's
-      stand-up: standing held STAND_HOLD_S): until then the getup expert's reward pays, which asks for the
-      upright home pose, not the walk; the reward's form of a hand-over that waits for a settled rise
-    + reward.course.progress_weight [1/m] × the metres credited this step, in wall-course episodes at any
-      height (wall_course.credited_progress: new ground along +x, paid at no more than the held command)
-The scale, the bonus and the stand-up wait are ours. The gated reward pays 13.4 per step at the kneel
-keyframe and up to 103.6 (pose 100·exp(−½‖q − q_init‖²)) for an upright crouch just below the switch, a walk
-about 2: unscaled, or without the bonus, the switch would be a wall to stay below. Scaled by 0.02 the rise's shaping (about 0.03
-per step before the gate) stays below the walk's terms, and the bonus (2.07) makes any state above the
-switch pay more than any below it. Its metric "wall_course" is 1 per step of a wall-course episode: the
-fine-tune's BC term reads it (student_finetune.py); "course_progress_m" sums the metres credited.
-The course term is ours too. The policy is blind, and at a wall the only way on is the seed's: trip across it
-and get up beyond. Without the term, standing in front of the wall loses only part of the tracking reward
-(about 0.5 per s) while a getup loses the walk's terms and the bonus for seconds (about 3.5 per s), so the
-fine-tune learns to stand there. A cost on standing still does not help (LESSONS: it charges the getup as
-much as the stall); banked ground does: the fall across the wall banks ground that keeps paying while the
-robot gets up, and standing still earns nothing.
+Reward (reward.mode), per control step × ctrl_dt:
+* "monitor" (default; brax bc ignores it, it only makes DAgger's eval curves mean something):
+  alive + w_height·HO(standing targets) + standing·(w_lin·tracking_lin_vel + w_ang·tracking_ang_vel), standing =
+  waist at or above the teacher's switch height (0.5 m).
+* "skills" (the fine-tune): each expert's own reward where it is in charge. Below the switch
+  reward.getup.scale × the getup expert's gated Height + Pose (− its energy term); at or above it the joystick
+  env's terms × reward.joystick_scales (clipped at 0) + the most the scaled getup reward can pay below (the
+  standing bonus); − reward.getup.failed_rise_cost per failed attempt (events.py). With
+  reward.walk_after_stand_up the walk pays only after the getup's stand-up (events.py: standing held
+  STAND_HOLD_S); reward.course.progress_weight [1/m] pays the metres credited in wall-course episodes
+  (wall_course.credited_progress: new ground along +x, at most at the held command).
+Why the scale, the bonus and the course term (ours; figures in LESSONS, "Design figures"): unscaled, or without
+the bonus, the switch would be a wall to stay below; banked ground pays a fall across a wall through the getup
+beyond it, where a cost on standing still charged the getup as much as the stall. Metrics "wall_course" (1 per
+step of a course episode; the BC term reads it) and "course_progress_m".
 """
 from __future__ import annotations
 
@@ -130,8 +103,13 @@ class Unified(GetupBase):
     _push_interval_steps = Joystick._push_interval_steps
     _walking_push_magnitude = Joystick._push_magnitude
     _advance_clock_and_command = Joystick._advance_clock_and_command
-    WALL_SHARE_CONFIG = "walls"
     SHOVES = ("velocity", "torso", "mixed")   # knockdown.shove
+
+    def _wall_share(self) -> float:
+        return float(self._config.walls.prob)
+
+    def has_wall_course(self) -> bool:
+        return super().has_wall_course() or self._wall_share() > 0
 
     def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
                  make_env=None):
@@ -142,26 +120,21 @@ class Unified(GetupBase):
                              f"[m/s] >= 0, got {kd.prob} and {list(kd.magnitude_range_mps)}")
         if not 0.0 <= self._wall_share() <= 1.0:
             raise ValueError(f"walls.prob must be in [0, 1], got {self._wall_share()}")
-        shove = kd.get("shove", "velocity")   # runs made before torso shoves have no such key
+        shove = kd.shove
         if shove not in self.SHOVES:
             raise ValueError(f"knockdown.shove {shove!r}: one of {', '.join(self.SHOVES)}")
-        if self._config.push.get("torso_shove_prob", 0.0) > 0:
-            raise ValueError("push.torso_shove_prob is the joystick env's: the unified env's shoves are "
-                             "knockdown.prob with knockdown.shove \"torso\"")
-        self._reward_mode = self._config.reward.get("mode", "monitor")   # runs made before the fine-tune: none
+        self._reward_mode = self._config.reward.mode
         if self._reward_mode not in REWARD_MODES:
             raise ValueError(f"reward.mode {self._reward_mode!r}: one of {', '.join(REWARD_MODES)}")
         if self._reward_mode == "skills":
             Joystick._init_reward_constants(self)
             self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
-            course = self._config.reward.get("course")   # runs made before the course term have none
-            self._progress_weight = course.progress_weight if course is not None else 0.0
-            self._walk_after_stand_up = bool(self._config.reward.get("walk_after_stand_up", False))   # (as course)
+            self._progress_weight = self._config.reward.course.progress_weight
+            self._walk_after_stand_up = bool(self._config.reward.walk_after_stand_up)
             if not self._config.reward.getup.scale > 0:
                 raise ValueError(f"reward.getup.scale must be > 0, got {self._config.reward.getup.scale}")
-        self._push_shove = None    # (the joystick env's push.torso_shove_prob; Joystick._apply_push reads it)
         # the share of knockdowns that are torso shoves
-        self._torso_share = {"velocity": 0.0, "torso": 1.0}.get(shove, float(kd.get("torso_share", 0.5)))
+        self._torso_share = {"velocity": 0.0, "torso": 1.0}.get(shove, float(kd.torso_share))
         if not 0.0 <= self._torso_share <= 1.0:
             raise ValueError(f"knockdown.torso_share must be in [0, 1], got {self._torso_share}")
         self._torso_shove = handover.TorsoShove(self._mj_model, self._home_qpos) if self._torso_share > 0 else None

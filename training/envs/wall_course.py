@@ -2,9 +2,9 @@
 
 Why: in the loop's wall test (sim_hil/eval, Tables 6.1–6.2) the robot trips over a 0.2 m wall and must get
 up beside it, on it or with its legs across it. The getup expert had only ever risen on open floor, and
-each wall cost the student several getup attempts (training/LESSONS.md). With the course in the world, the getup env can start from where the joystick
-expert lands after walking into a wall (handover.wall_bank, getup config wall_starts) and the unified env
-can walk a share of its episodes into one (unified config walls.prob).
+each wall cost the student several getup attempts (training/LESSONS.md). With the course in the world, the
+getup evaluation can start from where the joystick expert lands after walking into a wall (handover.wall_bank,
+`evaluate --starts wall`) and the unified env can walk a share of its episodes into one (config walls.prob).
 
 The course is sim_hil's (common/scenarios.py add_low_walls: three walls 6 m apart, the same geoms the
 evaluation builds), moved along +x to config.wall_course.first_wall_x_m (30 m): every other start lies
@@ -41,7 +41,7 @@ def add_to_spec(spec: mujoco.MjSpec, cfg: config_dict.ConfigDict) -> None:
 def course_start(rng: jax.Array, cfg: config_dict.ConfigDict) -> tuple[jax.Array, jax.Array, jax.Array]:
     """(xy [m], yaw [rad], command (vx, vy, yaw rate)) of one approach to the first wall."""
     k_x, k_y, k_yaw, k_v = jax.random.split(rng, 4)
-    near_m, far_m = cfg.get("approach_m", APPROACH_M)   # (runs made before it was config: the default)
+    near_m, far_m = cfg.approach_m
     if not 0.0 <= near_m <= far_m:
         raise ValueError(f"wall_course.approach_m must be an ordered pair of distances [m] >= 0, got {near_m, far_m}")
     x = cfg.first_wall_x_m - jax.random.uniform(k_x, minval=near_m, maxval=far_m)

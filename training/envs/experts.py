@@ -16,6 +16,7 @@ from typing import Sequence
 import numpy as np
 
 from common import observation as obsdef
+from training.envs.policy_files import ACTIVATION, brax_policy_layers, load_checkpoint
 
 WAIST_OBS_KEY = "waist_height"
 STUDENT_OBS_KEY = "state"
@@ -35,8 +36,8 @@ class Expert:
         """The pre-tanh mean (brax tanh-normal `loc`) for raw observations in this expert's term layout."""
         import jax.numpy as jnp
         xp = xp or jnp
-        out = obsdef.mlp_forward(self.layers, obsdef.normalize(obs, xp.asarray(self.obs_mean), xp.asarray(self.obs_std)),
-                                 self.activation, "linear", xp=xp)
+        out = obsdef.policy_forward(self.layers, obs, xp.asarray(self.obs_mean), xp.asarray(self.obs_std),
+                                    self.activation, "linear", xp=xp)
         return out[..., :obsdef.NUM_JOINTS]
 
 
@@ -60,10 +61,7 @@ def load_expert(path, name: str | None = None) -> Expert:
                              "tanh_normal policy (the DAgger loss compares tanh(loc))")
         return Expert(name or manifest["name"], tuple(layers), mean, std, manifest["activation"],
                       tuple((n, int(s)) for n, s in manifest["obs_terms"]), per_joint(manifest["action_scale"]))
-    from training import checkpoints
-    from training.export import brax_policy_layers
-    from training.ppo_networks import ACTIVATION
-    params = checkpoints.load_checkpoint(path)
+    params = load_checkpoint(path)
     layers = brax_policy_layers(params[1])
     if layers[-1][0].shape[0] != 2 * obsdef.NUM_JOINTS:
         raise ValueError(f"{path}: policy outputs {layers[-1][0].shape[0]}, a tanh_normal T1 policy has "

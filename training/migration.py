@@ -1,0 +1,106 @@
+"""A saved run's configs brought to today's schema, in one place: resume and checkpoint export read a run's
+configs only through `run_configs`, so the envs and networks see today's keys and defend against no older run.
+
+* a key the run predates gets today's default (`envs.default_config(task)`, `configs.ppo_config(task, preset)`):
+  every knob was added with the default that keeps the behaviour before it;
+* RENAMED maps a key's old dotted path to today's;
+* REMOVED lists the knobs of finished experiments (training/LESSONS.md names the removing commit). A run that set
+  one to its neutral value (what the code did without the experiment) drops it silently: it trained as today's
+  code trains. Any other value is refused with the key's name: the code that read it is gone, so the run cannot
+  go on as it was made;
+* a key in none of these (a typo, a newer schema) is refused as well.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from ml_collections import config_dict
+
+from training.configs import ppo_config
+
+# old dotted path → today's, per config ("env", "ppo"); none renamed yet
+RENAMED: dict[str, dict[str, str]] = {"env": {}, "ppo": {}}
+
+# removed dotted path → its neutral value: a scalar the saved value must equal, or, for a group, the
+# {field: value} that switches the group off (its other fields are then irrelevant)
+REMOVED: dict[str, dict[str, Any]] = {
+    "env": {"upright_policy": "", "rise_pace": {"weight": 0.0}, "gravity_scale": 1.0, "wall_starts": {"prob": 0.0},
+            "push_starts": {"prob": 0.0}, "handover.push_prob": 0.0, "failed_rise": {"cost": 0.0},
+            "handover.knockdown_prob": 0.0, "handover.joystick_policy": "", "handover.zero_command_prob": 0.0,
+            "push.torso_shove_prob": 0.0},
+    "ppo": {}}
+
+
+class MigrationError(ValueError):
+    """A saved config that today's code cannot run as it was made."""
+
+
+def _flatten(tree: Mapping, prefix: str = "") -> dict[str, Any]:
+    out = {}
+    for key, value in tree.items():
+        path = f"{prefix}{key}"
+        if isinstance(value, Mapping) and value:
+            out.update(_flatten(value, path + "."))
+        else:
+            out[path] = value
+    return out
+
+
+def _neutral(value, neutral) -> bool:
+    if isinstance(neutral, Mapping):
+        return isinstance(value, Mapping) and all(value.get(k) == v for k, v in neutral.items())
+    return value == neutral
+
+
+def _drop_removed(saved: dict, removed: Mapping[str, Any], what: str, source: str) -> dict:
+    """`saved` without the removed keys; an error naming those set away from their neutral value."""
+    saved, refused = dict(saved), []
+    for path, neutral in removed.items():
+        head, _, rest = path.partition(".")
+        parent = saved
+        if rest:   # a field of a group that stays
+            if not isinstance(saved.get(head), Mapping):
+                continue
+            parent = saved[head] = dict(saved[head])
+            head = rest
+        if head in parent:
+            if not _neutral(parent[head], neutral):
+                refused.append(f"{what}.{path}={parent[head]!r} (neutral: {neutral!r})")
+            del parent[head]
+    if refused:
+        raise MigrationError(f"{source}: {', '.join(refused)}: removed with its finished experiment "
+                             "(training/LESSONS.md names the commit); this run cannot go on with today's code "
+                             "(check out that commit's parent to continue it)")
+    return saved
+
+
+def migrate(saved: Mapping, default: config_dict.ConfigDict, what: str, source: str = "saved config"
+            ) -> config_dict.ConfigDict:
+    """`saved` (a run's config as JSON) on today's `default`: renamed keys moved, removed keys dropped or refused,
+    every key it lacks from `default`, every unknown one refused."""
+    saved = _drop_removed(saved, REMOVED[what], what, source)
+    flat = _flatten(saved)
+    for old, new in RENAMED[what].items():
+        if old in flat:
+            flat[new] = flat.pop(old)
+    known = _flatten(default.to_dict())
+    unknown = sorted(k for k in flat if k not in known and not any(k.startswith(p + ".") for p in known))
+    if unknown:
+        raise MigrationError(f"{source}: {what} keys {', '.join(unknown)} are not in today's schema (neither "
+                             "renamed nor removed: training/migration.py)")
+    merged = default.to_dict()
+    for path, value in flat.items():   # plain dicts: a saved int where today's default is a float stays as run
+        *parents, leaf = path.split(".")
+        node = merged
+        for p in parents:
+            node = node.setdefault(p, {})
+        node[leaf] = tuple(value) if isinstance(node.get(leaf), tuple) and isinstance(value, list) else value
+    return config_dict.ConfigDict(merged)
+
+
+def run_configs(state: Mapping, source: str = "run state") -> tuple[config_dict.ConfigDict, config_dict.ConfigDict]:
+    """(ppo config, env config) of a saved PPO run (its run_state.json) in today's schema."""
+    from training import envs
+    task = state["task"]
+    return (migrate(state["ppo_config"], ppo_config(task, state["preset"]), "ppo", source),
+            migrate(state["env_config"], envs.default_config(task), "env", source))

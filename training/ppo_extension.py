@@ -1,0 +1,31 @@
+"""What a PPO run may add to brax's PPO, as one narrow interface: its first params, the env wrapper brax trains
+through, fields of the run state and an extra loss term. The trainer (train.py) knows only this; plain PPO is the
+base class, the student's fine-tune (student_finetune.py) the one extension there is."""
+from __future__ import annotations
+
+import contextlib
+import functools
+
+
+class PPOExtension:
+    """Plain PPO: every hook leaves brax's run as it is."""
+
+    def initial_params(self, restored):
+        """A new run's first params from the checkpoint it starts --from (None: brax initialises them)."""
+        return restored
+
+    def state_fields(self, params) -> dict:
+        """Fields the run state keeps from the start (read back by loss_term on every resume)."""
+        del params
+        return {}
+
+    def wrap_env_fn(self, env, full_reset: bool):
+        """brax's wrap_env_fn: Playground's training wrapper."""
+        del env
+        from mujoco_playground import wrapper
+        return functools.partial(wrapper.wrap_for_brax_training, full_reset=full_reset)
+
+    def loss_term(self, env, state: dict):
+        """A context manager in which brax's PPO loss carries the extension's term."""
+        del env, state
+        return contextlib.nullcontext()
