@@ -198,7 +198,7 @@ def torso_impulse_dqvel(model: mujoco.MjModel, data: mujoco.MjData, qpos: np.nda
                         impulse_ns: np.ndarray) -> np.ndarray:
     """The change of qvel [nv] that a world-frame impulse [N·s] on the Trunk's centre of mass makes at `qpos`:
     M⁻¹ Jᵀ impulse. sim_hil delivers a push as the force impulse / dt on the Trunk over one physics step
-    (sim_hil/sim.py _push_force), the same up to what the contacts take in that step."""
+    (sim_hil/sim.py _trunk_force), the same up to what the contacts take in that step."""
     data.qpos[:] = qpos
     mujoco.mj_forward(model, data)
     jacp = np.zeros((3, model.nv))
