@@ -83,6 +83,13 @@ class Robot {
 };
 
 bool says(const char* text, const char* what) { return std::string(text).find(what) != std::string::npos; }
+
+// The supervisor is in FAULT by `bit`, its reason saying `what`.
+void expect_fault(const Robot& r, int32_t bit, const char* what) {
+  ASSERT_EQ(r.sup_.mode(), Mode::kFault);
+  EXPECT_TRUE(r.sup_.fault_bits() & bit);
+  EXPECT_TRUE(says(r.sup_.last_fault(), what)) << r.sup_.last_fault();
+}
 }  // namespace
 
 TEST(SilentMotor, FaultsOnMoreThanTheAllowedConsecutiveMissedRepliesNamingTheMotor) {
@@ -92,9 +99,7 @@ TEST(SilentMotor, FaultsOnMoreThanTheAllowedConsecutiveMissedRepliesNamingTheMot
   r.ticks(kMotorSilentMaxCycles);
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
   r.tick();
-  ASSERT_EQ(r.sup_.mode(), Mode::kFault);
-  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kMotorSilent);
-  EXPECT_TRUE(says(r.sup_.last_fault(), "motor 15 (Left_Ankle_Pitch) silent")) << r.sup_.last_fault();
+  expect_fault(r, fault_bit::kMotorSilent, "motor 15 (Left_Ankle_Pitch) silent");
   for (std::size_t i = 0; i < kJoints; ++i) EXPECT_EQ(r.out_.kp[i], 0.0f);  // latched damping
 }
 
@@ -162,9 +167,7 @@ TEST(FrozenEncoder, BitIdenticalUnderTorqueAboveTheThresholdWhileTheBodyTurnsFau
   r.ticks(kFrozenEncoderMaxCycles);
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
   r.tick();
-  ASSERT_EQ(r.sup_.mode(), Mode::kFault);
-  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kEncoderFrozen);
-  EXPECT_TRUE(says(r.sup_.last_fault(), "motor 14 (Left_Knee_Pitch) encoder frozen")) << r.sup_.last_fault();
+  expect_fault(r, fault_bit::kEncoderFrozen, "motor 14 (Left_Knee_Pitch) encoder frozen");
 }
 
 TEST(FrozenEncoder, AStillEncoderUnderStandingLoadsOrAMovingOneUnderFullTorqueNeverTrips) {
@@ -267,9 +270,7 @@ TEST(ImpossibleReading, BeyondTheRangeByMoreThanTheSoftStopFaultsAtOnceNamingThe
   EXPECT_EQ(r.sup_.mode(), Mode::kPolicy) << r.sup_.last_fault();
   r.q_[kKnee] = q_max + kImpossibleRangeMarginRad + 0.006f;
   r.tick();
-  ASSERT_EQ(r.sup_.mode(), Mode::kFault);
-  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kImpossibleReading);
-  EXPECT_TRUE(says(r.sup_.last_fault(), "motor 14 (Left_Knee_Pitch) impossible reading: q 2.846 rad")) << r.sup_.last_fault();
+  expect_fault(r, fault_bit::kImpossibleReading, "motor 14 (Left_Knee_Pitch) impossible reading: q 2.846 rad");
 }
 
 TEST(ImpossibleReading, AStepFasterThanTheReplyCanSayFaultsUnlessRepliesWereMissedOrThePublisherRestarted) {
