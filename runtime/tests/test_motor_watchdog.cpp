@@ -84,6 +84,16 @@ class Robot {
 
 bool says(const char* text, const char* what) { return std::string(text).find(what) != std::string::npos; }
 
+// In DAMPING with a motor warning, a request for PREPARE is refused with a reason saying `what`.
+void expect_prepare_refused(Robot& r, const char* what) {
+  ASSERT_EQ(r.sup_.mode(), Mode::kDamping);
+  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kMotorWarning);
+  r.sup_.request_mode(Mode::kPrepare);
+  r.tick();
+  EXPECT_EQ(r.sup_.mode(), Mode::kDamping);
+  EXPECT_TRUE(says(r.sup_.last_info(), what)) << r.sup_.last_info();
+}
+
 // The supervisor is in FAULT by `bit`, its reason saying `what`.
 void expect_fault(const Robot& r, int32_t bit, const char* what) {
   ASSERT_EQ(r.sup_.mode(), Mode::kFault);
@@ -144,12 +154,7 @@ TEST(SilentMotor, InDampingAndPassiveItIsAWarningThatBlocksPrepare) {
   EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kMotorWarning);
   r.sup_.request_mode(Mode::kDamping);
   r.tick();
-  ASSERT_EQ(r.sup_.mode(), Mode::kDamping);
-  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kMotorWarning);
-  r.sup_.request_mode(Mode::kPrepare);
-  r.tick();
-  EXPECT_EQ(r.sup_.mode(), Mode::kDamping);
-  EXPECT_TRUE(says(r.sup_.last_info(), "prepare refused: motor 15 (Left_Ankle_Pitch) silent")) << r.sup_.last_info();
+  expect_prepare_refused(r, "prepare refused: motor 15 (Left_Ankle_Pitch) silent");
   r.status_[kAnkle] = 0;  // the motor answers again: PREPARE is allowed
   r.sup_.request_mode(Mode::kPrepare);
   r.tick();
@@ -306,10 +311,5 @@ TEST(ImpossibleReading, InDampingItIsAWarningThatBlocksPrepare) {
   r.sup_.request_mode(Mode::kDamping);
   r.q_[kAnkle] = 3.0f;  // the outside test client's every-joint-at-3-rad pose
   r.tick();
-  ASSERT_EQ(r.sup_.mode(), Mode::kDamping);
-  EXPECT_TRUE(r.sup_.fault_bits() & fault_bit::kMotorWarning);
-  r.sup_.request_mode(Mode::kPrepare);
-  r.tick();
-  EXPECT_EQ(r.sup_.mode(), Mode::kDamping);
-  EXPECT_TRUE(says(r.sup_.last_info(), "prepare refused: motor 15 (Left_Ankle_Pitch) impossible reading")) << r.sup_.last_info();
+  expect_prepare_refused(r, "prepare refused: motor 15 (Left_Ankle_Pitch) impossible reading");
 }
