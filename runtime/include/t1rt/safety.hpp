@@ -7,7 +7,41 @@
 //   any but FAULT --set_mode passive/damping--> that mode;  estop --> DAMPING (FAULT stays FAULT)
 //   any --fault--> FAULT (latched damping);  FAULT --reset--> DAMPING (only way out)
 // Operator precedence: estop and set_mode passive|damping suspend autostart until the operator's next
-// reset or set_mode prepare|policy (the full rule list is at the top of src/safety_supervisor.cpp).
+// reset or set_mode prepare|policy. The rules, implemented in src/safety_supervisor.cpp:
+//
+// Rules added by issue 17 (each has a test named in runtime/README.md):
+//  R1 Operator precedence. estop and set_mode passive|damping set an operator hold: autostart makes no
+//     request while it is set, so the operator's DAMPING/PASSIVE stands. Only the operator releases it:
+//     reset, or set_mode prepare|policy. (Autostart lives here, not in the controller, for that reason.)
+//  R2 estop is never dropped: the transport keeps it outside the bounded command queue and the controller
+//     applies it after the queued commands of the same tick (estop wins over any request in that tick).
+//  R3 State frames: decoded into scratch and committed only when the decode succeeds (LcmTransport);
+//     a frame whose seq is not newer than the newest one is rejected and counted as reordered; gaps
+//     count seq numbers never received (a late frame that fills a counted gap takes it back).
+//     A frame more than SeqTracker::kWindowFrames older than the newest is a publisher restart: accepted.
+//  R4 Motor status: WATCHDOG, POWER_ON, DAMPING (the motor is not following: T1_STATUS_NOT_FOLLOWING),
+//     BAD_FRAME and BAD_SENSOR are a FAULT in PREPARE/POLICY; in DAMPING a warning that blocks PREPARE.
+//  R5 Joystick: non-finite or stale -> zero; else each axis clamped to the artifact's command_ranges.
+//  R6 Final q_des per joint, when the limits conflict, in this priority (clamp_targets):
+//       1. rate: |q_des - last q_des| <= max_target_step_rad, always (a command never jumps);
+//       2. torque: |kp (q_des - q) - kd dq| <= torque limit, as far as reachable under 1;
+//       3. range: inside joint_range_fraction of the joint range, as far as reachable under 1 and 2.
+//     Each step picks the point of the allowed interval nearest to the wanted target, so with q outside
+//     the range the target moves toward the range at full allowed torque and never away from it.
+//  R7 A fault also rewrites the status info ("FAULT: <reason>"), so the info never names a stale mode.
+// Rules added by issues 48 and 69, counted once per joint state in every mode; FAULT naming the motor in
+// PREPARE/POLICY, in PASSIVE/DAMPING a warning that blocks PREPARE (as R4). Figures: tools/motor_watchdog_figures.py.
+//  R8 Silent motor: > kMotorSilentMaxCycles (10) consecutive states with NO_REPLY (no reply that bus cycle;
+//     on DDS MotorState_.lost changed). At 5 % random loss a run of 11 has odds 0.05^11 = 5e-15 per
+//     motor-cycle, one false trip in ~600 years of 23 motors at 500 Hz (longest run measured: 3). A dead
+//     motor trips 22 ms after its last reply, before its own 50 ms watchdog.
+//  R9 Frozen encoder (issue 69): q bit-identical on consecutive replies under a PD torque above
+//     frozen_encoder_torque_nm, more than kFrozenEncoderStopMarginRad inside the range, while the IMU's
+//     low-passed angular rate says the body turns and the motors' low-passed speed says the limbs move, for
+//     more than kFrozenEncoderMaxCycles replies (80 ms). Missing replies neither advance nor reset it.
+//  R10 Impossible reading (issue 69): a reply past its range by more than kImpossibleRangeMarginRad, or a step
+//     from the motor's previous reply faster than kImpossibleSpeedFactor x its class's v_max; at once.
+//     Why these signals and values, the latencies and the false-alarm argument: t1rt/safety.hpp.
 #pragma once
 #include <array>
 #include <cstdint>
