@@ -7,7 +7,6 @@ frame drop (both links), 10 ms CAN delay (standing, getups, pushes and the rest 
 tests/test_supervisor_false_alarms.py). The rule logic itself is in the gtest runtime/tests/test_motor_watchdog.cpp."""
 from __future__ import annotations
 
-import math
 
 import pytest
 from t1 import joystick_t
@@ -100,7 +99,7 @@ def test_a_frozen_encoder_during_a_getup_faults_within_a_second(what, joint, pol
 def test_a_frozen_encoder_as_a_push_lands_faults_within_a_second(netns):
     push = plans.push_draw(0, 0)
     run = Run("lcm", push.at_s + FROZEN_DEADLINE_S + 0.3, vx=0.0,
-              faults=f"{_push(push, push.at_s)};frozen:joint=Right_Hip_Pitch@{push.at_s:.3f}")
+              faults=f"{plans.push_fault(push)};frozen:joint=Right_Hip_Pitch@{push.at_s:.3f}")
     run.assert_frozen_fault("motor 17 (Right_Hip_Pitch)", push.at_s)
 
 
@@ -114,7 +113,3 @@ def test_a_frozen_encoder_as_a_push_lands_faults_within_a_second(netns):
 def test_no_false_alarm(what, link, seconds, faults, vx, netns):
     Run(link, seconds, faults=faults, vx=vx).assert_no_fault()
 
-
-def _push(push, at_s: float) -> str:
-    return (f"push:x={push.impulse_ns * math.cos(push.angle_rad):.2f},"
-            f"y={push.impulse_ns * math.sin(push.angle_rad):.2f},z=0@{at_s:.3f}")

@@ -7,7 +7,6 @@ replays one standing pose. Zero faults of any rule: the runtime's exit line says
 FAULT latches until a reset, and nobody resets). The runs go two at a time, each pair on its own LCM port."""
 from __future__ import annotations
 
-import math
 import queue
 from concurrent.futures import ThreadPoolExecutor
 
@@ -30,9 +29,7 @@ TEST_STAND_TICKS = 5000       # 10 s of one standing pose at 500 Hz
 
 
 def _push(index: int, at_s: float) -> str:
-    p = plans.push_draw(index, index)
-    return (f"push:x={p.impulse_ns * math.cos(p.angle_rad):.2f},y={p.impulse_ns * math.sin(p.angle_rad):.2f},"
-            f"z=0@{at_s:.3f}")
+    return plans.push_fault(plans.push_draw(index, index), at_s)
 
 
 def situations(seed: int) -> dict[str, tuple[list[str], float, float]]:

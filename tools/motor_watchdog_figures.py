@@ -17,7 +17,6 @@ reading past a range end). The rules' numbers are read from runtime/include/t1rt
 from __future__ import annotations
 
 import argparse
-import math
 import re
 from pathlib import Path
 
@@ -52,8 +51,7 @@ def constants() -> dict[str, float]:
 
 def push_faults(index: int) -> tuple[str, float]:
     p = plans.push_draw(index, index)
-    return (f"push:x={p.impulse_ns * math.cos(p.angle_rad):.2f},y={p.impulse_ns * math.sin(p.angle_rad):.2f},"
-            f"z=0@{p.at_s:.3f}"), p.at_s
+    return plans.push_fault(p), p.at_s
 
 
 def spec(name: str) -> tuple[TrialSpec, float | None]:

@@ -128,13 +128,18 @@ def getup_rows(trials: list[TrialResult]) -> dict[str, str]:
 
 
 # ---- push ------------------------------------------------------------------------------------------------
+def push_fault(p, at_s: float | None = None) -> str:
+    """A push draw as the sim's --faults spec, at its own time or at at_s [s]."""
+    return (f"push:x={p.impulse_ns * math.cos(p.angle_rad):.2f},y={p.impulse_ns * math.sin(p.angle_rad):.2f},"
+            f"z=0@{p.at_s if at_s is None else at_s:.3f}")
+
+
 def push_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
     out = []
     for i in range(trials):
         p = push_draw(i, seed0 + i)
         out.append(TrialSpec("flat", seed0 + i, "standing", seconds, prepare_s=STANDING_PREPARE_S,
-                             faults=f"push:x={p.impulse_ns * math.cos(p.angle_rad):.2f},"
-                                    f"y={p.impulse_ns * math.sin(p.angle_rad):.2f},z=0@{p.at_s:.3f}",
+                             faults=push_fault(p),
                              tag="forward" if p.forward else "backward"))
     return out
 
