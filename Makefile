@@ -34,12 +34,12 @@ build: setup
 # Everything: C unit tests (CTest) and Python tests (pytest), all inside one private network namespace.
 test: build
 	$(NETNS) bash -c 'set -e; ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS); \
-	  $(PY) -m pytest -q tests'
+	  $(PY) -m pytest -q -n $(JOBS) tests'
 
 # Skip tests marked slow (for quick iteration; CI runs `make test`).
 test-fast: build
 	$(NETNS) bash -c 'set -e; ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS); \
-	  $(PY) -m pytest -q -m "not slow" tests'
+	  $(PY) -m pytest -q -n $(JOBS) -m "not slow" tests'
 
 # Writes an LCM log of the run to out/sim/ (SIM_ARGS="--no-log" to skip, "--log PATH" to name it).
 sim: build

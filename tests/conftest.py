@@ -1,8 +1,28 @@
 """Shared pytest set-up: every test that touches LCM must run inside the project namespace (make test
-wraps pytest in tools/netns); refuse to run otherwise instead of sending multicast on real interfaces."""
+wraps pytest in tools/netns); refuse to run otherwise instead of sending multicast on real interfaces.
+
+`make test` runs pytest on two workers (pytest-xdist): each test file goes to one worker
+whole (its module fixtures are built once), each worker has its own LCM ports, and the files that speak DDS
+(one domain, messages/contract.json) share one worker."""
 import os
+from pathlib import Path
 
 import pytest
+
+from messages import contract
+
+DDS_FILES = {"test_dds.py", "test_dds_booster_sdk.py", "test_fastdds_shim.py", "test_motor_watchdog.py"}
+WORKER_PORT_STRIDE = 1000   # LCM ports of worker k: the contract's + k × this (trial ports add < 200)
+
+
+def _worker_index() -> int:
+    name = os.environ.get("PYTEST_XDIST_WORKER", "")    # gw0, gw1, … under xdist
+    return int(name[2:]) if name.startswith("gw") else 0
+
+
+if _worker_index() and "T1_LCM_URL" in os.environ:
+    os.environ["T1_LCM_URL"] = os.environ["LCM_DEFAULT_URL"] = contract.lcm_url_on_port(
+        WORKER_PORT_STRIDE * _worker_index())
 
 # The tests run MJX/JAX programs for a handful of steps: XLA at -O0 compiles ~2.5x faster and runs ~3.5x
 # slower, the right trade for CI (it must be set before jax initialises its backend, hence here).
@@ -13,8 +33,21 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "slow: long-running (seconds of wall time); still part of make test")
 
 
+def pytest_xdist_make_scheduler(config, log):
+    """Under xdist: each test file one work unit (its module fixtures built once), the DDS files one unit."""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class FileScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = nodeid.split("::", 1)[0]
+            return "dds" if Path(path).name in DDS_FILES else path
+
+    return FileScheduling(config, log)
+
+
 @pytest.fixture(scope="session")
 def netns():
     if os.environ.get("T1_NETNS_INSIDE") != "1":
         pytest.skip("needs the project network namespace: run through `make test` (tools/netns)")
     return os.environ["T1_LCM_URL"]
+

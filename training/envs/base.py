@@ -36,6 +36,8 @@ BACKENDS = ("mjx", "cpu")
 FLOOR_GEOM = "floor"
 KP_SLOT, KD_SLOT = 0, 1  # actuator_biasprm columns that carry the PD gains (see module docstring)
 NUM_JOINTS = obsdef.NUM_JOINTS
+# Jitted once here: called eagerly (a test, an evaluation's first state) MJX's forward runs op by op, minutes.
+_forward = jax.jit(mjx.forward)
 # Privileged extras appended to the clean actor observation (see privileged_base):
 # local linvel 3, accelerometer 3, global angvel 3, trunk height, waist height, up_z, τ/τ_limit 23,
 # foot contacts 2.
@@ -277,7 +279,7 @@ class T1Env(mjx_env.MjxEnv):
             return self._cpu.make_data(qpos, qvel)
         data = mjx.make_data(self._mj_model, impl="jax")
         data = data.replace(qpos=qpos, qvel=qvel, ctrl=jnp.zeros(NUM_JOINTS))
-        return mjx.forward(self._mjx_model, data)
+        return _forward(self._mjx_model, data)
 
     # ------------------------------------------------------------------ readings
     def sensor(self, data: mjx.Data, name: str) -> jax.Array:
