@@ -34,7 +34,7 @@ def test_every_campaign_run_state_migrates_and_keeps_its_settings(path):
 
 
 def test_campaigns_are_there_to_migrate():
-    assert len(CAMPAIGN_STATES) >= 3
+    assert len(CAMPAIGN_STATES) >= 1     # getup stage 2 (v12); the student's DAgger stage keeps distill_state.json
 
 
 def test_a_key_the_run_predates_gets_today_s_default():

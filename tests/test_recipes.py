@@ -152,10 +152,12 @@ def test_a_stage_kept_by_a_later_complete_stage_is_not_rerun(tmp_path):
     assert recipe_runner.stage_complete(tmp_path, recipe, stand)
     assert recipe_runner.superseded(tmp_path, recipe, recipe.stage("stand_path"))
     assert recipe_runner.superseded(tmp_path, recipe, recipe.stage("stand_swing"))
-    assert not recipe_runner.superseded(tmp_path, recipe, recipe.stage("rise_unassisted"))   # not in stand's chain
-    # still read by a later stage's config (the rise bank's policy): kept in the campaign though superseded
-    assert recipe_runner.referenced(recipe, recipe.stage("rise_harnessed"))
-    assert not recipe_runner.referenced(recipe, recipe.stage("rise_pose"))
+    assert not recipe_runner.superseded(tmp_path, recipe, recipe.stage("full"))   # later than stand
+    # still read by another stage's config or teacher (the hand-over's getup, the student's teacher): kept in
+    # its campaign though superseded
+    knockdown = R.load("getup_knockdown")
+    assert recipe_runner.referenced(knockdown, knockdown.stage("energy"))
+    assert not recipe_runner.referenced(knockdown, knockdown.stage("gated"))
 
 
 def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():
@@ -175,12 +177,11 @@ def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():
 
 
 def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(tmp_path, monkeypatch):
-    """getup_keyframe keeps its `stand` stage (stage 2's newest) and stage 1's newest: on a fresh runs root
-    --resume restores them, so complete stages and the stages they started from are not trained again."""
+    """getup_keyframe keeps its `stand` stage (stage 2's newest): on a fresh runs root --resume restores it, so
+    complete stages and the stages they started from are not trained again."""
     ran = []
     monkeypatch.setattr(recipe_runner, "_run_stage", lambda recipe, s, *a, **k: ran.append(s.name))
     recipe_runner.run("getup_keyframe", root=tmp_path, resume=True, progress=False)
     assert (tmp_path / "getup_keyframe" / "stand").is_dir()
     assert "stand_path" not in ran and "stand_swing" not in ran and "stand" not in ran
-    rise = [s.name for s in R.load("getup_keyframe").stages if s.name.startswith("rise_")]
-    assert "rise_pose" not in ran and ran[:1] in [[name] for name in rise[1:] + ["full"]]
+    assert ran == ["full"]          # the first stage not yet complete (here none completes)

@@ -73,7 +73,6 @@ def run_provenance(state: dict, steps: int, preset: str) -> dict:
                if float(teacher["bc_weight"]) > 0 else {})}   # student_finetune.uses_teacher's rule
 
 
-def exported_as_trained(steps: int, preset: str, env_config) -> bool:
-    """Whether a run's export may say `trained: true`: real steps, a real preset and no assist stage."""
-    from training.envs import assists
-    return steps > 0 and preset != "toy" and not assists.assisted(env_config)
+def exported_as_trained(steps: int, preset: str) -> bool:
+    """Whether a run's export may say `trained: true`: real steps and a real preset."""
+    return steps > 0 and preset != "toy"

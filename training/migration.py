@@ -27,7 +27,8 @@ REMOVED: dict[str, dict[str, Any]] = {
     "env": {"upright_policy": "", "rise_pace": {"weight": 0.0}, "gravity_scale": 1.0, "wall_starts": {"prob": 0.0},
             "push_starts": {"prob": 0.0}, "handover.push_prob": 0.0, "failed_rise": {"cost": 0.0},
             "handover.knockdown_prob": 0.0, "handover.joystick_policy": "", "handover.zero_command_prob": 0.0,
-            "push.torso_shove_prob": 0.0},
+            "push.torso_shove_prob": 0.0, "harness": {"stiffness_n_per_m": 0.0}, "rise_starts": {"prob": 0.0},
+            "collapse_starts": {"prob": 0.0}, "prone_starts": {"prob": 0.0}},
     "ppo": {}}
 
 

@@ -304,7 +304,7 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     manifest = dict(env.manifest_fields())
     policy, rule = exported_policy(params[1], state["ppo_config"])
     manifest.update(name=state["name"], activation=ACTIVATION, output_rule=rule,
-                    trained=exported_as_trained(steps, preset, state["env_config"]),
+                    trained=exported_as_trained(steps, preset),
                     provenance=run_provenance(state, steps, preset))
     path = run_dir / f"{state['name']}.safetensors"
     export_brax_ppo((params[0], policy), manifest, path,
@@ -345,7 +345,7 @@ def export_checkpoint(run_dir, env_steps: int, name: str, like=None) -> Path:
     params = checkpoints.load_checkpoint(ckpt)
     policy, rule = exported_policy(params[1], ppo_cfg)
     manifest.update(name=name, output_rule=rule,
-                    trained=exported_as_trained(int(env_steps), state["preset"], env_cfg))
+                    trained=exported_as_trained(int(env_steps), state["preset"]))
     path = run_dir / f"{name}.safetensors"
     export_brax_ppo((params[0], policy), manifest, path,
                     observations_normalized=bool(ppo_cfg.normalize_observations))

@@ -30,7 +30,7 @@ from mujoco_playground._src import mjx_env
 
 from common import model as t1model
 from common import observation as obsdef
-from training.envs import assists, collision, cpu_backend, motor, wall_course
+from training.envs import collision, cpu_backend, motor, wall_course
 
 BACKENDS = ("mjx", "cpu")
 FLOOR_GEOM = "floor"
@@ -144,10 +144,9 @@ class T1Env(mjx_env.MjxEnv):
         self._noise_scale = self._term_noise_vector()
 
     def _robot_spec(self) -> mujoco.MjSpec:
-        """The robot in the config's collision variant, with the training harness where configured."""
+        """The robot in the config's collision variant (and the wall course where configured)."""
         cfg = self._config
         spec = collision.build_spec(cfg.collision, cfg.max_contacts, cfg.max_geom_pairs)
-        assists.add_harness(spec, cfg)
         if self.has_wall_course():
             wall_course.add_to_spec(spec, cfg.wall_course)
         return spec

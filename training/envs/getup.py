@@ -16,8 +16,8 @@ Actor obs = Table 4.2, TERMS_GETUP (52). "success" = standing by common/events.p
 Episodes end early only on non-finite physics and, in stage 2 alone (ours), when the robot leaves the kneel
 downward (config.stage2_fall_trunk_height_m, stage2_fall_up_z): stage 2's Pose pays straight legs in any
 posture, and without the end PPO learned to lie or lean back with straight legs (LESSONS, `getup_stage2`).
-Ours, off by default: the harness (assists.py), stage 2's reverse curriculum (start_path.py) and a share of the
-fallen starts from the start banks (start_banks.py).
+Ours, off by default: stage 2's reverse curriculum (start_path.py) and a share of the fallen starts from the
+start banks (start_banks.py).
 """
 from __future__ import annotations
 
@@ -179,7 +179,7 @@ class Getup(GetupBase):
 
     def _start_state(self, rng):
         """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path; with
-        start banks (knockdown, rise, collapse, prone), a share of the fallen ones from those banks."""
+        start banks (start_banks.py), a share of the fallen ones from those banks."""
         if self._path_bank is None and not self._fallen_banks:
             return super()._start_state(rng)
         if self._path_bank is None:

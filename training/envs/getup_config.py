@@ -30,9 +30,6 @@ def getup_common_config() -> config_dict.ConfigDict:
     # the loop hands the policy that robot, not the settled fall); 0 = the settled fall itself
     cfg.fallen_prepare_s = PREPARE_S
     cfg.standing_targets_m = [G.STANDING_TORSO_M, G.STANDING_WAIST_M]   # (torso, waist) after the gate
-    # assist stage (training/envs/assists.py; ours, not the seed's): the elastic harness (stiffness 0 = none)
-    cfg.harness = config_dict.create(stiffness_n_per_m=0.0, anchor_height_m=3.0, attach_above_trunk_m=0.3,
-                                     slack_trunk_height_m=G.STANDING_TORSO_M)
     return cfg
 
 
@@ -50,7 +47,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)
     cfg.stage2_fall_trunk_height_m = 0.35   # stage 2 ends when the trunk drops below this [m] (docstring)
     cfg.stage2_fall_up_z = 0.7              # ... or when the trunk's up_z falls below this (46° of tilt)
-    # a share of the fallen starts from the start banks (start_banks.py: knockdown, rise, collapse, prone; ours),
+    # a share of the fallen starts from the start banks (start_banks.py; ours),
     # shares summing to at most 1; all off by default
     start_banks.add_config_groups(cfg, "getup")
     # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:

@@ -29,9 +29,6 @@ class StartSource:
 SOURCES: tuple[StartSource, ...] = (
     StartSource("getup", "knockdown_starts", "training.envs.handover", "knockdown_config", "knockdown_starts",
                 "joystick_policy"),
-    StartSource("getup", "rise_starts", "training.envs.rise_bank", "rise_config", "rise_starts", "getup_policy"),
-    StartSource("getup", "collapse_starts", "training.envs.kneel_collapse", "collapse_config", "collapse_starts"),
-    StartSource("getup", "prone_starts", "training.envs.prone_path", "prone_config", "prone_starts"),
     StartSource("joystick", "handover", "training.envs.handover", "handover_config", "", "getup_policy"),
 )
 
