@@ -1,0 +1,37 @@
+"""The rise planner's settings, one config_dict (Playground style). Times in s, angles in rad, heights in m."""
+from __future__ import annotations
+
+from ml_collections import config_dict
+
+
+def default_config() -> config_dict.ConfigDict:
+    return config_dict.create(
+        samples=64,              # rollouts per plan (rollout 0 is the current plan itself)
+        horizon_s=0.7,           # how far each plan looks ahead
+        knot_dt_s=0.1,           # spacing of the plan's PD-target knots; targets linear in between
+        replan_every_s=0.1,      # how much of a plan runs before the next one (a whole number of knots)
+        temperature=0.05,        # MPPI λ as a share of the rollouts' cost spread (small: near the best)
+        max_seconds=6.0,         # a rise that has not met the gate by then has failed
+        hold_s=1.0,              # after the gate first holds, keep balancing this long (the demonstration's end)
+        # exploration [rad]: large to rise off the floor, small to balance once near the kneel (the probe:
+        # σ 0.3 rises, σ ≤ 0.1 balances); `near` switches with the kneel's trunk height within near_m
+        sigma_rise_rad=0.3,
+        sigma_near_rad=0.08,
+        near_m=0.06,
+        # the kneeling posture the gate must hold in: both knees at least this flexed and both hips no more
+        # flexed than this (a forward leg of a half kneel has its hip near −1.5 rad)
+        kneel_knee_min_rad=1.5,
+        kneel_hip_min_rad=-0.6,
+        weights=config_dict.create(
+            trunk_height=60.0,   # (h − h_kneel)² [1/m²]: two-sided (one-sided overshot into a crouch)
+            waist_height=30.0,   # (h_waist − its kneel height)² [1/m²]
+            upright=4.0,         # 1 − u_z of the trunk
+            pose=0.5,            # Σ (q − q_kneel)² [1/rad²] over the arms, head and waist
+            leg_pose=2.0,        # the same over the legs: the kneel is a leg posture
+            energy=0.002,        # Σ |τ·q̇| [1/W]
+            root_velocity=0.05,  # ‖root twist‖² near the kneel [s²/m²]: balance rather than sway
+            gate=5.0,            # paid per step while §4.8's gate holds (a negative cost)
+            terminal=5.0,        # the horizon's last step counts this many times
+        ),
+        seed=0,
+    )

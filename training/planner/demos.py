@@ -1,0 +1,95 @@
+"""Demonstrations on disk, the planner's report and its figures.
+
+A demonstration set is one folder: `demo_<seed>.npz` (mppi.Demonstration's arrays, float32) and `report.json`
+(the config, then per demo its seed, start side, gate time, energy and CPU seconds). `summarise` splits the
+demos by how the robot lay at the start: face down, on the back, on a side (the trunk's forward axis)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from training.planner.mppi import Demonstration
+
+SIDES = ("face_down", "on_back", "side")
+FACING_Z = 0.5          # |z of the trunk's forward axis| above this: face down (< 0) or on the back (> 0)
+ARRAYS = ("qpos", "qvel", "obs", "targets", "actions", "trunk_height", "up_z", "gate", "kneeling")
+REPORT = "report.json"
+STRIP_CAMERA_DISTANCE_M = 1.6   # the frame strips' tracking camera, closer than the videos' (a lying robot is small)
+
+
+def start_side(model, qpos: np.ndarray) -> str:
+    """How a fallen start lies, from the z of the trunk's forward (x) axis in the world."""
+    import mujoco
+    d = mujoco.MjData(model)
+    d.qpos[:] = qpos
+    mujoco.mj_kinematics(model, d)
+    forward_z = float(d.xmat[model.body("Trunk").id].reshape(3, 3)[2, 0])
+    return "face_down" if forward_z < -FACING_Z else "on_back" if forward_z > FACING_Z else "side"
+
+
+def save(demo: Demonstration, folder: Path) -> Path:
+    path = Path(folder) / f"demo_{demo.seed}.npz"
+    arrays = {k: np.asarray(getattr(demo, k), bool if k in ("gate", "kneeling") else np.float32) for k in ARRAYS}
+    np.savez_compressed(path, **arrays, energy_J=demo.energy_J, cpu_s=demo.cpu_s, ctrl_dt=demo.ctrl_dt)
+    return path
+
+
+def load(path: Path) -> Demonstration:
+    path = Path(path)
+    try:
+        z = np.load(path)
+        seed = int(path.stem.split("_", 1)[1])
+        return Demonstration(seed=seed, **{k: z[k] for k in ARRAYS}, energy_J=float(z["energy_J"]),
+                             cpu_s=float(z["cpu_s"]), ctrl_dt=float(z["ctrl_dt"]))
+    except (OSError, KeyError, ValueError, IndexError) as e:
+        raise ValueError(f"{path}: not a planner demonstration ({e})") from e
+
+
+def row(demo: Demonstration, side: str) -> dict:
+    return {"seed": demo.seed, "side": side, "gate_time_s": demo.gate_time_s, "seconds": len(demo.targets) * demo.ctrl_dt,
+            "energy_J": round(demo.energy_J, 1), "cpu_s": round(demo.cpu_s, 1),
+            "final_trunk_m": round(float(demo.trunk_height[-1]), 3), "final_up_z": round(float(demo.up_z[-1]), 4),
+            "held_share": round(float(np.mean((demo.gate & demo.kneeling)[_first(demo):])), 3)
+            if demo.gate_time_s is not None else 0.0}
+
+
+def _first(demo: Demonstration) -> int:
+    return int(np.flatnonzero(demo.gate & demo.kneeling)[0])
+
+
+def write_report(folder: Path, cfg, rows: list[dict]) -> dict:
+    report = {"config": cfg.to_dict(), "demos": sorted(rows, key=lambda r: r["seed"]), "summary": summarise(rows)}
+    (Path(folder) / REPORT).write_text(json.dumps(report, indent=1))
+    return report
+
+
+def summarise(rows: list[dict], within_s: float = 6.0) -> dict:
+    """Per start side and in all: demos, the share meeting the gate in the kneeling posture within
+    within_s, the median gate time, CPU seconds per demo and energy [J]."""
+    out = {}
+    for side in (*SIDES, "all"):
+        rs = [r for r in rows if side in ("all", r["side"])]
+        if not rs:
+            continue
+        met = [r for r in rs if r["gate_time_s"] is not None and r["gate_time_s"] <= within_s]
+        out[side] = {"demos": len(rs), "met_gate": len(met), "share": round(len(met) / len(rs), 3),
+                     "median_gate_time_s": float(np.median([r["gate_time_s"] for r in met])) if met else None,
+                     "median_held_share": float(np.median([r["held_share"] for r in met])) if met else None,
+                     "median_cpu_s": float(np.median([r["cpu_s"] for r in rs])),
+                     "median_energy_J": float(np.median([r["energy_J"] for r in rs]))}
+    return out
+
+
+def frame_strip(model, demo: Demonstration, out_png: Path, frames: int = 8, px: int = 240) -> Path:
+    """`frames` states of the demonstration, evenly spaced in time, left to right, from the robot's side."""
+    from common.render import render_frames, tracking_camera
+    import PIL.Image
+    idx = np.linspace(0, len(demo.qpos) - 1, frames).round().astype(int)
+    camera = tracking_camera(model)
+    camera.distance = STRIP_CAMERA_DISTANCE_M
+    pics = render_frames(model, [demo.qpos[i].astype(np.float64) for i in idx], camera, px, px)
+    PIL.Image.fromarray(np.concatenate(pics, axis=1)).save(out_png, optimize=True)
+    return Path(out_png)
+
