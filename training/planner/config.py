@@ -18,14 +18,22 @@ def default_config() -> config_dict.ConfigDict:
         sigma_rise_rad=0.3,
         sigma_near_rad=0.08,
         near_m=0.06,
+        # the keyframes the cost moves through, the last one the kneel (MuJoCo MPC chains contact keyframes
+        # for multi-phase motions): "hands_knees" is the kneel pitched forward by hands_knees_pitch_rad, hips
+        # flexed as much more (thighs vertical) and arms pointing at the floor; the cost moves on once the
+        # trunk is within advance_height_m of a keyframe's height and advance_up_z of its up_z
+        waypoints=["hands_knees", "kneel"],
+        hands_knees_pitch_rad=1.2,
+        advance_height_m=0.05,
+        advance_up_z=0.15,
         # the kneeling posture the gate must hold in: both knees at least this flexed and both hips no more
         # flexed than this (a forward leg of a half kneel has its hip near −1.5 rad)
         kneel_knee_min_rad=1.5,
         kneel_hip_min_rad=-0.6,
         weights=config_dict.create(
-            trunk_height=60.0,   # (h − h_kneel)² [1/m²]: two-sided (one-sided overshot into a crouch)
-            waist_height=30.0,   # (h_waist − its kneel height)² [1/m²]
-            upright=4.0,         # 1 − u_z of the trunk
+            trunk_height=400.0,  # (h − the keyframe's h)² [1/m²]: two-sided (one-sided overshot into a crouch)
+            waist_height=100.0,  # (h_waist − the keyframe's)² [1/m²]
+            upright=20.0,        # |u_z − the keyframe's u_z| of the trunk
             pose=0.5,            # Σ (q − q_kneel)² [1/rad²] over the arms, head and waist
             leg_pose=2.0,        # the same over the legs: the kneel is a leg posture
             energy=0.002,        # Σ |τ·q̇| [1/W]

@@ -16,8 +16,10 @@ def height_cost(h: np.ndarray, h_target: float) -> np.ndarray:
     return np.square(h - h_target)
 
 
-def upright_cost(up_z: np.ndarray) -> np.ndarray:
-    return 1.0 - up_z
+def orientation_cost(up_z: np.ndarray, up_z_target: float) -> np.ndarray:
+    """|u_z − its target|: at the kneel 1 − u_z ≈ tilt²/2, a slope down to the gate's 0.57° (a square of it
+    is flat there)."""
+    return np.abs(up_z - up_z_target)
 
 
 def pose_cost(q: np.ndarray, q_target: np.ndarray, joint_weight: np.ndarray) -> np.ndarray:
@@ -41,10 +43,10 @@ def kneeling(q: np.ndarray, knees: np.ndarray, hips: np.ndarray, knee_min_rad: f
 
 def step_cost(r: dict, target: dict, w, near: np.ndarray) -> np.ndarray:
     """One control step's cost of every rollout. r: readings (h, h_waist, up_z, q, dq, tau, root_vel);
-    target: the kneel's (h, h_waist, q, joint_weight); w: the config's weights; near: (S,) bool."""
+    target: the keyframe's (h, h_waist, up_z, q, joint_weight); w: the config's weights; near: (S,) bool."""
     return (w.trunk_height * height_cost(r["h"], target["h"])
             + w.waist_height * height_cost(r["h_waist"], target["h_waist"])
-            + w.upright * upright_cost(r["up_z"])
+            + w.upright * orientation_cost(r["up_z"], target["up_z"])
             + pose_cost(r["q"], target["q"], target["joint_weight"])
             + w.energy * energy_cost(r["tau"], r["dq"])
             + w.root_velocity * near * np.sum(np.square(r["root_vel"]), axis=-1)

@@ -14,7 +14,7 @@ from training.planner.mppi import Demonstration
 
 SIDES = ("face_down", "on_back", "side")
 FACING_Z = 0.5          # |z of the trunk's forward axis| above this: face down (< 0) or on the back (> 0)
-ARRAYS = ("qpos", "qvel", "obs", "targets", "actions", "trunk_height", "up_z", "gate", "kneeling")
+ARRAYS = ("qpos", "qvel", "obs", "targets", "actions", "trunk_height", "up_z", "gate", "kneeling", "waypoint")
 REPORT = "report.json"
 STRIP_CAMERA_DISTANCE_M = 1.6   # the frame strips' tracking camera, closer than the videos' (a lying robot is small)
 
@@ -31,7 +31,8 @@ def start_side(model, qpos: np.ndarray) -> str:
 
 def save(demo: Demonstration, folder: Path) -> Path:
     path = Path(folder) / f"demo_{demo.seed}.npz"
-    arrays = {k: np.asarray(getattr(demo, k), bool if k in ("gate", "kneeling") else np.float32) for k in ARRAYS}
+    kinds = {"gate": bool, "kneeling": bool, "waypoint": np.int8}
+    arrays = {k: np.asarray(getattr(demo, k), kinds.get(k, np.float32)) for k in ARRAYS}
     np.savez_compressed(path, **arrays, energy_J=demo.energy_J, cpu_s=demo.cpu_s, ctrl_dt=demo.ctrl_dt)
     return path
 

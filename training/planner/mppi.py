@@ -16,9 +16,12 @@ import numpy as np
 
 from common import model as t1model
 from common import observation as obsdef
+from training.envs.start_path import place_on_floor
 from training.planner import costs
 
 LEG_JOINTS = slice(11, 23)                 # contract order: head 2, arms 8, waist 1, legs 12
+HANDS_KNEES_HIPS = ("Left_Hip_Pitch", "Right_Hip_Pitch")                 # flexed by the pitch more
+HANDS_KNEES_SHOULDERS = ("Left_Shoulder_Pitch", "Right_Shoulder_Pitch")  # at −pitch: arms at the floor
 KNEES = np.array([14, 20])                 # Left_Knee_Pitch, Right_Knee_Pitch
 HIPS = np.array([11, 17])                  # Left_Hip_Pitch, Right_Hip_Pitch
 
@@ -38,6 +41,7 @@ class Demonstration:
     up_z: np.ndarray           # (T + 1,)
     gate: np.ndarray           # (T + 1,) bool: §4.8's gate
     kneeling: np.ndarray       # (T + 1,) bool: the gate's posture (costs.kneeling)
+    waypoint: np.ndarray       # (T + 1,) index of the keyframe the cost aimed at (config.waypoints)
     energy_J: float            # Σ |τ·q̇|·dt over the rise and hold
     cpu_s: float               # process CPU time of the plan
     ctrl_dt: float
@@ -76,14 +80,35 @@ class Planner:
         self.imu = m.site("imu").id
         self.sensor = {n: slice(int(m.sensor(n).adr[0]), int(m.sensor(n).adr[0] + m.sensor(n).dim[0]))
                        for n in ("orientation", "gyro")}
-        kneel = t1model.keyframe_qpos(m, "kneel")
-        d = _kinematics(m, kneel)
-        weight = np.full(self.nu, float(cfg.weights.pose))
-        weight[LEG_JOINTS] = float(cfg.weights.leg_pose)
-        self.target = {"h": float(d.xpos[self.trunk, 2]), "h_waist": float(d.xpos[self.waist, 2]),
-                       "q": kneel[7:7 + self.nu], "joint_weight": weight}
+        self.keyframes = [self._keyframe(name) for name in cfg.waypoints]
+        if not self.keyframes or cfg.waypoints[-1] != "kneel":
+            raise ValueError(f"planner: waypoints must end at the kneel, got {list(cfg.waypoints)}")
+        self.target = self.keyframes[-1]
         self.default_pose, self.action_scale = np.asarray(default_pose), np.asarray(action_scale)
         self.samples = physics.evaluation_batch(int(cfg.samples))
+
+    def _keyframe(self, name: str) -> dict:
+        """A waypoint's targets: joint angles, and the trunk's and waist's heights and up_z when it rests
+        on the floor in that pose."""
+        m, cfg = self.model, self.cfg
+        pose, pitch = t1model.keyframe_qpos(m, "kneel"), 0.0
+        if name == "hands_knees":
+            pitch = float(cfg.hands_knees_pitch_rad)
+            for joint in HANDS_KNEES_HIPS:
+                pose[m.joint(joint).qposadr[0]] -= pitch
+            for joint in HANDS_KNEES_SHOULDERS:
+                pose[m.joint(joint).qposadr[0]] = -pitch
+        elif name != "kneel":
+            raise ValueError(f"planner: unknown waypoint {name!r} (kneel, hands_knees)")
+        d = _kinematics(m, place_on_floor(m, pose, pitch))
+        weight = np.full(self.nu, float(cfg.weights.pose))
+        weight[LEG_JOINTS] = float(cfg.weights.leg_pose)
+        return {"name": name, "h": float(d.xpos[self.trunk, 2]), "h_waist": float(d.xpos[self.waist, 2]),
+                "up_z": float(d.site_xmat[self.imu, 8]), "q": pose[7:7 + self.nu], "joint_weight": weight}
+
+    def _reached(self, keyframe: dict, r: dict) -> bool:
+        return bool(abs(r["h"][0] - keyframe["h"]) < self.cfg.advance_height_m
+                    and abs(r["up_z"][0] - keyframe["up_z"]) < self.cfg.advance_up_z)
 
     # ------------------------------------------------------------------ readings
     def readings(self, b) -> dict:
@@ -98,8 +123,8 @@ class Planner:
         return np.abs(h - self.target["h"]) < self.cfg.near_m
 
     # ------------------------------------------------------------------ one plan
-    def improve(self, robot, plan: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
-        """The plan after one MPPI update from the robot's current state."""
+    def improve(self, robot, plan: np.ndarray, sigma: float, rng: np.random.Generator, target: dict) -> np.ndarray:
+        """The plan after one MPPI update from the robot's current state, toward the keyframe `target`."""
         s, nu = int(self.cfg.samples), self.nu
         noise = rng.standard_normal((s, self.K, nu)) * sigma
         noise[0] = 0.0
@@ -115,7 +140,8 @@ class Planner:
             self.physics.write_targets(b, traj[:, j])
             b.step(nstep=self.sub)
             r = self.readings(b)
-            c = costs.step_cost(r, self.target, w, self._near(r["h"]))
+            near = self._near(r["h"]) if target is self.target else np.zeros(s, bool)
+            c = costs.step_cost(r, target, w, near)
             total += c * (float(w.terminal) if j == self.H - 1 else 1.0)
         total = np.where(np.isfinite(total), total, np.inf)
         best, spread = total.min(), np.ptp(total[np.isfinite(total)])
@@ -134,24 +160,27 @@ class Planner:
         self.physics.write_targets(robot, last_target0, last_target0)
         robot.forward()
         plan = np.tile(np.clip(qpos0[7:7 + nu], self.lo, self.hi), (self.K, 1))   # hold where PREPARE left it
-        rows: dict[str, list] = {k: [] for k in ("qpos", "qvel", "orientation", "gyro", "h", "up_z", "q")}
+        rows: dict[str, list] = {k: [] for k in ("qpos", "qvel", "orientation", "gyro", "h", "up_z", "q", "waypoint")}
         targets, energy = [], 0.0
         max_steps = int(round(cfg.max_seconds / self.ctrl_dt))
         hold_steps = int(round(cfg.hold_s / self.ctrl_dt))
-        first_gate = None
+        first_gate, waypoint = None, 0
 
         def record():
             r = self.readings(robot)
             for k, v in (("qpos", robot.qpos[0]), ("qvel", robot.qvel[0]), ("h", r["h"][0]), ("up_z", r["up_z"][0]),
                          ("q", r["q"][0]), ("orientation", robot.sensordata[0, self.sensor["orientation"]]),
-                         ("gyro", robot.sensordata[0, self.sensor["gyro"]])):
+                         ("gyro", robot.sensordata[0, self.sensor["gyro"]]), ("waypoint", waypoint)):
                 rows[k].append(np.array(v, np.float64))
             return r
 
         r = record()
         while True:
-            sigma = cfg.sigma_near_rad if self._near(r["h"])[0] else cfg.sigma_rise_rad
-            plan = self.improve(robot, plan, float(sigma), rng)
+            while waypoint < len(self.keyframes) - 1 and self._reached(self.keyframes[waypoint], r):
+                waypoint += 1
+            at_kneel = waypoint == len(self.keyframes) - 1
+            sigma = cfg.sigma_near_rad if at_kneel and self._near(r["h"])[0] else cfg.sigma_rise_rad
+            plan = self.improve(robot, plan, float(sigma), rng, self.keyframes[waypoint])
             for q_des in self.interp[:self.replan_knots * self.spk] @ plan:
                 self.physics.write_targets(robot, q_des[None])
                 for _ in range(self.sub):        # the robot's energy, substep by substep (training/evaluate_cpu.py)
@@ -184,7 +213,8 @@ class Planner:
         return Demonstration(
             seed=seed, qpos=a["qpos"], qvel=a["qvel"], obs=obs.astype(np.float32), targets=targets,
             actions=(targets - self.default_pose) / self.action_scale, trunk_height=a["h"], up_z=a["up_z"],
-            gate=costs.gate(a["h"], a["up_z"]), kneeling=self._kneeling(a["q"]), energy_J=energy, cpu_s=cpu_s,
+            gate=costs.gate(a["h"], a["up_z"]), kneeling=self._kneeling(a["q"]), waypoint=a["waypoint"].astype(int),
+            energy_J=energy, cpu_s=cpu_s,
             ctrl_dt=self.ctrl_dt)
 
 
