@@ -7,13 +7,10 @@ Height & orientation (§4.7), per body part p ∈ {torso, waist} with desired he
     reward   = 2·r_ori·(r_height + 1) / 3
 Pose (§4.7): exp(−0.5·‖q − q_ref‖²) over the 23 joint angles [rad].
 Energy cost (§4.7): Σ_i |v_i · τ_i / τmax_i| [rad/s], used only in the energy fine-tune.
-Rise pace (ours, not the seed's; off by default): ‖v_xy‖² [m²/s²] of the trunk while the waist is at or above a
-height, so that the rise reaches the teacher's 0.5 m hand-over slow enough for the joystick expert to hold.
-Failed rise (ours, not the seed's; off by default): a one-off cost when a getup attempt fails, by
-common/events.py's definitions (the trunk rose ATTEMPT_RISE_M from its low while down, then dropped
-ATTEMPT_RISE_M below the attempt's peak before a stand-up held STAND_HOLD_S), so that the count the loop's push
-test reports is in the reward: at γ 0.97 the standing reward a fall back delays by 1–2 s barely reaches the
-pop-up that caused it.
+Failed rise (ours, not the seed's): the rise tracker counts a getup attempt that fails by common/events.py's
+definitions (the trunk rose ATTEMPT_RISE_M from its low while down, then dropped ATTEMPT_RISE_M below the
+attempt's peak before a stand-up held STAND_HOLD_S): the getup env's metric failed_rises, and the unified env's
+reward.getup.failed_rise_cost.
 Gate (§4.8), exactly as written: height  0.4 − min(h_torso, 0.4) < 0.005 m   (i.e. h_torso > 0.395 m)
                                    upright ‖u − e_z‖ < 0.01              (a tilt below 0.573°)
 Gated terms (§4.8):

@@ -1,34 +1,18 @@
-"""Hand-over starts: the states in which the stitched teacher hands a robot from one expert to the other.
+"""Hand-over starts: the states in which the stitched teacher (training/teacher.py: getup expert below the
+waist's 0.5 m switch, joystick expert above) hands a robot from one expert to the other; ours, not the seed's.
+Each bank is rolled once on the host (CPU physics, full-body collision) when an env is built.
 
-The teacher (training/teacher.py) switches from the getup expert to the joystick expert when the waist
-rises past WAIST_SWITCH_HEIGHT_M (0.5 m). The joystick expert was trained from standing starts only, and the
-getup expert arrives there mid-lunge, rising fast; the joystick expert drops a share of those hand-overs
-(training/LESSONS.md). Fine-tuning the joystick expert from these states teaches it to catch the lunge (ours,
-not the seed's: the seed's teacher stitches two experts as trained).
-
-`handover_bank` rolls a getup artifact from fallen starts in the getup env (full-body collision, CPU
-physics: a one-off host computation, whatever backend trains) and keeps, per episode, the state of the
-first control tick with the waist at or above the switch height, with the joint targets [rad] of the getup
-expert's last action (the joystick expert's last action at the hand-over, in its own map). The joystick env
-(training/envs/joystick.py, config.handover) starts a share of its episodes from it, each turned to a
-random heading and moved to a random place as its standing starts are.
-
-`knockdown_bank` is the other way: the joystick expert, standing or walking, is knocked over by a push as
-hard as the loop's push test, and the state of the first control tick with the waist below the switch
-height is where the getup expert takes over, mid-fall. The getup expert was trained from fallen starts after
-the runtime's PREPARE ramp (limbs straightened, at rest), so a push's landing, limbs in a walking pose and
-still moving, was new to it: in the loop's push test the failed getup attempts after one forward fall are
-what misses the seed's 1.16 (training/LESSONS.md). The getup env (config knockdown_starts) replaces a share
-of its fallen starts with these.
-
-`push_test_bank` is the loop's push test itself (common/push_test.py): the joystick expert standing
-at zero command, shoved on the torso forward or backward (2 : 1) by the test's impulse. The loop delivers it as
-a force on the Trunk over one physics step, which tips the robot over its feet; knockdown_bank's change of
-the base velocity moves the whole robot at once and is far easier to catch, so only the shove's own landings
-reproduce the loop's forward-push attempts (figures: training/LESSONS.md).
-
-`wall_bank` is the same hand-over after the joystick expert walked into the low-wall course
-(training/envs/wall_course.py): the landings beside, on and across a wall (`evaluate --starts wall`).
+* `handover_bank`: a getup artifact rising from fallen starts, at the first tick with the waist at the switch,
+  with its last joint targets: the joystick env starts a share of episodes there (config.handover), so the
+  joystick expert learns to catch the lunge it is handed.
+* `knockdown_bank`: the joystick expert knocked over by a push as hard as the loop's push test, at the first
+  tick with the waist below the switch: the getup env replaces a share of its fallen starts with these mid-fall
+  landings (config knockdown_starts), which it never saw from the settled fallen starts.
+* `push_test_bank`: the loop's push test itself (common/push_test.py), a force on the Trunk over one physics
+  step; only the shove's own landings reproduce the loop's forward-push attempts.
+* `wall_bank`: the hand-over after the joystick expert walked into the low-wall course (`evaluate --starts
+  wall`).
+Why each exists, with its figures: training/LESSONS.md.
 """
 from __future__ import annotations
 
