@@ -139,7 +139,12 @@ def test_over_dds_a_walking_policy_keeps_the_robot_standing(netns):
 def test_realtime_over_dds_the_runtime_sees_the_robot_and_commands_it(netns):
     watch = LcmWatch()
     listener = DdsRobotPeer(write_state=False)
-    sim = start_sim("--dds", "--clock", "realtime", "--spawn", "standing", "--duration", "4")
+    sim = start_sim("--dds", "--clock", "realtime", "--spawn", "standing", "--duration", "10")
+    # the runtime's 3 s start once the sim is live (its LCM status), however long a loaded machine takes to start it
+    deadline = time.monotonic() + LIVENESS_S
+    while not watch.sim and sim.poll() is None and time.monotonic() < deadline:
+        watch.lc.handle_timeout(20)
+    assert watch.sim, "the sim never came up"
     runtime = start_runtime(UNTRAINED_STUDENT, "--transport", "dds", "--clock", "realtime", "--autostart",
                             "--duration", "3")
     watch.pump_while(lambda: runtime.poll() is None, LIVENESS_S)

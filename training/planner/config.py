@@ -20,10 +20,12 @@ def default_config() -> config_dict.ConfigDict:
         near_m=0.06,
         # the keyframes the cost moves through, the last one the kneel (MuJoCo MPC chains contact keyframes
         # for multi-phase motions): "hands_knees" is the kneel pitched forward by hands_knees_pitch_rad, hips
-        # flexed as much more (thighs vertical) and arms pointing at the floor; the cost moves on once the
-        # trunk is within advance_height_m of a keyframe's height and advance_up_z of its up_z
-        waypoints=["hands_knees", "kneel"],
+        # flexed as much more (thighs vertical) and arms pointing at the floor; "heel_sit" the kneel with knees
+        # and hips flexed heel_sit_flex_rad more (sitting back on the heels, trunk upright); the cost moves on
+        # once the trunk is within advance_height_m of a keyframe's height and advance_up_z of its up_z
+        waypoints=["hands_knees", "heel_sit", "kneel"],
         hands_knees_pitch_rad=1.2,
+        heel_sit_flex_rad=0.5,
         advance_height_m=0.05,
         advance_up_z=0.15,
         # the kneeling posture the gate must hold in: both knees at least this flexed and both hips no more

@@ -22,6 +22,7 @@ from training.planner import costs
 LEG_JOINTS = slice(11, 23)                 # contract order: head 2, arms 8, waist 1, legs 12
 HANDS_KNEES_HIPS = ("Left_Hip_Pitch", "Right_Hip_Pitch")                 # flexed by the pitch more
 HANDS_KNEES_SHOULDERS = ("Left_Shoulder_Pitch", "Right_Shoulder_Pitch")  # at −pitch: arms at the floor
+HEEL_SIT_KNEES = ("Left_Knee_Pitch", "Right_Knee_Pitch")                 # flexed more, hips as much: upright
 KNEES = np.array([14, 20])                 # Left_Knee_Pitch, Right_Knee_Pitch
 HIPS = np.array([11, 17])                  # Left_Hip_Pitch, Right_Hip_Pitch
 
@@ -98,8 +99,15 @@ class Planner:
                 pose[m.joint(joint).qposadr[0]] -= pitch
             for joint in HANDS_KNEES_SHOULDERS:
                 pose[m.joint(joint).qposadr[0]] = -pitch
+        elif name == "heel_sit":
+            flex = float(cfg.heel_sit_flex_rad)
+            for joint in HEEL_SIT_KNEES:
+                pose[m.joint(joint).qposadr[0]] += flex
+            for joint in HANDS_KNEES_HIPS:
+                pose[m.joint(joint).qposadr[0]] -= flex
         elif name != "kneel":
-            raise ValueError(f"planner: unknown waypoint {name!r} (kneel, hands_knees)")
+            raise ValueError(f"planner: unknown waypoint {name!r} (kneel, hands_knees, heel_sit)")
+        pose[7:7 + self.nu] = np.clip(pose[7:7 + self.nu], self.lo, self.hi)
         d = _kinematics(m, place_on_floor(m, pose, pitch))
         weight = np.full(self.nu, float(cfg.weights.pose))
         weight[LEG_JOINTS] = float(cfg.weights.leg_pose)
