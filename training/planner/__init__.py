@@ -8,6 +8,6 @@ after PREPARE, toward the kneel keyframe and the seed's §4.8 gate. Its demonstr
 observations) are what stage 1 starts from and learns toward.
 
 config.py  the settings (one config_dict);   costs.py  the cost terms, small named functions;
-mppi.py    the planner;                      demos.py  a demonstration on disk, the report and figures;
+mppi.py    the planner;  keyframes.py  its waypoints;  demos.py  a demonstration on disk, the report, figures;
 __main__   `python -m training.planner`.
 """

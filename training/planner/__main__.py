@@ -72,7 +72,7 @@ def run(seeds: list[int], out: Path, overrides: list[str], max_minutes: float | 
         rows.append(demos.row(demo, side))
         if demo.gate_time_s is not None or side not in kept:    # a strip shows a rise that met the gate if any
             kept[side] = kept[side] if side in kept and kept[side].gate_time_s is not None else demo
-        report = demos.write_report(out, cfg, rows)
+        demos.write_report(out, cfg, rows)
         r = rows[-1]
         log(f"seed {seed:4d} {side:9s} gate {r['gate_time_s'] if r['gate_time_s'] is not None else '–':>5} s  "
             f"held {r['held_share']:.2f}  end trunk {r['final_trunk_m']:.3f} m up_z {r['final_up_z']:.4f}  "

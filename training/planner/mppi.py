@@ -14,17 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from common import model as t1model
 from common import observation as obsdef
-from training.envs.start_path import place_on_floor
-from training.planner import costs
+from training.planner import costs, keyframes
 
-LEG_JOINTS = slice(11, 23)                 # contract order: head 2, arms 8, waist 1, legs 12
-HANDS_KNEES_HIPS = ("Left_Hip_Pitch", "Right_Hip_Pitch")                 # flexed by the pitch more
-HANDS_KNEES_SHOULDERS = ("Left_Shoulder_Pitch", "Right_Shoulder_Pitch")  # at −pitch: arms at the floor
-HEEL_SIT_KNEES = ("Left_Knee_Pitch", "Right_Knee_Pitch")                 # flexed more, hips as much: upright
-KNEES = np.array([14, 20])                 # Left_Knee_Pitch, Right_Knee_Pitch
-HIPS = np.array([11, 17])                  # Left_Hip_Pitch, Right_Hip_Pitch
+KNEES, HIPS = keyframes.indices(keyframes.KNEE_PITCHES), keyframes.indices(keyframes.HIP_PITCHES)
 
 
 @dataclass
@@ -81,38 +74,12 @@ class Planner:
         self.imu = m.site("imu").id
         self.sensor = {n: slice(int(m.sensor(n).adr[0]), int(m.sensor(n).adr[0] + m.sensor(n).dim[0]))
                        for n in ("orientation", "gyro")}
-        self.keyframes = [self._keyframe(name) for name in cfg.waypoints]
+        self.keyframes = [keyframes.targets(m, name, cfg) for name in cfg.waypoints]
         if not self.keyframes or cfg.waypoints[-1] != "kneel":
             raise ValueError(f"planner: waypoints must end at the kneel, got {list(cfg.waypoints)}")
         self.target = self.keyframes[-1]
         self.default_pose, self.action_scale = np.asarray(default_pose), np.asarray(action_scale)
         self.samples = physics.evaluation_batch(int(cfg.samples))
-
-    def _keyframe(self, name: str) -> dict:
-        """A waypoint's targets: joint angles, and the trunk's and waist's heights and up_z when it rests
-        on the floor in that pose."""
-        m, cfg = self.model, self.cfg
-        pose, pitch = t1model.keyframe_qpos(m, "kneel"), 0.0
-        if name == "hands_knees":
-            pitch = float(cfg.hands_knees_pitch_rad)
-            for joint in HANDS_KNEES_HIPS:
-                pose[m.joint(joint).qposadr[0]] -= pitch
-            for joint in HANDS_KNEES_SHOULDERS:
-                pose[m.joint(joint).qposadr[0]] = -pitch
-        elif name == "heel_sit":
-            flex = float(cfg.heel_sit_flex_rad)
-            for joint in HEEL_SIT_KNEES:
-                pose[m.joint(joint).qposadr[0]] += flex
-            for joint in HANDS_KNEES_HIPS:
-                pose[m.joint(joint).qposadr[0]] -= flex
-        elif name != "kneel":
-            raise ValueError(f"planner: unknown waypoint {name!r} (kneel, hands_knees, heel_sit)")
-        pose[7:7 + self.nu] = np.clip(pose[7:7 + self.nu], self.lo, self.hi)
-        d = _kinematics(m, place_on_floor(m, pose, pitch))
-        weight = np.full(self.nu, float(cfg.weights.pose))
-        weight[LEG_JOINTS] = float(cfg.weights.leg_pose)
-        return {"name": name, "h": float(d.xpos[self.trunk, 2]), "h_waist": float(d.xpos[self.waist, 2]),
-                "up_z": float(d.site_xmat[self.imu, 8]), "q": pose[7:7 + self.nu], "joint_weight": weight}
 
     def _reached(self, keyframe: dict, r: dict) -> bool:
         return bool(abs(r["h"][0] - keyframe["h"]) < self.cfg.advance_height_m
@@ -232,10 +199,3 @@ def _whole(x: float, what: str) -> int:
         raise ValueError(f"planner: {what} must be a whole number >= 1, got {x:g}")
     return n
 
-
-def _kinematics(model, qpos):
-    import mujoco
-    d = mujoco.MjData(model)
-    d.qpos[:] = qpos
-    mujoco.mj_kinematics(model, d)
-    return d
