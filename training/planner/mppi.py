@@ -151,8 +151,9 @@ class Planner:
 
         r = record()
         while True:
-            while waypoint < len(self.keyframes) - 1 and self._reached(self.keyframes[waypoint], r):
-                waypoint += 1
+            # on to the waypoint after the furthest one reached (a robot already at the kneel stays there)
+            reached = [k for k in range(waypoint, len(self.keyframes)) if self._reached(self.keyframes[k], r)]
+            waypoint = min(reached[-1] + 1, len(self.keyframes) - 1) if reached else waypoint
             at_kneel = waypoint == len(self.keyframes) - 1
             sigma = cfg.sigma_near_rad if at_kneel and self._near(r["h"])[0] else cfg.sigma_rise_rad
             plan = self.improve(robot, plan, float(sigma), rng, self.keyframes[waypoint])
