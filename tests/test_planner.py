@@ -111,4 +111,4 @@ def test_summary_counts_gate_met_within_the_time_per_side():
             {"side": "on_back", "gate_time_s": 7.0, "held_share": 1.0, "cpu_s": 20, "energy_J": 200}]
     s = demos.summarise(rows, within_s=6.0)
     assert s["face_down"]["share"] == 0.5 and s["on_back"]["share"] == 0.0 and s["all"]["met_gate"] == 1
-    assert "side" not in s
+    assert "side" not in s and s["all"]["reached_kneeling_height"] == 0 and s["all"]["best_tilt_deg"] is None

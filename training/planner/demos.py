@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common import events
 from training.planner.mppi import Demonstration
 
 SIDES = ("face_down", "on_back", "side")
@@ -48,8 +49,16 @@ def load(path: Path) -> Demonstration:
         raise ValueError(f"{path}: not a planner demonstration ({e})") from e
 
 
+def min_tilt_deg(demo: Demonstration) -> float | None:
+    """The trunk's smallest tilt from vertical [deg] while at the gate's height in the kneeling posture: how close
+    a rise came to §4.8's 0.57° (None: never there)."""
+    there = (demo.trunk_height >= events.KNEEL_GATE_HEIGHT_M - events.KNEEL_GATE_HEIGHT_TOL_M) & demo.kneeling
+    return float(np.degrees(np.arccos(np.clip(demo.up_z[there], -1.0, 1.0))).min()) if there.any() else None
+
+
 def row(demo: Demonstration, side: str) -> dict:
-    return {"seed": demo.seed, "side": side, "gate_time_s": demo.gate_time_s, "seconds": len(demo.targets) * demo.ctrl_dt,
+    tilt = min_tilt_deg(demo)
+    return {"min_tilt_deg": round(tilt, 2) if tilt is not None else None, "seed": demo.seed, "side": side, "gate_time_s": demo.gate_time_s, "seconds": len(demo.targets) * demo.ctrl_dt,
             "energy_J": round(demo.energy_J, 1), "cpu_s": round(demo.cpu_s, 1),
             "final_trunk_m": round(float(demo.trunk_height[-1]), 3), "final_up_z": round(float(demo.up_z[-1]), 4),
             "held_share": round(float(np.mean((demo.gate & demo.kneeling)[_first(demo):])), 3)
@@ -78,6 +87,9 @@ def summarise(rows: list[dict], within_s: float = 6.0) -> dict:
         out[side] = {"demos": len(rs), "met_gate": len(met), "share": round(len(met) / len(rs), 3),
                      "median_gate_time_s": float(np.median([r["gate_time_s"] for r in met])) if met else None,
                      "median_held_share": float(np.median([r["held_share"] for r in met])) if met else None,
+                     "reached_kneeling_height": sum(r.get("min_tilt_deg") is not None for r in rs),
+                     "best_tilt_deg": min((r["min_tilt_deg"] for r in rs if r.get("min_tilt_deg") is not None),
+                                          default=None),
                      "median_cpu_s": float(np.median([r["cpu_s"] for r in rs])),
                      "median_energy_J": float(np.median([r["energy_J"] for r in rs]))}
     return out
