@@ -70,8 +70,9 @@ def run(seeds: list[int], out: Path, overrides: list[str], max_minutes: float | 
             demo = planner.rise(qpos, qvel, planner.default_pose, seed)
             demos.save(demo, out)
         rows.append(demos.row(demo, side))
-        if demo.gate_time_s is not None or side not in kept:    # a strip shows a rise that met the gate if any
-            kept[side] = kept[side] if side in kept and kept[side].gate_time_s is not None else demo
+        shown = kept.get(side)          # each side's strip shows its first rise that met the gate, else its first
+        if shown is None or (shown.gate_time_s is None and demo.gate_time_s is not None):
+            kept[side] = demo
         demos.write_report(out, cfg, rows)
         r = rows[-1]
         log(f"seed {seed:4d} {side:9s} gate {r['gate_time_s'] if r['gate_time_s'] is not None else '–':>5} s  "
