@@ -1,8 +1,9 @@
 """MJX training envs (training/envs): API, contact budget, PD law vs the firmware, and (slow) jit+vmap
 rollouts of every task with the observation checked against common/observation.py.
 
-Fast tests never jit an env step (eval_shape only); each slow test compiles one env's reset+step
-(a minute or two on a shared 2-core CPU)."""
+Fast tests never jit an env step (eval_shape only); each slow test compiles one env's reset+step: MJX for the
+getup env (a minute or two on a shared 2-core CPU), the CPU backend for the joystick and baseline envs (MJX's
+joystick step is compiled by tests/test_cpu_backend.py's parity test)."""
 from __future__ import annotations
 
 import jax
@@ -234,7 +235,8 @@ def _check_common(env, states, batch=2):
 
 @pytest.mark.slow
 def test_joystick_rollout():
-    env, states = _rollout("joystick", **{"zero_command_prob": 1.0, "push.enable": False})
+    # on the CPU backend (MJX's joystick step: tests/test_cpu_backend.py's parity test, which compiles it anyway)
+    env, states = _rollout("joystick", **{"zero_command_prob": 1.0, "push.enable": False, "backend": "cpu"})
     _check_common(env, states)
     for s in states:
         ref = _observation_reference(env, s, s.info["command"], s.info["phase"])
@@ -246,9 +248,9 @@ def test_joystick_rollout():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("task", ["getup", "getup_baseline"])
-def test_getup_rollout(task):
-    env, states = _rollout(task, batch=3)
+@pytest.mark.parametrize("task, backend", [("getup", "mjx"), ("getup_baseline", "cpu")])
+def test_getup_rollout(task, backend):
+    env, states = _rollout(task, batch=3, backend=backend)
     _check_common(env, states, batch=3)
     zeros3, phase0 = np.zeros((3, 3)), np.broadcast_to(obsdef.initial_gait_phase(), (3, 2))
     for s in states:
