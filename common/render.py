@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import os
 
-import mujoco
-
-os.environ.setdefault("MUJOCO_GL", "osmesa")
+os.environ.setdefault("MUJOCO_GL", "osmesa")        # before mujoco loads: it picks its GL platform on import
 os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+
+import mujoco  # noqa: E402
 
 
 def tracking_camera(model: mujoco.MjModel) -> mujoco.MjvCamera:

@@ -70,10 +70,13 @@ def test_from_the_kneel_the_planner_keeps_the_robot_kneeling_upright():
     assert demo.up_z.min() > np.cos(np.radians(10.0)) and demo.gate.mean() > 0.2
 
 
-def test_the_cli_writes_demos_and_a_report_split_by_side_and_goes_on(tmp_path, capsys):
+def test_the_cli_writes_demos_and_a_report_split_by_side_and_goes_on(tiny, tmp_path, capsys):
     out = tmp_path / "demos"
     args = ["--seeds", "62,3", "--out", str(out), *sum((["--config", c] for c in TINY), [])]
-    assert cli.main(args) == 0
+    assert cli.main([*args, "--jobs", "2"]) == 0
+    _, env, planner = tiny          # a worker's plan is the one planned in this process
+    same = planner.rise(*_start(env, 3), planner.default_pose, 3)
+    np.testing.assert_array_equal(demos.load(out / "demo_3.npz").targets, same.targets.astype(np.float32))
     report = json.loads((out / demos.REPORT).read_text())
     assert [r["seed"] for r in report["demos"]] == [3, 62]
     assert report["summary"]["all"]["demos"] == 2 and report["summary"]["all"]["met_gate"] == 0
@@ -89,6 +92,8 @@ def test_the_cli_writes_demos_and_a_report_split_by_side_and_goes_on(tmp_path, c
 def test_bad_input_is_refused_naming_the_problem(tmp_path, capsys):
     assert cli.main(["--seeds", "x", "--out", str(tmp_path)]) == 2
     assert "--seeds 'x'" in capsys.readouterr().err
+    assert cli.main(["--seeds", "0", "--out", str(tmp_path), "--jobs", "0"]) == 2
+    assert "--jobs" in capsys.readouterr().err
     assert cli.main(["--seeds", "0", "--out", str(tmp_path), "--config", "no_such=1"]) == 2
     assert "no_such" in capsys.readouterr().err
     bad = tmp_path / "demo_1.npz"
@@ -111,4 +116,5 @@ def test_summary_counts_gate_met_within_the_time_per_side():
             {"side": "on_back", "gate_time_s": 7.0, "held_share": 1.0, "cpu_s": 20, "energy_J": 200}]
     s = demos.summarise(rows, within_s=6.0)
     assert s["face_down"]["share"] == 0.5 and s["on_back"]["share"] == 0.0 and s["all"]["met_gate"] == 1
+    assert s["on_back"]["met_gate_by_end"] == 1 and s["all"]["met_gate_by_end"] == 2
     assert "side" not in s and s["all"]["reached_kneeling_height"] == 0 and s["all"]["best_tilt_deg"] is None

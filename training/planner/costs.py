@@ -43,10 +43,11 @@ def kneeling(q: np.ndarray, knees: np.ndarray, hips: np.ndarray, knee_min_rad: f
 
 def step_cost(r: dict, target: dict, w, near: np.ndarray) -> np.ndarray:
     """One control step's cost of every rollout. r: readings (h, h_waist, up_z, q, dq, tau, root_vel);
-    target: the keyframe's (h, h_waist, up_z, q, joint_weight); w: the config's weights; near: (S,) bool."""
+    target: the keyframe's (h, h_waist, up_z, q, joint_weight, upright_weight); w: the config's weights;
+    near: (S,) bool."""
     return (w.trunk_height * height_cost(r["h"], target["h"])
             + w.waist_height * height_cost(r["h_waist"], target["h_waist"])
-            + w.upright * orientation_cost(r["up_z"], target["up_z"])
+            + target["upright_weight"] * orientation_cost(r["up_z"], target["up_z"])
             + pose_cost(r["q"], target["q"], target["joint_weight"])
             + w.energy * energy_cost(r["tau"], r["dq"])
             + w.root_velocity * near * np.sum(np.square(r["root_vel"]), axis=-1)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from common import events
 from common import model as t1model
 from messages.contract import JOINT_NAMES, NUM_JOINTS, joint_index
 from training.envs.start_path import place_on_floor
@@ -44,8 +45,9 @@ def pose(model, name: str, cfg) -> tuple[np.ndarray, float]:
 
 
 def targets(model, name: str, cfg) -> dict:
-    """A waypoint's cost targets: joint angles q, and the trunk's height h, the waist's h_waist [m] and the
-    trunk's up_z when it rests on the floor in that pose; joint_weight, the pose cost's per joint."""
+    """A waypoint's cost targets: joint angles q, and the trunk's height h (at the kneel at least the gate's
+    height + cfg.kneel_height_margin_m), the waist's h_waist [m] and the trunk's up_z when it rests on the floor
+    in that pose; joint_weight, the pose cost's per joint; upright_weight, the orientation cost's."""
     import mujoco
     q, pitch = pose(model, name, cfg)
     qpos = t1model.keyframe_qpos(model, "kneel")
@@ -53,7 +55,12 @@ def targets(model, name: str, cfg) -> dict:
     d = mujoco.MjData(model)
     d.qpos[:] = place_on_floor(model, qpos, pitch)
     mujoco.mj_kinematics(model, d)
-    weight = np.full(NUM_JOINTS, float(cfg.weights.pose))
-    weight[LEGS] = float(cfg.weights.leg_pose)
-    return {"name": name, "h": float(d.xpos[model.body("Trunk").id, 2]), "h_waist": float(d.xpos[model.body("Waist").id, 2]),
-            "up_z": float(d.site_xmat[model.site("imu").id, 8]), "q": q, "joint_weight": weight}
+    w, kneel = cfg.weights, name == "kneel"
+    weight = np.full(NUM_JOINTS, float(w.pose_kneel if kneel else w.pose))
+    weight[LEGS] = float(w.leg_pose_kneel if kneel else w.leg_pose)
+    h = float(d.xpos[model.body("Trunk").id, 2])
+    if kneel:
+        h = max(h, events.KNEEL_GATE_HEIGHT_M + float(cfg.kneel_height_margin_m))
+    return {"name": name, "h": h, "h_waist": float(d.xpos[model.body("Waist").id, 2]),
+            "up_z": float(d.site_xmat[model.site("imu").id, 8]), "q": q, "joint_weight": weight,
+            "upright_weight": float(w.upright_kneel if kneel else w.upright)}
