@@ -9,7 +9,7 @@ import pytest
 
 from common import observation as obsdef
 from training.planner import __main__ as cli
-from training.planner import demos
+from training.planner import batch, demos
 from training.planner.mppi import Planner
 
 TINY = ["samples=4", "horizon_s=0.2", "max_seconds=0.2", "hold_s=0.1"]
@@ -17,7 +17,7 @@ TINY = ["samples=4", "horizon_s=0.2", "max_seconds=0.2", "hold_s=0.1"]
 
 @pytest.fixture(scope="module")
 def tiny():
-    return cli.build(TINY)
+    return batch.build(TINY)
 
 
 def _start(env, seed):
@@ -63,7 +63,7 @@ def test_from_the_kneel_the_planner_keeps_the_robot_kneeling_upright():
     """With the config's balance exploration, 1 s from the kneel keyframe: the trunk stays at kneeling height
     and within 10° of vertical, and the gate (0.57°) holds in a share of the steps: the sampler balances."""
     from common import model as t1model
-    cfg, env, planner = cli.build(["samples=16", "max_seconds=1.0", "hold_s=1.0"])
+    cfg, env, planner = batch.build(["samples=16", "max_seconds=1.0", "hold_s=1.0"])
     kneel = t1model.keyframe_qpos(env.mj_model, "kneel")
     demo = planner.rise(kneel, np.zeros(env.mj_model.nv), kneel[7:30], 0)
     assert np.all(np.abs(demo.trunk_height - planner.target["h"]) < 0.05)

@@ -11,18 +11,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing
 import sys
-import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
-import numpy as np
-
-from training.planner import demos      # first: its renderer picks the offscreen GL before mujoco loads
-from training.overrides import apply_overrides
-from training.planner import config as planner_config
-from training.planner.mppi import Planner
+from training.planner.batch import run
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -38,93 +30,6 @@ def parse_seeds(text: str) -> list[int]:
     if not seeds or min(seeds) < 0:
         raise ValueError(f"--seeds {text!r}: expected at least one non-negative seed")
     return seeds
-
-
-def build(overrides: list[str]):
-    """(config, getup env on the CPU backend, planner): the env gives the training physics and the starts."""
-    from training import envs
-    cfg = planner_config.default_config()
-    apply_overrides({"planner": cfg}, overrides)
-    env = envs.make("getup", config_overrides={"backend": "cpu", "stage": "stage1", "fallen_bank_size": 1})
-    fields = env.manifest_fields()
-    planner = Planner(env.cpu_physics, cfg, np.asarray(fields["default_pose"]), np.asarray(fields["action_scale"]))
-    return cfg, env, planner
-
-
-_worker = None      # a worker process's planner (built once per process)
-
-
-def _init_worker(overrides: list[str]) -> None:
-    global _worker
-    _worker = build(overrides)
-
-
-def _plan(seed: int, out: Path) -> Path:
-    _, env, planner = _worker
-    qpos, qvel = (a[0].astype(np.float64) for a in env.fallen_starts(1, seed))
-    return demos.save(planner.rise(qpos, qvel, planner.default_pose, seed), out)
-
-
-def run(seeds: list[int], out: Path, overrides: list[str], max_minutes: float | None = None,
-        log=print, jobs: int = 1) -> dict:
-    global _worker
-    if jobs < 1:
-        raise ValueError(f"--jobs must be at least 1, got {jobs}")
-    cfg, env, planner = _worker = build(overrides)
-    out.mkdir(parents=True, exist_ok=True)
-    old = out / demos.REPORT
-    if old.exists() and json.loads(old.read_text())["config"] != cfg.to_dict():
-        raise ValueError(f"{out}: its demonstrations were planned with another config; use a new folder")
-    rows, kept = [], {}
-    started = time.monotonic()
-
-    def add(seed: int) -> None:
-        qpos = env.fallen_starts(1, seed)[0][0].astype(np.float64)
-        side = demos.start_side(planner.model, qpos)
-        demo = demos.load(out / f"demo_{seed}.npz")
-        rows.append(demos.row(demo, side))
-        shown = kept.get(side)          # each side's strip shows its first rise that met the gate, else its first
-        if shown is None or (shown.gate_time_s is None and demo.gate_time_s is not None):
-            kept[side] = demo
-        demos.write_report(out, cfg, rows)
-        r = rows[-1]
-        log(f"seed {seed:4d} {side:9s} gate {r['gate_time_s'] if r['gate_time_s'] is not None else '–':>5} s  "
-            f"held {r['held_share']:.2f}  end trunk {r['final_trunk_m']:.3f} m up_z {r['final_up_z']:.4f}  "
-            f"{r['energy_J']:.0f} J  {r['cpu_s']:.0f} CPU s")
-
-    def out_of_time() -> bool:
-        return max_minutes is not None and time.monotonic() - started > 60.0 * max_minutes
-
-    todo = [s for s in seeds if not (out / f"demo_{s}.npz").exists()]
-    for seed in seeds:
-        if seed not in todo:
-            add(seed)
-    if jobs == 1:
-        for seed in todo:
-            if out_of_time():
-                break
-            _plan(seed, out)
-            add(seed)
-    else:
-        ctx = multiprocessing.get_context("spawn")      # a fresh interpreter: no forked JAX or MuJoCo state
-        with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init_worker, initargs=(overrides,)) as pool:
-            pending, queue = {}, list(todo)
-            while queue or pending:
-                while queue and len(pending) < jobs and not out_of_time():
-                    seed = queue.pop(0)
-                    pending[pool.submit(_plan, seed, out)] = seed
-                if not pending:
-                    break
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for f in done:
-                    f.result()
-                    add(pending.pop(f))
-    if len(rows) < len(seeds):
-        log(f"planner: --max-minutes {max_minutes:g} reached; {len(rows)} of {len(seeds)} seeds planned")
-    for side in ("face_down", "on_back"):
-        if side in kept:
-            demos.frame_strip(planner.model, kept[side], out / f"strip_{side}.png")
-    return demos.write_report(out, cfg, rows) if rows else {}
 
 
 def main(argv=None) -> int:
