@@ -14,7 +14,7 @@ def test_every_source_owns_its_config_group_and_bank(source):
     config, bank = source.functions()
     group = config()
     assert group.prob == 0.0 and {"bank_starts", "seed"} <= set(group)          # off by default, seeded
-    assert not source.policy_key or group[source.policy_key] == ""
+    assert not source.source_key or group[source.source_key] == ""
     assert (bank is None) == (source.task != "getup")                            # getup's replace fallen starts
     assert envs.default_config(source.task)[source.group].to_dict() == group.to_dict()
 

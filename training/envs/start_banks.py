@@ -18,7 +18,7 @@ class StartSource:
     module: str            # the module that owns the group's config and bank functions
     config: str            # that module's function returning the group's defaults
     bank: str = ""         # that module's function (env, group) → (qpos, qvel); "" = the task's own code
-    policy_key: str = ""   # the group's field naming the policy whose rollouts make the bank ("" = none)
+    source_key: str = ""   # the group's field naming what makes the bank (a policy, a folder; "" = none)
 
     def functions(self):
         """(config function, bank function or None), imported on demand (the modules bring JAX along)."""
@@ -29,6 +29,7 @@ class StartSource:
 SOURCES: tuple[StartSource, ...] = (
     StartSource("getup", "knockdown_starts", "training.envs.handover", "knockdown_config", "knockdown_starts",
                 "joystick_policy"),
+    StartSource("getup", "demo_starts", "training.envs.demo_starts", "demo_config", "demo_starts", "folder"),
     StartSource("joystick", "handover", "training.envs.handover", "handover_config", "", "getup_policy"),
 )
 
@@ -51,9 +52,8 @@ def fallen_share_banks(env, cfg) -> list[tuple[float, tuple]]:
         group = cfg[s.group]
         if not 0.0 <= group.prob <= 1.0:
             raise ValueError(f"{s.group}.prob must be in [0, 1], got {group.prob}")
-        if group.prob > 0 and s.policy_key and not group[s.policy_key]:
-            raise ValueError(f"{s.group}.prob > 0 needs {s.group}.{s.policy_key} (an artifact, checkpoint or run "
-                             "directory)")
+        if group.prob > 0 and s.source_key and not group[s.source_key]:
+            raise ValueError(f"{s.group}.prob > 0 needs {s.group}.{s.source_key}")
         if group.prob > 0:
             wanted.append((s, float(group.prob)))
     if sum(p for _, p in wanted) > 1.0 + 1e-9:

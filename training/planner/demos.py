@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from common import events
 from common.render import render_frames, tracking_camera   # first: it picks the offscreen GL before mujoco loads
+from training.envs import demo_starts
 from training.planner.mppi import Demonstration
 
 SIDES = ("face_down", "on_back", "side")
@@ -53,7 +53,7 @@ def load(path: Path) -> Demonstration:
 def min_tilt_deg(demo: Demonstration) -> float | None:
     """The trunk's smallest tilt from vertical [deg] while at the gate's height in the kneeling posture: how close
     a rise came to §4.8's 0.57° (None: never there)."""
-    there = (demo.trunk_height >= events.KNEEL_GATE_HEIGHT_M - events.KNEEL_GATE_HEIGHT_TOL_M) & demo.kneeling
+    there = demo_starts.at_kneel(demo.trunk_height, demo.kneeling)
     return float(np.degrees(np.arccos(np.clip(demo.up_z[there], -1.0, 1.0))).min()) if there.any() else None
 
 

@@ -1,0 +1,75 @@
+"""Starts along the planner's rises to the kneel (backplay): a share of the getup env's fallen starts is instead
+a state of a demonstration (qpos and qvel: the robot mid-rise, moving), drawn from the last `window_s` before it
+arrived at the kneel. A recipe widens the window stage by stage as stage 1 succeeds from it, as Backplay and
+"Montezuma's Revenge from a single demonstration" move the start back along the demonstration.
+
+The demonstrations are a folder the planner wrote (`python -m training.planner`, training/planner/demos.py:
+demo_<seed>.npz with per-step qpos, qvel, trunk_height and kneeling). A demonstration arrives at the first step
+with the trunk at the §4.8 gate's height in the kneeling posture; one that never did is not used."""
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import numpy as np
+from ml_collections import config_dict
+
+from common import events
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+DEMO_GLOB = "demo_*.npz"
+ARRAYS = ("qpos", "qvel", "trunk_height", "kneeling", "ctrl_dt")   # of each demonstration file (per step; [s])
+ARRIVAL_HEIGHT_M = events.KNEEL_GATE_HEIGHT_M - events.KNEEL_GATE_HEIGHT_TOL_M
+
+
+def demo_config() -> config_dict.ConfigDict:
+    """This share of the fallen starts is a demonstration state from `folder` (repository-relative or
+    absolute), at most `window_s` [s] before its arrival at the kneel; `bank_starts` states, drawn with `seed`."""
+    return config_dict.create(prob=0.0, folder="", window_s=0.5, bank_starts=1024, seed=400_000)
+
+
+def demo_starts(env, group) -> tuple[np.ndarray, np.ndarray]:
+    return demo_bank(str(group.folder), float(group.window_s), int(group.bank_starts), int(group.seed))
+
+
+def at_kneel(trunk_height: np.ndarray, kneeling: np.ndarray) -> np.ndarray:
+    """Per step: the trunk at the gate's height in the kneeling posture (the gate then asks for it upright)."""
+    return (np.asarray(trunk_height) >= ARRIVAL_HEIGHT_M) & np.asarray(kneeling, bool)
+
+
+def arrival_step(trunk_height: np.ndarray, kneeling: np.ndarray) -> int | None:
+    """The first step at the kneel, or None."""
+    hit = np.flatnonzero(at_kneel(trunk_height, kneeling))
+    return int(hit[0]) if hit.size else None
+
+
+@functools.lru_cache(maxsize=4)
+def demo_bank(folder: str, window_s: float, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos, qvel) of `num_starts` states drawn uniformly from the last window_s before each arrival (all
+    arriving demonstrations' states pooled). Cached (read-only arrays)."""
+    if window_s <= 0 or num_starts < 1:
+        raise ValueError(f"demo_starts: window_s must be > 0 and bank_starts ≥ 1, got {window_s}, {num_starts}")
+    path = Path(folder) if Path(folder).is_absolute() else REPO_ROOT / folder
+    files = sorted(path.glob(DEMO_GLOB))
+    if not files:
+        raise ValueError(f"demo_starts.folder {folder!r}: no {DEMO_GLOB} there (python -m training.planner writes them)")
+    qpos, qvel = [], []
+    for f in files:
+        try:
+            with np.load(f) as z:
+                demo = {k: z[k] for k in ARRAYS}
+        except (OSError, KeyError, ValueError) as e:
+            raise ValueError(f"demo_starts: {f} is not a planner demonstration ({e})") from e
+        end = arrival_step(demo["trunk_height"], demo["kneeling"])
+        back = int(round(window_s / float(demo["ctrl_dt"])))
+        if end is not None:
+            qpos.append(demo["qpos"][max(0, end - back):end + 1])
+            qvel.append(demo["qvel"][max(0, end - back):end + 1])
+    if not qpos:
+        raise ValueError(f"demo_starts.folder {folder!r}: none of its {len(files)} demonstrations reached the kneel")
+    qpos, qvel = np.concatenate(qpos), np.concatenate(qvel)
+    pick = np.random.default_rng(seed).integers(0, len(qpos), num_starts)
+    out = qpos[pick].astype(np.float32), qvel[pick].astype(np.float32)
+    for a in out:
+        a.flags.writeable = False
+    return out
