@@ -92,10 +92,21 @@ def test_batch_of_envs_stands_under_the_home_targets(cpu_env):
 def test_one_control_step_matches_the_mjx_backend(cpu_env):
     mjx_env = envs.make("joystick", config=_standing_cfg("mjx"))
     action = jax.random.uniform(jax.random.PRNGKey(4), (23,), minval=-0.2, maxval=0.2)
-    after = {}
+    after, jump = {}, {}
     for name, env in (("mjx", mjx_env), ("cpu", cpu_env)):
-        s0 = jax.jit(env.reset)(jax.random.PRNGKey(3))
-        after[name] = (s0, jax.jit(env.step)(s0, action))
+        s0, step = jax.jit(env.reset)(jax.random.PRNGKey(3)), jax.jit(env.step)
+        after[name] = (s0, step(s0, action))
+        # a full-scale action: the supervisor's target moves at the runtime's rate on both backends
+        # (10 ticks × the target step at most; tests/test_training_motor.py checks the rule itself)
+        jump[name] = np.asarray(step(s0, jnp.ones(23)).info["runtime_target"]) - np.asarray(s0.info["runtime_target"])
+    cap = mjx_env.n_substeps * mjx_env._target_step
+    for name in ("mjx", "cpu"):
+        assert cap + 1e-5 >= np.abs(jump[name]).max() > 0.5 * cap, name
+    capped = np.abs(jump["cpu"]) > cap - 1e-5
+    np.testing.assert_array_equal(np.abs(jump["mjx"]) > cap - 1e-5, capped)
+    # the joints under the cap follow R6's torque reach, which reads q and dq: the backends' float32 and float64
+    # dynamics of a full-scale step part by up to ~0.015 rad there
+    np.testing.assert_allclose(jump["mjx"][~capped], jump["cpu"][~capped], atol=0.03)
     terms = dict(mjx_env.obs_terms)
     vel = np.zeros(sum(terms.values()), bool)
     start = 0

@@ -158,6 +158,7 @@ def test_fallen_state_deterministic_and_lying(model):
 
 
 def test_lying_contacts_fit_mjx_buffers(model):
+    """(The model steps in MJX from fallen states: tests/test_cpu_backend.py's MJX/CPU parity.)"""
     data = mujoco.MjData(model)
     for seed in range(12):
         q, v = t1.fallen_state(model, seed)
@@ -168,21 +169,3 @@ def test_lying_contacts_fit_mjx_buffers(model):
     for key in ("home", "kneel"):
         data = _at_key(model, key)
         assert data.ncon <= t1.MJX_NCONMAX and data.nefc <= t1.MJX_NJMAX
-
-
-@pytest.mark.slow
-def test_loads_and_steps_in_mjx(model):
-    """jax impl on CPU: about 40 s to compile, 8 ms a step for one world (measured)."""
-    import jax
-    from mujoco import mjx
-
-    mjx_model = mjx.put_model(model, impl="jax")
-    mjx_data = mjx.make_data(model, impl="jax", njmax=t1.MJX_NJMAX)
-    q, _ = t1.spawn_state(model, "kneeling", 0)
-    mjx_data = mjx_data.replace(qpos=jax.numpy.asarray(q, dtype=mjx_data.qpos.dtype))
-    # one jit for the few steps: calling a jitted step repeatedly recompiles once more (weak types)
-    rollout = jax.jit(lambda m, d: jax.lax.fori_loop(0, 3, lambda _, x: mjx.step(m, x), d))
-    mjx_data = rollout(mjx_model, mjx_data)
-    qpos = np.asarray(mjx_data.qpos)
-    assert np.all(np.isfinite(qpos))
-    assert qpos[2] == pytest.approx(q[2], abs=0.01)   # the kneeling robot stays put for 6 ms

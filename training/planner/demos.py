@@ -59,7 +59,10 @@ def min_tilt_deg(demo: Demonstration) -> float | None:
 
 def row(demo: Demonstration, side: str) -> dict:
     tilt = min_tilt_deg(demo)
-    return {"min_tilt_deg": round(tilt, 2) if tilt is not None else None, "seed": demo.seed, "side": side, "gate_time_s": demo.gate_time_s, "seconds": len(demo.targets) * demo.ctrl_dt,
+    gate_s = demo.gate_time_s
+    return {"min_tilt_deg": round(tilt, 2) if tilt is not None else None, "seed": demo.seed, "side": side,
+            "gate_time_s": round(gate_s, 2) if gate_s is not None else None,
+            "seconds": round(len(demo.targets) * demo.ctrl_dt, 2),
             "energy_J": round(demo.energy_J, 1), "cpu_s": round(demo.cpu_s, 1),
             "final_trunk_m": round(float(demo.trunk_height[-1]), 3), "final_up_z": round(float(demo.up_z[-1]), 4),
             "held_share": round(float(np.mean((demo.gate & demo.kneeling)[_first(demo):])), 3)
