@@ -16,7 +16,7 @@ from common.artifact import read_artifact, stitched_teacher
 from training import checkpoints, cli, recipe as R, recipe_runner
 
 ROOT = Path(__file__).resolve().parents[1]
-TOY_ENV = {**os.environ, "XLA_FLAGS": "--xla_backend_optimization_level=0",
+TOY_ENV = {**os.environ,       # XLA_FLAGS: tests/conftest.py's
            "PYTHONPATH": f"{ROOT}:{ROOT / 'build' / 'gen' / 'python'}"}
 WORKERS = 2   # the CI machine's cores; XLA compilation is mostly single-threaded
 

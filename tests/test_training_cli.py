@@ -98,9 +98,7 @@ def test_git_commit_reads_head_without_git():
 
 
 # ---------------------------------------------------------------- slow: toy runs (CLI subprocesses)
-# XLA at -O0 compiles the MJX step ~2.5x faster and runs it ~3.5x slower: the right trade for runs of a
-# few hundred env steps. Set per subprocess, so no other test's process is affected.
-TOY_ENV = {**os.environ, "XLA_FLAGS": "--xla_backend_optimization_level=0",
+TOY_ENV = {**os.environ,       # XLA_FLAGS: tests/conftest.py's (compile fast, run slow: right for toy runs)
            "PYTHONPATH": f"{ROOT}:{ROOT / 'build' / 'gen' / 'python'}"}
 MAX_PARALLEL = 2  # the CI machine has 2 cores; XLA compilation is mostly single-threaded
 
