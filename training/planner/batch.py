@@ -51,17 +51,12 @@ def run(seeds: list[int], out: Path, overrides: list[str], max_minutes: float | 
     old = out / demos.REPORT
     if old.exists() and json.loads(old.read_text())["config"] != cfg.to_dict():
         raise ValueError(f"{out}: its demonstrations were planned with another config; use a new folder")
-    rows, kept = [], {}
+    rows = []
     started = time.monotonic()
 
     def add(seed: int) -> None:
         qpos = env.fallen_starts(1, seed)[0][0].astype(np.float64)
-        side = demos.start_side(planner.model, qpos)
-        demo = demos.load(out / f"demo_{seed}.npz")
-        rows.append(demos.row(demo, side))
-        shown = kept.get(side)          # each side's strip shows its first rise that met the gate, else its first
-        if shown is None or (shown.gate_time_s is None and demo.gate_time_s is not None):
-            kept[side] = demo
+        rows.append(demos.row(demos.load(out / f"demo_{seed}.npz"), demos.start_side(planner.model, qpos)))
         demos.write_report(out, cfg, rows)
         r = rows[-1]
         log(f"seed {seed:4d} {side:9s} gate {r['gate_time_s'] if r['gate_time_s'] is not None else '–':>5} s  "
@@ -97,7 +92,8 @@ def run(seeds: list[int], out: Path, overrides: list[str], max_minutes: float | 
                     add(pending.pop(f))
     if len(rows) < len(seeds):
         log(f"planner: --max-minutes {max_minutes:g} reached; {len(rows)} of {len(seeds)} seeds planned")
-    for side in ("face_down", "on_back"):
-        if side in kept:
-            demos.frame_strip(planner.model, kept[side], out / f"strip_{side}.png")
+    for side in ("face_down", "on_back"):      # each side's strip: its lowest seed that met the gate, else its lowest
+        shown = sorted((r for r in rows if r["side"] == side), key=lambda r: (r["gate_time_s"] is None, r["seed"]))
+        if shown:
+            demos.frame_strip(planner.model, demos.load(out / f"demo_{shown[0]['seed']}.npz"), out / f"strip_{side}.png")
     return demos.write_report(out, cfg, rows) if rows else {}
