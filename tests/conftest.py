@@ -12,6 +12,9 @@ import pytest
 from messages import contract
 
 DDS_FILES = {"test_dds.py", "test_dds_booster_sdk.py", "test_fastdds_shim.py", "test_motor_watchdog.py"}
+# The files whose module fixtures train toy runs (minutes each): scheduled first, so the many short files fill
+# the workers around them instead of one worker finishing the run alone on one of these.
+LONG_FILES = ("test_recipes.py", "test_training_cli.py")
 WORKER_PORT_STRIDE = 1000   # LCM ports of worker k: the contract's + k × this (trial ports add < 200)
 
 
@@ -35,6 +38,18 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "slow: long-running (seconds of wall time); still part of make test")
 
 
+def _file(nodeid: str) -> str:
+    return Path(nodeid.split("::", 1)[0]).name
+
+
+def pytest_collection_modifyitems(config, items):
+    """LONG_FILES first, then the files with most tests (xdist's own order, which the scheduler below keeps)."""
+    count = {}
+    for item in items:
+        count[_file(item.nodeid)] = count.get(_file(item.nodeid), 0) + 1
+    items.sort(key=lambda item: (_file(item.nodeid) not in LONG_FILES, -count[_file(item.nodeid)]))   # stable
+
+
 def pytest_xdist_make_scheduler(config, log):
     """Under xdist: each test file one work unit (its module fixtures built once), the DDS files one unit."""
     from xdist.scheduler import LoadScopeScheduling
@@ -44,6 +59,7 @@ def pytest_xdist_make_scheduler(config, log):
             path = nodeid.split("::", 1)[0]
             return "dds" if Path(path).name in DDS_FILES else path
 
+    config.option.loadscopereorder = False      # the collection's order (pytest_collection_modifyitems)
     return FileScheduling(config, log)
 
 
