@@ -82,7 +82,8 @@ plot-log: build
 bench-env:
 	tools/bench_env.sh >/dev/null || echo "bench-env: .venv-bench not installed: the MLP row will have no onnxruntime reference" >&2
 
-# PPO env-steps/s of the CPU training backend vs MJX on this CPU (no multicast: no namespace needed).
+# PPO env-steps/s of the CPU training backend against its raw physics rate, where a step's time goes, and
+# vs MJX on this CPU (no multicast: no namespace needed).
 # make bench-train BENCH_ARGS=--quick : the CPU backend alone (MJX on a CPU compiles for minutes)
 bench-train: build
 	$(PY) -m tests.bench.train_bench $(BENCH_ARGS)

@@ -168,3 +168,12 @@ def test_getup_evaluation_rollout_matches_mjx_on_the_first_tick():
     assert np.any(on_cpu["contact_force_N"] > 0.0), "no contact compared"
     # flat floor: every world contact's normal is world z, so the vertical force is the normal force
     np.testing.assert_allclose(on_cpu["contact_force_z_N"], on_cpu["contact_force_N"], rtol=1e-5)
+
+
+def test_the_host_profile_counts_physics_and_copies():
+    """make bench-train's profile: every host step adds its env steps, C physics and copy seconds."""
+    from tests.bench import train_bench
+    from training.envs import cpu_backend
+    rate = train_bench.raw_physics_rate("joystick", num_envs=4)
+    assert rate > 0 and cpu_backend.PROFILE.env_steps == 4 * train_bench.RAW_CONTROL_STEPS
+    assert cpu_backend.PROFILE.physics_s > 0 and cpu_backend.PROFILE.copies_s > 0

@@ -1,16 +1,20 @@
-"""`make bench-train`: end-to-end PPO throughput (physics + learner), CPU backend vs MJX on the same CPU.
+"""`make bench-train`: PPO throughput on the CPU backend against the raw physics rate, where the rest goes, and
+MJX on the same CPU.
 
-    python -m tests.bench.train_bench [--tasks joystick getup] [--updates N] [--quick]
+    python -m tests.bench.train_bench [--tasks joystick getup unified] [--updates N] [--quick]
 
-For each task, two short `--preset cpu` PPO runs of the real training code (training/train.py, brax's
-ppo.train, networks as shipped), one per backend, in this process one after the other, so both see the
-same machine and load. A run's figure is the median of brax's per-epoch `training/sps` after the first
-epoch (the first includes compilation), the same number `python -m training train` records. Printed:
-env-steps/s of each backend, the CPU/MJX ratio, and issue 12's targets (≥ 8× MJX on CPU; joystick
-≥ 5 000 and getup ≥ 3 000 env-steps/s on the 2-core machine). No evaluation rollouts are run.
-
-MJX on the CPU compiles for minutes (getup's full-body contacts the longest); --quick measures the CPU
-backend alone.
+For each task, in this process one after the other (same machine, same load):
+* the raw physics rate M: the CPU backend's batched C physics alone (firmware motor law and R6 in MuJoCo's
+  control callback, 10 substeps a control step) for the preset's envs at the task's own starts, targets
+  changing every control step; the time inside `Batch.step` only;
+* a short `--preset cpu` PPO run of the real training code (training/train.py, brax's ppo.train, networks as
+  shipped): N, the median of brax's per-epoch `training/sps` after the first (which includes compilation),
+  the number `python -m training train` records; R = N / M (issue: R ≥ 0.8 for getup and unified);
+* the run's profile: the shares of a steady env step's wall time spent in the C physics and in the host
+  callback's copies (cpu_backend.PROFILE), the rest being JAX (policy pass, PPO update, glue); and each core's
+  idle share over the whole run (/proc/stat; the first epoch's compilation is mostly one core);
+* without --quick, the same PPO run on MJX (it compiles for minutes on a CPU) and the CPU/MJX ratio.
+No evaluation rollouts are run.
 """
 from __future__ import annotations
 
@@ -18,24 +22,65 @@ import argparse
 import tempfile
 import time
 
-TASK_STAGES = {"joystick": None, "getup": "stage2"}
-TARGET_SPS = {"joystick": 5000.0, "getup": 3000.0}
-TARGET_RATIO = 8.0
+import numpy as np
+
+TASK_STAGES = {"joystick": None, "getup": "stage2", "unified": None}
+TARGET_SHARE = {"getup": 0.8, "unified": 0.8}      # of the raw physics rate
+TARGET_MJX_RATIO = 8.0            # the CPU backend's PPO rate over MJX's on the same CPU
 STEPS_PER_UPDATE = 256 * 4 * 20   # --preset cpu: batch_size · num_minibatches · unroll_length
+RAW_CONTROL_STEPS = 40            # control steps of the raw-physics measurement (after one warm-up step)
+RAW_TARGET_SPREAD = 0.3           # targets: default pose ± this × the action scale, new every control step
 
 
-def measure(task: str, backend: str, updates: int) -> tuple[float, float]:
-    """(steady env-steps/s, wall s) of a fresh `--preset cpu` run of `updates`+1 epochs of one update."""
+def _cpu_jiffies() -> np.ndarray:
+    """(cores, [idle, total]) jiffies from /proc/stat."""
+    rows = [ln.split() for ln in open("/proc/stat") if ln.startswith("cpu") and ln[3].isdigit()]
+    return np.array([[int(r[4]) + int(r[5]), sum(int(x) for x in r[1:])] for r in rows], dtype=np.float64)
+
+
+def raw_physics_rate(task: str, num_envs: int, seed: int = 0) -> float:
+    """Env-steps/s of the C physics alone (see the module docstring)."""
+    import jax
+    from training import envs
+    from training.envs import cpu_backend
+    over = {"backend": "cpu"} | ({"stage": TASK_STAGES[task]} if TASK_STAGES[task] else {})
+    env = envs.make(task, config_overrides=over)
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(seed), num_envs))
+    qpos, qvel = np.asarray(state.data.qpos), np.asarray(state.data.qvel)
+    warm, t = np.zeros_like(qvel), np.zeros(num_envs, np.float32)
+    fields = env.manifest_fields()
+    default, scale = np.asarray(fields["default_pose"]), np.asarray(fields["action_scale"])
+    last = qpos[:, 7:7 + default.size]
+    rng = np.random.default_rng(seed)
+    for i in range(RAW_CONTROL_STEPS + 1):
+        if i == 1:
+            cpu_backend.PROFILE.reset()       # the first step made the batch
+        q_des = default + scale * rng.uniform(-RAW_TARGET_SPREAD, RAW_TARGET_SPREAD, (num_envs, default.size))
+        out = env.cpu_physics.host_step(t, qpos, qvel, warm, q_des.astype(np.float32), last)
+        t, qpos, qvel, warm, last = out[0], out[1], out[2], out[3], out[-1]
+    return cpu_backend.PROFILE.env_steps / cpu_backend.PROFILE.physics_s
+
+
+def ppo_run(task: str, backend: str, updates: int) -> dict:
+    """A fresh `--preset cpu` run of `updates`+1 epochs of one update: its steady env-steps/s, wall s, and (CPU
+    backend) its profile."""
     from training import train
+    from training.envs import cpu_backend
+    cpu_backend.PROFILE.reset()
+    jiffies, t0 = _cpu_jiffies(), time.monotonic()
     with tempfile.TemporaryDirectory(prefix=f"bench_{task}_{backend}_") as out:
-        t0 = time.monotonic()
         result = train.train(task, out, steps=STEPS_PER_UPDATE * (updates + 1), preset="cpu", backend=backend,
                              stage=TASK_STAGES[task], progress=False,
                              overrides=[f"ppo.checkpoint_every_steps={STEPS_PER_UPDATE}", "ppo.run_evals=False"])
-        return result.env_steps_per_s, time.monotonic() - t0
+    d = _cpu_jiffies() - jiffies
+    p, sps = cpu_backend.PROFILE, result.env_steps_per_s
+    per_step = (lambda s: s / p.env_steps * sps) if p.env_steps else (lambda s: float("nan"))
+    return {"sps": sps, "wall_s": time.monotonic() - t0, "physics": per_step(p.physics_s),
+            "copies": per_step(p.copies_s), "idle": d[:, 0] / np.maximum(d[:, 1], 1.0)}
 
 
 def main(argv=None) -> int:
+    from training import configs
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--tasks", nargs="+", choices=tuple(TASK_STAGES), default=list(TASK_STAGES))
     ap.add_argument("--updates", type=int, default=3, help="timed PPO updates per run (after a warm-up one)")
@@ -43,21 +88,24 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.updates < 1:
         ap.error(f"--updates {args.updates}: need at least 1")
-    print(f"# PPO env-steps/s, --preset cpu, {args.updates} timed updates of {STEPS_PER_UPDATE} env steps")
-    print(f"{'task':10s} {'cpu backend':>12s} {'mjx on cpu':>11s} {'ratio':>7s}   targets")
+    print(f"# --preset cpu, {args.updates} timed PPO updates of {STEPS_PER_UPDATE} env steps; shares of a steady "
+          "env step's wall time; idle per core over the whole run")
     for task in args.tasks:
-        cpu, cpu_wall = measure(task, "cpu", args.updates)
-        line = f"{task:10s} {cpu:12,.0f}"
-        if args.quick:
-            line += f" {'-':>11s} {'-':>7s}"
-        else:
-            mjx, mjx_wall = measure(task, "mjx", args.updates)
-            line += f" {mjx:11,.0f} {cpu / mjx:6.1f}x"
-        met = cpu >= TARGET_SPS[task]
-        line += (f"   ≥ {TARGET_SPS[task]:,.0f} env-steps/s: {'met' if met else 'NOT met'}"
-                 + ("" if args.quick else f"; ≥ {TARGET_RATIO:g}x: {'met' if cpu / mjx >= TARGET_RATIO else 'NOT met'}")
-                 + f"   (wall: cpu {cpu_wall:.0f} s" + ("" if args.quick else f", mjx {mjx_wall:.0f} s") + ")")
-        print(line, flush=True)
+        raw = raw_physics_rate(task, configs.ppo_config(task, "cpu").num_envs)
+        run = ppo_run(task, "cpu", args.updates)
+        share = run["sps"] / raw
+        target = TARGET_SHARE.get(task)
+        verdict = f"   target ≥ {target:g}: {'met' if share >= target else 'NOT met'}" if target else ""
+        print(f"{task:9s} PPO {run['sps']:,.0f} env-steps/s = {share:.2f} of the raw physics rate ({raw:,.0f}){verdict}")
+        print(f"{'':9s} physics {run['physics']:.0%}, callback copies {run['copies']:.0%}, "
+              f"JAX (policy, update, glue) {1 - run['physics'] - run['copies']:.0%}; idle per core "
+              f"{', '.join(f'{x:.0%}' for x in run['idle'])}; wall {run['wall_s']:.0f} s", flush=True)
+        if not args.quick:
+            mjx = ppo_run(task, "mjx", args.updates)
+            ratio = run["sps"] / mjx["sps"]
+            print(f"{'':9s} MJX on this CPU {mjx['sps']:,.0f} env-steps/s: the CPU backend {ratio:.1f}x, target "
+                  f"≥ {TARGET_MJX_RATIO:g}x: {'met' if ratio >= TARGET_MJX_RATIO else 'NOT met'} "
+                  f"(wall {mjx['wall_s']:.0f} s)", flush=True)
     return 0
 
 

@@ -26,7 +26,9 @@ from __future__ import annotations
 import ctypes
 import os
 import threading
+from dataclasses import dataclass
 from pathlib import Path
+from time import perf_counter
 
 import jax
 import jax.numpy as jnp
@@ -43,6 +45,21 @@ FEET_SENSOR = "feet_touching"
 CONTACT_FOUND = 1          # mjtConDataField bit: the contact sensor reports how many contacts it found
 STATE_FIELDS = ("time", "qpos", "qvel", "qacc_warmstart")
 READING_FIELDS = ("qacc", "sensordata", "xpos", "site_xpos", "site_xmat", "cvel", "actuator_force")
+
+
+@dataclass
+class HostProfile:
+    """Where the host side of every CpuPhysics in this process spends its time [s] (tests/bench/train_bench.py's
+    profile): stepping the C physics, and copying state in and out of the batch around it."""
+    physics_s: float = 0.0
+    copies_s: float = 0.0
+    env_steps: int = 0       # control steps of single envs
+
+    def reset(self) -> None:
+        self.physics_s, self.copies_s, self.env_steps = 0.0, 0.0, 0
+
+
+PROFILE = HostProfile()
 
 
 @struct.dataclass
@@ -172,10 +189,17 @@ class CpuPhysics:
         nj = self._njoint
         with self._lock:
             b = self._batch(n)
+            t0 = perf_counter()
             self._write(b, time.reshape(n), qpos.reshape(n, -1), qvel.reshape(n, -1), warm.reshape(n, -1),
                         q_des.reshape(n, -1), last_target.reshape(n, -1))
+            t1 = perf_counter()
             b.step(nstep=self.n_substeps)
-            return (*self.read(b, lead), np.asarray(b.userdata[:, nj:2 * nj], np.float32).reshape(*lead, nj))
+            t2 = perf_counter()
+            out = (*self.read(b, lead), np.asarray(b.userdata[:, nj:2 * nj], np.float32).reshape(*lead, nj))
+            PROFILE.physics_s += t2 - t1
+            PROFILE.copies_s += (t1 - t0) + (perf_counter() - t2)
+            PROFILE.env_steps += n
+            return out
 
     def host_reset(self, qpos, qvel):
         lead = qpos.shape[:-1]
