@@ -4,11 +4,15 @@ per-step gated rewards, then the energy (§4.7) and observation-noise (§4.6) fi
 card: stage 2 learns along a reverse curriculum of starts from the kneel up the lunge (start_path.py), first the
 whole path, then its swing, then the whole path again; the runtime's target rule R6 is in every stage.
 
-Stage 1 is not in the recipe yet: six periods of PPO from the floor (harness, rise bank, kneel collapse, prone
-path: training/LESSONS.md) never reached the kneel; its next method learns from a sampling planner's
-demonstrations (the kneel-by-demonstration issue). Until then the full stage starts from stage 2."""
+Stage 1 learns from the sampling planner's rises to the kneel (`python -m training.planner`; six periods of PPO
+from the floor never reached it: training/LESSONS.md): every episode starts at a state of a rise (velocities
+included) at most window_s before it arrived at the kneel (envs/demo_starts.py), the window widened stage by
+stage (Backplay), then half the episodes from the loop's fallen starts; the seed's stage-1 reward plus a
+reward while §4.8's gate holds. Stage 1 is not yet joined to the full stage, which starts from stage 2."""
 from training.recipe import Recipe, Stage
 
+DEMOS = "training/campaigns/getup_keyframe/demos"
+BACKPLAY = {"env.demo_starts.prob": 1.0, "env.demo_starts.folder": DEMOS, "env.stage1_gate_reward": 1.0}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
 FULL = {"env.gate_latches": False, "ppo.policy_std_scale": 0.25, "ppo.entropy_cost": 0.001,
         "ppo.learning_rate": 1e-4}
@@ -17,6 +21,12 @@ RECIPE = Recipe(
     name="getup_keyframe", policy="getup_keyframe",
     summary="the seed's keyframe getup through the kneel (not shipped until it kneels)",
     stages=(
+        Stage("rise_near", task="getup", getup_stage="stage1", steps=10_000_000,
+              config={**BACKPLAY, "env.demo_starts.window_s": 0.5}),
+        Stage("rise_mid", task="getup", getup_stage="stage1", steps=10_000_000, init="rise_near",
+              config={**BACKPLAY, "env.demo_starts.window_s": 2.0}),
+        Stage("rise_floor", task="getup", getup_stage="stage1", steps=20_000_000, init="rise_mid",
+              config={**BACKPLAY, "env.demo_starts.prob": 0.5, "env.demo_starts.window_s": 8.0}),
         Stage("stand_path", task="getup", getup_stage="stage2", steps=27_095_040, config=STAND),
         Stage("stand_swing", task="getup", getup_stage="stage2", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
