@@ -96,7 +96,8 @@ def main(argv=None) -> int:
         share = run["sps"] / raw
         target = TARGET_SHARE.get(task)
         verdict = f"   target ≥ {target:g}: {'met' if share >= target else 'NOT met'}" if target else ""
-        print(f"{task:9s} PPO {run['sps']:,.0f} env-steps/s = {share:.2f} of the raw physics rate ({raw:,.0f}){verdict}")
+        print(f"{task:9s} PPO {run['sps']:,.0f} env-steps/s = {share:.2f} of the raw physics rate ({raw:,.0f})"
+              + verdict)
         print(f"{'':9s} physics {run['physics']:.0%}, callback copies {run['copies']:.0%}, "
               f"JAX (policy, update, glue) {1 - run['physics'] - run['copies']:.0%}; idle per core "
               f"{', '.join(f'{x:.0%}' for x in run['idle'])}; wall {run['wall_s']:.0f} s", flush=True)

@@ -52,7 +52,8 @@ def demo_bank(folder: str, window_s: float, num_starts: int, seed: int) -> tuple
     path = Path(folder) if Path(folder).is_absolute() else REPO_ROOT / folder
     files = sorted(path.glob(DEMO_GLOB))
     if not files:
-        raise ValueError(f"demo_starts.folder {folder!r}: no {DEMO_GLOB} there (python -m training.planner writes them)")
+        raise ValueError(f"demo_starts.folder {folder!r}: no {DEMO_GLOB} there "
+                         "(python -m training.planner writes them)")
     qpos, qvel = [], []
     for f in files:
         try:

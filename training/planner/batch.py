@@ -95,5 +95,6 @@ def run(seeds: list[int], out: Path, overrides: list[str], max_minutes: float | 
     for side in ("face_down", "on_back"):      # each side's strip: its lowest seed that met the gate, else its lowest
         shown = sorted((r for r in rows if r["side"] == side), key=lambda r: (r["gate_time_s"] is None, r["seed"]))
         if shown:
-            demos.frame_strip(planner.model, demos.load(out / f"demo_{shown[0]['seed']}.npz"), out / f"strip_{side}.png")
+            demo = demos.load(out / f"demo_{shown[0]['seed']}.npz")
+            demos.frame_strip(planner.model, demo, out / f"strip_{side}.png")
     return demos.write_report(out, cfg, rows) if rows else {}

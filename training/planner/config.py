@@ -39,11 +39,11 @@ def default_config() -> config_dict.ConfigDict:
             trunk_height=400.0,  # (h − the keyframe's h)² [1/m²]: two-sided (one-sided overshot into a crouch)
             waist_height=100.0,  # (h_waist − the keyframe's)² [1/m²]
             upright=20.0,        # |u_z − the keyframe's u_z| of the trunk, on the way
-            upright_kneel=200.0,  # the same at the kneel: 1 − u_z ≈ tilt²/2 is flat near vertical (rises settled 8–15° off)
+            upright_kneel=200.0,  # the same at the kneel, where 1 − u_z ≈ tilt²/2 is flat near vertical
             pose=0.5,            # Σ (q − q_keyframe)² [1/rad²] over the arms, head and waist, on the way
             leg_pose=2.0,        # the same over the legs: the kneel is a leg posture
-            pose_kneel=2.0,      # the two at the kneel: the double kneel rests upright, the sprawled sits
-            leg_pose_kneel=20.0,  # rises settled in (hips rolled and yawed, leaning back on a foot) do not
+            pose_kneel=2.0,      # the two at the kneel: the double kneel rests upright; a sprawled one (hips
+            leg_pose_kneel=20.0,  # rolled and yawed, leaning back on a foot) does not
             energy=0.002,        # Σ |τ·q̇| [1/W]
             root_velocity=0.05,  # ‖root twist‖² near the kneel [s²/m²]: balance rather than sway
             gate=5.0,            # paid per step while §4.8's gate holds (a negative cost)
