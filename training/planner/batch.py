@@ -59,7 +59,7 @@ def run(seeds: list[int], out: Path, overrides: list[str], max_minutes: float | 
         rows.append(demos.row(demos.load(out / f"demo_{seed}.npz"), demos.start_side(planner.model, qpos)))
         demos.write_report(out, cfg, rows)
         r = rows[-1]
-        log(f"seed {seed:4d} {side:9s} gate {r['gate_time_s'] if r['gate_time_s'] is not None else '–':>5} s  "
+        log(f"seed {seed:4d} {r['side']:9s} gate {r['gate_time_s'] if r['gate_time_s'] is not None else '–':>5} s  "
             f"held {r['held_share']:.2f}  end trunk {r['final_trunk_m']:.3f} m up_z {r['final_up_z']:.4f}  "
             f"{r['energy_J']:.0f} J  {r['cpu_s']:.0f} CPU s")
 
