@@ -118,3 +118,32 @@ def test_summary_counts_gate_met_within_the_time_per_side():
     assert s["face_down"]["share"] == 0.5 and s["on_back"]["share"] == 0.0 and s["all"]["met_gate"] == 1
     assert s["on_back"]["met_gate_by_end"] == 1 and s["all"]["met_gate_by_end"] == 2
     assert "side" not in s and s["all"]["reached_kneeling_height"] == 0 and s["all"]["best_tilt_deg"] is None
+
+
+def test_a_killed_batch_leaves_no_worker_planning_on():
+    """--jobs workers get SIGTERM when the batch dies (PR_SET_PDEATHSIG), instead of planning on as orphans."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+    script = ("import multiprocessing as mp, time\nfrom concurrent.futures import ProcessPoolExecutor\n"
+              "from training.planner import batch\n"
+              "pool = ProcessPoolExecutor(1, mp_context=mp.get_context('spawn'), initializer=batch._end_with_parent)\n"
+              "pool.submit(time.sleep, 0.1).result()\npool.submit(time.sleep, 600)\n"
+              "print(*pool._processes, flush=True)\ntime.sleep(600)\n")
+    root = Path(__file__).resolve().parents[1]
+    batch_proc = subprocess.Popen([sys.executable, "-c", script], cwd=root, stdout=subprocess.PIPE, text=True,
+                                  env={**os.environ, "PYTHONPATH": os.pathsep.join([str(root), *sys.path])})
+    try:
+        worker = int(batch_proc.stdout.readline())
+        batch_proc.send_signal(signal.SIGKILL)
+        batch_proc.wait(timeout=30)
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline and Path(f"/proc/{worker}").exists() and \
+                Path(f"/proc/{worker}/stat").read_text().split()[2] != "Z":
+            time.sleep(0.1)
+        assert not Path(f"/proc/{worker}").exists() or Path(f"/proc/{worker}/stat").read_text().split()[2] == "Z"
+    finally:
+        batch_proc.kill()

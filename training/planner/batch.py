@@ -2,8 +2,10 @@
 (a module of its own, not __main__, so that spawned workers can import its functions)."""
 from __future__ import annotations
 
+import ctypes
 import json
 import multiprocessing
+import signal
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
@@ -28,11 +30,22 @@ def build(overrides: list[str]):
 
 
 _worker = None      # a worker process's planner (built once per process)
+PR_SET_PDEATHSIG = 1    # <sys/prctl.h>
 
 
 def _init_worker(overrides: list[str]) -> None:
     global _worker
+    _end_with_parent()
     _worker = build(overrides)
+
+
+def _end_with_parent() -> None:
+    """Linux's PR_SET_PDEATHSIG: a worker gets SIGTERM when the batch that spawned it dies, instead of planning
+    on as an orphan (a worker notices a dead pool only when it asks for its next seed)."""
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    except (OSError, AttributeError):
+        pass                        # not Linux: a killed batch's workers end with their seed
 
 
 def _plan(seed: int, out: Path) -> Path:
