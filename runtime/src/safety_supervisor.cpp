@@ -1,6 +1,7 @@
 // The safety supervisor: the single source of truth for every safety rule of the runtime
 // (ARCHITECTURE.md "Safety supervisor"). No heap use: fixed arrays and snprintf into fixed buffers.
-// The rules R1-R10 this file implements, and why their values: the comment at the top of t1rt/safety.hpp.
+// The rules R1-R10 this file implements, and why their values: the comment at the top of t1rt/safety.hpp (R3's
+// per-stream sequence bookkeeping, SeqTracker, is seq_tracker.cpp).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -40,32 +41,6 @@ bool commanding(Mode m) { return m == Mode::kPrepare || m == Mode::kPolicy; }
 // The point of [lo, hi] nearest to x; an empty interval (lo > hi) is never passed in.
 float nearest_in(float x, float lo, float hi) { return std::min(std::max(x, lo), hi); }
 }  // namespace
-
-bool SeqTracker::accept(int64_t seq) {  // rule R3
-  constexpr int kMaskBits = 64;
-  static_assert(kWindowFrames <= kMaskBits, "the received-frame mask holds 64 frames");
-  if (newest_ < 0 || seq < newest_ - kWindowFrames) {  // first frame, or the publisher restarted
-    newest_ = first_ = seq;
-    seen_ = 1;
-    return true;
-  }
-  if (seq > newest_) {
-    const int64_t ahead = seq - newest_;
-    gaps_ += ahead - 1;
-    seen_ = ahead >= kMaskBits ? 0 : seen_ << ahead;
-    seen_ |= 1;
-    newest_ = seq;
-    return true;
-  }
-  const int64_t behind = newest_ - seq;  // 0 = duplicate of the newest; at most kWindowFrames here
-  const uint64_t bit = behind < kMaskBits ? uint64_t{1} << behind : 0;
-  if (bit && !(seen_ & bit) && seq > first_) {
-    seen_ |= bit;
-    --gaps_;  // counted missing when the newer frame came; it was only late
-  }
-  ++reordered_;
-  return false;
-}
 
 Supervisor::Supervisor(const SafetyConfig& config) : cfg_(config) {
   prepare_total_ticks_ = std::max<int64_t>(1, std::llround(cfg_.prepare_duration_s / kLoopDtS));
