@@ -15,6 +15,7 @@ import numpy as np
 from ml_collections import config_dict
 
 from common import events
+from training.envs import start_banks
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEMO_GLOB = "demo_*.npz"
@@ -69,8 +70,4 @@ def demo_bank(folder: str, window_s: float, num_starts: int, seed: int) -> tuple
     if not qpos:
         raise ValueError(f"demo_starts.folder {folder!r}: none of its {len(files)} demonstrations reached the kneel")
     qpos, qvel = np.concatenate(qpos), np.concatenate(qvel)
-    pick = np.random.default_rng(seed).integers(0, len(qpos), num_starts)
-    out = qpos[pick].astype(np.float32), qvel[pick].astype(np.float32)
-    for a in out:
-        a.flags.writeable = False
-    return out
+    return start_banks.frozen_bank(np.random.default_rng(seed).integers(0, len(qpos), num_starts), qpos, qvel)

@@ -31,7 +31,7 @@ from common.events import heading_from_quat
 from common import push_test
 from common.scenarios import TORSO_BODY
 from common import observation as obsdef
-from training.envs import wall_course
+from training.envs import start_banks, wall_course
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 from training.envs.experts import STUDENT_OBS_KEY, load_expert
 
@@ -128,14 +128,7 @@ def _pushed_over(env, act, seed: int, push_tick: np.ndarray, push, none_fell: st
     found, qpos, qvel = _falls(env, act, state, int(push_tick.max() + round(MAX_FALL_S / env.dt)), push_tick, push)
     if not found.any():
         raise ValueError(none_fell)
-    return _frozen_bank(found, qpos, qvel)
-
-
-def _frozen_bank(found, qpos, qvel) -> tuple[np.ndarray, np.ndarray]:
-    bank = qpos[found].astype(np.float32), qvel[found].astype(np.float32)
-    for array in bank:
-        array.flags.writeable = False
-    return bank
+    return start_banks.frozen_bank(found, qpos, qvel)
 
 
 def handover_config() -> config_dict.ConfigDict:
@@ -272,7 +265,7 @@ def wall_bank(make_env: Callable, joystick_policy: str, num_starts: int, seed: i
     if not found.any():
         raise ValueError(f"{joystick_policy}: walking into the low walls brought the waist below "
                          f"{WAIST_SWITCH_HEIGHT_M} m within {MAX_WALL_WALK_S} s in none of {num_starts} approaches")
-    return _frozen_bank(found, qpos, qvel)
+    return start_banks.frozen_bank(found, qpos, qvel)
 
 
 def place(qpos, qvel, xy, yaw):

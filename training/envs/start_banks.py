@@ -10,6 +10,8 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class StartSource:
@@ -60,3 +62,11 @@ def fallen_share_banks(env, cfg) -> list[tuple[float, tuple]]:
         raise ValueError("the start banks' shares must sum to at most 1, got "
                          f"{' + '.join(f'{s.group}.prob {p}' for s, p in wanted)}")
     return [(p, s.functions()[1](env, cfg[s.group])) for s, p in wanted]
+
+
+def frozen_bank(pick, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A bank's (qpos, qvel) rows `pick` (a mask or indices), float32 and read-only (banks are cached and shared)."""
+    bank = qpos[pick].astype(np.float32), qvel[pick].astype(np.float32)
+    for array in bank:
+        array.flags.writeable = False
+    return bank
