@@ -40,8 +40,11 @@ def test_realtime_mode_holds_real_time_factor(netns):
                                    duration_s=10.0, timeout_s=60)
     # Sim time covered vs wall time between the first and last state seen by the client.
     seq = states(client)
-    assert len(seq) >= 4900, f"only {len(seq)} of 5000 states arrived"
     sim_s = (seq[-1].utime - seq[0].utime) * 1e-6
+    assert sim_s >= 9.9, f"the states seen cover {sim_s:.2f} s of the 10 s run"
+    # UDP: a client starved of CPU (the other worker's training runs) drops datagrams from its socket; the
+    # sim's pacing is the behaviour under test, the loss bound only catches a sim that skips ticks wholesale.
+    assert len(seq) >= 4500, f"only {len(seq)} of 5000 states arrived"
     wall_s = client.wall[-1] - client.wall[0]
     # Paced, never ahead of the wall clock; how closely a loaded machine keeps up is not asserted here
     # (the lower bound only catches a stalled or half-speed clock).
@@ -53,7 +56,7 @@ def test_rt_realtime_runs_paced_under_sched_fifo_or_says_it_could_not(netns):
     client, _, _ = run_with_client(["--clock", "realtime", "--rt", "--spawn", "standing"], hold_pose(HOME), KP, KD,
                                    duration_s=1.0, timeout_s=60)
     seq = states(client)
-    assert len(seq) >= 490, f"only {len(seq)} of 500 states arrived"
+    assert len(seq) >= 450, f"only {len(seq)} of 500 states arrived"   # UDP loss bound, as above
     assert 0.9 <= (seq[-1].utime - seq[0].utime) * 1e-6 / (client.wall[-1] - client.wall[0]) <= 1.02
 
 
