@@ -1,6 +1,6 @@
 """The loop's push test, drawn: which way, how hard and when the Trunk is shoved in trial `index`. One
 definition for the HIL evaluation (sim_hil/eval/plans.py) and the batch's copy of the test
-(training/envs/handover.py push_test_bank, TorsoShove)."""
+(training/envs/starts/push.py push_test_bank, TorsoShove)."""
 from __future__ import annotations
 
 import math
@@ -28,7 +28,7 @@ class PushDraw:
 
 def push_draw(index: int, seed: int) -> PushDraw:
     """Trial `index`'s push, drawn from `seed`: F F B repeated, so any prefix (--trials N) has both directions
-    in the 2:1 ratio of 20 forward, 10 back. Also the batch's copy of this test (training/envs/handover.py
+    in the 2:1 ratio of 20 forward, 10 back. Also the batch's copy of this test (training/envs/starts/push.py
     push_test_bank)."""
     forward = index % 3 != 2
     rng = np.random.default_rng(seed)

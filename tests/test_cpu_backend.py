@@ -130,8 +130,8 @@ def test_every_task_step_keeps_the_metrics_wrappers_add(task):
     """brax's EvalWrapper puts "reward" into state.metrics and scans over step: a step that returns a
     fresh metrics dict breaks every PPO run with evaluations (the CPU backend makes this check cheap)."""
     over = {"backend": "cpu", "episode_length": 20}
-    if "fallen_bank_size" in envs.default_config(task):
-        over["fallen_bank_size"] = 2
+    if "fallen" in envs.default_config(task):
+        over["fallen.bank_starts"] = 2
     env = envs.make(task, config_overrides=over)
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
     state.metrics["reward"] = jnp.zeros(())
@@ -158,7 +158,7 @@ def test_getup_evaluation_rollout_matches_mjx_on_the_first_tick():
     from sim_hil.launch import ROOT
     policy = ArtifactPolicy.load(ROOT / "tests" / "golden" / "random_policy.safetensors")  # any policy will do
     qpos, qvel = envs.fallen_states(3, 0)
-    over = {"fallen_bank_size": 2}
+    over = {"fallen.bank_starts": 2}
     on_cpu = cpu_rollout(envs.make("getup", config_overrides={**over, "backend": "cpu"}), policy,
                          np.asarray(qpos), np.asarray(qvel), 1)
     on_mjx = make_rollout(envs.make("getup", config_overrides=over), policy, 1)(policy.params, qpos, qvel)

@@ -1,4 +1,4 @@
-"""Backplay starts (training/envs/demo_starts.py): states of the planner's demonstrations from the last window
+"""Backplay starts (training/envs/starts/demos.py): states of the planner's demonstrations from the last window
 before each arrival at the kneel, as a share of the getup env's fallen starts."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from training import envs
-from training.envs import demo_starts
+from training.envs.starts import demos
 
 DEMOS = "training/campaigns/getup_keyframe/demos"      # the kneel campaign's demonstrations (the planner's)
 
@@ -17,9 +17,9 @@ DEMOS = "training/campaigns/getup_keyframe/demos"      # the kneel campaign's de
 def _arrived():
     """{file: (qpos, arrival step, ctrl_dt)} of the campaign's demonstrations that reached the kneel."""
     out = {}
-    for f in sorted((demo_starts.REPO_ROOT / DEMOS).glob(demo_starts.DEMO_GLOB)):
+    for f in sorted((demos.REPO_ROOT / DEMOS).glob(demos.DEMO_GLOB)):
         with np.load(f) as z:
-            end = demo_starts.arrival_step(z["trunk_height"], z["kneeling"])
+            end = demos.arrival_step(z["trunk_height"], z["kneeling"])
             if end is not None:
                 out[f] = (z["qpos"], end, float(z["ctrl_dt"]))
     return out
@@ -30,38 +30,38 @@ def test_the_bank_holds_states_from_the_window_before_each_arrival():
     assert arrived, f"{DEMOS}: no demonstration reached the kneel"
     window_s = 0.2
     allowed = np.concatenate([q[max(0, end - round(window_s / dt)):end + 1] for q, end, dt in arrived.values()])
-    qpos, qvel = demo_starts.demo_bank(DEMOS, window_s, 64, 1)
+    qpos, qvel = demos.demo_bank(DEMOS, window_s, 64, 1)
     assert qpos.shape == (64, allowed.shape[1]) and qvel.shape[0] == 64 and not qpos.flags.writeable
     assert all(np.any(np.all(allowed == row, axis=1)) for row in qpos)
-    wider = demo_starts.demo_bank(DEMOS, 2.0, 64, 1)[0]
+    wider = demos.demo_bank(DEMOS, 2.0, 64, 1)[0]
     assert len(np.unique(wider, axis=0)) > len(np.unique(qpos, axis=0))     # the window moves the starts back
-    assert np.array_equal(demo_starts.demo_bank(DEMOS, window_s, 64, 1)[0], qpos)   # seeded
+    assert np.array_equal(demos.demo_bank(DEMOS, window_s, 64, 1)[0], qpos)   # seeded
 
 
 def test_bad_folders_and_settings_are_named(tmp_path):
     with pytest.raises(ValueError, match="no demo_"):
-        demo_starts.demo_bank(str(tmp_path), 0.5, 8, 0)
+        demos.demo_bank(str(tmp_path), 0.5, 8, 0)
     with pytest.raises(ValueError, match="window_s"):
-        demo_starts.demo_bank(DEMOS, 0.0, 8, 0)
+        demos.demo_bank(DEMOS, 0.0, 8, 0)
     f, (qpos, end, _) = next(iter(_arrived().items()))
     with np.load(f) as z:         # a real demonstration cut before its arrival
         np.savez(tmp_path / "demo_0.npz", **{k: z[k][:end] if z[k].ndim else z[k] for k in z.files})
     with pytest.raises(ValueError, match="none of its 1 demonstrations reached the kneel"):
-        demo_starts.demo_bank(str(tmp_path), 0.5, 8, 0)
+        demos.demo_bank(str(tmp_path), 0.5, 8, 0)
     (tmp_path / "demo_1.npz").write_bytes(b"not a zip")
     with pytest.raises(ValueError, match="demo_1.npz is not a planner demonstration"):
-        demo_starts.demo_bank(str(tmp_path), 0.5, 8, 0)
+        demos.demo_bank(str(tmp_path), 0.5, 8, 0)
     with pytest.raises(ValueError, match="demo_starts.prob > 0 needs demo_starts.folder"):
-        envs.make("getup", config_overrides={"fallen_bank_size": 2, "demo_starts.prob": 0.5})
+        envs.make("getup", config_overrides={"fallen.bank_starts": 2, "demo_starts.prob": 0.5})
 
 
 def test_the_getup_env_starts_its_fallen_episodes_from_the_demonstrations(tmp_path):
     folder = tmp_path / "demos"
-    shutil.copytree(demo_starts.REPO_ROOT / DEMOS, folder)
+    shutil.copytree(demos.REPO_ROOT / DEMOS, folder)
     env = envs.make("getup", config_overrides={
-        "backend": "cpu", "stage": "stage1", "fallen_bank_size": 2, "demo_starts.prob": 1.0,
+        "backend": "cpu", "stage": "stage1", "fallen.bank_starts": 2, "demo_starts.prob": 1.0,
         "demo_starts.folder": str(folder), "demo_starts.bank_starts": 8})
-    qpos, qvel = demo_starts.demo_bank(str(folder), 0.5, 8, int(env._config.demo_starts.seed))
+    qpos, qvel = demos.demo_bank(str(folder), 0.5, 8, int(env._config.demo_starts.seed))
     reset = jax.jit(jax.vmap(env.reset))
     state = reset(jax.random.split(jax.random.PRNGKey(0), 6))
     assert np.abs(np.asarray(state.data.qvel)).max() > 0.1      # mid-rise states, not settled ones

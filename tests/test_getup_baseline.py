@@ -9,7 +9,7 @@ import pytest
 from training import envs
 from training.envs import getup_rewards as G
 
-SMALL = {"backend": "cpu", "episode_length": 20, "fallen_bank_size": 2}
+SMALL = {"backend": "cpu", "episode_length": 20, "fallen.bank_starts": 2}
 ENERGY_WEIGHT = 0.01
 
 

@@ -86,7 +86,7 @@ def test_gated_terms_by_hand():
 # ------------------------------------------------------------------ the env's terms
 @pytest.fixture(scope="module")
 def full_env():
-    return envs.make("getup", config_overrides={"fallen_bank_size": 2, "episode_length": 20})
+    return envs.make("getup", config_overrides={"fallen.bank_starts": 2, "episode_length": 20})
 
 
 def _fake_data(qpos, qvel, tau):
@@ -149,13 +149,13 @@ def test_gate_latches_until_the_trunk_is_down(full_env):
     off = full_env.gate_state(down, still)
     assert not bool(off)
     assert not bool(full_env.gate_state(tilted, off))                     # tilted again: needs the gate anew
-    per_step = envs.make("getup", config_overrides={"fallen_bank_size": 2, "gate_latches": False})
+    per_step = envs.make("getup", config_overrides={"fallen.bank_starts": 2, "gate_latches": False})
     assert not bool(per_step.gate_state(tilted, on))                      # the seed's literal reading
 
 
 def test_env_carries_the_latched_gate_through_steps():
     # the CPU backend: the gate's carry is the env's own code on either physics, and MJX's compile takes minutes
-    env = envs.make("getup", config_overrides={"fallen_bank_size": 2, "episode_length": 20, "backend": "cpu"})
+    env = envs.make("getup", config_overrides={"fallen.bank_starts": 2, "episode_length": 20, "backend": "cpu"})
     state = jax.jit(env.reset)(jax.random.PRNGKey(3))
     step = jax.jit(env.step)
     for _ in range(3):
@@ -169,7 +169,7 @@ def test_env_carries_the_latched_gate_through_steps():
 def test_stage_rewards(full_env):
     info = {"trunk_height": jnp.asarray(0.2), "waist_height": jnp.asarray(0.15), "up_z": jnp.asarray(0.0),
             "up": jnp.asarray(_tilted(90.0))}
-    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
+    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
     s2 = envs.make("getup", config_overrides={"stage": "stage2"})
     info["gate"] = jnp.asarray(False)
     t1, t2 = s1.reward_terms(_state(s1), info), s2.reward_terms(_state(s2), info)
@@ -183,37 +183,37 @@ def test_stage_rewards(full_env):
 def test_stage1_pays_its_gate_reward_only_while_the_gate_holds_this_step():
     """stage1_gate_reward (ours; 0 = the seed): added to stage 1's Height Reward on a step that meets §4.8's
     gate (trunk above 0.395 m, within 0.573° of vertical), whatever the latched gate says."""
-    plain = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
-    paid = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2, "stage1_gate_reward": 1.5})
+    plain = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
+    paid = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_gate_reward": 1.5})
     for tilt_deg, h, meets in ((0.3, 0.40, True), (1.25, 0.40, False), (0.3, 0.39, False)):
         info = {"trunk_height": jnp.asarray(h), "waist_height": jnp.asarray(0.29), "up": jnp.asarray(_tilted(tilt_deg)),
                 "up_z": jnp.asarray(float(_tilted(tilt_deg)[2])), "gate": jnp.asarray(True)}
         extra = float(paid.reward_terms(_state(paid), info)["height"] - plain.reward_terms(_state(plain), info)["height"])
         assert extra == pytest.approx(1.5 if meets else 0.0, abs=1e-6), (tilt_deg, h)
     with pytest.raises(ValueError, match="stage1_gate_reward"):
-        envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2, "stage1_gate_reward": -1.0})
+        envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_gate_reward": -1.0})
 
 
 def test_start_probabilities_per_stage(full_env):
     assert full_env.start_probabilities() == pytest.approx([0.4, 0.4, 0.2])
     s2 = envs.make("getup", config_overrides={"stage": "stage2"})
     assert s2.start_probabilities() == [0.0, 1.0, 0.0]
-    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
+    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
     assert s1.start_probabilities() == [1.0, 0.0, 0.0]                      # the seed's stage 1
-    s1_kneel = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2,
+    s1_kneel = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2,
                                                    "stage1_start_probs": [0.7, 0.3, 0.0]})
     assert s1_kneel.start_probabilities() == pytest.approx([0.7, 0.3, 0.0])   # a kneeling share (ours)
-    assert envs.make("getup_baseline", config_overrides={"fallen_bank_size": 2}).start_probabilities() == [1.0, 0, 0]
+    assert envs.make("getup_baseline", config_overrides={"fallen.bank_starts": 2}).start_probabilities() == [1.0, 0, 0]
     with pytest.raises(ValueError, match="stage"):
-        envs.make("getup", config_overrides={"stage": "stage3", "fallen_bank_size": 2})
+        envs.make("getup", config_overrides={"stage": "stage3", "fallen.bank_starts": 2})
     with pytest.raises(ValueError, match="start_probs"):
-        envs.make("getup", config_overrides={"start_probs": [0.5, 0.5, 0.5], "fallen_bank_size": 2})
+        envs.make("getup", config_overrides={"start_probs": [0.5, 0.5, 0.5], "fallen.bank_starts": 2})
 
 
 def test_robustness_noise_is_unit_uniform_on_every_entry():
-    env = envs.make("getup", config_overrides={"fallen_bank_size": 2, "obs_noise_scale": 1.0})
+    env = envs.make("getup", config_overrides={"fallen.bank_starts": 2, "obs_noise_scale": 1.0})
     assert env._noise_level() == 1.0 and np.all(np.asarray(env._noise_scale) == 1.0)
-    assert envs.make("getup", config_overrides={"fallen_bank_size": 2})._noise_level() == 0.0
+    assert envs.make("getup", config_overrides={"fallen.bank_starts": 2})._noise_level() == 0.0
 
 
 def test_getup_actions_reach_the_kneel_keyframe_within_each_joint_range():
@@ -232,7 +232,7 @@ def test_only_stage2_ends_when_the_trunk_falls_below_the_fall_height(full_env):
     """Stage 2 starts kneeling (trunk 0.405 m, upright): dropping below 0.35 m or tilting past up_z 0.7 ends
     it, so lying or leaning back with straight legs cannot pay. Stage 1 and the full task never end so."""
     s2 = envs.make("getup", config_overrides={"stage": "stage2"})
-    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen_bank_size": 2})
+    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
     fall_m = s2._config.stage2_fall_trunk_height_m
     assert fall_m < s2._kneel_targets[0]          # the kneel start itself is not a fall
     up_z = s2._config.stage2_fall_up_z
@@ -282,7 +282,7 @@ def test_failed_rises_count_as_the_events_definition(segments):
 def test_a_failed_rise_counts_once_in_the_metric():
     """One step of the CPU-backend getup env from a state whose tracker holds an attempt that peaked 1 m up:
     the trunk is far below peak − 0.15 m, so the attempt fails and the metric counts it."""
-    env = envs.make("getup", config_overrides={"backend": "cpu", "fallen_bank_size": 2, "episode_length": 20})
+    env = envs.make("getup", config_overrides={"backend": "cpu", "fallen.bank_starts": 2, "episode_length": 20})
     assert "failed_rises" in env.metric_names()
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
     track = dict(state.info["rise_track"], down=jnp.asarray(True), rising=jnp.asarray(True),

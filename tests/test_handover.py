@@ -1,4 +1,4 @@
-"""Hand-over starts of the joystick expert (training/envs/handover.py): where the stitched teacher hands a
+"""Hand-over starts of the joystick expert (training/envs/starts/handover.py): where the stitched teacher hands a
 rising robot from the shipped keyframe getup expert to the joystick expert, and the joystick env's resets
 from them. The slow tests roll the getup expert (CPU physics) and compile one joystick reset."""
 from __future__ import annotations
@@ -11,7 +11,8 @@ import pytest
 
 from common import model as t1model
 from training import envs
-from training.envs import handover
+from training.envs.starts import handover, knockdown
+from training.envs.starts.bank import place
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 GETUP = "policies/getup_knockdown/getup_knockdown.safetensors"
@@ -30,7 +31,7 @@ def test_place_turns_the_root_and_its_world_velocity_only():
     qpos[3:7] = (np.cos(0.2), np.sin(0.2), 0.0, 0.0)          # rolled 0.4 rad about x
     qvel = np.arange(mj.nv, dtype=np.float32) * 0.1
     yaw = 0.7
-    q2, v2 = (np.asarray(x) for x in handover.place(jnp.asarray(qpos), jnp.asarray(qvel), jnp.array([1.5, -2.0]),
+    q2, v2 = (np.asarray(x) for x in place(jnp.asarray(qpos), jnp.asarray(qvel), jnp.array([1.5, -2.0]),
                                                      jnp.float32(yaw)))
     turn = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]])
     np.testing.assert_allclose(_rotation(q2[3:7]), turn @ _rotation(qpos[3:7]), atol=1e-6)
@@ -92,12 +93,12 @@ KNOCK_STARTS = 8
                                        ({"knockdown_starts.prob": -0.1}, r"in \[0, 1\]")])
 def test_getup_env_refuses_a_bad_knockdown_config(over, why):
     with pytest.raises(ValueError, match=why):
-        envs.make("getup", config_overrides={"fallen_bank_size": 2, **over})
+        envs.make("getup", config_overrides={"fallen.bank_starts": 2, **over})
 
 
 @pytest.fixture(scope="module")
 def knock_bank():
-    return handover.knockdown_bank(envs.make, JOYSTICK, KNOCK_STARTS, seed=int(envs.default_config("getup").knockdown_starts.seed))
+    return knockdown.knockdown_bank(envs.make, JOYSTICK, KNOCK_STARTS, seed=int(envs.default_config("getup").knockdown_starts.seed))
 
 
 @pytest.mark.slow
@@ -118,7 +119,7 @@ def test_knockdown_bank_holds_the_states_where_the_waist_drops_past_the_switch(k
 @pytest.mark.slow
 def test_getup_env_starts_fallen_episodes_from_the_knockdown_bank(knock_bank):
     env = envs.make("getup", config_overrides={
-        "start_probs": [1.0, 0.0, 0.0], "fallen_bank_size": 2, "episode_length": 20, "knockdown_starts.prob": 1.0,
+        "start_probs": [1.0, 0.0, 0.0], "fallen.bank_starts": 2, "episode_length": 20, "knockdown_starts.prob": 1.0,
         "knockdown_starts.joystick_policy": JOYSTICK, "knockdown_starts.bank_starts": KNOCK_STARTS})
     state = jax.jit(env.reset)(jax.random.PRNGKey(3))
     q = np.asarray(state.data.qpos)

@@ -23,10 +23,14 @@ def _leaves(tree, prefix=""):
 def test_every_campaign_run_state_migrates_and_keeps_its_settings(path):
     state = json.loads(path.read_text())
     ppo_cfg, env_cfg = migration.run_configs(state, str(path))
-    for saved, cfg, default in ((state["ppo_config"], ppo_cfg, ppo_config(state["task"], state["preset"])),
-                                (state["env_config"], env_cfg, envs.default_config(state["task"]))):
+    for what, saved, cfg, default in (
+            ("ppo", state["ppo_config"], ppo_cfg, ppo_config(state["task"], state["preset"])),
+            ("env", state["env_config"], env_cfg, envs.default_config(state["task"]))):
         assert set(_leaves(cfg.to_dict())) == set(_leaves(default.to_dict())), "today's keys, no more, no less"
         today = _leaves(cfg.to_dict())
+        for old, new in migration.RENAMED[what].items():    # a renamed key keeps its saved value
+            if old in _leaves(saved):
+                assert today[new] == _leaves(saved)[old], (old, new)
         removed = set(migration.REMOVED["env"]) | set(migration.REMOVED["ppo"])
         for key, value in _leaves(saved).items():
             if key in today and not any(key == r or key.startswith(r + ".") for r in removed):

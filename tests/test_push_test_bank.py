@@ -1,4 +1,4 @@
-"""The loop's push test in the batch (training/envs/handover.py push_test_bank, torso_impulse_dqvel): the same
+"""The loop's push test in the batch (training/envs/starts/push.py push_test_bank, torso_impulse_dqvel): the same
 draws as sim_hil's trials, the same torso impulse, and `evaluate --starts push` starts from its landings. The
 slow tests roll the shipped joystick expert (CPU physics)."""
 from __future__ import annotations
@@ -14,7 +14,7 @@ from common import model as t1model
 from sim_hil.eval import plans
 from sim_hil.faults import parse_faults
 from training import envs
-from training.envs import handover
+from training.envs.starts import push
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 JOYSTICK = "policies/joystick/joystick.safetensors"
@@ -42,7 +42,7 @@ def test_torso_impulse_is_what_sim_hil_does_in_one_physics_step():
     qpos[2] += 1.0                                         # in the air: no contacts
     data.qpos[:] = qpos
     impulse = np.array([30.0, -12.0, 0.0])
-    dqvel = handover.torso_impulse_dqvel(model, mujoco.MjData(model), qpos, impulse)
+    dqvel = push.torso_impulse_dqvel(model, mujoco.MjData(model), qpos, impulse)
 
     data.qvel[:] = 0.0
     data.ctrl[:] = 0.0
@@ -59,7 +59,7 @@ def test_torso_impulse_is_what_sim_hil_does_in_one_physics_step():
 
 @pytest.fixture(scope="module")
 def push_bank():
-    return handover.push_test_bank(envs.make, JOYSTICK, STARTS, seed=SEED)
+    return push.push_test_bank(envs.make, JOYSTICK, STARTS, seed=SEED)
 
 
 @pytest.mark.slow
@@ -91,7 +91,7 @@ def test_unified_torso_shoves_are_the_push_tests_turned_to_the_heading():
     standing robot turned to its heading: the base moves along the shove (forward 2 : backward 1) and the
     robot's momentum is the test's impulse."""
     env = envs.make("unified", config_overrides={"knockdown.prob": 1.0, "knockdown.shove": "torso",
-                                                 "fallen_bank_size": 2})
+                                                 "fallen.bank_starts": 2})
     model = env.mj_model
     heading = 2.0
     qpos = np.asarray(t1model.keyframe_qpos(model, "home")).copy()
@@ -110,27 +110,27 @@ def test_unified_torso_shoves_are_the_push_tests_turned_to_the_heading():
         assert plans.PUSH_IMPULSE_NS * (1 - plans.PUSH_IMPULSE_SPREAD) - 1e-3 <= size
         assert size <= plans.PUSH_IMPULSE_NS * (1 + plans.PUSH_IMPULSE_SPREAD) + 1e-3
     with pytest.raises(ValueError, match="knockdown.shove 'elbow'"):
-        envs.make("unified", config_overrides={"knockdown.shove": "elbow", "fallen_bank_size": 2})
+        envs.make("unified", config_overrides={"knockdown.shove": "elbow", "fallen.bank_starts": 2})
 
 
 def test_unified_mixed_knockdowns_are_base_pushes_and_torso_shoves():
     """knockdown.shove "mixed": torso_share of the knockdowns are the push test's torso shove (_apply_push), the
     rest base-speed knockdowns (_push_magnitude)."""
     env = envs.make("unified", config_overrides={"knockdown.prob": 1.0, "knockdown.shove": "mixed",
-                                                 "knockdown.torso_share": 0.25, "fallen_bank_size": 2})
+                                                 "knockdown.torso_share": 0.25, "fallen.bank_starts": 2})
     assert env._torso_shove is not None
     walk_hi = envs.default_config("joystick").push.magnitude_range_mps[1]
     speeds = np.asarray(jax.vmap(env._push_magnitude)(jax.random.split(jax.random.PRNGKey(5), 4000)))
     assert 0.72 < np.mean(speeds > walk_hi) < 0.78           # 3000 ± 27 (1 σ) of 4000 draws
     with pytest.raises(ValueError, match="knockdown.torso_share must be in"):
         envs.make("unified", config_overrides={"knockdown.shove": "mixed", "knockdown.torso_share": 1.5,
-                                               "fallen_bank_size": 2})
+                                               "fallen.bank_starts": 2})
 
 
 @pytest.mark.slow
 def test_unified_push_is_a_shove_only_when_due_and_drawn():
     env = envs.make("unified", config_overrides={"knockdown.prob": 1.0, "knockdown.shove": "torso",
-                                                 "fallen_bank_size": 2})
+                                                 "fallen.bank_starts": 2})
     qpos = jax.numpy.asarray(t1model.keyframe_qpos(env.mj_model, "home"))
     data = env.make_data(qpos, jax.numpy.zeros(env.mj_model.nv))
     keys = jax.random.split(jax.random.PRNGKey(1), 2)

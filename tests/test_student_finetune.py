@@ -119,7 +119,7 @@ def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
 @pytest.fixture(scope="module")
 def skills_env():
     from training import envs
-    return envs.make("unified", config_overrides={"reward.mode": "skills", "fallen_bank_size": 2,
+    return envs.make("unified", config_overrides={"reward.mode": "skills", "fallen.bank_starts": 2,
                                                   "reward.course.progress_weight": 10.0})
 
 
@@ -152,7 +152,7 @@ def test_the_skills_reward_pays_each_expert_its_own_on_its_side_of_the_switch(sk
     assert 0.0 < float(terms["reward/getup"]) < bonus       # the switch is no wall to stay below
     with pytest.raises(ValueError, match="reward.mode 'walk'"):
         from training import envs
-        envs.make("unified", config_overrides={"reward.mode": "walk", "fallen_bank_size": 2})
+        envs.make("unified", config_overrides={"reward.mode": "walk", "fallen.bank_starts": 2})
 
 
 def test_wall_course_samples_keep_the_full_bc_weight_where_held(skills_env):

@@ -23,12 +23,12 @@ OBS_SIZES = {  # actor size from the terms; critic = actor + base extras + task 
     "unified": (82, 82 + 37 + 6),
 }
 SMALL = {"episode_length": 20}
-GETUP_SMALL = {"episode_length": 20, "fallen_bank_size": 2}
+GETUP_SMALL = {"episode_length": 20, "fallen.bank_starts": 2}
 
 
 def _make(task, **extra):
     # tasks with fallen starts get a 2-state bank: precomputing the default 128 takes minutes
-    over = dict(GETUP_SMALL if "fallen_bank_size" in envs.default_config(task) else SMALL)
+    over = dict(GETUP_SMALL if "fallen" in envs.default_config(task) else SMALL)
     over.update(extra)
     return envs.make(task, config_overrides=over)
 

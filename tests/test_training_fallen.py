@@ -1,5 +1,5 @@
 """The getup tasks' fallen starts are the loop's: the settled fall after the runtime's PREPARE ramp
-(training/envs/fallen.py). Constants against the runtime's headers, the ramp's effect, and the state at
+(training/envs/starts/fallen.py). Constants against the runtime's headers, the ramp's effect, and the state at
 the first POLICY tick of a real lockstep run (t1-runtime + sim_hil) against the precomputed one."""
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ import pytest
 from sim_hil import config as sim_config
 from common import model as t1model
 from sim_hil.launch import ROOT
-from training.envs import base, fallen
+from training.envs import base
+from training.envs.starts import fallen
 
 RUNTIME_INCLUDE = ROOT / "runtime" / "include" / "t1rt"
 UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"

@@ -1,5 +1,5 @@
 """The low-wall course in the training worlds (training/envs/wall_course.py): the evaluation's walls moved
-down +x, approaches to them, the landings of a joystick expert that walked into one (handover.wall_bank),
+down +x, approaches to them, the landings of a joystick expert that walked into one (wall_approach.wall_bank),
 and the unified env and the evaluation that start there. The slow tests roll the shipped joystick expert on
 the CPU physics."""
 from __future__ import annotations
@@ -11,7 +11,8 @@ import pytest
 
 from common import scenarios
 from training import envs
-from training.envs import handover, wall_course
+from training.envs import wall_course
+from training.envs.starts import wall_approach
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 JOYSTICK = "policies/joystick/joystick.safetensors"
@@ -75,10 +76,10 @@ def test_course_progress_is_banked_and_paid_at_no_more_than_the_command():
 
 
 def test_envs_have_the_course_only_when_asked():
-    plain = envs.make("getup", config_overrides={"backend": "cpu", "fallen_bank_size": 2})
+    plain = envs.make("getup", config_overrides={"backend": "cpu", "fallen.bank_starts": 2})
     assert not plain.has_wall_course() and plain.mj_model.ngeom == envs.make(
-        "getup", config_overrides={"fallen_bank_size": 2}).mj_model.ngeom
-    walled = envs.make("unified", config_overrides={"backend": "cpu", "fallen_bank_size": 2, "walls.prob": 0.5})
+        "getup", config_overrides={"fallen.bank_starts": 2}).mj_model.ngeom
+    walled = envs.make("unified", config_overrides={"backend": "cpu", "fallen.bank_starts": 2, "walls.prob": 0.5})
     assert walled.has_wall_course()
     assert _wall_xs(walled.mj_model)[0] == pytest.approx(wall_course.FIRST_WALL_X_M)
 
@@ -88,12 +89,12 @@ def test_envs_have_the_course_only_when_asked():
     ("unified", {"backend": "cpu", "walls.prob": 1.5}, r"walls.prob must be in \[0, 1\]")])
 def test_bad_wall_configs_are_refused(task, over, why):
     with pytest.raises(ValueError, match=why):
-        envs.make(task, config_overrides={"fallen_bank_size": 2, **over})
+        envs.make(task, config_overrides={"fallen.bank_starts": 2, **over})
 
 
 @pytest.fixture(scope="module")
 def wall_bank():
-    return handover.wall_bank(envs.make, JOYSTICK, APPROACHES, SEED)
+    return wall_approach.wall_bank(envs.make, JOYSTICK, APPROACHES, SEED)
 
 
 @pytest.mark.slow
@@ -114,7 +115,7 @@ def test_wall_bank_holds_falls_at_the_first_wall(wall_bank):
 
 @pytest.mark.slow
 def test_unified_wall_episodes_walk_at_the_course_and_hold_their_command():
-    env = envs.make("unified", config_overrides={"backend": "cpu", "fallen_bank_size": 2, "walls.prob": 1.0,
+    env = envs.make("unified", config_overrides={"backend": "cpu", "fallen.bank_starts": 2, "walls.prob": 1.0,
                                                  "command_resample_steps": 1, "noise.level": 0.0})
     state = jax.jit(env.reset)(jax.random.PRNGKey(5))
     x = float(state.data.qpos[0])

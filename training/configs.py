@@ -12,7 +12,7 @@ from training.overrides import apply_overrides
 PRESETS = ("gpu", "cpu", "toy")
 # Env settings of the toy preset (applied where the task's config has the key): 0.4 s episodes and a
 # small bank of host-precomputed fallen starts.
-TOY_ENV_OVERRIDES = {"episode_length": 20, "fallen_bank_size": 2}
+TOY_ENV_OVERRIDES = {"episode_length": 20, "fallen.bank_starts": 2}
 
 
 def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:

@@ -192,7 +192,6 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     continue from that run's (STATE_FILE), so a campaign goes on across sessions."""
     import tqdm
     from brax.training.agents.bc import networks as bc_networks
-    from brax.training.agents.bc import train as bc
 
     checkpoints.jax_setup()
     t_start = time.monotonic()
@@ -230,21 +229,8 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     # written now, so that a run killed mid-call (a session cut off) can still be continued with --from
     _write_state(run_dir, before, phase_env_steps, before["phases"], before["steps"], artifact=f"{name}.safetensors",
                  command=command or "unknown", date=checkpoints.utc_now(), finished=False)
-    ckpt_root = (run_dir / checkpoints.CHECKPOINT_DIR).resolve()
-    params, stopped = None, False
-    try:
-        _, params, _ = bc.train(
-            demo_length=cfg.demo_length, teacher_inference_fn=teacher,
-            normalize_observations=cfg.normalize_observations, epochs=cfg.epochs, tanh_squash=cfg.tanh_squash,
-            env=wrapped, num_envs=cfg.num_envs, num_eval_envs=cfg.num_eval_envs,
-            eval_length=round(cfg.eval_length_factor * episode_length), batch_size=cfg.batch_size,
-            scramble_time=cfg.scramble_time or episode_length, network_factory=factory, progress_fn=progress_fn,
-            seed=seed, learning_rate=cfg.learning_rate, dagger_steps=cfg.dagger_steps,
-            dagger_beta_fn=beta_schedule(cfg.beta_teacher_phases), num_evals=cfg.num_evals,
-            reset=cfg.reset, save_checkpoint_path=str(ckpt_root),
-            restore_checkpoint_path=before["checkpoint"])
-    except _Stop:
-        stopped = True
+    params, stopped = _train_bc(cfg, wrapped, teacher, factory, progress_fn, seed, episode_length,
+                                (run_dir / checkpoints.CHECKPOINT_DIR).resolve(), before["checkpoint"])
     bar.close()
     log.close()
     curves.plot_curves(log.csv_path, run_dir / curves.PNG_NAME, title=f"{name} (DAgger)")
@@ -263,6 +249,26 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
         from training.train import ship_artifact
         ship_artifact(artifact, {"task": f"distill ({task} env)"})
     return DistillResult(run_dir, artifact, phases, rule, minutes)
+
+
+def _train_bc(cfg, env, teacher, network_factory, progress_fn, seed: int, episode_length: int, ckpt_root: Path,
+              restore) -> tuple[object, bool]:
+    """brax bc's DAgger loop with the run's settings, checkpointing under `ckpt_root`, from `restore` (a
+    checkpoint or None); (its params, or None when --max-minutes stopped it, and whether it was stopped)."""
+    from brax.training.agents.bc import train as bc
+    try:
+        _, params, _ = bc.train(
+            demo_length=cfg.demo_length, teacher_inference_fn=teacher,
+            normalize_observations=cfg.normalize_observations, epochs=cfg.epochs, tanh_squash=cfg.tanh_squash,
+            env=env, num_envs=cfg.num_envs, num_eval_envs=cfg.num_eval_envs,
+            eval_length=round(cfg.eval_length_factor * episode_length), batch_size=cfg.batch_size,
+            scramble_time=cfg.scramble_time or episode_length, network_factory=network_factory,
+            progress_fn=progress_fn, seed=seed, learning_rate=cfg.learning_rate, dagger_steps=cfg.dagger_steps,
+            dagger_beta_fn=beta_schedule(cfg.beta_teacher_phases), num_evals=cfg.num_evals,
+            reset=cfg.reset, save_checkpoint_path=str(ckpt_root), restore_checkpoint_path=restore)
+    except _Stop:
+        return None, True
+    return params, False
 
 
 def export_phase(run_dir, phase: int, name: str, like=None) -> Path:

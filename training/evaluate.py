@@ -178,7 +178,7 @@ def summarize(rows: list[dict]) -> dict:
 
 START_KINDS = ("fallen", "knockdown", "wall", "push")   # fallen: the loop's fallen starts; knockdown: mid-fall after
 # a push; wall: mid-fall after walking into the low-wall course (the getup env then has the course); push: mid-fall
-# in the loop's push test (handover.push_test_bank: its torso shoves, forward and backward 2 : 1)
+# in the loop's push test (starts/push.py: its torso shoves, forward and backward 2 : 1)
 JOYSTICK_STARTS = ("knockdown", "wall", "push")   # the banks a joystick expert makes
 ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attempts_per_fall", "{:.2f}"),
         ("attempts per episode (the loop's push test counts per trial)", "attempts_per_episode", "{:.2f}"),
@@ -285,7 +285,7 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
              start_joystick: str | None = None) -> Path:
     """Run the evaluation; returns the path of report.md. starts="knockdown": instead of fallen starts, the
     states where `start_joystick`, knocked over from `seeds` standing starts (bank seed `first_seed`),
-    hands over to the getup policy mid-fall (training/envs/handover.py); the ones it caught are left out.
+    hands over to the getup policy mid-fall (training/envs/starts/); the ones it caught are left out.
     starts="wall": the same after `start_joystick` walked into the low-wall course from `seeds` approaches
     (the getup env then has the course in its world); starts="push": after the loop's push test shoved it."""
     from training import checkpoints, envs
@@ -304,14 +304,8 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     if starts == "fallen":
         qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
     else:
-        from training.envs import handover
-        if starts == "knockdown":
-            qpos, qvel = handover.knockdown_bank(envs.make, str(start_joystick), seeds, first_seed)
-        elif starts == "push":
-            qpos, qvel = handover.push_test_bank(envs.make, str(start_joystick), seeds, first_seed)
-        else:
-            qpos, qvel = handover.wall_bank(envs.make, str(start_joystick), seeds, first_seed,
-                                            float(env.config.wall_course.first_wall_x_m))
+        from training.envs.starts import landing_bank
+        qpos, qvel = landing_bank(starts)(envs.make, env, str(start_joystick), seeds, first_seed)
     policies = {role: load_policy(path) for role, path in (("policy", policy_path), ("baseline", baseline))
                 if path is not None}   # both checked before either runs
     for policy in policies.values():

@@ -18,8 +18,11 @@ from ml_collections import config_dict
 
 from training.configs import ppo_config
 
-# old dotted path → today's, per config ("env", "ppo"); none renamed yet
-RENAMED: dict[str, dict[str, str]] = {"env": {}, "ppo": {}}
+# old dotted path → today's, per config ("env", "ppo")
+RENAMED: dict[str, dict[str, str]] = {
+    "env": {"fallen_bank_size": "fallen.bank_starts", "fallen_seed": "fallen.seed",
+            "fallen_prepare_s": "fallen.prepare_s"},
+    "ppo": {}}
 
 # removed dotted path → its neutral value: a scalar the saved value must equal, or, for a group, the
 # {field: value} that switches the group off (its other fields are then irrelevant)

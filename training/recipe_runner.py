@@ -129,9 +129,9 @@ def _overrides(config: dict, toy: bool) -> list[str]:
     (what the learner is, the fine-tune's LEARNER_KEYS, stays the stage's) and the start banks are small."""
     if not toy:
         return [f"{k}={v!r}" for k, v in config.items()]
-    from training.envs import start_banks
+    from training.envs import starts
     from training.student_finetune import LEARNER_KEYS
-    banked = tuple(f"env.{s.group}" for s in start_banks.SOURCES)
+    banked = tuple(f"env.{s.group}" for s in starts.SOURCES if {"prob", "bank_starts"} <= set(s.functions()[0]()))
     out = [f"{k}={v!r}" for k, v in config.items()
            if k.startswith(LEARNER_KEYS) or not k.startswith(("ppo.", "bc."))]
     for k, v in config.items():

@@ -108,7 +108,7 @@ def check_teacher(getup_path, joystick_path, num_envs: int = 16, seed: int = 0, 
     from training import checkpoints, envs
     checkpoints.jax_setup()
     getup, joystick = load_expert(getup_path, "getup"), load_expert(joystick_path, "joystick")
-    overrides = {"fallen_bank_size": CHECK_FALLEN_STARTS} if "fallen_bank_size" in envs.default_config(task) else None
+    overrides = {"fallen.bank_starts": CHECK_FALLEN_STARTS} if "fallen" in envs.default_config(task) else None
     env = envs.make(task, config_overrides=overrides)
     student_terms = obsdef.TERMS_UNION
     to_student = TermAdapter(env.obs_terms, student_terms)

@@ -18,7 +18,7 @@ from typing import Callable
 
 from ml_collections import config_dict
 
-from training.envs.fallen import fallen_states
+from training.envs.starts.fallen import fallen_states
 from training.envs.randomize import domain_randomize
 
 # unified: the distillation env (walk, get pushed, fall, get up in one episode; envs/unified.py).

@@ -91,7 +91,7 @@ class T1Env(mjx_env.MjxEnv):
     def __init__(self, config: config_dict.ConfigDict, config_overrides: dict | None = None,
                  make_env: Callable | None = None) -> None:
         super().__init__(config, config_overrides)
-        # the task registry's envs.make: the landing banks roll another task's env (handover.py), which this
+        # the task registry's envs.make: the landing banks roll another task's env (starts/), which this
         # package's modules cannot import without an import circle; None: no bank can be built
         self._make_env = make_env
         cfg = self._config

@@ -16,8 +16,8 @@ Actor obs = Table 4.2, TERMS_GETUP (52). "success" = standing by common/events.p
 Episodes end early only on non-finite physics and, in stage 2 alone (ours), when the robot leaves the kneel
 downward (config.stage2_fall_trunk_height_m, stage2_fall_up_z): stage 2's Pose pays straight legs in any
 posture, and without the end PPO learned to lie or lean back with straight legs (LESSONS, `getup_stage2`).
-Ours, off by default: stage 2's reverse curriculum (start_path.py) and a share of the fallen starts from the
-start banks (start_banks.py).
+Ours, off by default: stage 2's reverse curriculum (starts/kneeling_path.py) and a share of the fallen starts from the
+start banks (starts/).
 """
 from __future__ import annotations
 
@@ -31,9 +31,10 @@ from mujoco_playground._src import mjx_env
 from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
-from training.envs import start_banks, start_path
+from training.envs import starts
+from training.envs.starts import kneeling_path
 from common.events import FALLEN_TRUNK_HEIGHT_M, STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
-from training.envs.fallen import fallen_states
+from training.envs.starts.fallen import fallen_states
 from training.envs.getup_config import default_config   # envs.make's config of this task
 
 STAGES = ("stage1", "stage2", "full")
@@ -52,7 +53,7 @@ class GetupBase(base.T1Env):
                              f"(fallen, kneeling, standing), got {self.start_probabilities()}")
         self._start_logits = jnp.log(probs)
         if float(probs[0]) > 0:
-            qpos, qvel = self.fallen_starts(int(cfg.fallen_bank_size), int(cfg.fallen_seed))
+            qpos, qvel = self.fallen_starts(int(cfg.fallen.bank_starts), int(cfg.fallen.seed))
         else:  # no fallen starts: skip the host precomputation
             qpos, qvel = self._home_qpos[None], jnp.zeros((1, self._mj_model.nv))
         self._fallen_qpos, self._fallen_qvel = jnp.asarray(qpos), jnp.asarray(qvel)
@@ -66,7 +67,7 @@ class GetupBase(base.T1Env):
     def fallen_starts(self, num: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """(qpos, qvel) of this env's fallen starts for seeds seed … seed + num − 1 (training and evaluation):
         after the runtime's PREPARE ramp, under this env's supervisor settings."""
-        return fallen_states(num, seed, float(self._config.fallen_prepare_s), self.host_supervisor())
+        return fallen_states(num, seed, float(self._config.fallen.prepare_s), self.host_supervisor())
 
     def host_supervisor(self) -> tuple[float, float]:
         """Rule R6 as the host rollouts of the start banks take it: (max target speed [rad/s], range fraction)."""
@@ -158,12 +159,12 @@ class Getup(GetupBase):
         self._kneel_pose = self._kneel_qpos[7:]
         rc = self._config.reverse_curriculum
         self._path_bank = None
-        if not (0.0 <= rc.max_progress <= start_path.PATH_END and 0.0 <= rc.kneel_prob <= 1.0):
-            raise ValueError(f"reverse_curriculum: max_progress must be in [0, {start_path.PATH_END}] and "
+        if not (0.0 <= rc.max_progress <= kneeling_path.PATH_END and 0.0 <= rc.kneel_prob <= 1.0):
+            raise ValueError(f"reverse_curriculum: max_progress must be in [0, {kneeling_path.PATH_END}] and "
                              f"kneel_prob in [0, 1], got {rc.max_progress} and {rc.kneel_prob}")
         if self._config.stage == "stage2" and rc.max_progress > 0:
-            starts = start_path.bank_range(rc.min_progress, rc.max_progress, int(rc.bank_size))
-            bank = start_path.path_bank(self._mj_model, np.asarray(self._home_qpos), np.asarray(self._kneel_qpos),
+            starts = kneeling_path.bank_range(rc.min_progress, rc.max_progress, int(rc.bank_size))
+            bank = kneeling_path.path_bank(self._mj_model, np.asarray(self._home_qpos), np.asarray(self._kneel_qpos),
                                         rc.left_leg_waypoints, int(rc.bank_size))
             self._path_bank = jnp.asarray(bank[starts], jnp.float32)
         self._fallen_banks = self._load_fallen_banks()
@@ -173,13 +174,13 @@ class Getup(GetupBase):
             raise ValueError(f"stage1_gate_reward must be >= 0, got {self._stage1_gate_reward}")
 
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
-        """(share of the fallen starts, (qpos, qvel)) of the configured start sources (start_banks.py)."""
+        """(share of the fallen starts, (qpos, qvel)) of the configured start sources (starts/)."""
         return [(prob, tuple(jnp.asarray(x) for x in bank))
-                for prob, bank in start_banks.fallen_share_banks(self, self._config)]
+                for prob, bank in starts.fallen_share_banks(self, self._config)]
 
     def _start_state(self, rng):
         """The stage's start; with the reverse curriculum on, a stage-2 start drawn along the start path; with
-        start banks (start_banks.py), a share of the fallen ones from those banks."""
+        start banks (starts/), a share of the fallen ones from those banks."""
         if self._path_bank is None and not self._fallen_banks:
             return super()._start_state(rng)
         if self._path_bank is None:

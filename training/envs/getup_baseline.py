@@ -23,6 +23,7 @@ import jax.numpy as jnp
 from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
+from training.envs import starts
 from training.envs.getup import GetupBase
 from training.envs.getup_config import getup_common_config
 
@@ -33,6 +34,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg = getup_common_config()
     cfg.start_probs = [1.0, 0.0, 0.0]     # fallen starts only
     cfg.energy_weight = 0.0               # × §4.7's energy cost; 0 = the seed's baseline (docstring)
+    starts.add_config_groups(cfg, "getup_baseline")   # its fallen starts: the keyframe expert's
     return cfg
 
 

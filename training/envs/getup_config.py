@@ -5,9 +5,8 @@ from __future__ import annotations
 from ml_collections import config_dict
 
 from common import observation as obsdef
-from training.envs import base, start_banks
+from training.envs import base, starts
 from training.envs import getup_rewards as G
-from training.envs.fallen import PREPARE_S
 
 GETUP_ACTION_SCALE_RAD = 2.0    # rad per unit action (see getup_common_config)
 
@@ -24,11 +23,6 @@ def getup_common_config() -> config_dict.ConfigDict:
     cfg.obs_terms = [list(t) for t in obsdef.TERMS_GETUP]
     cfg.obs_noise_scale = 0.0            # U(−1, 1)·this per observation entry; 0 = off (seed's fine-tune: 1)
     cfg.start_probs = [0.4, 0.4, 0.2]    # (fallen, kneeling, standing) for the full task
-    cfg.fallen_bank_size = 128           # distinct precomputed fallen starts
-    cfg.fallen_seed = 0
-    # fallen starts = the state after the runtime's PREPARE ramp of this length [s] (training/envs/fallen.py:
-    # the loop hands the policy that robot, not the settled fall); 0 = the settled fall itself
-    cfg.fallen_prepare_s = PREPARE_S
     cfg.standing_targets_m = [G.STANDING_TORSO_M, G.STANDING_WAIST_M]   # (torso, waist) after the gate
     return cfg
 
@@ -47,17 +41,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)
     cfg.stage2_fall_trunk_height_m = 0.35   # stage 2 ends when the trunk drops below this [m] (docstring)
     cfg.stage2_fall_up_z = 0.7              # ... or when the trunk's up_z falls below this (46° of tilt)
-    # a share of the fallen starts from the start banks (start_banks.py; ours),
-    # shares summing to at most 1; all off by default
-    start_banks.add_config_groups(cfg, "getup")
-    # stage 2's reverse curriculum (training/envs/start_path.py; ours, not the seed's). max_progress 0 = off:
-    # every stage-2 episode starts at the kneel, as the seed's. Else a start is drawn at progress
-    # U{min_progress … max_progress} along standing (0) → half kneel (1) → kneel (2), or at the kneel with
-    # kneel_prob. min_progress > 0 spends the starts on the part still to learn (the swing, p 1 … 2).
-    # left_leg_waypoints: (progress, left hip pitch, knee, ankle pitch [rad]); 1.0 is the half kneel, the rest
-    # swing the leg back with the knee lifted (start_path.py's docstring)
-    cfg.reverse_curriculum = config_dict.create(
-        max_progress=0.0, min_progress=0.0, kneel_prob=0.25, bank_size=41,
-        left_leg_waypoints=[[1.0, -1.5, 2.2, -0.7], [1.3, -1.4, 2.3, -0.87], [1.5, -1.2, 2.34, -0.87],
-                            [1.6, -0.9, 2.34, -0.87], [1.68, -0.75, 2.34, -0.87], [1.75, -0.5, 2.3, -0.05]])
+    # the fallen starts and stage 2's reverse curriculum; a share of the fallen starts from the start banks
+    # (ours), shares summing to at most 1, all off by default (training/envs/starts/)
+    starts.add_config_groups(cfg, "getup")
     return cfg

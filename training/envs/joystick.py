@@ -17,7 +17,9 @@ from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
 from common import observation as obsdef
-from training.envs import base, handover, start_banks
+from training.envs import base, starts
+from training.envs.starts import handover
+from training.envs.starts.bank import place
 from training.envs import joystick_rewards as R
 
 # Playground's pose-cost weights per joint (head, arms, waist, legs), joint order.
@@ -37,7 +39,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.reset = config_dict.create(xy_range_m=0.5, yaw_range_rad=3.14, joint_scale=[0.5, 1.5],
                                    root_vel_range=0.5)
     cfg.push = config_dict.create(enable=True, interval_range_s=[5.0, 10.0], magnitude_range_mps=[0.1, 1.0])
-    start_banks.add_config_groups(cfg, "joystick")   # hand-over starts (handover.handover_config; ours)
+    starts.add_config_groups(cfg, "joystick")   # hand-over starts (starts/handover.py; ours)
     cfg.reward = config_dict.create(
         scales=config_dict.create(
             tracking_lin_vel=1.0, tracking_ang_vel=0.5, lin_vel_z=0.0, ang_vel_xy=-0.15, orientation=-1.0,
@@ -135,7 +137,7 @@ class Joystick(base.T1Env):
         k_use, k_idx, _ = jax.random.split(rng, 3)   # three keys: the stream the hand-over stage trained on
         bank = self._handover
         idx = jax.random.randint(k_idx, (), 0, bank.qpos.shape[0])
-        hq, hv = handover.place(bank.qpos[idx], bank.qvel[idx], qpos[0:2], yaw)
+        hq, hv = place(bank.qpos[idx], bank.qvel[idx], qpos[0:2], yaw)
         h_act = obsdef.targets_to_action(self._default_pose, self._action_scale, bank.joint_targets[idx], jnp)
         use = jax.random.uniform(k_use) < self._config.handover.prob
         return jnp.where(use, hq, qpos), jnp.where(use, hv, qvel), jnp.where(use, h_act, last_act), command

@@ -5,7 +5,7 @@ The seed's student learns the whole task, so one episode mixes what the two expe
 the getup expert's fallen / kneeling / standing starts (getup.GetupBase); the joystick env's commands and pushes
 (borrowed from joystick.Joystick); 1000-step episodes that end only on non-finite physics (the student must get
 up); actor observation TERMS_UNION (82). Ours, off by default: knockdown.prob of the pushes are as hard as the
-loop's push test (handover.KNOCKDOWN_MPS, or knockdown.shove "torso": the test's own torso shove), and
+loop's push test (knockdown.KNOCKDOWN_MPS, or knockdown.shove "torso": the test's own torso shove), and
 walls.prob of the episodes walk into the low-wall course (wall_course.py) at a held forward command.
 
 Reward (reward.mode), per control step × ctrl_dt:
@@ -32,7 +32,10 @@ from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
 from common import observation as obsdef
-from training.envs import base, handover, wall_course
+from training.envs import base, starts, wall_course
+from training.envs.starts import knockdown
+from training.envs.starts.bank import place
+from training.envs.starts.push import TorsoShove
 from training.envs import getup_rewards as G
 from training.envs import joystick_rewards as R
 from common.events import STAND_HOLD_S
@@ -59,20 +62,17 @@ def default_config() -> config_dict.ConfigDict:
     # Starts: the getup expert's full-task settings; commands / pushes: the joystick expert's. Copied from
     # their configs (not restated) so the three tasks cannot drift apart.
     cfg.start_probs = list(getup.start_probs)
-    cfg.fallen_bank_size = getup.fallen_bank_size
-    cfg.fallen_seed = getup.fallen_seed
-    cfg.fallen_prepare_s = getup.fallen_prepare_s
     cfg.standing_targets_m = list(getup.standing_targets_m)
     cfg.command_resample_steps = joy.command_resample_steps
     cfg.zero_command_prob = joy.zero_command_prob
     cfg.push = config_dict.create(**joy.push.to_dict())
     # knockdown.prob of the pushes are knockdowns (module docstring). shove "velocity": the base speed changes by
     # magnitude_range_mps in a random direction; "torso": the loop's push test itself, its torso impulse
-    # forward or backward (2 : 1) off the heading (handover.push_test_bank, TorsoShove); "mixed": both kinds,
+    # forward or backward (2 : 1) off the heading (starts/push.py); "mixed": both kinds,
     # torso_share of the knockdowns the torso shove
-    cfg.knockdown = config_dict.create(prob=0.0, magnitude_range_mps=list(handover.KNOCKDOWN_MPS), shove="velocity",
+    cfg.knockdown = config_dict.create(prob=0.0, magnitude_range_mps=list(knockdown.KNOCKDOWN_MPS), shove="velocity",
                                        torso_share=0.5)
-    cfg.walls = config_dict.create(prob=0.0)   # share of episodes that walk into the low-wall course
+    starts.add_config_groups(cfg, "unified")   # the getup tasks' fallen starts; walls: the course's share
     cfg.soft_joint_pos_limit_factor = joy.soft_joint_pos_limit_factor
     cfg.reward = config_dict.create(
         mode="monitor",   # or "skills" (module docstring)
@@ -137,7 +137,7 @@ class Unified(GetupBase):
         self._torso_share = {"velocity": 0.0, "torso": 1.0}.get(shove, float(kd.torso_share))
         if not 0.0 <= self._torso_share <= 1.0:
             raise ValueError(f"knockdown.torso_share must be in [0, 1], got {self._torso_share}")
-        self._torso_shove = handover.TorsoShove(self._mj_model, self._home_qpos) if self._torso_share > 0 else None
+        self._torso_shove = TorsoShove(self._mj_model, self._home_qpos) if self._torso_share > 0 else None
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_cmd, k_push, k_obs = jax.random.split(rng, 5)
@@ -148,7 +148,7 @@ class Unified(GetupBase):
             rng, k_course, k_approach = jax.random.split(rng, 3)
             course = jax.random.bernoulli(k_course, self._wall_share())
             xy, yaw, course_command = wall_course.course_start(k_approach, self._config.wall_course)
-            standing_qpos, standing_qvel = handover.place(self._home_qpos, jnp.zeros_like(qvel), xy, yaw)
+            standing_qpos, standing_qvel = place(self._home_qpos, jnp.zeros_like(qvel), xy, yaw)
             qpos, qvel = jnp.where(course, standing_qpos, qpos), jnp.where(course, standing_qvel, qvel)
             kind = jnp.where(course, START_KINDS.index("standing"), kind)
             command = jnp.where(course, course_command, command)

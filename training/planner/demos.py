@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from common.render import render_frames, tracking_camera   # first: it picks the offscreen GL before mujoco loads
-from training.envs import demo_starts
+from training.envs.starts import demos as demo_starts
 from training.planner.mppi import Demonstration
 
 SIDES = ("face_down", "on_back", "side")

@@ -7,7 +7,7 @@ import numpy as np
 from common import events
 from common import model as t1model
 from messages.contract import JOINT_NAMES, NUM_JOINTS, joint_index
-from training.envs.start_path import place_on_floor
+from training.envs.starts.kneeling_path import place_on_floor
 
 WAYPOINTS = ("hands_knees", "heel_sit", "kneel")
 HIP_PITCHES = ("Left_Hip_Pitch", "Right_Hip_Pitch")

@@ -1,12 +1,12 @@
 """The seed's keyframe getup (§4.5–4.8): stage 1 rises from fallen to the kneel keyframe, stage 2 stands from
 the kneel, the full task fine-tunes stage 2 with fallen / kneeling / standing starts (0.4 / 0.4 / 0.2) and the
 per-step gated rewards, then the energy (§4.7) and observation-noise (§4.6) fine-tunes. Ours, stated in the
-card: stage 2 learns along a reverse curriculum of starts from the kneel up the lunge (start_path.py), first the
+card: stage 2 learns along a reverse curriculum of starts from the kneel up the lunge (envs/starts/kneeling_path.py), first the
 whole path, then its swing, then the whole path again; the runtime's target rule R6 is in every stage.
 
 Stage 1 learns from the sampling planner's rises to the kneel (`python -m training.planner`; six periods of PPO
 from the floor never reached it: training/LESSONS.md): every episode starts at a state of a rise (velocities
-included) at most window_s before it arrived at the kneel (envs/demo_starts.py), the window widened stage by
+included) at most window_s before it arrived at the kneel (envs/starts/demos.py), the window widened stage by
 stage (Backplay), then half the episodes from the loop's fallen starts; the seed's stage-1 reward plus a
 reward while §4.8's gate holds. Stage 1 is not yet joined to the full stage, which starts from stage 2."""
 from training.recipe import Recipe, Stage

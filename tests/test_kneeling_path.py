@@ -1,10 +1,10 @@
-"""Stage 2's reverse curriculum (training/envs/start_path.py): the path's poses and the env's starts."""
+"""Stage 2's reverse curriculum (training/envs/starts/kneeling_path.py): the path's poses and the env's starts."""
 import mujoco
 import numpy as np
 import pytest
 
 from common import model as t1
-from training.envs import start_path
+from training.envs.starts import kneeling_path
 
 HALF_KNEEL_RAD = (-1.5, 2.2, -0.7)      # left hip pitch, knee, ankle pitch at progress 1
 HALF_KNEEL_HOLD_S = 3.0
@@ -27,7 +27,7 @@ def waypoints():
 @pytest.fixture(scope="module")
 def bank(model, waypoints):
     """41 starts: index 20 is progress 1 (the half kneel), 40 the kneel."""
-    return start_path.path_bank(model, t1.keyframe_qpos(model, "home"), t1.keyframe_qpos(model, "kneel"),
+    return kneeling_path.path_bank(model, t1.keyframe_qpos(model, "home"), t1.keyframe_qpos(model, "kneel"),
                                 waypoints, 41)
 
 
@@ -37,7 +37,7 @@ def test_path_runs_from_standing_to_the_kneel(model, bank):
     assert np.allclose(bank[0][7:], home[7:]) and bank[0][2] == pytest.approx(home[2], abs=0.005)
     # the midpoint is the half kneel: left leg as given, right leg as the kneel
     half = bank[20]
-    for name, angle in zip(start_path.LEFT_LEG, HALF_KNEEL_RAD):
+    for name, angle in zip(kneeling_path.LEFT_LEG, HALF_KNEEL_RAD):
         assert half[model.joint(name).qposadr[0]] == pytest.approx(angle)
     right = [model.joint(n).qposadr[0] for n in ("Right_Hip_Pitch", "Right_Knee_Pitch", "Right_Ankle_Pitch")]
     assert np.allclose(half[right], kneel[right])
@@ -75,26 +75,26 @@ def test_half_kneel_holds_under_shared_pd_on_its_left_foot(model, bank):
 
 
 def test_progress_and_bank_limits():
-    assert start_path.bank_range(0.0, 2.0, 41) == slice(0, 41)
-    assert start_path.bank_range(0.0, 1.0, 41) == slice(0, 21)
-    assert start_path.bank_range(0.0, 0.05, 41) == slice(0, 2)
-    assert start_path.bank_range(1.0, 2.0, 41) == slice(20, 41)      # the swing, half kneel included
-    assert start_path.bank_range(1.01, 1.1, 41) == slice(21, 23)
+    assert kneeling_path.bank_range(0.0, 2.0, 41) == slice(0, 41)
+    assert kneeling_path.bank_range(0.0, 1.0, 41) == slice(0, 21)
+    assert kneeling_path.bank_range(0.0, 0.05, 41) == slice(0, 2)
+    assert kneeling_path.bank_range(1.0, 2.0, 41) == slice(20, 41)      # the swing, half kneel included
+    assert kneeling_path.bank_range(1.01, 1.1, 41) == slice(21, 23)
     for lo, hi in ((0.0, 0.0), (0.0, -1.0), (0.0, 2.5), (1.5, 1.0), (-0.1, 1.0)):
         with pytest.raises(ValueError, match="max_progress"):
-            start_path.bank_range(lo, hi, 41)
+            kneeling_path.bank_range(lo, hi, 41)
     with pytest.raises(ValueError, match="progress"):
-        start_path.pose_at([(0.0, np.zeros(3)), (2.0, np.ones(3))], 2.1)
-    assert np.allclose(start_path.pose_at([(0.0, np.zeros(3)), (0.5, np.ones(3)), (2.0, np.zeros(3))], 1.25), 0.5)
+        kneeling_path.pose_at([(0.0, np.zeros(3)), (2.0, np.ones(3))], 2.1)
+    assert np.allclose(kneeling_path.pose_at([(0.0, np.zeros(3)), (0.5, np.ones(3)), (2.0, np.zeros(3))], 1.25), 0.5)
     with pytest.raises(ValueError, match="bank_size"):
-        start_path.path_bank(None, None, None, [], 1)
+        kneeling_path.path_bank(None, None, None, [], 1)
 
 
 def test_bad_waypoints_are_refused(model):
     home, kneel = t1.keyframe_qpos(model, "home"), t1.keyframe_qpos(model, "kneel")
     for bad in ([[1.0, -1.5, 2.2]], [[1.2, -1.5, 2.2, -0.7], [1.1, -1.4, 2.3, -0.8]], [[2.0, 0.0, 1.9, 0.0]]):
         with pytest.raises(ValueError, match="left_leg_waypoints"):
-            start_path.path_points(model, home, kneel, bad)
+            kneeling_path.path_points(model, home, kneel, bad)
 
 
 def test_stage2_env_draws_starts_up_to_max_progress_and_at_the_kneel():
@@ -114,7 +114,7 @@ def test_stage2_env_draws_starts_up_to_max_progress_and_at_the_kneel():
     assert left_knee.max() <= HALF_KNEEL_RAD[1] + 1e-5 and len(np.unique(np.round(left_knee, 4))) == 21
     cfg.reverse_curriculum.min_progress, cfg.reverse_curriculum.max_progress = 1.0, 2.0   # the swing only
     swing = envs.make("getup", config=cfg)
-    bank = start_path.path_bank(env.mj_model, np.asarray(env._home_qpos), np.asarray(env._kneel_qpos),
+    bank = kneeling_path.path_bank(env.mj_model, np.asarray(env._home_qpos), np.asarray(env._kneel_qpos),
                                 cfg.reverse_curriculum.left_leg_waypoints, cfg.reverse_curriculum.bank_size)
     assert np.allclose(np.asarray(swing._path_bank), bank[20:], atol=1e-6)    # half kneel (p 1) … kneel
     cfg.reverse_curriculum.min_progress = 0.0
@@ -147,5 +147,5 @@ def test_cpu_backend_resets_a_batch_whose_start_velocity_is_shared():
 
 def test_render_strip_draws_one_frame_per_start(tmp_path):
     import PIL.Image
-    start_path.render_strip(str(tmp_path / "path.png"), size=3, px=64)
+    kneeling_path.render_strip(str(tmp_path / "path.png"), size=3, px=64)
     assert PIL.Image.open(tmp_path / "path.png").size == (3 * 64, 64)

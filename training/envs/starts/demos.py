@@ -15,9 +15,9 @@ import numpy as np
 from ml_collections import config_dict
 
 from common import events
-from training.envs import start_banks
+from training.envs.starts.bank import frozen_bank
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
+REPO_ROOT = Path(__file__).resolve().parents[3]
 DEMO_GLOB = "demo_*.npz"
 ARRAYS = ("qpos", "qvel", "trunk_height", "kneeling", "ctrl_dt")   # of each demonstration file (per step; [s])
 ARRIVAL_HEIGHT_M = events.KNEEL_GATE_HEIGHT_M - events.KNEEL_GATE_HEIGHT_TOL_M
@@ -70,4 +70,4 @@ def demo_bank(folder: str, window_s: float, num_starts: int, seed: int) -> tuple
     if not qpos:
         raise ValueError(f"demo_starts.folder {folder!r}: none of its {len(files)} demonstrations reached the kneel")
     qpos, qvel = np.concatenate(qpos), np.concatenate(qvel)
-    return start_banks.frozen_bank(np.random.default_rng(seed).integers(0, len(qpos), num_starts), qpos, qvel)
+    return frozen_bank(np.random.default_rng(seed).integers(0, len(qpos), num_starts), qpos, qvel)

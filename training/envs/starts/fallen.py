@@ -21,6 +21,7 @@ import functools
 
 import mujoco
 import numpy as np
+from ml_collections import config_dict
 
 from common.artifact import RUNTIME_LOOP_DT_S
 from common import model as t1model
@@ -33,6 +34,12 @@ PREPARE_KD = np.array([0.1, 0.1, 0.5, 1.5, 0.2, 0.2, 0.5, 1.5, 0.2, 0.2, 5.0,
                        7.5, 7.5, 3.0, 5.5, 0.5, 0.5, 7.5, 7.5, 3.0, 5.5, 0.5, 0.5])
 # runtime/include/t1rt/safety.hpp SafetyConfig.prepare_duration_s: the ramp `make eval-getup` runs [s]
 PREPARE_S = 2.0
+
+
+def fallen_config() -> config_dict.ConfigDict:
+    """The getup tasks' fallen starts: `bank_starts` distinct seeded states (seeds `seed` …), each the state after
+    the runtime's PREPARE ramp of `prepare_s` [s] (0 = the settled fall itself)."""
+    return config_dict.create(bank_starts=128, seed=0, prepare_s=PREPARE_S)
 
 
 @functools.lru_cache(maxsize=1)

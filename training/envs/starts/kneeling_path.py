@@ -13,7 +13,7 @@ point on the floor.
   p = 1     half kneel: right leg as the kneel, left foot forward flat on the floor (left hip pitch −1.5,
             knee 2.2, ankle −0.7 rad; foot pitch hip + knee + ankle = 0). Designed numerically (MuJoCo
             4.0.0): the flat-footed left legs whose sole is level with the right knee; held by the shared
-            PD gains for 3 s it sinks 3 cm and stays at up_z ≥ 0.97 (tests/test_training_start_path.py).
+            PD gains for 3 s it sinks 3 cm and stays at up_z ≥ 0.97 (tests/test_kneeling_path.py).
   p = 1 … 2 the left leg swings back to the kneel with its knee lifted and its shin folded (knee up to the
             joint's 2.34 rad, ankle at −0.87), so the right knee stays on the floor (root within 6 mm of the
             kneel's height over a 201-start bank), as when a person kneeling on both knees brings one foot
@@ -26,11 +26,24 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+from ml_collections import config_dict
 
 from common import model as t1model
 
 PATH_END = 2.0   # progress of the kneel
 LEFT_LEG = ("Left_Hip_Pitch", "Left_Knee_Pitch", "Left_Ankle_Pitch")
+
+
+def path_config() -> config_dict.ConfigDict:
+    """Stage 2's reverse curriculum. max_progress 0 = off: every stage-2 episode starts at the kneel, as the
+    seed's. Else a start is drawn at progress U{min_progress … max_progress} along the path, or at the kneel with
+    kneel_prob, from a bank of `bank_size` points; min_progress > 0 spends the starts on the part still to learn
+    (the swing, p 1 … 2). left_leg_waypoints: rows of (progress, left hip pitch, knee, ankle pitch [rad]); 1.0 is
+    the half kneel, the rest swing the leg back with the knee lifted (module docstring)."""
+    return config_dict.create(
+        max_progress=0.0, min_progress=0.0, kneel_prob=0.25, bank_size=41,
+        left_leg_waypoints=[[1.0, -1.5, 2.2, -0.7], [1.3, -1.4, 2.3, -0.87], [1.5, -1.2, 2.34, -0.87],
+                            [1.6, -0.9, 2.34, -0.87], [1.68, -0.75, 2.34, -0.87], [1.75, -0.5, 2.3, -0.05]])
 
 
 def with_left_leg(model: mujoco.MjModel, kneel_qpos: np.ndarray, left_leg_rad) -> np.ndarray:
@@ -101,8 +114,8 @@ def render_strip(out_png: str, size: int = 21, px: int = 200) -> None:
     save_side_strip(model, bank, out_png, lookat_m=(0.0, 0.0, 0.35), elevation_deg=-5.0, px=px)
 
 
-if __name__ == "__main__":   # MUJOCO_GL=osmesa python -m training.envs.start_path OUT.png
+if __name__ == "__main__":   # MUJOCO_GL=osmesa python -m training.envs.starts.kneeling_path OUT.png
     import sys
     if len(sys.argv) != 2:
-        sys.exit("usage: python -m training.envs.start_path OUT.png  (a strip of starts along the path)")
+        sys.exit("usage: python -m training.envs.starts.kneeling_path OUT.png  (a strip of starts along the path)")
     render_strip(sys.argv[1])
