@@ -11,8 +11,9 @@ For each task, in this process one after the other (same machine, same load):
   shipped): N, the median of brax's per-epoch `training/sps` after the first (which includes compilation),
   the number `python -m training train` records; R = N / M (issue: R ≥ 0.8 for getup and unified);
 * the run's profile: the shares of a steady env step's wall time spent in the C physics and in the host
-  callback's copies (cpu_backend.PROFILE), the rest being JAX (policy pass, PPO update, glue); and each core's
-  idle share over the whole run (/proc/stat; the first epoch's compilation is mostly one core);
+  callback's copies (cpu_backend.PROFILE), in the env's JAX code, the policy pass and PPO's update (each timed
+  alone at the run's sizes: train_profile.py), the rest (GAE, normaliser, PPO's loop); and each core's idle
+  share over the whole run (/proc/stat; the first epoch's compilation is mostly one core);
 * without --quick, the same PPO run on MJX (it compiles for minutes on a CPU) and the CPU/MJX ratio.
 No evaluation rollouts are run.
 """
@@ -81,6 +82,7 @@ def ppo_run(task: str, backend: str, updates: int) -> dict:
 
 def main(argv=None) -> int:
     from training import configs
+    from tests.bench import train_profile
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--tasks", nargs="+", choices=tuple(TASK_STAGES), default=list(TASK_STAGES))
     ap.add_argument("--updates", type=int, default=3, help="timed PPO updates per run (after a warm-up one)")
@@ -98,8 +100,10 @@ def main(argv=None) -> int:
         verdict = f"   target ≥ {target:g}: {'met' if share >= target else 'NOT met'}" if target else ""
         print(f"{task:9s} PPO {run['sps']:,.0f} env-steps/s = {share:.2f} of the raw physics rate ({raw:,.0f})"
               + verdict)
+        parts = {k: s * run["sps"] for k, s in train_profile.profile(task, TASK_STAGES[task]).items()}
+        rest = 1.0 - run["physics"] - run["copies"] - sum(parts.values())
         print(f"{'':9s} physics {run['physics']:.0%}, callback copies {run['copies']:.0%}, "
-              f"JAX (policy, update, glue) {1 - run['physics'] - run['copies']:.0%}; idle per core "
+              + "".join(f"{k} {v:.0%}, " for k, v in parts.items()) + f"rest {rest:.0%}; idle per core "
               f"{', '.join(f'{x:.0%}' for x in run['idle'])}; wall {run['wall_s']:.0f} s", flush=True)
         if not args.quick:
             mjx = ppo_run(task, "mjx", args.updates)
