@@ -177,3 +177,11 @@ def test_the_host_profile_counts_physics_and_copies():
     rate = train_bench.raw_physics_rate("joystick", num_envs=4)
     assert rate > 0 and cpu_backend.PROFILE.env_steps == 4 * train_bench.RAW_CONTROL_STEPS
     assert cpu_backend.PROFILE.physics_s > 0 and cpu_backend.PROFILE.copies_s > 0
+
+
+def test_the_bench_profile_times_each_part_of_a_ppo_step():
+    """make bench-train's env JAX, policy-pass and update rows, at the toy preset's sizes."""
+    from tests.bench import train_profile
+    parts = train_profile.profile("joystick", None, preset="toy")
+    assert set(parts) == {"env JAX", "policy pass", "update"}
+    assert all(0.0 < s < 1.0 for s in parts.values()), parts     # seconds per env step
