@@ -107,10 +107,9 @@ def bank_range(min_progress: float, max_progress: float, size: int) -> slice:
 def render_strip(out_png: str, size: int = 21, px: int = 200) -> None:
     """Side view of `size` placed starts along the path, left to right standing → kneel, as one PNG."""
     from common.render import save_side_strip
-    from training.envs.getup_config import default_config
     model = t1model.load_model()
     bank = path_bank(model, t1model.keyframe_qpos(model, "home"), t1model.keyframe_qpos(model, "kneel"),
-                     default_config().reverse_curriculum.left_leg_waypoints, size)
+                     path_config().left_leg_waypoints, size)
     save_side_strip(model, bank, out_png, lookat_m=(0.0, 0.0, 0.35), elevation_deg=-5.0, px=px)
 
 
