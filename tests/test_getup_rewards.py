@@ -166,6 +166,23 @@ def test_env_carries_the_latched_gate_through_steps():
     assert bool(state.info["gate"]) >= bool(expected)
 
 
+def test_gate_reached_counts_the_first_step_the_gate_holds():
+    """Stage 1's success: an episode's sum of gate_reached is 1 when §4.8's gate held at any step since the reset."""
+    env = envs.make("getup", config_overrides={"stage": "stage2", "episode_length": 20, "backend": "cpu"})
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))     # at the kneel keyframe, the gate's pose
+    step = jax.jit(env.step)
+    scale = jnp.asarray(env.manifest_fields()["action_scale"])
+    hold = jnp.asarray((env._kneel_pose - env._default_pose) / scale, jnp.float32)
+    reached, held = [], []
+    for _ in range(6):
+        state = step(state, hold)
+        reached.append(float(state.metrics["gate_reached"]))
+        held.append(bool(G.gate(state.info["trunk_height"], state.info["up"])))
+    assert any(held), "the kneel keyframe held by its own targets meets the gate at first"
+    first = held.index(True)
+    assert reached == [1.0 if i == first else 0.0 for i in range(6)], (reached, held)
+
+
 def test_stage_rewards(full_env):
     info = {"trunk_height": jnp.asarray(0.2), "waist_height": jnp.asarray(0.15), "up_z": jnp.asarray(0.0),
             "up": jnp.asarray(_tilted(90.0))}

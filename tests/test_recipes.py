@@ -140,6 +140,30 @@ def test_recipe_errors_name_the_problem(capsys, tmp_path):
         R.Recipe("x", "x", "", (R.Stage("a", kind="distill"),))
     with pytest.raises(ValueError, match="a teacher is getup and joystick"):
         R.Recipe("x", "x", "", (R.Stage("a", teacher={"getup": "g"}),))
+    with pytest.raises(ValueError, match="advance_at is a PPO stage's"):
+        R.Recipe("x", "x", "", (R.Stage("a", kind="distill", teacher={"getup": "g", "joystick": "j"},
+                                        advance_at=("eval/episode_gate_reached", 0.8)),))
+
+
+def test_a_backplay_stage_advances_once_its_metric_has_risen(tmp_path):
+    """advance_at: the run stops at the first evaluation after trained steps with the metric at the value (its
+    checkpoint saved just before), records it, and its recipe stage counts as complete."""
+    from types import SimpleNamespace
+    from training import train
+    state = {"name": "s", "env_steps": 0, "target_steps": 1000, "minutes": 0.0, "calls": [],
+             "advance_at": ["eval/episode_gate_reached", 0.8]}
+    run = train._Run(tmp_path, state, None, None, None, None)
+    epochs = train._Epochs(run, SimpleNamespace(backend="cpu"), None, "test", None, False, 0.0)
+    epochs.progress_fn(0, {"eval/episode_gate_reached": 0.9})        # the untrained policy's evaluation
+    epochs.progress_fn(100, {"eval/episode_gate_reached": 0.5})
+    with pytest.raises(train._Advanced):
+        epochs.progress_fn(200, {"eval/episode_gate_reached": 0.85})
+    saved = json.loads((tmp_path / checkpoints.RUN_STATE).read_text())
+    assert saved["advanced"] == {"env_steps": 200, "eval/episode_gate_reached": 0.85}
+    recipe = R.Recipe("r", "r", "", (R.Stage("near", task="getup", advance_at=("eval/episode_gate_reached", 0.8)),))
+    (tmp_path / "r" / "near").mkdir(parents=True)
+    (tmp_path / "r" / "near" / checkpoints.RUN_STATE).write_text(json.dumps(saved))
+    assert recipe_runner.stage_complete(tmp_path, recipe, recipe.stage("near"))
 
 
 def test_a_stage_kept_by_a_later_complete_stage_is_not_rerun(tmp_path):

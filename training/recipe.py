@@ -33,6 +33,9 @@ class Stage:
     # distill: {"getup": ref, "joystick": ref}; ppo: the same for a behaviour-cloning term (ppo.teacher.*)
     teacher: Mapping[str, str] = field(default_factory=dict)
     envs: int | None = None        # parallel envs where the stage needs other than its preset's
+    # ppo: (metric, value): the stage is complete at its first evaluation with the metric at or above the value
+    # (backplay: the start moves back along the demonstrations once success from it has risen); steps cap it
+    advance_at: tuple[str, float] | None = None
 
     def references(self) -> list[str]:
         """Every `@RECIPE/STAGE` this stage reads."""
@@ -56,6 +59,8 @@ class Recipe:
                 raise ValueError(f"recipe {self.name}, stage {s.name}: kind {s.kind!r} is not one of {KINDS}")
             if s.init is not None and not s.init.startswith(REF_PREFIX) and s.init not in names[:i]:
                 raise ValueError(f"recipe {self.name}, stage {s.name}: init {s.init!r} is not an earlier stage")
+            if s.advance_at is not None and (s.kind != "ppo" or len(s.advance_at) != 2):
+                raise ValueError(f"recipe {self.name}, stage {s.name}: advance_at is a PPO stage's (metric, value)")
             if (s.kind == "distill" or s.teacher) and set(s.teacher) != {"getup", "joystick"}:
                 raise ValueError(f"recipe {self.name}, stage {s.name}: a teacher is getup and joystick (a distill "
                                  "stage needs one)")

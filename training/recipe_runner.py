@@ -60,7 +60,7 @@ def stage_complete(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
         state = _json(last / DISTILL_STATE)
         return bool(state.get("finished")) and not state.get("stopped_by_max_minutes")
     state = _json(last / checkpoints.RUN_STATE)
-    return bool(state) and int(state["env_steps"]) >= int(state["target_steps"])
+    return bool(state) and (int(state["env_steps"]) >= int(state["target_steps"]) or "advanced" in state)
 
 
 def superseded(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
@@ -208,7 +208,8 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         train.train(s.task, out, steps=TOY_PPO_STEPS if toy else s.steps, num_envs=None if toy else s.envs,
                     resume=again, max_minutes=max_minutes, overrides=() if again else overrides,
                     stage=s.getup_stage, from_checkpoint=None if again else init, preset=preset, name=name,
-                    command=command, progress=progress, backend=backend, recipe=provenance)
+                    command=command, progress=progress, backend=backend, recipe=provenance,
+                    advance_at=s.advance_at)
         return
     from training import distill
     teacher = {k: resolve_ref(v, root) for k, v in s.teacher.items()}

@@ -42,6 +42,10 @@ class _StopAtCheckpoint(Exception):
     """Raised from brax's policy_params_fn after a checkpoint when the time box is spent."""
 
 
+class _Advanced(Exception):
+    """Raised from brax's progress_fn when the run's advance_at criterion is met (after that step's checkpoint)."""
+
+
 def _randomization(cfg, env=None, seed: int = 0):
     """brax's randomization_fn, or None. On the CPU backend the env randomises its C simulations itself
     (the same function, applied on the host) and brax gets None."""
@@ -177,6 +181,11 @@ class _Epochs:
     def progress_fn(self, step, metrics):
         total = self.phase_offset + int(step)
         recorded = self.log.log(total, metrics)
+        criterion = self.run.state.get("advance_at")
+        if criterion and total > self.offset and recorded.get(criterion[0], -math.inf) >= criterion[1]:
+            self.run.state["advanced"] = {"env_steps": total, criterion[0]: float(recorded[criterion[0]])}
+            checkpoints.save_run_state(self.run.dir, self.run.state)
+            raise _Advanced()
         self.sps += [recorded[k] for k in ("training/sps", "episode/sps") if k in recorded]   # per epoch / step
         self.bar.update(max(0, total - self.bar.n))
         sps = recorded.get("training/sps", recorded.get("episode/sps"))
@@ -261,6 +270,8 @@ def _train_phases(run: _Run, env, epochs: _Epochs, seed: int) -> bool:
                     _run_ppo(run, env, epochs, end - epochs.latest["steps"], network_factory, seed)
     except _StopAtCheckpoint:
         return True
+    except _Advanced:
+        return False
     return False
 
 
@@ -268,9 +279,12 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
           resume: bool = False, max_minutes: float | None = None, overrides: Sequence[str] = (),
           stage: str | None = None, from_checkpoint=None, preset: str = "gpu", ship: bool = False,
           name: str | None = None, command: str = "", progress: bool = True,
-          backend: str | None = None, recipe: dict | None = None) -> TrainResult:
+          backend: str | None = None, recipe: dict | None = None,
+          advance_at: tuple[str, float] | None = None) -> TrainResult:
     """One PPO run (or a call that resumes one). `recipe` ({"name", "stage", "sha256"}) is recorded in the run
-    state and the artifact's provenance when a recipe runs it (training/recipe_runner.py)."""
+    state and the artifact's provenance when a recipe runs it (training/recipe_runner.py). `advance_at`
+    (metric, value): the run is complete at the first evaluation with the metric at or above the value (a
+    backplay stage ends once success from its starts has risen)."""
     checkpoints.jax_setup()
     t_start = time.monotonic()
     run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
@@ -280,6 +294,8 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
         run = _new_run(task, run_dir, steps=steps, overrides=overrides, preset=preset, stage=stage,
                        from_checkpoint=from_checkpoint, name=name, seed=seed, recipe=recipe)
     preset = run.state["preset"]  # a resumed toy run stays a toy run (and its artifact untrained)
+    if advance_at is not None:
+        run.state["advance_at"] = [str(advance_at[0]), float(advance_at[1])]
     if num_envs is not None:
         run.ppo_cfg.num_envs = run.state["ppo_config"]["num_envs"] = int(num_envs)
     _check_batch_shape(run.ppo_cfg)
@@ -292,10 +308,10 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     if latest["params"] is None:
         raise RuntimeError(f"{run_dir}: no parameters to export (zero steps trained and no --from)")
     artifact = export_run(run_dir, env, run.state, latest["params"], preset)
-    if ship and latest["steps"] >= target:
+    complete = latest["steps"] >= target or "advanced" in run.state
+    if ship and complete:
         ship_artifact(artifact, run.state)
-    return TrainResult(run_dir, artifact, latest["steps"], target, run.state["minutes"], sps,
-                       complete=latest["steps"] >= target)
+    return TrainResult(run_dir, artifact, latest["steps"], target, run.state["minutes"], sps, complete=complete)
 
 
 def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:

@@ -203,6 +203,7 @@ class Getup(GetupBase):
     def _start_info(self, rng, data, kind) -> dict:
         info = super()._start_info(rng, data, kind)
         info["gate"] = self.gate_state(info, jnp.zeros((), dtype=bool))
+        info["gate_met"] = jnp.zeros((), dtype=bool)    # §4.8's gate has held at a step since the reset
         info["rise_track"] = G.rise_track_start(info["trunk_height"])
         return info
 
@@ -234,7 +235,7 @@ class Getup(GetupBase):
 
     @staticmethod
     def metric_names():
-        return ("reward/height", "reward/pose", "reward/energy", "failed_rises", "gate", "success",
+        return ("reward/height", "reward/pose", "reward/energy", "failed_rises", "gate", "gate_reached", "success",
                 "success_from_kneel", "success_from_fallen")
 
     def reward_terms(self, data, info) -> dict[str, jax.Array]:
@@ -253,6 +254,8 @@ class Getup(GetupBase):
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
         data, info, k_obs = self._physics(state, action)
         info["gate"] = self.gate_state(info, state.info["gate"])
+        gate_now = G.gate(info["trunk_height"], info["up"])
+        info["gate_met"] = state.info["gate_met"] | gate_now
         terms = self.reward_terms(data, info)
         scaled = {"height": terms["height"], "pose": terms["pose"],
                   "energy": -self._config.energy_weight * terms["energy"]}
@@ -264,6 +267,8 @@ class Getup(GetupBase):
         metrics = dict(state.metrics)   # keep what wrappers added (brax's EvalWrapper adds "reward")
         metrics.update({f"reward/{k}": v.astype(jnp.float32) for k, v in scaled.items()})
         metrics["gate"] = terms["gate"].astype(jnp.float32)
+        # 1 at the first step the gate holds: an episode's sum is whether it met the gate (stage 1's success)
+        metrics["gate_reached"] = (gate_now & ~state.info["gate_met"]).astype(jnp.float32)
         metrics["failed_rises"] = failed.astype(jnp.float32)
         metrics["success"] = (terms["gate"] if self._config.stage == "stage1"
                               else self.standing(info)).astype(jnp.float32)

@@ -7,12 +7,14 @@ whole path, then its swing, then the whole path again; the runtime's target rule
 Stage 1 learns from the sampling planner's rises to the kneel (`python -m training.planner`; six periods of PPO
 from the floor never reached it: training/LESSONS.md): every episode starts at a state of a rise (velocities
 included) at most window_s before it arrived at the kneel (envs/starts/demos.py), the window widened stage by
-stage (Backplay), then half the episodes from the loop's fallen starts; the seed's stage-1 reward plus a
+stage once ADVANCE_AT of the evaluation's episodes meet §4.8's gate (Backplay; each stage's steps cap it), then
+half the episodes from the loop's fallen starts; the seed's stage-1 reward plus a
 reward while §4.8's gate holds. Stage 1 is not yet joined to the full stage, which starts from stage 2."""
 from training.recipe import Recipe, Stage
 
 DEMOS = "training/campaigns/getup_keyframe/demos"
 BACKPLAY = {"env.demo_starts.prob": 1.0, "env.demo_starts.folder": DEMOS, "env.stage1_gate_reward": 1.0}
+ADVANCE_AT = ("eval/episode_gate_reached", 0.8)   # share of evaluation episodes that met the gate
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
 FULL = {"env.gate_latches": False, "ppo.policy_std_scale": 0.25, "ppo.entropy_cost": 0.001,
         "ppo.learning_rate": 1e-4}
@@ -21,10 +23,10 @@ RECIPE = Recipe(
     name="getup_keyframe", policy="getup_keyframe",
     summary="the seed's keyframe getup through the kneel (not shipped until it kneels)",
     stages=(
-        Stage("rise_near", task="getup", getup_stage="stage1", steps=10_000_000,
+        Stage("rise_near", task="getup", getup_stage="stage1", steps=10_000_000, advance_at=ADVANCE_AT,
               config={**BACKPLAY, "env.demo_starts.window_s": 0.5}),
         Stage("rise_mid", task="getup", getup_stage="stage1", steps=10_000_000, init="rise_near",
-              config={**BACKPLAY, "env.demo_starts.window_s": 2.0}),
+              advance_at=ADVANCE_AT, config={**BACKPLAY, "env.demo_starts.window_s": 2.0}),
         Stage("rise_floor", task="getup", getup_stage="stage1", steps=20_000_000, init="rise_mid",
               config={**BACKPLAY, "env.demo_starts.prob": 0.5, "env.demo_starts.window_s": 8.0}),
         Stage("stand_path", task="getup", getup_stage="stage2", steps=27_095_040, config=STAND),
