@@ -1,6 +1,7 @@
-// LCM's UDP multicast group read straight from a socket of one's own, for the peers on the tick's path (the
-// simulator's core, the runtime). Why: the LCM library hands every datagram from a receive thread through a
-// pipe, two wake-ups per message where the socket needs one. Publishing stays with the library.
+// LCM's UDP multicast group read and written straight from sockets of one's own, for the peers on the tick's
+// path (the simulator's core, the runtime). Why: the LCM library hands every datagram from a receive thread
+// through a pipe, two wake-ups per message where the socket needs one; and its publish waits when the socket's
+// send buffer is full (and, in C++, allocates a buffer per message), where a tick must drop and go on.
 // Wire format (LCM's one-datagram message): "LC02" (big-endian magic), sequence number (4 bytes), the
 // channel name with its NUL, the payload. Messages over one datagram ("LC03" fragments: a 20-byte header, the
 // channel in the first piece only) are recognised, not reassembled: no channel on the tick's path needs them.
@@ -11,8 +12,10 @@
 #include <netinet/in.h>
 #include <sys/select.h>
 #include <sys/socket.h>
+#include <sys/uio.h>
 #include <unistd.h>
 
+#include <array>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -28,26 +31,45 @@ inline constexpr std::size_t kLcmFragmentHeaderBytes = 20;   // + size, offset, 
 inline constexpr std::size_t kLcmMaxDatagramBytes = 65536;
 inline constexpr int kLcmGroupReceiveBufferBytes = 1 << 21;  // a slow tick must not lose a message to a full buffer
 
+inline constexpr std::size_t kLcmMaxChannelBytes = 255;      // LCM's longest channel name
+inline constexpr std::size_t kLcmShortMaxPayloadBytes = 65499 - kLcmHeaderBytes - kLcmMaxChannelBytes - 1;
+
+struct UdpmAddress {
+  in_addr group{};
+  int port = 0;
+  int ttl = 0;   // LCM's ttl option (default 0: this host only)
+};
+
+// udpm://GROUP:PORT[?options] (LCM's URL) → the group, port and ttl; false if the URL is not one.
+inline bool parse_udpm_url(const std::string& url, UdpmAddress* out) {
+  const std::string scheme = "udpm://";
+  if (url.compare(0, scheme.size(), scheme) != 0) return false;
+  const auto colon = url.find(':', scheme.size());
+  if (colon == std::string::npos) return false;
+  const std::string group = url.substr(scheme.size(), colon - scheme.size());
+  out->port = std::atoi(url.c_str() + colon + 1);
+  const auto ttl = url.find("ttl=", colon);
+  out->ttl = ttl == std::string::npos ? 0 : std::atoi(url.c_str() + ttl + 4);
+  return out->port > 0 && out->port < 65536 && out->ttl >= 0 && out->ttl < 256 &&
+         inet_aton(group.c_str(), &out->group) != 0;
+}
+
 // udpm://GROUP:PORT[?options] → a non-blocking socket on the group's port, joined to the group, asking for
 // receive_buffer_bytes of kernel buffer (-1 if the URL is not udpm or the socket cannot be set up). All peers
 // bind the port, as LCM does (SO_REUSEADDR).
 inline int open_lcm_group_socket(const std::string& url, int receive_buffer_bytes = kLcmGroupReceiveBufferBytes) {
-  const std::string scheme = "udpm://";
-  if (url.compare(0, scheme.size(), scheme) != 0) return -1;
-  const auto colon = url.find(':', scheme.size());
-  if (colon == std::string::npos) return -1;
-  const std::string group = url.substr(scheme.size(), colon - scheme.size());
-  const int port = std::atoi(url.c_str() + colon + 1);
+  UdpmAddress where;
+  if (!parse_udpm_url(url, &where)) return -1;
   const int fd = socket(AF_INET, SOCK_DGRAM, IPPROTO_UDP);
   if (fd < 0) return -1;
   const int one = 1, rcvbuf = receive_buffer_bytes;
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_port = htons(static_cast<uint16_t>(where.port));
   addr.sin_addr.s_addr = htonl(INADDR_ANY);
   ip_mreq mreq{};
-  const bool ok = port > 0 && port < 65536 && inet_aton(group.c_str(), &mreq.imr_multiaddr) != 0 &&
-                  setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) == 0 &&
+  mreq.imr_multiaddr = where.group;
+  const bool ok = setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) == 0 &&
                   setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf) == 0 &&
                   bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
                   setsockopt(fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq) == 0 &&
@@ -111,5 +133,66 @@ int drain_lcm_group(int fd, std::vector<uint8_t>& rx, OnDatagram&& on_datagram) 
     if (parse_lcm_datagram(rx.data(), static_cast<std::size_t>(got), &m) && m.channel != nullptr) on_datagram(m);
   }
 }
+
+// Publishing to the group from a socket of one's own, never waiting: each message is one "LC02" datagram sent
+// with MSG_DONTWAIT from the caller's buffer (header and payload gathered, no copy, no allocation). A message
+// the kernel cannot take at once (send buffer full) is dropped and counted: the tick goes on. Multicast TTL from
+// the URL's ttl option, looped back to this host's peers, as LCM's own publisher.
+class LcmGroupSender {
+ public:
+  LcmGroupSender() = default;
+  ~LcmGroupSender() { if (fd_ >= 0) close(fd_); }
+  LcmGroupSender(const LcmGroupSender&) = delete;
+  LcmGroupSender& operator=(const LcmGroupSender&) = delete;
+
+  // false if the URL is not udpm://GROUP:PORT[?ttl=N] or the group cannot be reached (no multicast route).
+  bool open(const std::string& url) {
+    UdpmAddress where;
+    if (fd_ >= 0 || !parse_udpm_url(url, &where)) return false;
+    fd_ = socket(AF_INET, SOCK_DGRAM, IPPROTO_UDP);
+    if (fd_ < 0) return false;
+    const unsigned char ttl = static_cast<unsigned char>(where.ttl), loop = 1;
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<uint16_t>(where.port));
+    to.sin_addr = where.group;
+    const bool ok = setsockopt(fd_, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof ttl) == 0 &&
+                    setsockopt(fd_, IPPROTO_IP, IP_MULTICAST_LOOP, &loop, sizeof loop) == 0 &&
+                    connect(fd_, reinterpret_cast<sockaddr*>(&to), sizeof to) == 0;
+    if (!ok) {
+      close(fd_);
+      fd_ = -1;
+    }
+    return ok;
+  }
+  bool good() const { return fd_ >= 0; }
+
+  // One message on `channel`; false (and counted in dropped) if it was not sent whole at once.
+  bool send(const char* channel, const void* payload, std::size_t size) {
+    const std::size_t name = std::strlen(channel);
+    if (fd_ < 0 || name > kLcmMaxChannelBytes || size > kLcmShortMaxPayloadBytes) return count_drop();
+    const uint32_t words[2] = {htonl(kLcmShortMagic), htonl(seq_++)};
+    std::memcpy(header_.data(), words, sizeof words);
+    std::memcpy(header_.data() + kLcmHeaderBytes, channel, name + 1);
+    iovec parts[2] = {{header_.data(), kLcmHeaderBytes + name + 1}, {const_cast<void*>(payload), size}};
+    msghdr msg{};
+    msg.msg_iov = parts;
+    msg.msg_iovlen = 2;
+    const ssize_t sent = sendmsg(fd_, &msg, MSG_DONTWAIT);
+    if (sent != static_cast<ssize_t>(parts[0].iov_len + size)) return count_drop();
+    return true;
+  }
+
+  uint64_t dropped = 0;   // messages not sent (send buffer full, no route, too large)
+
+ private:
+  bool count_drop() {
+    ++dropped;
+    return false;
+  }
+  int fd_ = -1;
+  uint32_t seq_ = 0;
+  std::array<uint8_t, kLcmHeaderBytes + kLcmMaxChannelBytes + 1> header_{};
+};
 
 }  // namespace t1

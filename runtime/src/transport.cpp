@@ -29,7 +29,6 @@ std::string resolve_lcm_url(const std::string& cli_url) {
 }
 
 LcmTransport::~LcmTransport() {
-  if (lcm_) lcm_destroy(lcm_);
   if (sock_ >= 0) close(sock_);
 }
 
@@ -39,9 +38,9 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
   supervisor_ = supervisor;
   buffer_.assign(kEncodeBufferBytes, 0);
   rx_.assign(t1::kLcmMaxDatagramBytes, 0);
-  lcm_ = lcm_create(url.c_str());
-  if (!lcm_) {
-    *error = "lcm_create failed for URL '" + url + "' (multicast route missing? run inside tools/netns)";
+  if (!sender_.open(url)) {
+    *error = "cannot send on LCM URL '" + url + "' (a udpm://GROUP:PORT[?ttl=N] URL is needed; multicast "
+             "route missing? run inside tools/netns)";
     return false;
   }
   sock_ = t1::open_lcm_group_socket(url);

@@ -33,7 +33,10 @@ bool within(const float (&v)[N], float lo, float hi) {
 }
 }  // namespace
 
-RobotLink::RobotLink(const std::string& url) : lcm_(url), sock_(t1::open_lcm_group_socket(url)), rx_(t1::kLcmMaxDatagramBytes) {}
+RobotLink::RobotLink(const std::string& url)
+    : tx_(t1::kLcmShortMaxPayloadBytes), sock_(t1::open_lcm_group_socket(url)), rx_(t1::kLcmMaxDatagramBytes) {
+  sender_.open(url);
+}
 
 RobotLink::~RobotLink() {
   if (sock_ >= 0) close(sock_);
@@ -65,8 +68,14 @@ void RobotLink::publish_state(const StateReading& s) {
     js.tau_est[i] = static_cast<float>(s.tau[i]);
     js.motor_status[i] = s.status[i];
   }
-  lcm_.publish(t1::CH_IMU, &imu);
-  lcm_.publish(t1::CH_JOINT_STATE, &js);
+  send(t1::CH_IMU, imu);
+  send(t1::CH_JOINT_STATE, js);
+}
+
+template <class Message>
+void RobotLink::send(const char* channel, const Message& msg) {
+  const int size = msg.encode(tx_.data(), 0, static_cast<int>(tx_.size()));
+  if (size >= 0) sender_.send(channel, tx_.data(), static_cast<std::size_t>(size));
 }
 
 void RobotLink::drop(const std::string& reason) {

@@ -2,16 +2,16 @@
 // receives T1_JOINT_CMD, and turns a valid command into the 23 CAN command frames at once. An unusable
 // command (undecodable, non-finite, gains outside the frame's range) is counted and dropped with a reason.
 // Commands are read from a socket of the link's own on the LCM group (messages/cpp/t1_lcm_group.hpp), not
-// through an LCM subscription, which would wake a receive thread for every datagram, the sim's own included.
+// through an LCM subscription, which would wake a receive thread for every datagram, the sim's own included;
+// states go out from one preallocated buffer through that header's sender, which never waits or allocates.
 #pragma once
 
 #include <cstdint>
 #include <string>
 #include <vector>
 
-#include <lcm/lcm-cpp.hpp>
-
 #include "t1_firmware.h"
+#include "t1_lcm_group.hpp"
 
 namespace t1sim {
 
@@ -28,10 +28,14 @@ class RobotLink {
   ~RobotLink();
   RobotLink(const RobotLink&) = delete;
   RobotLink& operator=(const RobotLink&) = delete;
-  bool good() const { return lcm_.good() && sock_ >= 0; }
+  bool good() const { return sender_.good() && sock_ >= 0; }
 
   void publish_state(const StateReading& s);
-  int publish(const std::string& channel, const void* data, int size) { return lcm_.publish(channel, data, size); }
+  // 0 sent, -1 not (LCM's convention): the Python side's status and fault messages
+  int publish(const std::string& channel, const void* data, int size) {
+    return size >= 0 && sender_.send(channel.c_str(), data, static_cast<std::size_t>(size)) ? 0 : -1;
+  }
+  uint64_t send_dropped() const { return sender_.dropped; }
   // Handle what is queued, then wait up to timeout_s [s] (to the microsecond) for more.
   void poll(double timeout_s);
   // Lockstep: handle commands until the one answering state_seq arrived (true) or timeout_s passed.
@@ -47,11 +51,14 @@ class RobotLink {
   std::string last_drop_reason;
 
  private:
+  template <class Message>
+  void send(const char* channel, const Message& msg);   // encoded into tx_, then sent (or counted dropped)
   void on_command(const uint8_t* payload, size_t size);
   int handle_queued();   // commands read from the socket now; returns how many datagrams were read
   void drop(const std::string& reason);
 
-  lcm::LCM lcm_;        // publishing only: without a subscription it starts no receive thread
+  t1::LcmGroupSender sender_;
+  std::vector<uint8_t> tx_;   // one encoded state message
   int sock_ = -1;
   std::vector<uint8_t> rx_;   // one datagram
   std::vector<uint8_t> latest_payload_;

@@ -1,12 +1,11 @@
 // LCM transport: the subscribed channels are read from a socket of our own on the LCM group
 // (messages/cpp/t1_lcm_group.hpp: no receive thread, one wake-up per state message) and decode straight into
-// preallocated message slots (the fixed-size state messages decode without heap use); publishing goes
-// through the LCM C API from one preallocated buffer.
+// preallocated message slots (the fixed-size state messages decode without heap use); publishing encodes into
+// one preallocated buffer and sends it from a socket of our own without waiting (t1_lcm_group.hpp's sender:
+// a full send buffer drops the message and counts it in send_dropped(), the loop never blocks on it).
 // Heap use that remains, on purpose, off the hot path: runtime_cmd_t carries std::string verb/argument,
 // so decoding an operator command allocates (rare, operator-driven, never per tick).
 #pragma once
-#include <lcm/lcm.h>
-
 #include <array>
 #include <cstdint>
 #include <string>
@@ -17,6 +16,7 @@
 #include "t1/joystick_t.hpp"
 #include "t1/runtime_cmd_t.hpp"
 #include "t1/sim_status_t.hpp"
+#include "t1_lcm_group.hpp"
 
 namespace t1rt {
 
@@ -47,7 +47,7 @@ class LcmTransport {
   LcmTransport(const LcmTransport&) = delete;
   LcmTransport& operator=(const LcmTransport&) = delete;
 
-  // Creates the LCM instance and subscribes; false + *error on failure. subscribe_sim_status: composite
+  // Opens the group's receiving and sending sockets and subscribes; false + *error on failure. subscribe_sim_status: composite
   // mode only (T1_SIM_STATUS is privileged simulator truth; a single policy never listens to it).
   // subscribe_robot_state false: the robot's state comes from another transport (DDS), so T1_IMU and
   // T1_JOINT_STATE on LCM are ignored (one source for the live state, never two).
@@ -61,8 +61,9 @@ class LcmTransport {
     const int size = msg.getEncodedSize();
     if (size < 0 || static_cast<std::size_t>(size) > buffer_.size()) return false;
     if (msg.encode(buffer_.data(), 0, size) != size) return false;
-    return lcm_publish(lcm_, channel, buffer_.data(), static_cast<unsigned>(size)) == 0;
+    return sender_.send(channel, buffer_.data(), static_cast<std::size_t>(size));
   }
+  uint64_t send_dropped() const { return sender_.dropped; }   // messages the kernel could not take at once
 
   MessageSlot<t1::imu_t> imu;
   MessageSlot<t1::joint_state_t> joint;
@@ -103,7 +104,7 @@ class LcmTransport {
   void commit(MessageSlot<Message>& slot);
   t1::runtime_cmd_t command_scratch_;
 
-  lcm_t* lcm_ = nullptr;   // publishing only: without a subscription it starts no receive thread
+  t1::LcmGroupSender sender_;
   int sock_ = -1;          // the group's datagrams
   std::vector<uint8_t> rx_;
   std::array<Subscription, kMaxSubscriptions> subscriptions_{};
