@@ -232,7 +232,7 @@ def test_status_says_fault_and_counts_after_a_fault(runtime):
     status = peer.last_status()
     assert status.mode_name == "FAULT"
     assert status.info.startswith("FAULT:") and "mode POLICY" not in status.info, status.info
-    assert (status.decode_errors, status.commands_dropped, status.seq_reordered_joint) == (0, 0, 0)
+    assert (status.decode_errors, status.commands_dropped, status.seq_reordered_joint, status.sends_dropped) == (0,) * 4
 
 
 # ---------------------------------------------------------------------------------------- item 7

@@ -270,6 +270,7 @@ void Controller::publish_status(double now_s) {
   status_.seq_reordered_joint = supervisor_.joint_seq().reordered();
   status_.decode_errors = transport_.decode_errors + (dds_ ? dds_->rejected : 0);  // DDS: samples refused whole
   status_.commands_dropped = transport_.commands_dropped;
+  status_.sends_dropped = static_cast<int64_t>(transport_.send_dropped());
   TimingStats& late = task_.lateness();
   TimingStats& comp = task_.compute();
   status_.lateness_us_last = static_cast<float>(late.last());
