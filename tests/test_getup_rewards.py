@@ -211,6 +211,24 @@ def test_stage1_pays_its_gate_reward_only_while_the_gate_holds_this_step():
         envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_gate_reward": -1.0})
 
 
+def test_stage1_upright_reward_slopes_to_the_gate_at_its_height():
+    """stage1_upright_reward (ours; 0 = the seed): × exp(−up error / 0.01) while the trunk is at the gate's
+    height: 1 upright, e⁻¹ at the gate's edge, falling with the tilt, nothing below the gate's height."""
+    plain = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
+    paid = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2,
+                                                "stage1_upright_reward": 2.0})
+    extra = []
+    for tilt_deg, h in ((0.0, 0.40), (0.573, 0.40), (2.0, 0.40), (0.0, 0.39)):
+        info = {"trunk_height": jnp.asarray(h), "waist_height": jnp.asarray(0.29), "up": jnp.asarray(_tilted(tilt_deg)),
+                "up_z": jnp.asarray(float(_tilted(tilt_deg)[2])), "gate": jnp.asarray(False)}
+        extra.append(float(paid.reward_terms(_state(paid), info)["height"]
+                           - plain.reward_terms(_state(plain), info)["height"]))
+    assert extra[0] == pytest.approx(2.0, rel=1e-4) and extra[1] == pytest.approx(2.0 / np.e, rel=1e-2)
+    assert 0.0 < extra[2] < 0.1 and extra[3] == 0.0
+    with pytest.raises(ValueError, match="stage1_upright_reward"):
+        envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_upright_reward": -1.0})
+
+
 def test_start_probabilities_per_stage(full_env):
     assert full_env.start_probabilities() == pytest.approx([0.4, 0.4, 0.2])
     s2 = envs.make("getup", config_overrides={"stage": "stage2"})

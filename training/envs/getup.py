@@ -2,7 +2,8 @@
 
 Stages (config.stage), rewards from getup_rewards.py (formulas there):
 * "stage1" fallen → kneel: Height = HO(kneel targets), Pose = pose(q, q_kneel); ours, off by default:
-  config.stage1_gate_reward per step while the gate holds.
+  config.stage1_gate_reward per step while the gate holds, config.stage1_upright_reward × a slope toward its
+  tilt at its height.
 * "stage2" kneel → stand: Height = HO(torso 0.67, waist 0.55), Pose = pose(q, q_init). The gate's 1.83 / 0.6
   bonuses and 100· weight belong to the full task (§4.8): without a gate they pay standing-like joint angles in
   any posture (LESSONS, `getup_stage2`).
@@ -170,8 +171,10 @@ class Getup(GetupBase):
         self._fallen_banks = self._load_fallen_banks()
         self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
         self._stage1_gate_reward = float(self._config.stage1_gate_reward)
-        if self._stage1_gate_reward < 0.0:
-            raise ValueError(f"stage1_gate_reward must be >= 0, got {self._stage1_gate_reward}")
+        self._stage1_upright_reward = float(self._config.stage1_upright_reward)
+        for key in ("stage1_gate_reward", "stage1_upright_reward"):
+            if float(self._config[key]) < 0.0:
+                raise ValueError(f"{key} must be >= 0, got {self._config[key]}")
 
     def _load_fallen_banks(self) -> list[tuple[float, tuple[jax.Array, jax.Array]]]:
         """(share of the fallen starts, (qpos, qvel)) of the configured start sources (starts/)."""
@@ -243,7 +246,9 @@ class Getup(GetupBase):
         q, stage = data.qpos[7:], self._config.stage
         if stage == "stage1":
             kneel_h = self.height_orientation(info, self._kneel_targets)
-            height = G.kneel_height_reward(G.gate(info["trunk_height"], info["up"]), kneel_h, self._stage1_gate_reward)
+            height = G.kneel_height_reward(
+                G.gate(info["trunk_height"], info["up"]), kneel_h, self._stage1_gate_reward,
+                G.upright_at_gate_height(info["trunk_height"], info["up"]), self._stage1_upright_reward)
             pose = G.pose_reward(q, self._kneel_pose)
         elif stage == "stage2":
             height, pose = self.height_orientation(info, self._standing_targets), G.pose_reward(q, self._default_pose)

@@ -36,6 +36,9 @@ def default_config() -> config_dict.ConfigDict:
     # stage 1's reward per step while §4.8's gate holds that step (getup_rewards.kneel_height_reward; ours,
     # 0 = the seed's stage 1)
     cfg.stage1_gate_reward = 0.0
+    # stage 1's reward per step × exp(−up error / the gate's) at the gate's height: a slope to the gate's last
+    # degrees (getup_rewards.upright_at_gate_height; ours, 0 = the seed's)
+    cfg.stage1_upright_reward = 0.0
     cfg.stage2_start_probs = [0.0, 1.0, 0.0]
     cfg.energy_weight = 0.0
     cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)

@@ -98,12 +98,20 @@ def gate(h_torso, up):
     return high & (up_error(up) < GATE_UP_ERROR)
 
 
-def kneel_height_reward(gate_now, ho_kneel, gate_reward):
-    """Stage 1's Height Reward: HO(kneel targets) + gate_reward while §4.8's gate holds this step (ours; 0 = the
-    seed's). Why: holding the kneel keyframe's joint angles under PD sags the trunk 1.25° (the gate wants
-    0.57°), which the pose term pays 0.999 of its best: without a reward for the gate itself, stage 1 meets
-    it only by chance."""
-    return ho_kneel + gate_reward * gate_now.astype(jnp.float32)
+def upright_at_gate_height(h_torso, up):
+    """exp(−‖u − e_z‖ / the gate's 0.01) while the trunk is at the gate's height: a slope over the last degrees
+    to the gate (0.37 at its edge, 0.03 at 2°), where the orientation reward (a square of up_z) is flat."""
+    high = GATE_HEIGHT_M - jnp.minimum(h_torso, GATE_HEIGHT_M) < GATE_HEIGHT_TOL_M
+    return high.astype(jnp.float32) * jnp.exp(-up_error(up) / GATE_UP_ERROR)
+
+
+def kneel_height_reward(gate_now, ho_kneel, gate_reward, upright_now=0.0, upright_reward=0.0):
+    """Stage 1's Height Reward: HO(kneel targets) + gate_reward while §4.8's gate holds this step +
+    upright_reward × upright_at_gate_height (both ours; 0 = the seed's). Why: holding the kneel keyframe's joint
+    angles under PD sags the trunk 1.25° (the gate wants 0.57°), which the pose term pays 0.999 of its best:
+    without a reward for the gate itself, stage 1 meets it only by chance, and without a slope toward it
+    only by exploring to it."""
+    return ho_kneel + gate_reward * gate_now.astype(jnp.float32) + upright_reward * upright_now
 
 
 def gated_height_reward(gate_ok, ho_kneel, ho_standing):
