@@ -14,6 +14,7 @@ are LANDINGS: each a module's bank of where the joystick expert, pushed or walke
   wall_approach.py  the low-wall course's approaches, and where the joystick expert falls over a wall
   handover.py       the getup expert's rise at the waist switch (the joystick env's hand-over starts)
   landings.py       the joystick rollouts to a fall that knockdown, push and wall_approach share
+  bank.py           what every bank shares: read-only float32 rows, a robot's state moved about the floor
 """
 from __future__ import annotations
 
