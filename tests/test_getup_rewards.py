@@ -274,9 +274,20 @@ def test_only_stage2_ends_when_the_trunk_falls_below_the_fall_height(full_env):
     cases = ((fall_m - 0.01, 1.0, True), (fall_m + 0.01, 1.0, False), (0.405, 1.0, False), (0.67, 1.0, False),
              (0.405, up_z - 0.02, True), (0.405, up_z + 0.02, False), (0.32, 0.72, True))   # v5's leaning back
     for h, u, ends in cases:
-        info = {"trunk_height": jnp.float32(h), "up_z": jnp.float32(u)}
+        info = {"trunk_height": jnp.float32(h), "up_z": jnp.float32(u), "gate_height_met": jnp.asarray(True)}
         assert bool(s2.fell_from_kneel(info)) is ends, (h, u)
         assert not bool(s1.fell_from_kneel(info)) and not bool(full_env.fell_from_kneel(info))
+
+
+def test_stage1_ends_when_a_reached_kneel_sags_if_asked():
+    """stage1_drop_below_m (ours; 0 = the seed: stage 1 never ends early): once the trunk has been at the gate's
+    height, dropping that far below it ends the episode; a rise still below it does not end."""
+    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_drop_below_m": 0.03})
+    for h, met, ends in ((0.36, True, True), (0.375, True, False), (0.36, False, False), (0.2, False, False)):
+        info = {"trunk_height": jnp.float32(h), "up_z": jnp.float32(1.0), "gate_height_met": jnp.asarray(met)}
+        assert bool(s1.fell_from_kneel(info)) is ends, (h, met)
+    with pytest.raises(ValueError, match="stage1_drop_below_m"):
+        envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_drop_below_m": -0.1})
 
 
 # ------------------------------------------------------------------ the failed-rise tracker

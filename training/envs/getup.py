@@ -16,7 +16,9 @@ attempts that fail by common/events.py's definition. Fine-tunes: energy_weight (
 Actor obs = Table 4.2, TERMS_GETUP (52). "success" = standing by common/events.py (trunk ≥ 0.6 m, up_z ≥ 0.9).
 Episodes end early only on non-finite physics and, in stage 2 alone (ours), when the robot leaves the kneel
 downward (config.stage2_fall_trunk_height_m, stage2_fall_up_z): stage 2's Pose pays straight legs in any
-posture, and without the end PPO learned to lie or lean back with straight legs (LESSONS, `getup_stage2`).
+posture, and without the end PPO learned to lie or lean back with straight legs (LESSONS, `getup_stage2`);
+and, with config.stage1_drop_below_m > 0 (ours, off by default), in stage 1 once the trunk, having reached the
+gate's height, drops that far below it (DeepMimic's early termination: a kneel let sag ends the episode).
 Ours, off by default: stage 2's reverse curriculum (starts/kneeling_path.py) and a share of the fallen starts from the
 start banks (starts/).
 """
@@ -172,7 +174,7 @@ class Getup(GetupBase):
         self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
         self._stage1_gate_reward = float(self._config.stage1_gate_reward)
         self._stage1_upright_reward = float(self._config.stage1_upright_reward)
-        for key in ("stage1_gate_reward", "stage1_upright_reward"):
+        for key in ("stage1_gate_reward", "stage1_upright_reward", "stage1_drop_below_m"):
             if float(self._config[key]) < 0.0:
                 raise ValueError(f"{key} must be >= 0, got {self._config[key]}")
 
@@ -207,6 +209,7 @@ class Getup(GetupBase):
         info = super()._start_info(rng, data, kind)
         info["gate"] = self.gate_state(info, jnp.zeros((), dtype=bool))
         info["gate_met"] = jnp.zeros((), dtype=bool)    # §4.8's gate has held at a step since the reset
+        info["gate_height_met"] = jnp.zeros((), dtype=bool)   # the trunk has been at the gate's height since
         info["rise_track"] = G.rise_track_start(info["trunk_height"])
         return info
 
@@ -261,6 +264,7 @@ class Getup(GetupBase):
         info["gate"] = self.gate_state(info, state.info["gate"])
         gate_now = G.gate(info["trunk_height"], info["up"])
         info["gate_met"] = state.info["gate_met"] | gate_now
+        info["gate_height_met"] = state.info["gate_height_met"] | G.at_gate_height(info["trunk_height"])
         terms = self.reward_terms(data, info)
         scaled = {"height": terms["height"], "pose": terms["pose"],
                   "energy": -self._config.energy_weight * terms["energy"]}
@@ -285,9 +289,12 @@ class Getup(GetupBase):
                              info=info)
 
     def fell_from_kneel(self, info) -> jax.Array:
-        """Stage 2's only termination besides non-finite physics: the trunk dropped below the fall height or
-        tilted past the fall tilt."""
-        if self._config.stage != "stage2":
-            return jnp.zeros((), dtype=bool)
+        """The terminations besides non-finite physics (module docstring): stage 2's trunk below the fall height
+        or tilted past the fall tilt; stage 1's trunk dropped stage1_drop_below_m below the gate's height after
+        reaching it."""
         cfg = self._config
+        if cfg.stage == "stage1" and cfg.stage1_drop_below_m > 0:
+            return info["gate_height_met"] & (info["trunk_height"] < G.GATE_HEIGHT_M - cfg.stage1_drop_below_m)
+        if cfg.stage != "stage2":
+            return jnp.zeros((), dtype=bool)
         return (info["trunk_height"] < cfg.stage2_fall_trunk_height_m) | (info["up_z"] < cfg.stage2_fall_up_z)

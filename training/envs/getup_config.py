@@ -39,6 +39,9 @@ def default_config() -> config_dict.ConfigDict:
     # stage 1's reward per step × exp(−up error / the gate's) at the gate's height: a slope to the gate's last
     # degrees (getup_rewards.upright_at_gate_height; ours, 0 = the seed's)
     cfg.stage1_upright_reward = 0.0
+    # a stage-1 episode ends once its trunk, having reached the gate's height, drops this far below it [m]
+    # (ours, 0 = the seed's: stage 1 never ends early)
+    cfg.stage1_drop_below_m = 0.0
     cfg.stage2_start_probs = [0.0, 1.0, 0.0]
     cfg.energy_weight = 0.0
     cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)

@@ -94,15 +94,18 @@ def up_error(up):
 
 def gate(h_torso, up):
     """(0.4 − min(h_torso, 0.4) < 0.005) ∧ (‖u − e_z‖ < 0.01), per step (see the module docstring)."""
-    high = GATE_HEIGHT_M - jnp.minimum(h_torso, GATE_HEIGHT_M) < GATE_HEIGHT_TOL_M
-    return high & (up_error(up) < GATE_UP_ERROR)
+    return at_gate_height(h_torso) & (up_error(up) < GATE_UP_ERROR)
+
+
+def at_gate_height(h_torso):
+    """The gate's height condition alone: 0.4 − min(h_torso, 0.4) < 0.005."""
+    return GATE_HEIGHT_M - jnp.minimum(h_torso, GATE_HEIGHT_M) < GATE_HEIGHT_TOL_M
 
 
 def upright_at_gate_height(h_torso, up):
     """exp(−‖u − e_z‖ / the gate's 0.01) while the trunk is at the gate's height: a slope over the last degrees
     to the gate (0.37 at its edge, 0.03 at 2°), where the orientation reward (a square of up_z) is flat."""
-    high = GATE_HEIGHT_M - jnp.minimum(h_torso, GATE_HEIGHT_M) < GATE_HEIGHT_TOL_M
-    return high.astype(jnp.float32) * jnp.exp(-up_error(up) / GATE_UP_ERROR)
+    return at_gate_height(h_torso).astype(jnp.float32) * jnp.exp(-up_error(up) / GATE_UP_ERROR)
 
 
 def kneel_height_reward(gate_now, ho_kneel, gate_reward, upright_now=0.0, upright_reward=0.0):
