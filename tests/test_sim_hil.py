@@ -53,11 +53,14 @@ def test_realtime_mode_holds_real_time_factor(netns):
 
 def test_rt_realtime_runs_paced_under_sched_fifo_or_says_it_could_not(netns):
     """--rt asks for SCHED_FIFO (granted to root; refused elsewhere, with a note): the run is paced the same."""
-    client, _, _ = run_with_client(["--clock", "realtime", "--rt", "--spawn", "standing"], hold_pose(HOME), KP, KD,
-                                   duration_s=1.0, timeout_s=60)
+    client, status, _ = run_with_client(["--clock", "realtime", "--rt", "--spawn", "standing"], hold_pose(HOME), KP,
+                                        KD, duration_s=1.0, timeout_s=60)
     seq = states(client)
     assert len(seq) >= 450, f"only {len(seq)} of 500 states arrived"   # UDP loss bound, as above
-    assert 0.9 <= (seq[-1].utime - seq[0].utime) * 1e-6 / (client.wall[-1] - client.wall[0]) <= 1.02
+    # the sim's own real-time factor per status period (its clock, not a loaded client's handling times, which
+    # a 1 s run cannot average out)
+    rtf = [m.real_time_factor for m in status.msgs[1:]]
+    assert rtf and 0.9 <= float(np.median(rtf)) <= 1.02, rtf
 
 
 def _reference_step(q0, qd0, target_q, n_ticks):
