@@ -19,7 +19,8 @@ downward (config.stage2_fall_trunk_height_m, stage2_fall_up_z): stage 2's Pose p
 posture, and without the end PPO learned to lie or lean back with straight legs (LESSONS, `getup_stage2`);
 and, with config.stage1_drop_below_m > 0 (ours, off by default), in stage 1 once the trunk, having reached the
 gate's height, drops that far below it (DeepMimic's early termination: a kneel let sag ends the episode).
-Ours, off by default: stage 2's reverse curriculum (starts/kneeling_path.py) and a share of the fallen starts from the
+Ours, off by default: a sagittal, mirrored action space (config.action_space, envs/sagittal.py: the env expands
+the policy's pitch-joint action to the 23 joints before anything reads it); stage 2's reverse curriculum (starts/kneeling_path.py) and a share of the fallen starts from the
 start banks (starts/).
 """
 from __future__ import annotations
@@ -34,7 +35,7 @@ from mujoco_playground._src import mjx_env
 from common import observation as obsdef
 from training.envs import base
 from training.envs import getup_rewards as G
-from training.envs import starts
+from training.envs import sagittal, starts
 from training.envs.starts import kneeling_path
 from common.events import FALLEN_TRUNK_HEIGHT_M, STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs.starts.fallen import fallen_states
@@ -174,6 +175,8 @@ class Getup(GetupBase):
         self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
         self._stage1_gate_reward = float(self._config.stage1_gate_reward)
         self._stage1_upright_reward = float(self._config.stage1_upright_reward)
+        self._action_size = sagittal.action_size(self._config.action_space)
+        self._expansion = (jnp.asarray(sagittal.expansion()) if self._config.action_space == "sagittal" else None)
         for key in ("stage1_gate_reward", "stage1_upright_reward", "stage1_drop_below_m"):
             if float(self._config[key]) < 0.0:
                 raise ValueError(f"{key} must be >= 0, got {self._config[key]}")
@@ -259,7 +262,16 @@ class Getup(GetupBase):
             height, pose = self.full_task_rewards(q, info, info["gate"])
         return {"height": height, "pose": pose, "gate": info["gate"], "energy": self.energy_cost(data)}
 
+    @property
+    def action_size(self) -> int:
+        return self._action_size
+
+    def full_action(self, action: jax.Array) -> jax.Array:
+        """The 23 joints' action of the policy's (envs/sagittal.py when config.action_space is sagittal)."""
+        return action if self._expansion is None else self._expansion @ action
+
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
+        action = self.full_action(action)
         data, info, k_obs = self._physics(state, action)
         info["gate"] = self.gate_state(info, state.info["gate"])
         gate_now = G.gate(info["trunk_height"], info["up"])

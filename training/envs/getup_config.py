@@ -42,6 +42,9 @@ def default_config() -> config_dict.ConfigDict:
     # a stage-1 episode ends once its trunk, having reached the gate's height, drops this far below it [m]
     # (ours, 0 = the seed's: stage 1 never ends early)
     cfg.stage1_drop_below_m = 0.0
+    # "sagittal": the policy sets the pitch joints, left and right alike, the rest hold home (envs/sagittal.py;
+    # ours, FRASA's reduced getup; "full" = the seed's 23 joints)
+    cfg.action_space = "full"
     cfg.stage2_start_probs = [0.0, 1.0, 0.0]
     cfg.energy_weight = 0.0
     cfg.gate_latches = True                 # the full task's gate stays on once met (module docstring)

@@ -15,9 +15,13 @@ from training.recipe import Recipe, Stage
 DEMOS = "training/campaigns/getup_keyframe/demos"
 # exploration 0.15 of brax's (≈ 0.2 rad of target noise per step): the gate asks for the trunk within 0.57° of
 # vertical, and brax's own std (≈ 1.3 rad at this action scale) threw the kneeling robot about; a slope to the
-# gate's tilt at its height (stage1_upright_reward), where the seed's orientation reward is flat
+# gate's tilt at its height (stage1_upright_reward), where the seed's orientation reward is flat; the learner
+# changed after two stalled periods (the kneel issue's item 4): a sagittal, mirrored action space (the pitch
+# joints, left = right; envs/sagittal.py) and the episode's end once a trunk that reached the gate's height sags
+# 3 cm below it (DeepMimic's early termination)
 BACKPLAY = {"env.demo_starts.prob": 1.0, "env.demo_starts.folder": DEMOS, "env.stage1_gate_reward": 1.0,
-            "env.stage1_upright_reward": 1.0, "ppo.policy_std_scale": 0.15}
+            "env.stage1_upright_reward": 1.0, "ppo.policy_std_scale": 0.15, "env.action_space": "sagittal",
+            "env.stage1_drop_below_m": 0.03}
 ADVANCE_AT = ("eval/episode_gate_reached", 0.8)   # share of evaluation episodes that met the gate
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
 FULL = {"env.gate_latches": False, "ppo.policy_std_scale": 0.25, "ppo.entropy_cost": 0.001,

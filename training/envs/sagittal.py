@@ -1,0 +1,36 @@
+"""A sagittal, left-right mirrored action space (FRASA's reduced getup; the kneel issue's item 4).
+
+The policy sets the pitch joints only, one value per left/right pair; every roll and yaw joint (head yaw,
+shoulder and hip roll, elbow and hip yaw, the waist, ankle roll) keeps its home target (action 0). Why: the
+planner's arrivals at the kneel are sprawled (hip yaw ±0.8 rad, waist ±1 rad) and two periods of PPO over all
+23 joints from them let the trunk sag below the gate; the kneel itself differs from home in hip, knee and ankle
+pitch only, and both sides' pitch joints share one axis, so mirroring is a copy. The env expands the action
+before anything reads it, so observations (last_action), targets and artifacts stay in the 23-joint contract.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from messages.contract import JOINT_NAMES, NUM_JOINTS
+
+# the reduced action's entries, each the joint of that name (the head) or both sides' (Left_/Right_ + name)
+PITCH_JOINTS = ("Head_pitch", "Shoulder_Pitch", "Elbow_Pitch", "Hip_Pitch", "Knee_Pitch", "Ankle_Pitch")
+ACTION_SPACES = ("full", "sagittal")
+
+
+def expansion() -> np.ndarray:
+    """(23, len(PITCH_JOINTS)) 0/1 matrix: full action = matrix @ reduced action."""
+    m = np.zeros((NUM_JOINTS, len(PITCH_JOINTS)), np.float32)
+    for j, name in enumerate(PITCH_JOINTS):
+        rows = [i for i, n in enumerate(JOINT_NAMES) if n == name or n in (f"Left_{name}", f"Right_{name}")]
+        if len(rows) not in (1, 2):
+            raise ValueError(f"sagittal: joint {name!r} matches {len(rows)} contract joints")
+        m[rows, j] = 1.0
+    return m
+
+
+def action_size(space: str) -> int:
+    """The policy's action size in an action space."""
+    if space not in ACTION_SPACES:
+        raise ValueError(f"action_space {space!r} unknown; valid: {', '.join(ACTION_SPACES)}")
+    return NUM_JOINTS if space == "full" else len(PITCH_JOINTS)
