@@ -43,3 +43,36 @@ def test_getup_env_expands_the_policy_action():
     assert full.action_size == NUM_JOINTS
     with pytest.raises(ValueError, match="action_space 'mirrored' unknown"):
         envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "action_space": "mirrored"})
+
+
+def test_a_sagittal_policy_exports_as_the_same_policy_over_the_23_joints(tmp_path):
+    """The artifact (the runtime's contract) acts as the env does: brax's deterministic action, expanded."""
+    import jax
+    import jax.numpy as jnp
+    from brax.training.acme import running_statistics, specs
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    from common import artifact
+    from common import observation as ob
+    from training import export
+
+    obs_size, n = ob.observation_size(ob.TERMS_GETUP), len(sagittal.PITCH_JOINTS)
+    nets = ppo_networks.make_ppo_networks(obs_size, n, preprocess_observations_fn=running_statistics.normalize,
+                                          policy_hidden_layer_sizes=(32, 16), value_hidden_layer_sizes=(8,))
+    k_pol, k_val, k_obs = jax.random.split(jax.random.PRNGKey(0), 3)
+    normalizer = running_statistics.init_state(specs.Array((obs_size,), jnp.float32))
+    params = (normalizer, nets.policy_network.init(k_pol), nets.value_network.init(k_val))
+    policy, rule = export.exported_policy(params[1], {"policy_distribution": "tanh_normal"},
+                                          {"action_space": "sagittal"})
+    path = tmp_path / "sagittal.safetensors"
+    export.export_brax_ppo((params[0], policy), {"name": "sagittal", "activation": "swish", "output_rule": rule,
+                                                 "obs_terms": [list(t) for t in ob.TERMS_GETUP]}, path)
+    layers, mean, std, manifest = artifact.read_artifact(path)
+    obs = np.asarray(jax.random.normal(k_obs, (16, obs_size)), np.float32)
+    brax_action = np.asarray(ppo_networks.make_inference_fn(nets)(params, deterministic=True)(
+        jnp.asarray(obs), jax.random.PRNGKey(1))[0])
+    ours = ob.mlp_forward(layers, ob.normalize(obs, mean, std), manifest["activation"], manifest["output_rule"])
+    np.testing.assert_allclose(ours, brax_action @ sagittal.expansion().T, atol=1e-5)
+    with pytest.raises(ValueError, match="sagittal: the policy's output layer has 46 outputs"):
+        sagittal.expand_policy(jax.tree_util.tree_map(np.asarray, ppo_networks.make_ppo_networks(
+            obs_size, NUM_JOINTS, policy_hidden_layer_sizes=(8,)).policy_network.init(k_pol)))

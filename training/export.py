@@ -9,6 +9,7 @@ import numpy as np
 from common.artifact import write_artifact
 from common.golden import base_manifest
 from training import checkpoints
+from training.envs import sagittal
 from training.envs.policy_files import brax_policy_layers
 
 
@@ -26,11 +27,13 @@ def student_layers(policy) -> dict:
     return {"params": layers}
 
 
-def exported_policy(policy, ppo_config) -> tuple[dict, str]:
+def exported_policy(policy, ppo_config, env_config) -> tuple[dict, str]:
     """(policy params as the artifact's MLP, output rule) of a PPO run's policy: a fine-tuned student acts with
-    its mean (`linear`), any other PPO policy is brax's tanh-normal."""
+    its mean (`linear`), any other PPO policy is brax's tanh-normal (a sagittal one expanded to the 23 joints)."""
     if ppo_config["policy_distribution"] == NORMAL:
         return student_layers(policy), "linear"
+    if env_config.get("action_space", "full") == "sagittal":
+        return sagittal.expand_policy(policy), "tanh_normal"
     return policy, "tanh_normal"
 
 

@@ -318,7 +318,7 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
     """The run's newest params → <run_dir>/<name>.safetensors, manifest from the env config."""
     steps = int(state["env_steps"])
     manifest = dict(env.manifest_fields())
-    policy, rule = exported_policy(params[1], state["ppo_config"])
+    policy, rule = exported_policy(params[1], state["ppo_config"], state["env_config"])
     manifest.update(name=state["name"], activation=ACTIVATION, output_rule=rule,
                     trained=exported_as_trained(steps, preset),
                     provenance=run_provenance(state, steps, preset))
@@ -359,7 +359,7 @@ def export_checkpoint(run_dir, env_steps: int, name: str, like=None) -> Path:
     manifest["provenance"] = {**run_provenance(state, env_steps, state["preset"]),
                               "exported_from": f"{ckpt} (env fields from {like})"}
     params = checkpoints.load_checkpoint(ckpt)
-    policy, rule = exported_policy(params[1], ppo_cfg)
+    policy, rule = exported_policy(params[1], ppo_cfg, env_cfg)
     manifest.update(name=name, output_rule=rule,
                     trained=exported_as_trained(int(env_steps), state["preset"]))
     path = run_dir / f"{name}.safetensors"

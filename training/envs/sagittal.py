@@ -34,3 +34,21 @@ def action_size(space: str) -> int:
     if space not in ACTION_SPACES:
         raise ValueError(f"action_space {space!r} unknown; valid: {', '.join(ACTION_SPACES)}")
     return NUM_JOINTS if space == "full" else len(PITCH_JOINTS)
+
+
+def expand_policy(policy_params) -> dict:
+    """A sagittal policy's brax tanh-normal params → the same policy over the 23 joints (what artifacts and the
+    runtime hold): the output layer's loc and scale columns copied to every joint their pitch value drives;
+    tanh commutes with the copy, so the artifact's actions are the env's expanded ones. Held joints get zero
+    columns (loc 0: home)."""
+    inner = dict(policy_params.get("params", policy_params))
+    last = f"hidden_{len(inner) - 1}"
+    kernel, bias = np.asarray(inner[last]["kernel"]), np.asarray(inner[last]["bias"])
+    n = len(PITCH_JOINTS)
+    if kernel.shape[-1] != 2 * n:
+        raise ValueError(f"sagittal: the policy's output layer has {kernel.shape[-1]} outputs, a sagittal "
+                         f"tanh-normal policy has {2 * n} (loc and scale of {n} pitch values)")
+    e = expansion().T                                   # (n, 23)
+    inner[last] = {"kernel": np.concatenate([kernel[:, :n] @ e, kernel[:, n:] @ e], axis=1),
+                   "bias": np.concatenate([bias[:n] @ e, bias[n:] @ e])}
+    return {"params": inner}
