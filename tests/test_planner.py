@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from common import observation as obsdef
+from training.envs import sagittal
 from training.planner import __main__ as cli
 from training.planner import batch, demos
 from training.planner.mppi import Planner
@@ -108,6 +109,23 @@ def test_a_knot_spacing_that_does_not_divide_is_refused(tiny):
     bad.knot_dt_s = 0.03
     with pytest.raises(ValueError, match="knot_dt_s / the control step"):
         Planner(env.cpu_physics, bad, np.zeros(23), 0.5)
+
+
+def test_sagittal_plans_move_pitch_pairs_together_and_hold_the_rest_home(tiny):
+    """sagittal_from: from that waypoint on, the robot's targets are in the getup env's sagittal action space."""
+    cfg, env, planner = tiny
+    mirrored = cfg.copy_and_resolve_references()
+    mirrored.sagittal_from = cfg.waypoints[0]
+    p = Planner(env.cpu_physics, mirrored, planner.default_pose, planner.action_scale)
+    qpos, qvel = _start(env, 62)
+    demo = p.rise(qpos, qvel, p.default_pose, 7)
+    e = sagittal.expansion()
+    pitch = (demo.targets - p.default_pose) @ e / e.sum(axis=0)
+    np.testing.assert_allclose(demo.targets, p.default_pose + pitch @ e.T, atol=1e-9)
+    assert np.ptp(pitch, axis=0).max() > 0.01                            # and they do move
+    mirrored.sagittal_from = "crawl"
+    with pytest.raises(ValueError, match="sagittal_from 'crawl' is not a waypoint"):
+        Planner(env.cpu_physics, mirrored, planner.default_pose, planner.action_scale)
 
 
 def test_summary_counts_gate_met_within_the_time_per_side():

@@ -24,6 +24,10 @@ def default_config() -> config_dict.ConfigDict:
         # and hips flexed heel_sit_flex_rad more (sitting back on the heels, trunk upright); the cost moves on
         # once the trunk is within advance_height_m of a keyframe's height and advance_up_z of its up_z
         waypoints=["hands_knees", "heel_sit", "kneel"],
+        # from this waypoint on ("" = never) the plans move in the getup env's sagittal action space
+        # (training/envs/sagittal.py): pitch joints left = right, roll and yaw at home; a sampler over all 23
+        # joints arrived sprawled (hip yaw ±0.8 rad, waist ±1 rad) and did not square it within its horizon
+        sagittal_from="",
         hands_knees_pitch_rad=1.2,
         heel_sit_flex_rad=0.5,
         advance_height_m=0.05,

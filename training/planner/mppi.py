@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from common import observation as obsdef
+from training.envs import sagittal
 from training.planner import costs, keyframes
 
 KNEES, HIPS = keyframes.indices(keyframes.KNEE_PITCHES), keyframes.indices(keyframes.HIP_PITCHES)
@@ -78,6 +79,12 @@ class Planner:
         if not self.keyframes or cfg.waypoints[-1] != "kneel":
             raise ValueError(f"planner: waypoints must end at the kneel, got {list(cfg.waypoints)}")
         self.target = self.keyframes[-1]
+        if cfg.sagittal_from and cfg.sagittal_from not in cfg.waypoints:
+            raise ValueError(f"planner: sagittal_from {cfg.sagittal_from!r} is not a waypoint "
+                             f"({', '.join(cfg.waypoints)})")
+        self.sagittal_from = (list(cfg.waypoints).index(cfg.sagittal_from) if cfg.sagittal_from
+                              else len(cfg.waypoints))
+        self.expansion = sagittal.expansion()                         # (23, pitch values)
         self.default_pose, self.action_scale = np.asarray(default_pose), np.asarray(action_scale)
         self.samples = physics.evaluation_batch(int(cfg.samples))
 
@@ -98,10 +105,21 @@ class Planner:
         return np.abs(h - self.target["h"]) < self.cfg.near_m
 
     # ------------------------------------------------------------------ one plan
-    def improve(self, robot, plan: np.ndarray, sigma: float, rng: np.random.Generator, target: dict) -> np.ndarray:
-        """The plan after one MPPI update from the robot's current state, toward the keyframe `target`."""
+    def mirrored(self, plan: np.ndarray) -> np.ndarray:
+        """A plan in the sagittal space: each pitch pair at its mean, every other joint at home."""
+        e = self.expansion
+        pitch = (plan - self.default_pose) @ e / e.sum(axis=0)
+        return self.default_pose + pitch @ e.T
+
+    def improve(self, robot, plan: np.ndarray, sigma: float, rng: np.random.Generator, target: dict,
+                mirrored: bool = False) -> np.ndarray:
+        """The plan after one MPPI update from the robot's current state, toward the keyframe `target`
+        (mirrored: the noise in the sagittal space, the plan already in it)."""
         s, nu = int(self.cfg.samples), self.nu
-        noise = rng.standard_normal((s, self.K, nu)) * sigma
+        if mirrored:
+            noise = rng.standard_normal((s, self.K, self.expansion.shape[1])) @ self.expansion.T * sigma
+        else:
+            noise = rng.standard_normal((s, self.K, nu)) * sigma
         noise[0] = 0.0
         cand = np.clip(plan[None] + noise, self.lo, self.hi)
         traj = np.einsum("hk,skj->shj", self.interp, cand)
@@ -156,7 +174,10 @@ class Planner:
             waypoint = min(reached[-1] + 1, len(self.keyframes) - 1) if reached else waypoint
             at_kneel = waypoint == len(self.keyframes) - 1
             sigma = cfg.sigma_near_rad if at_kneel and self._near(r["h"])[0] else cfg.sigma_rise_rad
-            plan = self.improve(robot, plan, float(sigma), rng, self.keyframes[waypoint])
+            mirrored = waypoint >= self.sagittal_from
+            if mirrored:
+                plan = self.mirrored(plan)
+            plan = self.improve(robot, plan, float(sigma), rng, self.keyframes[waypoint], mirrored)
             for q_des in self.interp[:self.replan_knots * self.spk] @ plan:
                 self.physics.write_targets(robot, q_des[None])
                 for _ in range(self.sub):        # the robot's energy, substep by substep (training/evaluate_cpu.py)
