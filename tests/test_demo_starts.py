@@ -1,5 +1,5 @@
 """Backplay starts (training/envs/starts/demos.py): states of the planner's demonstrations from the last window
-before each arrival at the kneel, as a share of the getup env's fallen starts."""
+before each one's end (its gate held) or arrival at the kneel, as a share of the getup env's fallen starts."""
 from __future__ import annotations
 
 import shutil
@@ -15,17 +15,25 @@ DEMOS = "training/campaigns/getup_keyframe/demos"      # the kneel campaign's de
 
 
 def _arrived():
-    """{file: (qpos, arrival step, ctrl_dt)} of the campaign's demonstrations that reached the kneel."""
+    """{file: (qpos, window's end, ctrl_dt)} of the campaign's demonstrations that reached the kneel."""
     out = {}
     for f in sorted((demos.REPO_ROOT / DEMOS).glob(demos.DEMO_GLOB)):
         with np.load(f) as z:
-            end = demos.arrival_step(z["trunk_height"], z["kneeling"])
+            end = demos.window_end(z["trunk_height"], z["kneeling"], z["gate"])
             if end is not None:
                 out[f] = (z["qpos"], end, float(z["ctrl_dt"]))
     return out
 
 
-def test_the_bank_holds_states_from_the_window_before_each_arrival():
+def test_a_window_ends_where_the_gate_was_held_else_at_the_arrival():
+    h = np.array([0.2, 0.3, 0.40, 0.40, 0.40, 0.40])
+    kneeling = np.array([0, 0, 1, 1, 1, 1], bool)
+    assert demos.window_end(h, kneeling, np.zeros(6, bool)) == 2                     # arrived, never gated
+    assert demos.window_end(h, kneeling, np.array([0, 0, 0, 1, 1, 0], bool)) == 5    # the goal: its last step
+    assert demos.window_end(h, np.zeros(6, bool), np.ones(6, bool)) is None         # never kneeling
+
+
+def test_the_bank_holds_states_from_the_window_before_each_end():
     arrived = _arrived()
     assert arrived, f"{DEMOS}: no demonstration reached the kneel"
     window_s = 0.2

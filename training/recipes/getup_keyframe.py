@@ -6,10 +6,10 @@ whole path, then its swing, then the whole path again; the runtime's target rule
 
 Stage 1 learns from the sampling planner's rises to the kneel (`python -m training.planner`; six periods of PPO
 from the floor never reached it: training/LESSONS.md): every episode starts at a state of a rise (velocities
-included) at most window_s before it arrived at the kneel (envs/starts/demos.py), the window widened stage by
-stage once ADVANCE_AT of the evaluation's episodes meet §4.8's gate (Backplay; each stage's steps cap it), then
-half the episodes from the loop's fallen starts; the seed's stage-1 reward plus a
-reward while §4.8's gate holds. Stage 1 is not yet joined to the full stage, which starts from stage 2."""
+included) at most window_s before its end (its gate held) or, short of the gate, its arrival at the kneel
+(envs/starts/demos.py), the window widened stage by stage once ADVANCE_AT of the evaluation's episodes meet
+§4.8's gate (Backplay; each stage's steps cap it), then half the episodes from the loop's fallen starts; the
+seed's stage-1 reward plus a reward while §4.8's gate holds. Stage 1 is not yet joined to the full stage, which starts from stage 2."""
 from training.recipe import Recipe, Stage
 
 DEMOS = "training/campaigns/getup_keyframe/demos"

@@ -1,11 +1,12 @@
 """Starts along the planner's rises to the kneel (backplay): a share of the getup env's fallen starts is instead
-a state of a demonstration (qpos and qvel: the robot mid-rise, moving), drawn from the last `window_s` before it
-arrived at the kneel. A recipe widens the window stage by stage as stage 1 succeeds from it, as Backplay and
+a state of a demonstration (qpos and qvel: the robot mid-rise, moving), drawn from the last `window_s` of it up to
+its end (a demonstration that met §4.8's gate: the planner holds the gate to its end, so the narrowest window
+starts at the goal) or, for one that never met the gate, up to its arrival at the kneel. A recipe widens the window stage by stage as stage 1 succeeds from it, as Backplay and
 "Montezuma's Revenge from a single demonstration" move the start back along the demonstration.
 
 The demonstrations are a folder the planner wrote (`python -m training.planner`, training/planner/demos.py:
-demo_<seed>.npz with per-step qpos, qvel, trunk_height and kneeling). A demonstration arrives at the first step
-with the trunk at the §4.8 gate's height in the kneeling posture; one that never did is not used."""
+demo_<seed>.npz with per-step qpos, qvel, trunk_height, kneeling and gate). A demonstration arrives at the first
+step with the trunk at the §4.8 gate's height in the kneeling posture; one that did neither is not used."""
 from __future__ import annotations
 
 import functools
@@ -19,7 +20,7 @@ from training.envs.starts.bank import frozen_bank
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 DEMO_GLOB = "demo_*.npz"
-ARRAYS = ("qpos", "qvel", "trunk_height", "kneeling", "ctrl_dt")   # of each demonstration file (per step; [s])
+ARRAYS = ("qpos", "qvel", "trunk_height", "kneeling", "gate", "ctrl_dt")   # of each demonstration file (per step; [s])
 ARRIVAL_HEIGHT_M = events.KNEEL_GATE_HEIGHT_M - events.KNEEL_GATE_HEIGHT_TOL_M
 
 
@@ -44,10 +45,18 @@ def arrival_step(trunk_height: np.ndarray, kneeling: np.ndarray) -> int | None:
     return int(hit[0]) if hit.size else None
 
 
+def window_end(trunk_height: np.ndarray, kneeling: np.ndarray, gate: np.ndarray) -> int | None:
+    """The step a demonstration's window ends at: its last when it met the gate in the kneeling posture, else its
+    arrival at the kneel, else None."""
+    if np.any(np.asarray(gate, bool) & np.asarray(kneeling, bool)):
+        return len(trunk_height) - 1
+    return arrival_step(trunk_height, kneeling)
+
+
 @functools.lru_cache(maxsize=4)
 def demo_bank(folder: str, window_s: float, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """(qpos, qvel) of `num_starts` states drawn uniformly from the last window_s before each arrival (all
-    arriving demonstrations' states pooled). Cached (read-only arrays)."""
+    """(qpos, qvel) of `num_starts` states drawn uniformly from the last window_s before each window's end (all
+    used demonstrations' states pooled). Cached (read-only arrays)."""
     if window_s <= 0 or num_starts < 1:
         raise ValueError(f"demo_starts: window_s must be > 0 and bank_starts ≥ 1, got {window_s}, {num_starts}")
     path = Path(folder) if Path(folder).is_absolute() else REPO_ROOT / folder
@@ -62,7 +71,7 @@ def demo_bank(folder: str, window_s: float, num_starts: int, seed: int) -> tuple
                 demo = {k: z[k] for k in ARRAYS}
         except (OSError, KeyError, ValueError) as e:
             raise ValueError(f"demo_starts: {f} is not a planner demonstration ({e})") from e
-        end = arrival_step(demo["trunk_height"], demo["kneeling"])
+        end = window_end(demo["trunk_height"], demo["kneeling"], demo["gate"])
         back = int(round(window_s / float(demo["ctrl_dt"])))
         if end is not None:
             qpos.append(demo["qpos"][max(0, end - back):end + 1])
