@@ -20,8 +20,8 @@ posture, and without the end PPO learned to lie or lean back with straight legs 
 and, with config.stage1_drop_below_m > 0 (ours, off by default), in stage 1 once the trunk, having reached the
 gate's height, drops that far below it (DeepMimic's early termination: a kneel let sag ends the episode).
 Ours, off by default: a sagittal, mirrored action space (config.action_space, envs/sagittal.py: the env expands
-the policy's pitch-joint action to the 23 joints before anything reads it); stage 2's reverse curriculum (starts/kneeling_path.py) and a share of the fallen starts from the
-start banks (starts/).
+the policy's pitch-joint action to the 23 joints before anything reads it); stage 2's reverse curriculum
+(starts/kneeling_path.py) and a share of the fallen starts from the start banks (starts/).
 """
 from __future__ import annotations
 
