@@ -35,7 +35,6 @@ def test_a_plan_is_reproducible_from_its_seed_and_recorded_consistently(tiny):
     assert np.array_equal(a.qpos, b.qpos) and np.array_equal(a.targets, b.targets)     # same machine, same seed
     assert not np.array_equal(a.targets, c.targets)
     np.testing.assert_allclose(a.qpos[0], qpos)
-    np.testing.assert_allclose(planner.default_pose + planner.action_scale * a.actions, a.targets, atol=1e-9)
     # the observation is the getup actor's, of each recorded state
     assert a.obs.shape == (steps + 1, obsdef.observation_size(obsdef.TERMS_GETUP))
     np.testing.assert_allclose(a.obs[:, -23:], a.qvel[:, 6:], atol=1e-5)        # joint_vel, the last term

@@ -16,7 +16,7 @@ from training.planner.mppi import Demonstration
 
 SIDES = ("face_down", "on_back", "side")
 FACING_Z = 0.5          # |z of the trunk's forward axis| above this: face down (< 0) or on the back (> 0)
-ARRAYS = ("qpos", "qvel", "obs", "targets", "actions", "trunk_height", "up_z", "gate", "kneeling", "waypoint")
+ARRAYS = ("qpos", "qvel", "obs", "targets", "trunk_height", "up_z", "gate", "kneeling", "waypoint")
 REPORT = "report.json"
 STRIP_CAMERA_DISTANCE_M = 1.6   # the frame strips' tracking camera, closer than the videos' (a lying robot is small)
 

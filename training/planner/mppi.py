@@ -25,13 +25,12 @@ KNEES, HIPS = keyframes.indices(keyframes.KNEE_PITCHES), keyframes.indices(keyfr
 class Demonstration:
     """One planned rise, per control step t (T steps; states have T + 1 rows: before each step and after the
     last). obs: the getup actor's observation (TERMS_GETUP, unnormalised) of each state; targets: the
-    joint targets sent at step t; actions: the same in the getup env's action map."""
+    joint targets sent at step t (the getup env's action is (targets - default pose) / action scale)."""
     seed: int
     qpos: np.ndarray           # (T + 1, nq)
     qvel: np.ndarray           # (T + 1, nv)
     obs: np.ndarray            # (T + 1, 52)
     targets: np.ndarray        # (T, 23) [rad]
-    actions: np.ndarray        # (T, 23)
     trunk_height: np.ndarray   # (T + 1,) [m]
     up_z: np.ndarray           # (T + 1,)
     gate: np.ndarray           # (T + 1,) bool: §4.8's gate
@@ -209,10 +208,8 @@ class Planner:
         obs = obsdef.build_observation(obsdef.TERMS_GETUP, state, np)
         return Demonstration(
             seed=seed, qpos=a["qpos"], qvel=a["qvel"], obs=obs.astype(np.float32), targets=targets,
-            actions=(targets - self.default_pose) / self.action_scale, trunk_height=a["h"], up_z=a["up_z"],
-            gate=costs.gate(a["h"], a["up_z"]), kneeling=self._kneeling(a["q"]), waypoint=a["waypoint"].astype(int),
-            energy_J=energy, cpu_s=cpu_s,
-            ctrl_dt=self.ctrl_dt)
+            trunk_height=a["h"], up_z=a["up_z"], gate=costs.gate(a["h"], a["up_z"]), kneeling=self._kneeling(a["q"]),
+            waypoint=a["waypoint"].astype(int), energy_J=energy, cpu_s=cpu_s, ctrl_dt=self.ctrl_dt)
 
 
 def _whole(x: float, what: str) -> int:
