@@ -46,6 +46,24 @@ def test_the_bank_holds_states_from_the_window_before_each_end():
     assert np.array_equal(demos.demo_bank(DEMOS, window_s, 64, 1)[0], qpos)   # seeded
 
 
+def test_gated_only_draws_from_the_demonstrations_that_met_the_gate(tmp_path):
+    gated, arrived_only = [], []
+    for f in sorted((demos.REPO_ROOT / DEMOS).glob(demos.DEMO_GLOB)):
+        with np.load(f) as z:
+            if demos.met_gate(z["gate"], z["kneeling"]):
+                gated.append(z["qpos"][-round(0.2 / float(z["ctrl_dt"])) - 1:])
+            elif demos.arrival_step(z["trunk_height"], z["kneeling"]) is not None:
+                arrived_only.append(f)
+    assert gated and arrived_only, "the campaign's demonstrations: some met the gate, some only arrived"
+    qpos, _ = demos.demo_bank(DEMOS, 0.2, 64, 1, gated_only=True)
+    allowed = np.concatenate(gated)
+    assert all(np.any(np.all(allowed == row, axis=1)) for row in qpos)
+    shutil.copy(arrived_only[0], tmp_path / "demo_0.npz")
+    assert len(demos.demo_bank(str(tmp_path), 0.5, 8, 0)[0]) == 8
+    with pytest.raises(ValueError, match="none of its 1 demonstrations met the gate"):
+        demos.demo_bank(str(tmp_path), 0.5, 8, 0, gated_only=True)
+
+
 def test_bad_folders_and_settings_are_named(tmp_path):
     with pytest.raises(ValueError, match="no demo_"):
         demos.demo_bank(str(tmp_path), 0.5, 8, 0)

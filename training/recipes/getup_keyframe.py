@@ -6,10 +6,10 @@ whole path, then its swing, then the whole path again; the runtime's target rule
 
 Stage 1 learns from the sampling planner's rises to the kneel (`python -m training.planner`; six periods of PPO
 from the floor never reached it: training/LESSONS.md): every episode starts at a state of a rise (velocities
-included) at most window_s before its end (its gate held) or, short of the gate, its arrival at the kneel
-(envs/starts/demos.py), the window widened stage by stage once ADVANCE_AT of the evaluation's episodes meet
-§4.8's gate (Backplay; each stage's steps cap it), then half the episodes from the loop's fallen starts; the
-seed's stage-1 reward plus a reward while §4.8's gate holds. Stage 1 is not yet joined to the full stage, which starts from stage 2."""
+included) at most window_s before its end, of the rises that met and held the gate (envs/starts/demos.py),
+the window widened stage by stage once ADVANCE_AT of the evaluation's episodes meet §4.8's gate (Backplay; each
+stage's steps cap it), then half the episodes from the loop's fallen starts; the seed's stage-1 reward plus a
+reward while §4.8's gate holds. Stage 1 is not yet joined to the full stage, which starts from stage 2."""
 from training.recipe import Recipe, Stage
 
 DEMOS = "training/campaigns/getup_keyframe/demos"
@@ -18,10 +18,11 @@ DEMOS = "training/campaigns/getup_keyframe/demos"
 # gate's tilt at its height (stage1_upright_reward), where the seed's orientation reward is flat; the learner
 # changed after two stalled periods (the kneel issue's item 4): a sagittal, mirrored action space (the pitch
 # joints, left = right; envs/sagittal.py) and the episode's end once a trunk that reached the gate's height sags
-# 3 cm below it (DeepMimic's early termination)
+# 3 cm below it (DeepMimic's early termination); starts only along the rises that met the gate (the learner
+# met it from none of the others' arrivals: LESSONS, period 8)
 BACKPLAY = {"env.demo_starts.prob": 1.0, "env.demo_starts.folder": DEMOS, "env.stage1_gate_reward": 1.0,
             "env.stage1_upright_reward": 1.0, "ppo.policy_std_scale": 0.15, "env.action_space": "sagittal",
-            "env.stage1_drop_below_m": 0.03}
+            "env.stage1_drop_below_m": 0.03, "env.demo_starts.gated_only": True}
 ADVANCE_AT = ("eval/episode_gate_reached", 0.8)   # share of evaluation episodes that met the gate
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
 FULL = {"env.gate_latches": False, "ppo.policy_std_scale": 0.25, "ppo.entropy_cost": 0.001,

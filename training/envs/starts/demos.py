@@ -1,7 +1,8 @@
 """Starts along the planner's rises to the kneel (backplay): a share of the getup env's fallen starts is instead
 a state of a demonstration (qpos and qvel: the robot mid-rise, moving), drawn from the last `window_s` of it up to
 its end (a demonstration that met §4.8's gate: the planner holds the gate to its end, so the narrowest window
-starts at the goal) or, for one that never met the gate, up to its arrival at the kneel. A recipe widens the window stage by stage as stage 1 succeeds from it, as Backplay and
+starts at the goal) or, for one that never met the gate, up to its arrival at the kneel (or not at all:
+gated_only). A recipe widens the window stage by stage as stage 1 succeeds from it, as Backplay and
 "Montezuma's Revenge from a single demonstration" move the start back along the demonstration.
 
 The demonstrations are a folder the planner wrote (`python -m training.planner`, training/planner/demos.py:
@@ -26,12 +27,15 @@ ARRIVAL_HEIGHT_M = events.KNEEL_GATE_HEIGHT_M - events.KNEEL_GATE_HEIGHT_TOL_M
 
 def demo_config() -> config_dict.ConfigDict:
     """This share of the fallen starts is a demonstration state from `folder` (repository-relative or
-    absolute), at most `window_s` [s] before its arrival at the kneel; `bank_starts` states, drawn with `seed`."""
-    return config_dict.create(prob=0.0, folder="", window_s=0.5, bank_starts=1024, seed=400_000)
+    absolute), at most `window_s` [s] before its window's end; `bank_starts` states, drawn with `seed`.
+    gated_only: only the demonstrations that met the gate (Backplay's demonstrations of success: a rise the
+    planner could not finish is a start the learner has no example to finish from)."""
+    return config_dict.create(prob=0.0, folder="", window_s=0.5, bank_starts=1024, seed=400_000, gated_only=False)
 
 
 def demo_starts(env, group) -> tuple[np.ndarray, np.ndarray]:
-    return demo_bank(str(group.folder), float(group.window_s), int(group.bank_starts), int(group.seed))
+    return demo_bank(str(group.folder), float(group.window_s), int(group.bank_starts), int(group.seed),
+                     bool(group.gated_only))
 
 
 def at_kneel(trunk_height: np.ndarray, kneeling: np.ndarray) -> np.ndarray:
@@ -45,18 +49,22 @@ def arrival_step(trunk_height: np.ndarray, kneeling: np.ndarray) -> int | None:
     return int(hit[0]) if hit.size else None
 
 
+def met_gate(gate: np.ndarray, kneeling: np.ndarray) -> bool:
+    """The demonstration met §4.8's gate in the kneeling posture."""
+    return bool(np.any(np.asarray(gate, bool) & np.asarray(kneeling, bool)))
+
+
 def window_end(trunk_height: np.ndarray, kneeling: np.ndarray, gate: np.ndarray) -> int | None:
     """The step a demonstration's window ends at: its last when it met the gate in the kneeling posture, else its
     arrival at the kneel, else None."""
-    if np.any(np.asarray(gate, bool) & np.asarray(kneeling, bool)):
-        return len(trunk_height) - 1
-    return arrival_step(trunk_height, kneeling)
+    return len(trunk_height) - 1 if met_gate(gate, kneeling) else arrival_step(trunk_height, kneeling)
 
 
 @functools.lru_cache(maxsize=4)
-def demo_bank(folder: str, window_s: float, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def demo_bank(folder: str, window_s: float, num_starts: int, seed: int,
+              gated_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) of `num_starts` states drawn uniformly from the last window_s before each window's end (all
-    used demonstrations' states pooled). Cached (read-only arrays)."""
+    used demonstrations' states pooled; gated_only: of those that met the gate). Cached (read-only arrays)."""
     if window_s <= 0 or num_starts < 1:
         raise ValueError(f"demo_starts: window_s must be > 0 and bank_starts ≥ 1, got {window_s}, {num_starts}")
     path = Path(folder) if Path(folder).is_absolute() else REPO_ROOT / folder
@@ -72,11 +80,14 @@ def demo_bank(folder: str, window_s: float, num_starts: int, seed: int) -> tuple
         except (OSError, KeyError, ValueError) as e:
             raise ValueError(f"demo_starts: {f} is not a planner demonstration ({e})") from e
         end = window_end(demo["trunk_height"], demo["kneeling"], demo["gate"])
+        if gated_only and not met_gate(demo["gate"], demo["kneeling"]):
+            end = None
         back = int(round(window_s / float(demo["ctrl_dt"])))
         if end is not None:
             qpos.append(demo["qpos"][max(0, end - back):end + 1])
             qvel.append(demo["qvel"][max(0, end - back):end + 1])
     if not qpos:
-        raise ValueError(f"demo_starts.folder {folder!r}: none of its {len(files)} demonstrations reached the kneel")
+        raise ValueError(f"demo_starts.folder {folder!r}: none of its {len(files)} demonstrations "
+                         f"{'met the gate' if gated_only else 'reached the kneel'}")
     qpos, qvel = np.concatenate(qpos), np.concatenate(qvel)
     return frozen_bank(np.random.default_rng(seed).integers(0, len(qpos), num_starts), qpos, qvel)
