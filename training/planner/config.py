@@ -27,7 +27,7 @@ def default_config() -> config_dict.ConfigDict:
         # from this waypoint on ("" = never) the plans move in the getup env's sagittal action space
         # (training/envs/sagittal.py): pitch joints left = right, roll and yaw at home; a sampler over all 23
         # joints arrived sprawled (hip yaw ±0.8 rad, waist ±1 rad) and did not square it within its horizon
-        sagittal_from="",
+        sagittal_from="heel_sit",
         hands_knees_pitch_rad=1.2,
         heel_sit_flex_rad=0.5,
         advance_height_m=0.05,

@@ -100,7 +100,7 @@ class Planner:
                 "q": b.qpos[:, 7:7 + self.nu], "dq": b.qvel[:, 6:6 + self.nu],
                 "tau": np.asarray(b.actuator_force), "root_vel": b.qvel[:, :6]}
 
-    def _near(self, h) -> np.ndarray:
+    def near(self, h) -> np.ndarray:
         return np.abs(h - self.target["h"]) < self.cfg.near_m
 
     # ------------------------------------------------------------------ one plan
@@ -132,7 +132,7 @@ class Planner:
             self.physics.write_targets(b, traj[:, j])
             b.step(nstep=self.sub)
             r = self.readings(b)
-            near = self._near(r["h"]) if target is self.target else np.zeros(s, bool)
+            near = self.near(r["h"]) if target is self.target else np.zeros(s, bool)
             c = costs.step_cost(r, target, w, near)
             total += c * (float(w.terminal) if j == self.H - 1 else 1.0)
         total = np.where(np.isfinite(total), total, np.inf)
@@ -172,7 +172,7 @@ class Planner:
             reached = [k for k in range(waypoint, len(self.keyframes)) if self._reached(self.keyframes[k], r)]
             waypoint = min(reached[-1] + 1, len(self.keyframes) - 1) if reached else waypoint
             at_kneel = waypoint == len(self.keyframes) - 1
-            sigma = cfg.sigma_near_rad if at_kneel and self._near(r["h"])[0] else cfg.sigma_rise_rad
+            sigma = cfg.sigma_near_rad if at_kneel and self.near(r["h"])[0] else cfg.sigma_rise_rad
             mirrored = waypoint >= self.sagittal_from
             if mirrored:
                 plan = self.mirrored(plan)
@@ -185,7 +185,7 @@ class Planner:
                     energy += float(np.sum(np.abs(robot.actuator_force[0] * dq0))) * float(self.model.opt.timestep)
                 targets.append(q_des)
                 r = record()
-                ok = costs.gate(r["h"], r["up_z"])[0] and self._kneeling(r["q"])[0]
+                ok = costs.gate(r["h"], r["up_z"])[0] and self.kneeling(r["q"])[0]
                 if ok and first_gate is None:
                     first_gate = len(targets)
                 done = len(targets) >= (first_gate + hold_steps if first_gate is not None else max_steps)
@@ -196,7 +196,7 @@ class Planner:
             plan = np.concatenate([plan[self.replan_knots:], np.repeat(plan[-1:], self.replan_knots, axis=0)])
         return self._demonstration(seed, rows, np.array(targets), energy, time.process_time() - cpu0)
 
-    def _kneeling(self, q) -> np.ndarray:
+    def kneeling(self, q) -> np.ndarray:
         return costs.kneeling(q, KNEES, HIPS, self.cfg.kneel_knee_min_rad, self.cfg.kneel_hip_min_rad)
 
     def _demonstration(self, seed, rows, targets, energy, cpu_s) -> Demonstration:
@@ -208,7 +208,7 @@ class Planner:
         obs = obsdef.build_observation(obsdef.TERMS_GETUP, state, np)
         return Demonstration(
             seed=seed, qpos=a["qpos"], qvel=a["qvel"], obs=obs.astype(np.float32), targets=targets,
-            trunk_height=a["h"], up_z=a["up_z"], gate=costs.gate(a["h"], a["up_z"]), kneeling=self._kneeling(a["q"]),
+            trunk_height=a["h"], up_z=a["up_z"], gate=costs.gate(a["h"], a["up_z"]), kneeling=self.kneeling(a["q"]),
             waypoint=a["waypoint"].astype(int), energy_J=energy, cpu_s=cpu_s, ctrl_dt=self.ctrl_dt)
 
 

@@ -1,0 +1,43 @@
+"""`python -m training.imitation`: DAgger with the rise planner as the expert, into one campaign folder.
+
+    python -m training.imitation --out DIR [--demos DIR] [--rounds R] [--config key=value ...] [--max-minutes M]
+
+`--config` sets training/imitation/config.py's fields (e.g. starts_per_round=8) or, prefixed `planner.`, the
+planner's (training/planner/config.py). A folder with finished rounds resumes at its next round (its config must
+match). The batch evaluations of each round go to --eval-dir (default runs/imitation_eval)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from training.imitation import build, dagger
+
+DEFAULT_DEMOS = Path("training/campaigns/getup_keyframe/demos")
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m training.imitation", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True, type=Path, help="the campaign folder")
+    p.add_argument("--demos", type=Path, default=DEFAULT_DEMOS, help="the planner's demonstrations (round 0)")
+    p.add_argument("--rounds", type=int, default=None, help="stop after this many rounds (default: config.rounds)")
+    p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE", help="a setting, repeatable")
+    p.add_argument("--max-minutes", type=float, default=None, help="start no new round after this long")
+    p.add_argument("--eval-dir", type=Path, default=None, help="where each round's batch evaluation goes")
+    args = p.parse_args(argv)
+    try:
+        if args.rounds is not None and args.rounds < 1:
+            raise ValueError(f"--rounds must be at least 1, got {args.rounds}")
+        cfg, teacher, env = build(args.config)
+        state = dagger.run(args.out, args.demos, cfg, teacher, env, args.rounds, args.max_minutes, args.eval_dir)
+    except ValueError as e:
+        print(f"imitation: {e}", file=sys.stderr)
+        return 2
+    print(json.dumps(state["rounds"][-1] if state["rounds"] else {}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,41 @@
+"""DAgger with the rise planner as the expert: the settings, one config_dict. Times in s, angles in rad."""
+from __future__ import annotations
+
+from ml_collections import config_dict
+
+
+def default_config() -> config_dict.ConfigDict:
+    return config_dict.create(
+        rounds=8,
+        # each round rolls the current policy out from this many fallen starts (seeds first_seed + round ·
+        # starts_per_round …), disjoint from the evaluation's seeds 0 … eval_seeds − 1
+        starts_per_round=32,
+        first_seed=100_000,
+        rollout_s=8.0,           # §4.8's gate must hold within 8 s
+        # β: the share of segments in which the expert's takeover is what the robot does (DAgger's mixture),
+        # beta_start · beta_decay^(round − 1); round 0 is the demonstrations alone
+        beta_start=0.5,
+        beta_decay=0.5,
+        # the expert: from the robot's state at the start of every segment, the planner takes over for
+        # takeover_replans replans (its own warm-start chain), each step of it a label; each replan's
+        # candidates are the policy's own closed-loop rollout over the horizon and the expert's previous plan,
+        # each with noisy copies (GPC: policy samples beside MPPI samples)
+        expert=config_dict.create(
+            takeover_replans=2,
+            policy_samples=12,       # noisy copies of the policy's proposal
+            plan_samples=12,         # noisy copies of the expert's previous plan
+            horizon_s=0.5,
+        ),
+        # the fit: brax's tanh-normal policy MLP (the getup experts' network), MSE of tanh(loc) to the labels'
+        # actions, warm-started from the previous round
+        fit=config_dict.create(
+            hidden_layer_sizes=[512, 256, 128],
+            epochs=30,
+            batch_size=1024,
+            learning_rate=3e-4,
+            seed=0,
+        ),
+        eval_seeds=200,
+        eval_seconds=8.0,
+        seed=0,
+    )

@@ -1,0 +1,160 @@
+"""DAgger rounds with the planner as the expert (Ross et al. 2011; PLATO's MPC teacher near the learner's states).
+
+Round 0 fits the learner to the planner's stored demonstrations. Round k ≥ 1 rolls the current learner out from
+fresh fallen starts, all at once on the C physics; at the start of every segment (takeover_replans replans) the
+planner takes over a copy of each robot (expert.Teacher.takeover) and every step of it is a label; with
+probability β the robot goes on from where the expert's takeover left it (the expert acted), else from where the
+learner's own segment did. The labels join the data set, the learner is refitted on all of it, exported and
+evaluated on the batch from `eval_seeds` fallen seeds (training/evaluate.py's "reached the kneel")."""
+from __future__ import annotations
+
+import csv
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from training.imitation import dataset, expert
+from training.imitation.learner import fit, load_learner, new_learner
+from training.planner import costs
+
+STATE = "state.json"
+POLICY = "policy.npz"
+ARTIFACT = "getup_kneel_dagger.safetensors"
+DATA = "data"
+FACING_Z = 0.5        # the evaluation's split of starts: face down below −this, on the back above it
+
+
+def beta(cfg, k: int) -> float:
+    return 0.0 if k == 0 else float(cfg.beta_start) * float(cfg.beta_decay) ** (k - 1)
+
+
+def collect(teacher: expert.Teacher, learner, qpos: np.ndarray, qvel: np.ndarray, beta_k: float,
+            rollout_s: float, rng: np.random.Generator) -> dict:
+    """One round's rollouts and labels from the starts (qpos, qvel); returns the labels, how many rollouts met
+    §4.8's gate in the kneeling posture, and the CPU seconds spent."""
+    p = teacher.p
+    cpu0 = time.process_time()
+    n = len(qpos)
+    main, branch = expert.Robots(p.physics, n), expert.Robots(p.physics, n)
+    main.b.qpos[:], main.b.qvel[:], main.b.time[:], main.b.qacc_warmstart[:] = qpos, qvel, 0.0, 0.0
+    p.physics.write_targets(main.b, p.default_pose[None], p.default_pose[None])   # R6 after PREPARE
+    main.b.forward()
+    plans = np.repeat(np.clip(qpos[:, None, 7:7 + p.nu], p.lo, p.hi), p.K, axis=1)   # hold, as a rise starts
+    waypoint = np.zeros(n, int)
+    seg = int(teacher.cfg.takeover_replans) * p.replan_knots * p.spk
+    steps = int(round(rollout_s / p.ctrl_dt))
+    met = np.zeros(n, bool)
+    obs, q = [], []
+    for _ in range(0, steps, seg):
+        branch.copy_from(main)
+        out = teacher.takeover(branch, plans, waypoint.copy(), learner.targets, rng)
+        obs.append(out["obs"])
+        q.append(out["q_des"])
+        for _ in range(seg):
+            main.step(learner.targets(teacher.observe(main)))
+            waypoint = teacher.advance_waypoints(main, waypoint)
+            r = p.readings(main.b)
+            met |= costs.gate(r["h"], r["up_z"]) & p.kneeling(r["q"])
+        acted = rng.random(n) < beta_k
+        main.take_rows(branch, acted)
+        waypoint = np.where(acted, out["waypoint"], waypoint)
+        plans = out["plans"]
+    return {"obs": np.concatenate(obs), "q_des": np.concatenate(q), "met_gate": int(met.sum()),
+            "cpu_s": time.process_time() - cpu0}
+
+
+def evaluate_batch(artifact: Path, out: Path, seeds: int, seconds: float) -> dict:
+    """training/evaluate.py's batch from fallen seeds 0 … seeds − 1: the share that reached the kneel, in all,
+    face down and on the back."""
+    from training.evaluate import evaluate
+    evaluate(artifact, out, seeds=seeds, seconds=seconds, backend="cpu", command="python -m training.imitation")
+    with (out / "per_env.csv").open() as f:
+        rows = [r for r in csv.DictReader(f) if r["role"] == "policy"]
+    reached = np.array([float(r["reached_kneel"]) for r in rows])
+    fz = np.array([float(r["start_forward_z"]) for r in rows])
+    return {"reached_kneel": round(float(reached.mean()), 3),
+            "face_down": round(float(reached[fz < -FACING_Z].mean()), 3),
+            "on_back": round(float(reached[fz > FACING_Z].mean()), 3)}
+
+
+def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:
+    """The artifact's manifest: the getup env's fields, a name and DAgger's provenance (labels as its steps)."""
+    from training import checkpoints
+    return {**env_fields, "name": "getup_kneel", "trained": True,
+            "provenance": {"git_commit": checkpoints.git_commit(), "steps": int(labels), "date": checkpoints.utc_now(),
+                           "command": "python -m training.imitation", "algorithm": f"dagger, planner expert, round {k}",
+                           "minutes": round((time.monotonic() - started) / 60.0, 2)}}
+
+
+class Campaign:
+    """A DAgger run's folder: data/round_XX.npz, policy.npz (the newest learner), state.json (config and one
+    row per finished round), report.md and curve.png; a stopped run resumes at its next round."""
+
+    def __init__(self, folder: Path, cfg, planner_cfg):
+        self.folder, self.cfg = Path(folder), cfg
+        self.config = {"dagger": cfg.to_dict(), "planner": planner_cfg.to_dict()}
+        self.folder.mkdir(parents=True, exist_ok=True)
+        path = self.folder / STATE
+        self.state = json.loads(path.read_text()) if path.exists() else {"config": self.config, "rounds": []}
+        if self.state["config"] != self.config:
+            raise ValueError(f"{folder}: its rounds were run with another config; use a new folder")
+
+    @property
+    def next_round(self) -> int:
+        return len(self.state["rounds"])
+
+    def finish_round(self, row: dict, learner) -> None:
+        learner.save(self.folder / POLICY)
+        self.state["rounds"].append(row)
+        (self.folder / STATE).write_text(json.dumps(self.state, indent=1))
+        from training.imitation import report
+        report.write(self.folder, self.state)
+
+
+def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: int | None = None,
+        max_minutes: float | None = None, eval_dir: Path | None = None, log=print) -> dict:
+    camp = Campaign(folder, cfg, teacher.p.cfg)
+    data = camp.folder / DATA
+    eval_dir = Path(eval_dir or Path("runs") / "imitation_eval")
+    fields = env.manifest_fields()
+    p = teacher.p
+    started = time.monotonic()
+    last = int(cfg.rounds) if rounds is None else min(int(rounds), int(cfg.rounds))
+    if not dataset.round_path(data, 0).exists():
+        dataset.save_round(data, 0, *dataset.demonstration_pairs(demos))
+    obs0, _ = dataset.load_round(data, 0)
+    learner = new_learner(obs0, list(cfg.fit.hidden_layer_sizes), int(cfg.fit.seed), fields, p.lo, p.hi)
+    if camp.next_round > 0:
+        learner = load_learner(camp.folder / POLICY, learner)
+    while camp.next_round < last:
+        if max_minutes is not None and time.monotonic() - started > 60.0 * max_minutes:
+            log(f"imitation: --max-minutes {max_minutes:g} reached before round {camp.next_round}")
+            break
+        k = camp.next_round
+        b = beta(cfg, k)
+        row = {"round": k, "beta": b}
+        t0 = time.monotonic()
+        if k > 0 and not dataset.round_path(data, k).exists():
+            seed0 = int(cfg.first_seed) + (k - 1) * int(cfg.starts_per_round)
+            qpos, qvel = (a.astype(np.float64) for a in env.fallen_starts(int(cfg.starts_per_round), seed0))
+            got = collect(teacher, learner, qpos, qvel, b, float(cfg.rollout_s),
+                          np.random.default_rng([int(cfg.seed), k]))
+            dataset.save_round(data, k, got["obs"], got["q_des"])
+            row.update(rollouts=len(qpos), rollouts_met_gate=got["met_gate"], labels=len(got["obs"]),
+                       label_cpu_s=round(got["cpu_s"], 1),
+                       cpu_s_per_label=round(got["cpu_s"] / max(len(got["obs"]), 1), 4))
+        obs, q = dataset.aggregate(data, k + 1)
+        learner, loss = fit(learner, obs, learner.label_actions(q), cfg.fit, int(cfg.fit.seed) + k)
+        row.update(labels_total=len(obs), fit_loss=round(loss[-1], 4))
+        artifact = camp.folder / ARTIFACT
+        learner.export(artifact, manifest(fields, len(obs), k, started))
+        row.update(evaluate_batch(artifact, eval_dir / f"round_{k:02d}", int(cfg.eval_seeds),
+                                  float(cfg.eval_seconds)))
+        prior = sum(r.get("label_cpu_s", 0.0) for r in camp.state["rounds"])
+        row.update(cpu_hours_total=round((prior + row.get("label_cpu_s", 0.0)) / 3600.0, 3),
+                   minutes=round((time.monotonic() - t0) / 60.0, 1))
+        camp.finish_round(row, learner)
+        log("imitation: " + json.dumps(row))
+    return camp.state

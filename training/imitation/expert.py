@@ -1,0 +1,171 @@
+"""The rise planner as a closed-loop teacher: from many robots' states at once, short planner takeovers whose
+every step is a label (observation → the planner's joint targets).
+
+Each replan is one MPPI update of training/planner/mppi.py's kind, batched over all N robots × S candidates in
+one C batch: the candidates of a robot are the current policy's own closed-loop rollout over the horizon (its
+targets at the knots: the policy's action sequence, GPC's policy samples), the expert's previous plan shifted
+(the planner's warm-start chain) and noisy copies of both. The cost is the planner's (costs.step_cost toward
+each robot's waypoint); after the update every robot runs the plan's first replan interval, recorded step by
+step, and the next replan starts from there. A takeover of several replans is what the planner would do from
+the learner's state, which one update of the learner's own plan is not (LESSONS: the DAgger probe)."""
+from __future__ import annotations
+
+import numpy as np
+
+from common import observation as obsdef
+from training.planner import costs
+
+STATE = ("time", "qpos", "qvel", "qacc_warmstart")
+
+
+class Robots:
+    """N simulations of the training physics, with the planner's waypoint progress of each."""
+
+    def __init__(self, physics, n: int):
+        self.physics, self.n, self.nu = physics, n, physics.model.nu
+        self.b = physics.evaluation_batch(n)
+
+    def copy_from(self, other: "Robots", rows=None) -> None:
+        """State (and R6's last targets) of `other`'s robots, row i of self from row rows[i] of other."""
+        rows = np.arange(self.n) if rows is None else rows
+        for f in STATE:
+            getattr(self.b, f)[:] = getattr(other.b, f)[rows]
+        nu = self.nu
+        self.b.userdata[:, nu:2 * nu] = other.b.userdata[rows, nu:2 * nu]
+        self.b.forward()
+
+    def take_rows(self, other: "Robots", mask: np.ndarray) -> None:
+        """Rows where mask holds become other's same rows."""
+        idx = np.flatnonzero(mask)
+        if idx.size == 0:
+            return
+        for f in STATE:
+            getattr(self.b, f)[idx] = getattr(other.b, f)[idx]
+        nu = self.nu
+        self.b.userdata[idx, nu:2 * nu] = other.b.userdata[idx, nu:2 * nu]
+        self.b.forward()
+
+    def step(self, q_des: np.ndarray) -> None:
+        self.physics.write_targets(self.b, q_des)
+        self.b.step(nstep=self.physics.n_substeps)
+
+
+class Teacher:
+    """Batched takeovers by `planner` (a training.planner.mppi.Planner) from many robots; `policy(obs) → q_des`
+    is the learner (numpy, (n, 52) → (n, 23) [rad])."""
+
+    def __init__(self, planner, cfg):
+        self.p, self.cfg = planner, cfg
+        self.S = 2 + int(cfg.policy_samples) + int(cfg.plan_samples)
+        m = planner.model
+        self.obs_sensors = (planner.sensor["orientation"], planner.sensor["gyro"])
+        self.nu = m.nu
+        kf = planner.keyframes
+        self.kf = {k: np.array([f[k] for f in kf]) for k in ("h", "h_waist", "up_z", "q", "joint_weight",
+                                                               "upright_weight")}
+        self.last_wp = len(kf) - 1
+        self._pools: dict[int, Robots] = {}
+
+    # ------------------------------------------------------------------ readings
+    def observe(self, robots: Robots) -> np.ndarray:
+        """The getup actor's observation (TERMS_GETUP, unnormalised) of every robot, (n, 52) float32."""
+        b, nu = robots.b, self.nu
+        o, g = self.obs_sensors
+        n = robots.n
+        state = obsdef.ObservationState(
+            imu_quat=b.sensordata[:, o], gyro=b.sensordata[:, g], command=np.zeros((n, 3)),
+            q=b.qpos[:, 7:7 + nu], dq=b.qvel[:, 6:6 + nu], default_pose=self.p.default_pose,
+            last_action=np.zeros((n, nu)), gait_phase=np.broadcast_to(obsdef.initial_gait_phase(np), (n, 2)))
+        return obsdef.build_observation(obsdef.TERMS_GETUP, state, np).astype(np.float32)
+
+    def advance_waypoints(self, robots: Robots, waypoint: np.ndarray) -> np.ndarray:
+        """The planner's rule per robot: on to the waypoint after the furthest one reached."""
+        r = self.p.readings(robots.b)
+        reached = (np.abs(r["h"][:, None] - self.kf["h"][None]) < self.p.cfg.advance_height_m) & \
+                  (np.abs(r["up_z"][:, None] - self.kf["up_z"][None]) < self.p.cfg.advance_up_z)
+        reached &= np.arange(len(self.kf["h"]))[None] >= waypoint[:, None]
+        furthest = np.where(reached.any(axis=1), reached.shape[1] - 1 - np.argmax(reached[:, ::-1], axis=1), -1)
+        return np.where(furthest >= 0, np.minimum(furthest + 1, self.last_wp), waypoint)
+
+    # ------------------------------------------------------------------ one replan of all robots
+    def _pool(self, n: int) -> Robots:
+        if n not in self._pools:
+            self._pools[n] = Robots(self.p.physics, n)
+        return self._pools[n]
+
+    def proposal(self, robots: Robots, policy) -> np.ndarray:
+        """The policy's own plan from every robot's state: its closed-loop targets over the horizon at the
+        knots, (n, K, 23) (knot 0: its first target)."""
+        p = self.p
+        sim = self._pool(robots.n)
+        sim.copy_from(robots)
+        knots = np.zeros((robots.n, p.K, self.nu))
+        for j in range(p.H):
+            q_des = np.clip(policy(self.observe(sim)), p.lo, p.hi)
+            if j == 0:
+                knots[:, 0] = q_des
+            if (j + 1) % p.spk == 0:
+                knots[:, (j + 1) // p.spk] = q_des
+            sim.step(q_des)
+        return knots
+
+    def improve(self, robots: Robots, plans: np.ndarray, proposals: np.ndarray, waypoint: np.ndarray,
+                rng: np.random.Generator) -> np.ndarray:
+        """One MPPI update of every robot's plan (n, K, 23) over its candidates (module docstring)."""
+        p, n, S, nu = self.p, robots.n, self.S, self.nu
+        r = p.readings(robots.b)
+        at_kneel = waypoint == self.last_wp
+        sigma = np.where(at_kneel & p.near(r["h"]), p.cfg.sigma_near_rad, p.cfg.sigma_rise_rad)
+        mirrored = waypoint >= p.sagittal_from
+        k_pol = int(self.cfg.policy_samples)
+        base = np.concatenate([plans[:, None], proposals[:, None],
+                               np.repeat(proposals[:, None], k_pol, axis=1),
+                               np.repeat(plans[:, None], S - 2 - k_pol, axis=1)], axis=1)     # (n, S, K, nu)
+        full = rng.standard_normal((n, S, p.K, nu))
+        sag = rng.standard_normal((n, S, p.K, p.expansion.shape[1])) @ p.expansion.T
+        noise = np.where(mirrored[:, None, None, None], sag, full) * sigma[:, None, None, None]
+        noise[:, :2] = 0.0
+        cand = base + noise
+        cand = np.where(mirrored[:, None, None, None], p.mirrored(cand), cand)
+        cand = np.clip(cand, p.lo, p.hi).reshape(n * S, p.K, nu)
+        traj = np.einsum("hk,skj->shj", p.interp, cand)
+        sims = self._pool(n * S)
+        sims.copy_from(robots, np.repeat(np.arange(n), S))
+        wp = np.repeat(waypoint, S)
+        target = {k: v[wp] for k, v in self.kf.items()}
+        kneel = wp == self.last_wp
+        w = p.cfg.weights
+        total = np.zeros(n * S)
+        for j in range(p.H):
+            sims.step(traj[:, j])
+            rj = p.readings(sims.b)
+            c = costs.step_cost(rj, target, w, kneel & p.near(rj["h"]))
+            total += c * (float(w.terminal) if j == p.H - 1 else 1.0)
+        total = np.where(np.isfinite(total), total, np.inf).reshape(n, S)
+        finite = np.isfinite(total)
+        best = np.where(finite, total, np.inf).min(axis=1, keepdims=True)
+        worst = np.where(finite, total, -np.inf).max(axis=1, keepdims=True)
+        spread = np.where(np.isfinite(worst - best), worst - best, 0.0)
+        weight = np.exp(-(total - best) / (float(p.cfg.temperature) * spread + 1e-12))
+        weight = np.where(finite, weight, 0.0)
+        weight /= weight.sum(axis=1, keepdims=True)
+        return np.einsum("ns,nskj->nkj", weight, cand.reshape(n, S, p.K, nu))
+
+    # ------------------------------------------------------------------ a takeover
+    def takeover(self, robots: Robots, plans: np.ndarray, waypoint: np.ndarray, policy,
+                 rng: np.random.Generator) -> dict:
+        """From the robots' states, takeover_replans replans of the planner, executed on `robots` (moved in
+        place). Returns the labels {obs (n·L, 52), q_des (n·L, 23)}, the plans after it (shifted, the chain's
+        next warm start) and the waypoints."""
+        p = self.p
+        obs, q = [], []
+        for _ in range(int(self.cfg.takeover_replans)):
+            plans = self.improve(robots, plans, self.proposal(robots, policy), waypoint, rng)
+            for q_des in np.einsum("hk,nkj->hnj", p.interp[:p.replan_knots * p.spk], plans):
+                obs.append(self.observe(robots))
+                q.append(q_des.astype(np.float32))
+                robots.step(q_des)
+                waypoint = self.advance_waypoints(robots, waypoint)
+            plans = np.concatenate([plans[:, p.replan_knots:],
+                                    np.repeat(plans[:, -1:], p.replan_knots, axis=1)], axis=1)
+        return {"obs": np.concatenate(obs), "q_des": np.concatenate(q), "plans": plans, "waypoint": waypoint}

@@ -1,0 +1,129 @@
+"""The learner: brax's tanh-normal policy MLP (the getup experts' network and action map), fitted to the planner's
+labels by regression, run in NumPy in the rollouts and exported as a runtime artifact.
+
+Its parameters are brax's ({'params': {'hidden_i': {kernel, bias}}}, 2·23 outputs: loc, then the scale half that
+only PPO uses), so the fit's policy is the initial policy of a PPO fine-tune and exports through
+training/export.py as any getup expert does. Observations are normalised by the demonstrations' mean and std,
+fixed from round 0 on (a moving normaliser would move every later fit's inputs)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from common import observation as obsdef
+from training.envs.policy_files import ACTIVATION, brax_policy_layers
+
+STD_FLOOR = 1e-3         # the normaliser's smallest std (a joint that never moved in the data)
+ACTION_LIMIT = 0.999     # labels' actions are clipped inside tanh's range
+
+
+@dataclass
+class Learner:
+    params: dict             # brax policy params (numpy)
+    obs_mean: np.ndarray     # (52,)
+    obs_std: np.ndarray
+    default_pose: np.ndarray  # (23,) [rad]
+    action_scale: np.ndarray  # (23,) [rad per unit]
+    lo: np.ndarray           # joint ranges [rad]
+    hi: np.ndarray
+
+    def actions(self, obs: np.ndarray) -> np.ndarray:
+        return obsdef.policy_forward(brax_policy_layers(self.params), obs, self.obs_mean, self.obs_std,
+                                     ACTIVATION, "tanh_normal")
+
+    def targets(self, obs: np.ndarray) -> np.ndarray:
+        """Joint targets [rad] of (n, 52) observations, as the runtime maps the artifact's action."""
+        q = obsdef.action_to_targets(self.default_pose, self.action_scale, self.actions(obs))
+        return np.clip(q, self.lo, self.hi)
+
+    def label_actions(self, q_des: np.ndarray) -> np.ndarray:
+        """The action a policy of this map sends for joint targets q_des [rad] (the regression's labels)."""
+        return np.clip(obsdef.targets_to_action(self.default_pose, self.action_scale, q_des),
+                       -ACTION_LIMIT, ACTION_LIMIT)
+
+    def save(self, path: Path) -> None:
+        flat = {f"{layer}/{k}": np.asarray(v, np.float32)
+                for layer, kv in self.params["params"].items() for k, v in kv.items()}
+        np.savez(path, obs_mean=self.obs_mean, obs_std=self.obs_std, **flat)
+
+    def export(self, path: Path, manifest_fields: dict) -> str:
+        from training.export import export_brax_ppo
+        norm = SimpleNamespace(mean=self.obs_mean, std=self.obs_std)
+        return export_brax_ppo((norm, self.params), manifest_fields, path)
+
+
+def new_learner(obs: np.ndarray, hidden: list[int], seed: int, env_fields: dict, lo, hi) -> Learner:
+    """A freshly initialised brax policy network, normalised by `obs`' statistics."""
+    import jax
+    from training.ppo_networks import ppo_networks_with_std_scale
+    nets = ppo_networks_with_std_scale(obs.shape[1], len(lo), policy_hidden_layer_sizes=tuple(hidden))
+    params = jax.tree.map(np.asarray, nets.policy_network.init(jax.random.PRNGKey(seed)))
+    return Learner(params=params, obs_mean=obs.mean(axis=0).astype(np.float32),
+                   obs_std=np.maximum(obs.std(axis=0), STD_FLOOR).astype(np.float32),
+                   default_pose=np.asarray(env_fields["default_pose"], np.float64),
+                   action_scale=np.broadcast_to(np.asarray(env_fields["action_scale"], np.float64), (len(lo),)),
+                   lo=np.asarray(lo), hi=np.asarray(hi))
+
+
+def load_learner(path: Path, like: Learner) -> Learner:
+    """A saved learner's params and normaliser, the action map of `like`."""
+    z = np.load(path)
+    params: dict = {}
+    for key in z.files:
+        if "/" in key:
+            layer, k = key.split("/")
+            params.setdefault(layer, {})[k] = z[key]
+    return Learner(params={"params": params}, obs_mean=z["obs_mean"], obs_std=z["obs_std"],
+                   default_pose=like.default_pose, action_scale=like.action_scale, lo=like.lo, hi=like.hi)
+
+
+def fit(learner: Learner, obs: np.ndarray, actions: np.ndarray, cfg, seed: int) -> tuple[Learner, list[float]]:
+    """cfg.epochs of Adam on mean((tanh(loc) − action)²), from the learner's params. Returns the fitted learner
+    and the loss per epoch as a share of the actions' variance."""
+    import jax
+    import jax.numpy as jnp
+    import optax
+
+    x = (obs.astype(np.float32) - learner.obs_mean) / learner.obs_std
+    y = actions.astype(np.float32)
+    n_layers = len(learner.params["params"])
+    action_size = y.shape[1]
+
+    def forward(params, xb):
+        h = xb
+        for i in range(n_layers):
+            layer = params["params"][f"hidden_{i}"]
+            h = h @ layer["kernel"] + layer["bias"]
+            if i < n_layers - 1:
+                h = jax.nn.swish(h)
+        return jnp.tanh(h[:, :action_size])
+
+    opt = optax.adam(float(cfg.learning_rate))
+
+    @jax.jit
+    def step(params, opt_state, xb, yb):
+        loss, grad = jax.value_and_grad(lambda p: jnp.mean(jnp.square(forward(p, xb) - yb)))(params)
+        updates, opt_state = opt.update(grad, opt_state, params)
+        return optax.apply_updates(params, updates), opt_state, loss
+
+    params = jax.tree.map(jnp.asarray, learner.params)
+    opt_state = opt.init(params)
+    rng = np.random.default_rng(seed)
+    bs = min(int(cfg.batch_size), len(x))
+    var = float(np.mean(np.var(y, axis=0))) + 1e-12
+    history = []
+    for _ in range(int(cfg.epochs)):
+        order = rng.permutation(len(x))
+        losses = []
+        for k in range(len(x) // bs):
+            idx = order[k * bs:(k + 1) * bs]
+            params, opt_state, loss = step(params, opt_state, x[idx], y[idx])
+            losses.append(float(loss))
+        history.append(float(np.mean(losses)) / var)
+    fitted = Learner(params=jax.tree.map(np.asarray, params), obs_mean=learner.obs_mean, obs_std=learner.obs_std,
+                     default_pose=learner.default_pose, action_scale=learner.action_scale, lo=learner.lo,
+                     hi=learner.hi)
+    return fitted, history

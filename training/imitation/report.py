@@ -1,0 +1,50 @@
+"""The DAgger campaign's report: one row per round (labels, CPU hours, the batch share that reached the kneel, in
+all, face down and on the back) as report.md, and the share against the labels as curve.png."""
+from __future__ import annotations
+
+from pathlib import Path
+
+COLUMNS = (("round", "round"), ("beta", "β"), ("labels", "labels"), ("labels_total", "labels in total"),
+           ("cpu_s_per_label", "CPU s per label"), ("cpu_hours_total", "labelling CPU h in total"),
+           ("rollouts_met_gate", "rollouts that met the gate (β mixture)"), ("fit_loss", "fit loss (share of var)"),
+           ("reached_kneel", "reached the kneel (batch)"), ("face_down", "… face down"), ("on_back", "… on the back"))
+
+
+def table(rows: list[dict]) -> str:
+    head = "| " + " | ".join(c[1] for c in COLUMNS) + " |\n|" + "---|" * len(COLUMNS) + "\n"
+    return head + "".join("| " + " | ".join(_cell(r.get(k)) for k, _ in COLUMNS) + " |\n" for r in rows)
+
+
+def _cell(v) -> str:
+    return "–" if v is None else f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def write(folder: Path, state: dict) -> None:
+    rows = state["rounds"]
+    cfg = state["config"]["dagger"]
+    text = ("# DAgger with the planner as the expert\n\n"
+            f"Rollouts per round: {cfg['starts_per_round']} fallen starts × {cfg['rollout_s']} s; the expert's "
+            f"takeover {cfg['expert']['takeover_replans']} replans from each segment's start "
+            f"({cfg['expert']['policy_samples']} policy + {cfg['expert']['plan_samples']} plan samples, horizon "
+            f"{state['config']['planner']['horizon_s']} s); batch evaluation from {cfg['eval_seeds']} fallen seeds "
+            f"× {cfg['eval_seconds']} s (training/evaluate.py, \"reached the kneel\").\n\n" + table(rows))
+    (Path(folder) / "report.md").write_text(text)
+    _curve(rows, Path(folder) / "curve.png")
+
+
+def _curve(rows: list[dict], png: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    x = [r["labels_total"] for r in rows]
+    for key, label in (("reached_kneel", "all"), ("face_down", "face down"), ("on_back", "on the back")):
+        ax.plot(x, [r[key] for r in rows], "o-", label=label)
+    ax.set_xlabel("labels in the data set")
+    ax.set_ylabel("reached the kneel (batch share)")
+    ax.set_ylim(0, 1)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(png, dpi=100)
+    plt.close(fig)
