@@ -30,7 +30,7 @@ def default_config() -> config_dict.ConfigDict:
         # actions, warm-started from the previous round
         fit=config_dict.create(
             hidden_layer_sizes=[512, 256, 128],
-            epochs=30,
+            epochs=40,
             batch_size=1024,
             learning_rate=3e-4,
             seed=0,

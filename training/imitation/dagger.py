@@ -74,9 +74,10 @@ def evaluate_batch(artifact: Path, out: Path, seeds: int, seconds: float) -> dic
         rows = [r for r in csv.DictReader(f) if r["role"] == "policy"]
     reached = np.array([float(r["reached_kneel"]) for r in rows])
     fz = np.array([float(r["start_forward_z"]) for r in rows])
-    return {"reached_kneel": round(float(reached.mean()), 3),
-            "face_down": round(float(reached[fz < -FACING_Z].mean()), 3),
-            "on_back": round(float(reached[fz > FACING_Z].mean()), 3)}
+    def share(mask):
+        return round(float(reached[mask].mean()), 3) if mask.any() else None
+    return {"reached_kneel": share(np.ones(len(rows), bool)), "face_down": share(fz < -FACING_Z),
+            "on_back": share(fz > FACING_Z)}
 
 
 def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:
