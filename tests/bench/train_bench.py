@@ -15,6 +15,8 @@ For each task, in this process one after the other (same machine, same load):
   alone at the run's sizes: train_profile.py), the rest (GAE, normaliser, PPO's loop); and each core's idle
   share over the whole run (/proc/stat; the first epoch's compilation is mostly one core);
 * without --quick, the same PPO run on MJX (it compiles for minutes on a CPU) and the CPU/MJX ratio.
+* the planner as DAgger's expert (tests/bench/planner_bench.py): its env-steps/s against the raw physics rate of
+  the same batches, and the CPU seconds per label.
 No evaluation rollouts are run.
 """
 from __future__ import annotations
@@ -84,7 +86,8 @@ def main(argv=None) -> int:
     from training import configs
     from tests.bench import train_profile
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--tasks", nargs="+", choices=tuple(TASK_STAGES), default=list(TASK_STAGES))
+    ap.add_argument("--tasks", nargs="+", choices=(*TASK_STAGES, "planner"), default=[*TASK_STAGES, "planner"],
+                    help="PPO tasks, and `planner`: DAgger's expert (tests/bench/planner_bench.py)")
     ap.add_argument("--updates", type=int, default=3, help="timed PPO updates per run (after a warm-up one)")
     ap.add_argument("--quick", action="store_true", help="CPU backend only (no MJX compile)")
     args = ap.parse_args(argv)
@@ -92,7 +95,7 @@ def main(argv=None) -> int:
         ap.error(f"--updates {args.updates}: need at least 1")
     print(f"# --preset cpu, {args.updates} timed PPO updates of {STEPS_PER_UPDATE} env steps; shares of a steady "
           "env step's wall time; idle per core over the whole run")
-    for task in args.tasks:
+    for task in [t for t in args.tasks if t != "planner"]:
         raw = raw_physics_rate(task, configs.ppo_config(task, "cpu").num_envs)
         run = ppo_run(task, "cpu", args.updates)
         share = run["sps"] / raw
@@ -111,6 +114,9 @@ def main(argv=None) -> int:
             print(f"{'':9s} MJX on this CPU {mjx['sps']:,.0f} env-steps/s: the CPU backend {ratio:.1f}x, target "
                   f"≥ {TARGET_MJX_RATIO:g}x: {'met' if ratio >= TARGET_MJX_RATIO else 'NOT met'} "
                   f"(wall {mjx['wall_s']:.0f} s)", flush=True)
+    if "planner" in args.tasks:
+        from tests.bench.planner_bench import planner_row
+        print(planner_row(), flush=True)
     return 0
 
 

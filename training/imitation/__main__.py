@@ -14,14 +14,13 @@ from pathlib import Path
 
 from training.imitation import build, dagger
 
-DEFAULT_DEMOS = Path("training/campaigns/getup_keyframe/demos")
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m training.imitation", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, type=Path, help="the campaign folder")
-    p.add_argument("--demos", type=Path, default=DEFAULT_DEMOS, help="the planner's demonstrations (round 0)")
+    p.add_argument("--demos", type=Path, default=dagger.DEFAULT_DEMOS, help="the planner's demonstrations (round 0)")
     p.add_argument("--rounds", type=int, default=None, help="stop after this many rounds (default: config.rounds)")
     p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE", help="a setting, repeatable")
     p.add_argument("--max-minutes", type=float, default=None, help="start no new round after this long")

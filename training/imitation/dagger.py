@@ -19,6 +19,8 @@ from training.imitation import dataset, expert
 from training.imitation.learner import fit, load_learner, new_learner
 from training.planner import costs
 
+REPO_ROOT = Path(__file__).resolve().parents[2]
+DEFAULT_DEMOS = REPO_ROOT / "training" / "campaigns" / "getup_keyframe" / "demos"   # the planner's stored rises
 STATE = "state.json"
 POLICY = "policy.npz"
 ARTIFACT = "getup_kneel_dagger.safetensors"

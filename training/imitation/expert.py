@@ -10,12 +10,29 @@ step, and the next replan starts from there. A takeover of several replans is wh
 the learner's state, which one update of the learner's own plan is not (LESSONS: the DAgger probe)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+from time import perf_counter
+
 import numpy as np
 
 from common import observation as obsdef
 from training.planner import costs
 
 STATE = ("time", "qpos", "qvel", "qacc_warmstart")
+
+
+@dataclass
+class StepProfile:
+    """Control steps of single simulations the teacher's batches ran, and the seconds inside the C physics
+    (tests/bench/train_bench.py's planner row: the rate against the raw physics rate)."""
+    env_steps: int = 0
+    physics_s: float = 0.0
+
+    def reset(self) -> None:
+        self.env_steps, self.physics_s = 0, 0.0
+
+
+PROFILE = StepProfile()
 
 
 class Robots:
@@ -47,7 +64,10 @@ class Robots:
 
     def step(self, q_des: np.ndarray) -> None:
         self.physics.write_targets(self.b, q_des)
+        t0 = perf_counter()
         self.b.step(nstep=self.physics.n_substeps)
+        PROFILE.physics_s += perf_counter() - t0
+        PROFILE.env_steps += self.n
 
 
 class Teacher:
