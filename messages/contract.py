@@ -17,6 +17,8 @@ CHANNEL_TYPES: dict[str, str] = {CHANNELS[key]: type_name for key, type_name in 
 DEFAULT_LCM_URL: str = _DATA["lcm_url"]
 # The composite's switch [m]: getup member below this Waist height, upright member at or above it.
 WAIST_SWITCH_HEIGHT_M: float = float(_DATA["waist_switch_height_m"])
+# Who may command (messages/auth.py): the channels whose messages are signed, the approval context, the key size.
+AUTH: dict = {k: v for k, v in _DATA["auth"].items() if not k.startswith("_")}
 # The real T1's DDS interface: domain_id, state_topic, command_topic, cmd_type_serial, motor_mode, motor_weight.
 DDS: dict = {k: v for k, v in _DATA["dds"].items() if not k.startswith("_")}
 

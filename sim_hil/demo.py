@@ -143,7 +143,8 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
         RunInfo(run_name=name, producer="demo", clock="realtime", policy_path=str(policy),
                 policy_hash=manifest["content_hash"], runtime_args=runtime_args, sim_args=sim_args))
     sim = start_sim(*sim_args)
-    runtime = start_runtime(policy, *runtime_args)
+    runtime = start_runtime(policy, *runtime_args)     # with a fresh key of this run: the script signs
+    signer = runtime.run_key.signer()
     js, seq, next_print, final = joystick_t(), 0, 0.0, None
     stop_cleanly_on_sigterm()
     try:
@@ -154,7 +155,7 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
             t_sim = last["sim"].utime * 1e-6
             js.utime, js.seq = int(time.monotonic() * 1e6), seq
             js.vx, js.vy, js.yaw_rate = joystick_at(t_sim)
-            lc.publish(contract.CH_JOYSTICK, js.encode())
+            lc.publish(contract.CH_JOYSTICK, signer.sign(contract.CH_JOYSTICK, js))
             seq += 1
             if t_sim >= seconds - 0.05:
                 if final is None:             # the run is over: take the runtime's last word, stop it

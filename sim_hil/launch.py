@@ -9,6 +9,8 @@ import sys
 import time
 from pathlib import Path
 
+from messages.auth import RunKey
+
 ROOT = Path(__file__).resolve().parents[1]
 BUILD = Path(os.environ.get("T1_BUILD", ROOT / "build"))
 RUNTIME = BUILD / "runtime" / "t1-runtime"
@@ -28,11 +30,33 @@ def start_sim(*args: str) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def start_runtime(policy: Path, *args: str) -> subprocess.Popen:
+def _value_of(args: tuple[str, ...], flag: str) -> str | None:
+    return args[args.index(flag) + 1] if flag in args[:-1] else None
+
+
+def start_runtime(policy: Path, *args: str, output=None, sign: bool = True) -> subprocess.Popen:
+    """`t1-runtime --policy POLICY --quiet ARGS`, commanded by this run only: unless ARGS carry --key or
+    --unauthenticated, a fresh key of this run (messages.auth.RunKey: a private temporary folder) is made,
+    the run's policies (POLICY, --policy-upright) approved under it, and --key, --approvals and --policy-dir
+    (ARGS' own, else the policies' common folder) added. The process's run_key signs what the caller sends
+    (run_key.signer(); None when ARGS chose) and approves what it loads; stop() removes it. output: a file
+    for stdout and stderr (default: pipes the caller reads). sign=False adds nothing: the runtime then takes
+    estop only."""
     if not RUNTIME.exists():
         raise FileNotFoundError(f"{RUNTIME} is not built: run `make build`")
-    return subprocess.Popen([str(RUNTIME), "--policy", str(policy), "--quiet", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run_key, auth_args = None, []
+    if sign and "--key" not in args and "--unauthenticated" not in args:
+        policies = [Path(policy)] + ([Path(u)] if (u := _value_of(args, "--policy-upright")) else [])
+        folder = _value_of(args, "--policy-dir") or os.path.commonpath([str(p.resolve().parent) for p in policies])
+        run_key = RunKey()
+        run_key.approve(*policies)
+        auth_args = ["--key", str(run_key.key_path), "--approvals", str(run_key.approvals_path)]
+        auth_args += [] if "--policy-dir" in args else ["--policy-dir", folder]
+    streams = dict(stdout=output, stderr=subprocess.STDOUT) if output is not None else dict(
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = subprocess.Popen([str(RUNTIME), "--policy", str(policy), "--quiet", *auth_args, *args], text=True, **streams)
+    proc.run_key = run_key
+    return proc
 
 
 def wait_until_listening(runtime: subprocess.Popen) -> None:
@@ -68,4 +92,6 @@ def stop(proc: subprocess.Popen, timeout_s: float = 10.0) -> tuple[int, str]:
     except subprocess.TimeoutExpired:
         proc.kill()
         _, err = proc.communicate()
+    if getattr(proc, "run_key", None) is not None:
+        proc.run_key.close()
     return proc.returncode, err

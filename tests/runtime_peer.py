@@ -1,6 +1,8 @@
 """Plays the robot for an out-of-process `t1-runtime` over LCM (inside tools/netns), the way an outside
 fault client would: publishes T1_IMU / T1_JOINT_STATE / T1_JOYSTICK / T1_RUNTIME_CMD, and records the
-runtime's T1_JOINT_CMD, T1_CONTROLLER_STATUS and T1_OBS. Used by tests/test_runtime_lcm_faults.py."""
+runtime's T1_JOINT_CMD, T1_CONTROLLER_STATUS and T1_OBS. The runtime runs with a fresh key of the run
+(sim_hil.launch.start_runtime); command() and joystick() sign as its operator. Used by
+tests/test_runtime_lcm_faults.py and tests/test_runtime_auth.py."""
 from __future__ import annotations
 
 import time
@@ -10,6 +12,7 @@ import numpy as np
 from t1 import controller_status_t, imu_t, joint_command_t, joint_state_t, joystick_t, observation_t, runtime_cmd_t
 
 from messages import contract
+from messages.auth import unsigned
 from sim_hil.launch import start_runtime, stop
 from common.artifact import read_artifact
 
@@ -22,7 +25,7 @@ LATCHED_FAULT_MASK = controller_status_t.LATCHED_FAULT_MASK   # fault_bits & thi
 class RuntimePeer:
     """One t1-runtime child process and the fake robot talking to it."""
 
-    def __init__(self, policy, *runtime_args: str, lockstep: bool = True):
+    def __init__(self, policy, *runtime_args: str, lockstep: bool = True, sign: bool = True):
         self.lc = lcm.LCM(contract.lcm_url())
         self.cmds: list[joint_command_t] = []
         self.statuses: list[controller_status_t] = []
@@ -39,7 +42,9 @@ class RuntimePeer:
         self.lockstep = lockstep
         self.started = False
         clock = "lockstep" if lockstep else "realtime"
-        self.proc = start_runtime(policy, "--clock", clock, *runtime_args)
+        self.proc = start_runtime(policy, "--clock", clock, *runtime_args, sign=sign)
+        self.run_key = self.proc.run_key
+        self.signer = self.run_key.signer() if self.run_key else None
 
     # ---------------------------------------------------------------- publishing
     def state_msg(self, seq: int | None = None) -> joint_state_t:
@@ -60,15 +65,25 @@ class RuntimePeer:
     def publish(self, channel: str, data: bytes) -> None:
         self.lc.publish(channel, data)
 
-    def command(self, verb: str, argument: str = "") -> None:
+    def command_msg(self, verb: str, argument: str = "") -> runtime_cmd_t:
         c = runtime_cmd_t()
         c.utime, c.verb, c.argument = self.seq * TICK_US, verb, argument
-        self.publish(contract.CH_RUNTIME_CMD, c.encode())
+        return c
 
-    def joystick(self, vx: float, vy: float, yaw_rate: float) -> None:
+    def joystick_msg(self, vx: float, vy: float, yaw_rate: float) -> joystick_t:
         js = joystick_t()
         js.utime, js.seq, js.vx, js.vy, js.yaw_rate = self.seq * TICK_US, self.seq, vx, vy, yaw_rate
-        self.publish(contract.CH_JOYSTICK, js.encode())
+        return js
+
+    def signed(self, channel: str, msg) -> bytes:
+        """msg's encoding, signed as the operator when the runtime has the run's key (else unsigned)."""
+        return self.signer.sign(channel, msg) if self.signer else unsigned(msg)
+
+    def command(self, verb: str, argument: str = "") -> None:
+        self.publish(contract.CH_RUNTIME_CMD, self.signed(contract.CH_RUNTIME_CMD, self.command_msg(verb, argument)))
+
+    def joystick(self, vx: float, vy: float, yaw_rate: float) -> None:
+        self.publish(contract.CH_JOYSTICK, self.signed(contract.CH_JOYSTICK, self.joystick_msg(vx, vy, yaw_rate)))
 
     def pump(self, until, timeout_s: float = ANSWER_TIMEOUT_S) -> bool:
         deadline = time.monotonic() + timeout_s

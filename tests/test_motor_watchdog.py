@@ -39,6 +39,7 @@ class Run(LcmWatch):
         dds = ["--dds"] if link == "dds" else []
         runtime = start_runtime(policy, "--transport", link, "--clock", "lockstep", "--autostart",
                                 "--prepare-s", str(prepare))
+        self.signer = runtime.run_key.signer()          # the gamepad is the operator's
         sim = start_sim(*dds, "--clock", "lockstep", "--spawn", spawn, "--faults", faults,
                         "--status-rate", str(STATUS_RATE_HZ), "--duration", str(seconds))
         self.pump_while(lambda: sim.poll() is None, LIVENESS_S)
@@ -51,7 +52,7 @@ class Run(LcmWatch):
         js = joystick_t()
         js.utime = self.sim[-1].utime if self.sim else 0
         js.vx = self.vx
-        self.lc.publish(contract.CH_JOYSTICK, js.encode())
+        self.lc.publish(contract.CH_JOYSTICK, self.signer.sign(contract.CH_JOYSTICK, js))
 
     def first_fault(self):
         return next((s for s in self.status if s.mode_name == "FAULT"), None)

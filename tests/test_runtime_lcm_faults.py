@@ -5,6 +5,7 @@ every tick and checks nothing but finiteness) where the defect is in what reache
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -260,10 +261,13 @@ def test_nonsense_manifest_refused_at_start_up(netns, tmp_path, case):
 
 
 def test_nonsense_manifest_refused_at_hot_reload_in_policy(runtime, tmp_path):
-    peer = in_policy(runtime)
+    shutil.copy(STUDENT, tmp_path / STUDENT.name)              # the policy folder holds the bad files too
+    peer = runtime("--autostart", *FAST_PREPARE, policy=tmp_path / STUDENT.name)
+    peer.until_mode("POLICY")
     hash_before = peer.last_status().policy_hash
     for case, (changes, field) in NONSENSE.items():
-        peer.command("load_policy", str(write_unchecked(tmp_path / f"{case}.safetensors", **changes)))
+        peer.run_key.approve(write_unchecked(tmp_path / f"{case}.safetensors", **changes))   # approved, still refused
+        peer.command("load_policy", f"{case}.safetensors")
         for _ in range(40):
             status = peer.last_status()
             if "REJECTED" in status.info and case in status.info:

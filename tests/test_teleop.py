@@ -17,6 +17,7 @@ from evdev import ecodes
 from t1 import joystick_t
 
 from messages import contract
+from messages.auth import TAG_BYTES, RunKey, new_sender, tag, write_key_file
 from sim_hil.teleop.__main__ import LcmPublisher, main, run
 from sim_hil.teleop.core import KEY_RELEASE_TIMEOUT_S, TeleopCore, command_ranges, load_bindings
 from sim_hil.teleop.readers import EVENT, GamepadReader
@@ -115,7 +116,12 @@ class Joysticks:
     def __init__(self):
         self.lc = lcm.LCM(contract.lcm_url())
         self.msgs: list[joystick_t] = []
-        self.lc.subscribe(contract.CH_JOYSTICK, lambda _c, d: self.msgs.append(joystick_t.decode(d)))
+        self.raw: list[bytes] = []
+        self.lc.subscribe(contract.CH_JOYSTICK, self._take)
+
+    def _take(self, _channel, data: bytes) -> None:
+        self.raw.append(data)
+        self.msgs.append(joystick_t.decode(data))
 
     def collect(self, seconds: float) -> list[joystick_t]:
         n, end = len(self.msgs), time.monotonic() + seconds
@@ -129,7 +135,8 @@ def test_pad_stick_and_deadman_reach_t1_joystick_at_the_publish_rate(netns):
     r, w = os.pipe()
     core = TeleopCore(RANGES)
     loop = threading.Thread(target=run, args=(core, [GamepadReader(r, ABSINFO, load_bindings(None))],
-                                              LcmPublisher(contract.lcm_url()), 5.0), kwargs={"log": lambda s: None})
+                                              LcmPublisher(contract.lcm_url(), RunKey().signer()), 5.0),
+                            kwargs={"log": lambda s: None})
     loop.start()
     try:
         os.write(w, ev(ecodes.EV_KEY, ecodes.BTN_TR, 1) + ev(ecodes.EV_ABS, ecodes.ABS_Y, AXIS[0]) + syn())
@@ -150,7 +157,8 @@ def test_estop_button_puts_a_running_runtime_in_damping(netns):
     peer = RuntimePeer(UNTRAINED, "--prepare-s", "0.02", lockstep=True)
     r, w = os.pipe()
     loop = threading.Thread(target=run, args=(TeleopCore(RANGES), [GamepadReader(r, ABSINFO, load_bindings(None))],
-                                              LcmPublisher(contract.lcm_url()), 20.0), kwargs={"log": lambda s: None})
+                                              LcmPublisher(contract.lcm_url(), peer.signer), 20.0),
+                            kwargs={"log": lambda s: None})
     loop.start()
     try:
         peer.steps(5)
@@ -172,11 +180,14 @@ def test_estop_button_puts_a_running_runtime_in_damping(netns):
         peer.close()
 
 
-def test_keyboard_through_a_pty_drives_t1_joystick_and_stops_after_the_timeout(netns):
+def test_keyboard_through_a_pty_drives_t1_joystick_and_stops_after_the_timeout(netns, tmp_path):
     sub = Joysticks()
     master, slave = pty.openpty()
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "build" / "gen" / "python")]))
-    proc = subprocess.Popen([sys.executable, "-m", "sim_hil.teleop", "--keyboard", "--duration", "8"],
+    operator = new_sender(5)
+    write_key_file(tmp_path / "operator.key", [operator])
+    proc = subprocess.Popen([sys.executable, "-m", "sim_hil.teleop", "--keyboard", "--duration", "8",
+                             "--key", str(tmp_path / "operator.key")],
                             stdin=slave, stdout=slave, stderr=slave, cwd=ROOT, env=env)
     os.close(slave)
     try:
@@ -194,6 +205,8 @@ def test_keyboard_through_a_pty_drives_t1_joystick_and_stops_after_the_timeout(n
         assert all(m.vx == 0 and m.yaw_rate == 0 for m in sub.collect(0.2)), "no key for 0.25 s, still moving"
         os.write(master, b"\x03")                                       # Ctrl-C: stops, sends a zero command
         assert proc.wait(5) == 0
+        assert sub.msgs and all(m.sender_id == 5 and d[-TAG_BYTES:] == tag(operator.key, contract.CH_JOYSTICK,
+                                                                           d[:-TAG_BYTES]) for m, d in zip(sub.msgs, sub.raw))
     finally:
         if proc.poll() is None:
             proc.kill()

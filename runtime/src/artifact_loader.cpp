@@ -190,10 +190,11 @@ std::string sha256_hex(const std::string& bytes) {
   return out;
 }
 
-PolicyArtifact load_artifact(const std::string& path) {
+PolicyArtifact load_artifact(const std::string& path) { return parse_artifact(path, read_file(path)); }
+
+PolicyArtifact parse_artifact(const std::string& path, const std::string& file) {
   PolicyArtifact a;
   a.path = path;
-  const std::string file = read_file(path);
   std::map<std::string, std::string> meta;
   std::size_t unreferenced_bytes = 0;
   const auto tensors = parse_safetensors(file, meta, &unreferenced_bytes);

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 
 #include "t1_contract.hpp"
 
@@ -14,6 +15,7 @@ constexpr std::size_t kStringReserve = 512;   // status strings reuse this capac
 constexpr std::size_t kObsReserve = 1024;     // observation_t vectors: largest obs size without reallocation
 constexpr int64_t kLiveLinePeriodNs = 200'000'000;  // terminal status line at 5 Hz
 constexpr double kSToUs = 1e6, kSToMs = 1e3;
+constexpr const char* kApprovalsFileName = "approvals";  // the approvals file's default name in the policy folder
 
 void assign_bounded(std::string& dst, const char* src) {
   const std::size_t n = std::min(std::strlen(src), dst.capacity());
@@ -21,9 +23,17 @@ void assign_bounded(std::string& dst, const char* src) {
 }
 }  // namespace
 
+PolicyStore make_policy_store(const ControllerOptions& o) {
+  std::string dir = o.policy_dir.empty() ? std::filesystem::path(o.policy_path).parent_path().string() : o.policy_dir;
+  if (dir.empty()) dir = ".";
+  const std::string approvals = o.approvals_path.empty() ? dir + "/" + kApprovalsFileName : o.approvals_path;
+  return PolicyStore(dir, o.auth == AuthMode::kSigned ? o.keys : nullptr, approvals);
+}
+
 Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial,
                        std::unique_ptr<PolicyEngine> upright)
-    : opt_(options), supervisor_(options.safety), engine_(std::move(initial)), upright_(std::move(upright)) {
+    : opt_(options), supervisor_(options.safety), store_(make_policy_store(options)), engine_(std::move(initial)),
+      upright_(std::move(upright)) {
   supervisor_.set_autostart(opt_.autostart);  // the ladder and the operator's precedence: safety rule R1
   if (upright_) check_composite_pair(engine_->artifact(), upright_->artifact());  // throws before any thread
   // Composite: PREPARE ramps to the upright member's default pose (a stand), which is also the member
@@ -32,7 +42,7 @@ Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyE
   member_ = CompositeMember::kUpright;
   current_path_ = opt_.policy_path;
   for (std::string* s : {&status_.mode_name, &status_.policy_name, &status_.policy_hash, &status_.clock,
-                         &status_.last_fault, &status_.info})
+                         &status_.last_fault, &status_.info, &status_.command_auth})
     s->reserve(kStringReserve);
   obs_msg_.raw.reserve(kObsReserve);
   obs_msg_.normalized.reserve(kObsReserve);
@@ -52,7 +62,8 @@ Controller::~Controller() {
 
 bool Controller::open(std::string* error) {
   const bool dds = opt_.robot_link == RobotLink::kDds;
-  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, error, composite(), !dds)) return false;
+  if (!auth_.open(opt_.auth, opt_.keys, opt_.auth_config, error)) return false;
+  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, &auth_, error, composite(), !dds)) return false;
   if (!dds) return true;
   dds_ = std::make_unique<DdsTransport>();
   return dds_->open(opt_.dds_domain_id, opt_.clock, &supervisor_, &transport_.imu, &transport_.joint,
@@ -102,7 +113,8 @@ void Controller::reload_worker() {
     retired_.reset();  // the old engine is freed here, never on the loop thread
     if (!reload_requested_) continue;
     reload_requested_ = false;
-    const std::string path = reload_path_.empty() ? current_path_ : reload_path_;
+    const std::string name = reload_path_;  // empty: SIGHUP, the current file again
+    const std::string path = name.empty() ? current_path_ : name;
     lock.unlock();
     std::unique_ptr<PolicyEngine> engine;
     std::string message;
@@ -111,16 +123,21 @@ void Controller::reload_worker() {
       // runs; composite runs are evaluation runs, so they are restarted with both files instead.
       message = "reload REJECTED, old policies kept: hot reload is not supported in composite mode";
     } else try {
-      engine = std::make_unique<PolicyEngine>(load_artifact(path));
+      // load_policy: a name inside the policy folder, approved content only; SIGHUP (a local signal): the
+      // current file, approved again when the runtime has a key (the file may have been replaced).
+      engine = std::make_unique<PolicyEngine>(!name.empty() ? store_.load_name(name)
+                                              : store_.checks_approval() ? store_.load_path(path) : load_artifact(path));
       message = "reload ok: " + path + " (" + engine->artifact().name + ", " + engine->artifact().content_hash.substr(0, 12) + ")";
+    } catch (const PolicyRefused& e) {
+      message = std::string("reload REJECTED, old policy kept: ") + e.what();
     } catch (const std::exception& e) {
       message = "reload REJECTED, old policy kept: " + path + ": " + e.what();
     }
     lock.lock();
     reload_message_ = message.substr(0, kStringReserve - 1);
     if (engine) {
+      current_path_ = engine->artifact().path;  // the resolved file
       ready_ = std::move(engine);
-      current_path_ = path;
       ready_flag_.store(true);
     }
     message_changed_.store(true);
@@ -287,6 +304,13 @@ void Controller::publish_status(double now_s) {
   status_.joystick_age_ms = age_ms(transport_.joystick.have, transport_.joystick.stamp_s);
   status_.fault_bits = supervisor_.fault_bits();
   assign_bounded(status_.last_fault, supervisor_.last_fault());
+  assign_bounded(status_.command_auth, auth_.describe());
+  status_.refused_no_key = auth_.refused(Refusal::kNoKey);
+  status_.refused_unsigned = auth_.refused(Refusal::kUnsigned);
+  status_.refused_unknown_sender = auth_.refused(Refusal::kUnknownSender);
+  status_.refused_bad_tag = auth_.refused(Refusal::kBadTag);
+  status_.refused_replayed = auth_.refused(Refusal::kReplayed);
+  status_.refused_stale = auth_.refused(Refusal::kStale);
   if (message_changed_.load()) {
     std::unique_lock<std::mutex> lock(reload_mutex_, std::try_to_lock);
     if (lock.owns_lock()) {
@@ -299,10 +323,15 @@ void Controller::publish_status(double now_s) {
     std::snprintf(composite_info, sizeof(composite_info), "composite: waist %.3f m from T1_SIM_STATUS (privileged sim "
                   "signal), getup below %.2f m, active %s, switches %lld | ", transport_.sim_status.msg.waist_height,
                   kGetupSwitchWaistHeightM, member_name(member_), static_cast<long long>(member_switches_));
-  char info[kStringReserve + 600];  // composite (160) + supervisor info (160) + reload message + DDS reject (160)
+  // Who may command next to the mode: "commands unauthenticated" on a bench runtime, the last refusal.
+  char auth_info[240] = {0};
+  const char* refusal = auth_.last_refusal();
+  std::snprintf(auth_info, sizeof(auth_info), "%s%s%s%s", auth_.mode() == AuthMode::kUnauthenticated ? " | " : "",
+                auth_.mode() == AuthMode::kUnauthenticated ? "commands unauthenticated" : "", refusal[0] ? " | " : "", refusal);
+  char info[kStringReserve + 840];  // composite (160) + supervisor (160) + auth (240) + reload message + DDS reject (160)
   const char* dds_info = dds_ && dds_->rejected ? dds_->last_reject.data() : "";
-  std::snprintf(info, sizeof(info), "%s%s%s%s%s%s", composite_info, supervisor_.last_info(), reload_info_[0] ? " | " : "",
-                reload_info_, dds_info[0] ? " | " : "", dds_info);
+  std::snprintf(info, sizeof(info), "%s%s%s%s%s%s%s", composite_info, supervisor_.last_info(), auth_info,
+                reload_info_[0] ? " | " : "", reload_info_, dds_info[0] ? " | " : "", dds_info);
   assign_bounded(status_.info, info);
   transport_.publish(t1::CH_CONTROLLER_STATUS, status_);
   if (!opt_.quiet) post_live_line();
@@ -315,6 +344,7 @@ void Controller::post_live_line() {
   if (upright_)  // composite mode: say it runs on a privileged sim signal, and which member acts
     std::snprintf(line.composite, sizeof(line.composite), "COMPOSITE(sim waist %.2f m -> %-7s) ",
                   transport_.sim_status.msg.waist_height, member_name(member_));
+  line.unauthenticated = auth_.mode() == AuthMode::kUnauthenticated;
   line.ticks = ticks_;
   line.policy_ticks = policy_ticks_;
   line.overruns = task_.overruns();
@@ -330,8 +360,8 @@ void Controller::live_line_worker() {
   while (!stop_.load()) {
     std::this_thread::sleep_for(std::chrono::nanoseconds(kLiveLinePeriodNs));
     if (!live_line_.read(&line)) continue;
-    std::fprintf(stderr, "\r%s%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint %5.1f ms | ovr %lld | %.60s   ",
-                 line.composite, line.mode, static_cast<long long>(line.ticks), static_cast<long long>(line.policy_ticks),
+    std::fprintf(stderr, "\r%s%s%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint %5.1f ms | ovr %lld | %.60s   ",
+                 line.unauthenticated ? "UNAUTHENTICATED " : "", line.composite, line.mode, static_cast<long long>(line.ticks), static_cast<long long>(line.policy_ticks),
                  line.lateness_p99_us, line.compute_p99_us, line.imu_age_ms, line.joint_age_ms,
                  static_cast<long long>(line.overruns), line.last_fault);
   }

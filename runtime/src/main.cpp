@@ -1,6 +1,7 @@
 // t1-runtime: the fixed-rate controller CLI. Exit codes:
 //   0 ok (duration reached or SIGINT/SIGTERM)   2 usage error        3 bad policy artifact
 //   4 LCM / DDS initialisation failure                5 --rt-required and a real-time setup step failed
+//   6 key file refused (missing, malformed, or open to its group or others)
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -12,7 +13,7 @@
 #include "t1rt/controller.hpp"
 
 namespace {
-enum ExitCode { kExitOk = 0, kExitUsage = 2, kExitBadArtifact = 3, kExitLcm = 4, kExitRt = 5 };
+enum ExitCode { kExitOk = 0, kExitUsage = 2, kExitBadArtifact = 3, kExitLcm = 4, kExitRt = 5, kExitKey = 6 };
 
 constexpr double kMaxPrepareS = 10.0;  // a longer ramp is a typo, not a choice
 // --duration above this (30 days) is a typo or an overflow in waiting: run without --duration instead.
@@ -60,6 +61,13 @@ void usage(FILE* out) {
       "  --rt                   SCHED_FIFO, mlockall, CPU pinning, /dev/cpu_dma_latency=0 (failures reported)\n"
       "  --rt-required          like --rt, but any failed step is fatal (exit 5)\n"
       "  --rt-cpu N             core for --rt pinning (default 1; -1 = no pinning)\n"
+      "  --key FILE             take the commands and joystick signed by a sender of FILE (messages/auth.py;\n"
+      "                         mode 600, else refused); --policy and load_policy need approved content\n"
+      "  --unauthenticated      a bench setup: take every command and joystick unsigned (said at start and in\n"
+      "                         the status info). Without --key or this flag only estop is taken, no joystick\n"
+      "  --policy-dir DIR       the folder load_policy names an artifact in (default: the folder of --policy);\n"
+      "                         with --key the startup --policy must lie in it too\n"
+      "  --approvals FILE       with --key: the approvals file (default: DIR/approvals)\n"
       "  --autostart            go PASSIVE -> DAMPING -> PREPARE -> POLICY by itself\n"
       "  --prepare-s S          PREPARE ramp duration in seconds (default 2; 0 < S <= 10)\n"
       "  --duration S           stop after S wall-clock seconds, 0 < S <= 30 days (default: until SIGINT/SIGTERM)\n"
@@ -68,7 +76,24 @@ void usage(FILE* out) {
       "                         (JSON: bin_us, count, max_us, overruns, ticks) to PATH (make bench-soak)\n"
       "  --help                 this text\n"
       "signals: SIGHUP reloads the current policy file; SIGINT/SIGTERM stop.\n"
-      "exit codes: 0 ok, 2 usage, 3 bad artifact, 4 LCM/DDS init failure, 5 --rt-required setup failure\n");
+      "exit codes: 0 ok, 2 usage, 3 bad or refused artifact, 4 LCM/DDS init failure, 5 --rt-required setup\n"
+      "failure, 6 key file refused\n");
+}
+
+// The first line: who may command this runtime.
+void print_authority(const t1rt::ControllerOptions& opt, const t1rt::PolicyStore& store) {
+  if (opt.auth == t1rt::AuthMode::kSigned) {
+    std::string ids;
+    for (std::size_t i = 0; i < opt.keys->size(); ++i) ids += (i ? ", " : "") + std::to_string(opt.keys->sender_id(i));
+    std::fprintf(stderr, "t1-runtime: commands signed: key file %s (senders %s); artifacts in %s approved in %s\n",
+                 opt.keys->path().c_str(), ids.c_str(), store.dir().c_str(), store.approvals().c_str());
+  } else if (opt.auth == t1rt::AuthMode::kUnauthenticated) {
+    std::fprintf(stderr, "t1-runtime: commands unauthenticated (--unauthenticated, a bench setup): any program on "
+                 "the LCM group may command this robot; load_policy loads any artifact in %s\n", store.dir().c_str());
+  } else {
+    std::fprintf(stderr, "t1-runtime: commands: estop only (no --key): every other runtime_cmd_t and the joystick "
+                 "are refused; --key FILE takes the operator's signed ones\n");
+  }
 }
 }  // namespace
 
@@ -77,8 +102,9 @@ int main(int argc, char** argv) {
   std::string cli_url;
   bool rt = false, rt_required = false;
   t1rt::RtOptions rt_options;
-  std::string histogram_path;
+  std::string histogram_path, key_path;
   FILE* histogram_file = nullptr;
+  bool unauthenticated = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* name) -> const char* {
@@ -113,6 +139,10 @@ int main(int argc, char** argv) {
       }
       rt_options.cpu = static_cast<int>(cpu);
     }
+    else if (a == "--key") key_path = value("--key");
+    else if (a == "--unauthenticated") unauthenticated = true;
+    else if (a == "--policy-dir") opt.policy_dir = value("--policy-dir");
+    else if (a == "--approvals") opt.approvals_path = value("--approvals");
     else if (a == "--autostart") opt.autostart = true;
     else if (a == "--prepare-s") {
       // Evaluations that spawn the robot standing in its default pose need no 2 s ramp: a static PD stand
@@ -146,19 +176,43 @@ int main(int argc, char** argv) {
     } else { std::fprintf(stderr, "t1-runtime: unknown argument '%s'\n", a.c_str()); usage(stderr); return kExitUsage; }
   }
   if (opt.policy_path.empty()) { std::fprintf(stderr, "t1-runtime: --policy PATH is required\n"); usage(stderr); return kExitUsage; }
+  if (unauthenticated && !key_path.empty()) {
+    std::fprintf(stderr, "t1-runtime: --key and --unauthenticated exclude each other\n");
+    return kExitUsage;
+  }
+  if (!opt.approvals_path.empty() && key_path.empty()) {
+    std::fprintf(stderr, "t1-runtime: --approvals needs --key (approvals are checked with its keys)\n");
+    return kExitUsage;
+  }
   opt.lcm_url = t1rt::resolve_lcm_url(cli_url);
   opt.dds_domain_id = t1::kDdsDomainId;
+  opt.auth = unauthenticated ? t1rt::AuthMode::kUnauthenticated : key_path.empty() ? t1rt::AuthMode::kEstopOnly
+                                                                                   : t1rt::AuthMode::kSigned;
+  if (!key_path.empty()) {
+    std::string error;
+    opt.keys = t1rt::KeyRing::load(key_path, &error);
+    if (!opt.keys) { std::fprintf(stderr, "t1-runtime: refused: %s\n", error.c_str()); return kExitKey; }
+  }
 
   std::unique_ptr<t1rt::PolicyEngine> engine, upright;
   std::string loading = opt.policy_path;
   try {
-    engine = std::make_unique<t1rt::PolicyEngine>(t1rt::load_artifact(opt.policy_path));
+    const t1rt::PolicyStore store = t1rt::make_policy_store(opt);
+    print_authority(opt, store);
+    // With a key the startup policies follow load_policy's rule: inside the folder, approved content.
+    auto load = [&](const std::string& path) {
+      return std::make_unique<t1rt::PolicyEngine>(store.checks_approval() ? store.load_path(path) : t1rt::load_artifact(path));
+    };
+    engine = load(opt.policy_path);
     if (!opt.upright_policy_path.empty()) {
       loading = opt.upright_policy_path;
-      upright = std::make_unique<t1rt::PolicyEngine>(t1rt::load_artifact(opt.upright_policy_path));
+      upright = load(opt.upright_policy_path);
       loading = opt.policy_path + " + " + opt.upright_policy_path;
       t1rt::check_composite_pair(engine->artifact(), upright->artifact());
     }
+  } catch (const t1rt::PolicyRefused& e) {
+    std::fprintf(stderr, "t1-runtime: refused: %s\n", e.what());
+    return kExitBadArtifact;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "t1-runtime: bad policy artifact %s: %s\n", loading.c_str(), e.what());
     return kExitBadArtifact;

@@ -1,6 +1,6 @@
 // The safety supervisor: the single source of truth for every safety rule of the runtime
 // (ARCHITECTURE.md "Safety supervisor"). No heap use: fixed arrays and snprintf into fixed buffers.
-// The rules R1-R10 this file implements, and why their values: the comment at the top of t1rt/safety.hpp (R3's
+// The rules R1-R11 this file implements, and why their values: the comment at the top of t1rt/safety.hpp (R3's
 // per-stream sequence bookkeeping, SeqTracker, is seq_tracker.cpp).
 #include <algorithm>
 #include <cmath>
@@ -61,6 +61,9 @@ void Supervisor::request_mode(Mode target) {
   has_request_ = true;
   operator_hold_ = target == Mode::kPassive || target == Mode::kDamping;
 }
+
+// Rule R11: estop from anyone (it only ever damps); everything else from an authorised sender only.
+bool Supervisor::admits(OperatorInput input, bool authorised) { return input == OperatorInput::kEstop || authorised; }
 
 void Supervisor::estop() {
   has_request_ = false;

@@ -2,12 +2,14 @@
 
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <utility>
 
 #include "t1_contract.hpp"
 #include "t1_lcm_group.hpp"
+#include "t1rt/command_auth.hpp"
 #include "t1rt/composite.hpp"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/safety.hpp"
@@ -32,10 +34,11 @@ LcmTransport::~LcmTransport() {
   if (sock_ >= 0) close(sock_);
 }
 
-bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error,
-                        bool subscribe_sim_status, bool subscribe_robot_state) {
+bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* supervisor, CommandAuth* auth,
+                        std::string* error, bool subscribe_sim_status, bool subscribe_robot_state) {
   clock_ = clock;
   supervisor_ = supervisor;
+  auth_ = auth;
   buffer_.assign(kEncodeBufferBytes, 0);
   rx_.assign(t1::kLcmMaxDatagramBytes, 0);
   if (!sender_.open(url)) {
@@ -128,8 +131,21 @@ void LcmTransport::on_joint(const Datagram& d) {
   new_joint_state = true;
 }
 
+bool LcmTransport::admitted(Supervisor::OperatorInput input, const char* channel, const Datagram& d, int64_t sender_id,
+                            int64_t timestamp_us, const char* what) {
+  const auto stream = input == Supervisor::OperatorInput::kJoystick ? CommandAuth::kJoystickStream
+                                                                    : CommandAuth::kCommandStream;
+  const bool authorised = auth_ && auth_->verify(stream, channel, d.data, d.size, sender_id, timestamp_us);
+  if (Supervisor::admits(input, authorised)) return true;  // safety rule R11
+  if (auth_) auth_->refuse(what, sender_id);
+  return false;
+}
+
 void LcmTransport::on_joystick(const Datagram& d) {
-  if (decode_scratch(joystick, d)) commit(joystick);
+  if (!decode_scratch(joystick, d)) return;
+  const t1::joystick_t& j = joystick.scratch;
+  if (admitted(Supervisor::OperatorInput::kJoystick, t1::CH_JOYSTICK, d, j.sender_id, j.timestamp_us, "joystick_t"))
+    commit(joystick);
 }
 
 void LcmTransport::on_sim_status(const Datagram& d) {
@@ -147,7 +163,13 @@ void LcmTransport::on_command(const Datagram& d) {
     ++decode_errors;
     return;
   }
-  if (c.verb == "estop") {  // safety rule R2: outside the bounded queue
+  const bool estop = c.verb == "estop";
+  char what[128];
+  std::snprintf(what, sizeof(what), "runtime_cmd_t '%.24s %.64s'", c.verb.c_str(), c.argument.c_str());
+  if (!admitted(estop ? Supervisor::OperatorInput::kEstop : Supervisor::OperatorInput::kCommand, t1::CH_RUNTIME_CMD,
+                d, c.sender_id, c.timestamp_us, what))
+    return;
+  if (estop) {  // safety rule R2: outside the bounded queue
     estop_pending = true;
     return;
   }

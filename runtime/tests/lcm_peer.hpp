@@ -3,6 +3,9 @@
 #pragma once
 #include <lcm/lcm.h>
 
+#include <algorithm>
+#include <ctime>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,6 +16,7 @@
 #include "t1/joystick_t.hpp"
 #include "t1/runtime_cmd_t.hpp"
 #include "t1_contract.hpp"
+#include "t1rt/command_auth.hpp"
 #include "t1rt/transport.hpp"
 
 namespace t1rt::testing {
@@ -36,11 +40,30 @@ class LcmPeer {
   void publish_raw(const char* channel, const uint8_t* data, std::size_t size) {
     lcm_publish(lcm_, channel, data, static_cast<unsigned>(size));
   }
+  // From here on, command() and publish_signed() sign as sender i of ring (messages/auth.py).
+  void sign_with(std::shared_ptr<const KeyRing> ring, std::size_t i = 0) {
+    ring_ = std::move(ring);
+    sender_ = i;
+  }
+  // A runtime_cmd_t or joystick_t with this peer's sender id, a fresh timestamp and its tag.
+  template <class M>
+  void publish_signed(const char* channel, M m) {
+    m.sender_id = ring_->sender_id(sender_);
+    timespec ts{};
+    clock_gettime(CLOCK_REALTIME, &ts);
+    last_us_ = std::max(last_us_ + 1, static_cast<int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000);
+    m.timestamp_us = last_us_;
+    std::vector<uint8_t> buf(m.getEncodedSize());
+    m.encode(buf.data(), 0, static_cast<int>(buf.size()));
+    ring_->sign(sender_, channel, buf.data(), buf.size());
+    lcm_publish(lcm_, channel, buf.data(), static_cast<unsigned>(buf.size()));
+  }
   void command(const std::string& verb, const std::string& arg = "") {
     t1::runtime_cmd_t c{};
     c.verb = verb;
     c.argument = arg;
-    publish(t1::CH_RUNTIME_CMD, c);
+    if (ring_) publish_signed(t1::CH_RUNTIME_CMD, c);
+    else publish(t1::CH_RUNTIME_CMD, c);
   }
   // Waits for the joint command answering state `seq`; false on timeout.
   bool wait_command(int64_t seq, int timeout_ms = 500) {
@@ -68,6 +91,9 @@ class LcmPeer {
     if (self->last_status.decode(rb->data, 0, rb->data_size) >= 0) ++self->statuses;
   }
   lcm_t* lcm_;
+  std::shared_ptr<const KeyRing> ring_;
+  std::size_t sender_ = 0;
+  int64_t last_us_ = 0;  // timestamps strictly increase on both channels
 };
 
 }  // namespace t1rt::testing

@@ -11,6 +11,7 @@
 #include "t1rt/composite.hpp"
 #include "t1rt/controller.hpp"
 #include "test_artifact.hpp"
+#include "test_keys.hpp"
 
 using namespace t1rt;
 using namespace t1rt::testing;
@@ -56,6 +57,9 @@ class CompositeLcm : public ::testing::Test {
     opt.quiet = true;
     opt.autostart = true;
     opt.safety.prepare_duration_s = 0.02;
+    opt.auth = AuthMode::kSigned;  // the operator's signed commands
+    opt.keys = test_ring("composite", {test_sender(1, 0x22)});
+    peer_.sign_with(opt.keys);
     ctrl_ = std::make_unique<Controller>(opt, std::make_unique<PolicyEngine>(load_artifact(opt.policy_path)),
                                          std::make_unique<PolicyEngine>(load_artifact(opt.upright_policy_path)));
     std::string error;
@@ -208,7 +212,8 @@ TEST_F(CompositeLcm, NonFiniteWaistHeightFaults) {
 
 TEST_F(CompositeLcm, HotReloadRejected) {
   to_policy(0.6f);
-  peer_.command("load_policy", write_spec("composite_reload", constant_spec("other", 0.0f, false)));
+  write_spec("composite_reload", constant_spec("other", 0.0f, false));
+  peer_.command("load_policy", "t1rt_composite_reload.safetensors");
   for (int i = 0; i < 200 && ctrl_->reload_message().empty(); ++i) step(0.6f);
   EXPECT_NE(ctrl_->reload_message().find("not supported in composite mode"), std::string::npos) << ctrl_->reload_message();
   EXPECT_EQ(ctrl_->active_policy().artifact().name, "upright_test");

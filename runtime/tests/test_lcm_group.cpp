@@ -17,7 +17,7 @@ TEST(LcmTransportOpen, UrlWithoutAMulticastGroupRefused) {
   for (const char* url : {"memq://", "udpm://239.255.76.67", "udpm://not-an-address:7667"}) {
     LcmTransport transport;
     std::string error;
-    EXPECT_FALSE(transport.open(url, ClockMode::kLockstep, nullptr, &error)) << url;
+    EXPECT_FALSE(transport.open(url, ClockMode::kLockstep, nullptr, nullptr, &error)) << url;
     EXPECT_NE(error.find(std::string("'") + url + "'"), std::string::npos) << error;
   }
 }

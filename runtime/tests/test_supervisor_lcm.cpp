@@ -3,12 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 
 #include "lcm_peer.hpp"
 #include "t1_motor_protocol.h"
 #include "t1rt/controller.hpp"
 #include "t1rt/prepare_gains.hpp"
 #include "test_artifact.hpp"
+#include "test_keys.hpp"
 
 using namespace t1rt;
 using namespace t1rt::testing;
@@ -46,6 +48,11 @@ class SupervisorLcm : public ::testing::Test {
     opt.clock = clock;
     opt.quiet = true;
     opt.safety.prepare_duration_s = 0.02;  // 10 ticks: keeps the tests short
+    opt.auth = AuthMode::kSigned;          // the operator signs (test_command_auth.cpp: everyone else)
+    opt.keys = ring_ = test_ring("supervisor", {test_sender(1, 0x11)});
+    opt.approvals_path = approvals_ = test_dir() + "t1rt_supervisor.approvals";
+    std::ofstream(approvals_, std::ios::trunc);
+    peer_.sign_with(ring_);
     ctrl_ = std::make_unique<Controller>(opt, std::make_unique<PolicyEngine>(load_artifact(opt.policy_path)));
     std::string error;
     ASSERT_TRUE(ctrl_->open(&error)) << error;
@@ -86,7 +93,16 @@ class SupervisorLcm : public ::testing::Test {
   }
   Mode mode() { return ctrl_->supervisor().mode(); }
 
+  // load_policy of an artifact written by write_spec: approved by the operator, sent by its name in the folder.
+  void load_policy(const std::string& name, const ArtifactSpec& spec) {
+    const std::string path = write_spec(name, spec);
+    approve(*ring_, 0, approvals_, path);
+    peer_.command("load_policy", path.substr(path.rfind('/') + 1));
+  }
+
   LcmPeer peer_;
+  std::shared_ptr<const KeyRing> ring_;
+  std::string approvals_;
   std::unique_ptr<Controller> ctrl_;
   JointArray pose_{}, dq_{};
   std::array<int32_t, kJoints> status_{};
@@ -276,7 +292,7 @@ TEST_F(SupervisorLcm, StaleJoystickZeroesCommand) {
   t1::joystick_t js{};
   js.utime = (k_ + 1) * kTickUs;
   js.vx = 0.8f;
-  peer_.publish(t1::CH_JOYSTICK, js);
+  peer_.publish_signed(t1::CH_JOYSTICK, js);
   for (int i = 0; i < kPolicyDecimation; ++i) step();
   constexpr int kCommandIndex = 6;  // gyro 3, gravity 3, then command
   EXPECT_FLOAT_EQ(ctrl_->policy().obs_raw()[kCommandIndex], 0.8f);
@@ -291,7 +307,7 @@ TEST_F(SupervisorLcm, HotReloadRejectsBadFileAndSwapsGoodOne) {
   const std::string old_hash = ctrl_->policy().artifact().content_hash;
   ArtifactSpec bad = clamp_spec();
   bad.meta["control_dt"] = 0.01;
-  peer_.command("load_policy", write_spec("reload_bad", bad));
+  load_policy("reload_bad", bad);
   for (int i = 0; i < 200 && ctrl_->reload_message().empty(); ++i) step();
   EXPECT_NE(ctrl_->reload_message().find("control_dt"), std::string::npos) << ctrl_->reload_message();
   for (int i = 0; i < 60; ++i) step();
@@ -304,7 +320,7 @@ TEST_F(SupervisorLcm, HotReloadRejectsBadFileAndSwapsGoodOne) {
 
   ArtifactSpec good = clamp_spec();
   good.meta["name"] = "reloaded";
-  peer_.command("load_policy", write_spec("reload_good", good));
+  load_policy("reload_good", good);
   for (int i = 0; i < 300 && ctrl_->policy().artifact().name != "reloaded"; ++i) step();
   EXPECT_EQ(ctrl_->policy().artifact().name, "reloaded");
   EXPECT_EQ(mode(), Mode::kPolicy);

@@ -113,6 +113,7 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
     runtime_args = [*clock_args, "--autostart", "--prepare-s", f"{spec.prepare_s:g}", *controller.runtime_args()]
     capture = _start_log(spec, controller, runtime_args, lcm_url) if spec.log else None
     runtime = start_runtime(controller.policy, *runtime_args, "--lcm-url", lcm_url)
+    signer = runtime.run_key.signer()            # the trial's operator: a fresh key of this run
     wait_until_listening(runtime)
     n = int(round(spec.seconds / config.CONTROL_DT_S))
     log = TickLog(sim.model, n)
@@ -129,7 +130,7 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
                 stick.vx, stick.yaw_rate = ((float(spec.command_vx_mps), _yaw_command(spec, sim.data)) if commanding
                                             else (0.0, 0.0))
                 stick.utime, stick.seq = sim.now_us, k   # lockstep: ages are in sim time
-                sim.link.lc.publish(contract.CH_JOYSTICK, stick.encode())
+                sim.link.lc.publish(contract.CH_JOYSTICK, signer.sign(contract.CH_JOYSTICK, stick))
             sim.tick()
             latest = sim.link.latest
             log.record(k, sim.data, latest.mode if latest is not None else -1)

@@ -1,7 +1,9 @@
 """Re-run the C++ runtime on a log's states, in lockstep, and compare its commands with the logged ones.
 
 Only the runtime's inputs are replayed (T1_IMU, T1_JOINT_STATE, T1_JOYSTICK, T1_RUNTIME_CMD, T1_SIM_STATUS),
-byte for byte and in the logged order; after each joint state the replay waits for the command answering
+in the logged order, byte for byte but for the operator's messages: T1_JOYSTICK and T1_RUNTIME_CMD are
+signed again with the replay's own fresh key (their logged tags were made with a key of the logged run,
+and their timestamps are old: the runtime takes neither); after each joint state the replay waits for the command answering
 it (state_seq), exactly as the lockstep simulator does. With the logged policy and a lockstep log this
 reproduces the logged T1_JOINT_CMD stream bit for bit (same inputs, same binary); with another policy the
 report says where and by how much the new commands differ — what to look at before loading new weights
@@ -18,7 +20,7 @@ from pathlib import Path
 
 import lcm
 import numpy as np
-from t1 import joint_command_t, joint_state_t
+from t1 import joint_command_t, joint_state_t, joystick_t, runtime_cmd_t
 
 from messages import contract
 from sim_hil.launch import start_runtime, stop, wait_until_listening
@@ -26,6 +28,7 @@ from sim_hil.lcmlog.eventlog import ProjectLog
 
 RUNTIME_INPUTS = (contract.CH_IMU, contract.CH_JOINT_STATE, contract.CH_JOYSTICK, contract.CH_RUNTIME_CMD,
                   contract.CH_SIM_STATUS)
+SIGNED_INPUTS = {contract.CH_JOYSTICK: joystick_t, contract.CH_RUNTIME_CMD: runtime_cmd_t}   # re-signed
 COMMAND_FIELDS = ("q_des", "dq_des", "kp", "kd", "tau_ff")
 REPLAY_PORT_OFFSET = 151        # replay LCM port: contract port + this (apart from the eval workers' ports)
 ANSWER_TIMEOUT_S = 2.0          # a state the runtime does not answer within this is counted, replay goes on
@@ -107,11 +110,13 @@ def replay(log: ProjectLog, policy: Path | None = None, url: str | None = None) 
     lc = lcm.LCM(url)
     lc.subscribe(contract.CH_JOINT_CMD, lambda _c, d: _keep(answers, joint_command_t.decode(d)))
     runtime = start_runtime(chosen, *args, "--lcm-url", url)
+    signer = runtime.run_key.signer()
     unanswered = 0
     try:
         wait_until_listening(runtime)
         for ev in inputs:
-            lc.publish(ev.channel, ev.data)
+            kind = SIGNED_INPUTS.get(ev.channel)
+            lc.publish(ev.channel, signer.sign(ev.channel, kind.decode(ev.data)) if kind else ev.data)
             if ev.channel != contract.CH_JOINT_STATE:
                 continue
             seq = joint_state_t.decode(ev.data).seq

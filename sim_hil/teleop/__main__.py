@@ -4,7 +4,9 @@ Publishes T1_JOYSTICK at PUBLISH_RATE_HZ within the --policy artifact's command_
 verbs (estop, prepare, policy, damping, reset, load_policy) on T1_RUNTIME_CMD, as the T1's remote does.
 The bindings are the one table in sim_hil/teleop/core.py (BINDINGS; --bindings FILE.json overrides
 entries). Run it inside the project namespace (tools/netns), next to the runtime it drives:
-`make teleop` starts a sim and the runtime there too (--with-sim)."""
+`make teleop` starts a sim and the runtime there too (--with-sim). What it sends is signed
+(messages/auth.py): with --key FILE (this operator's key file, whose line the runtime's key file holds), or
+with --with-sim a fresh key of the run that the runtime it starts takes."""
 from __future__ import annotations
 
 import argparse
@@ -18,30 +20,34 @@ import lcm
 from t1 import joystick_t, runtime_cmd_t
 
 from messages import contract
-from sim_hil.launch import BUILD, RUNTIME, start_sim, stop
+from messages.auth import KeyFileError, RunKey, Signer, read_key_file
+from sim_hil.launch import BUILD, ROOT, RUNTIME, start_runtime, start_sim, stop
 from sim_hil.teleop.core import (DEFAULT_POLICY, PUBLISH_RATE_HZ, TeleopCore, command_ranges,
                                  load_bindings)
 from sim_hil.teleop.readers import DeviceGone, GamepadReader, KeyboardReader, find_gamepad
 
 BEHIND_RESYNC_S = 0.5     # publisher this far behind its schedule (suspended, swapped out): restart the schedule
+POLICIES = ROOT / "policies"
 
 
 class LcmPublisher:
-    def __init__(self, url: str):
-        self.lc = lcm.LCM(url)
+    """Publishes the command and the verbs, signed by `signer` (the operator's key)."""
+
+    def __init__(self, url: str, signer: Signer):
+        self.lc, self.signer = lcm.LCM(url), signer
         self.js_seq = self.cmd_seq = 0
 
     def joystick(self, vx: float, vy: float, yaw_rate: float) -> None:
         m = joystick_t()
         self.js_seq += 1
         m.utime, m.seq, m.vx, m.vy, m.yaw_rate = int(time.time() * 1e6), self.js_seq, vx, vy, yaw_rate
-        self.lc.publish(contract.CH_JOYSTICK, m.encode())
+        self.lc.publish(contract.CH_JOYSTICK, self.signer.sign(contract.CH_JOYSTICK, m))
 
     def runtime_cmd(self, verb: str, argument: str) -> None:
         m = runtime_cmd_t()
         self.cmd_seq += 1
         m.utime, m.seq, m.verb, m.argument = int(time.time() * 1e6), self.cmd_seq, verb, argument
-        self.lc.publish(contract.CH_RUNTIME_CMD, m.encode())
+        self.lc.publish(contract.CH_RUNTIME_CMD, self.signer.sign(contract.CH_RUNTIME_CMD, m))
 
 
 def run(core: TeleopCore, readers: list, publisher, duration_s: float | None = None, log=print) -> str:
@@ -85,24 +91,35 @@ def help_text(bindings: dict[str, dict], pad: bool) -> str:
     return "\n".join(lines)
 
 
-def start_sim_and_runtime(policy: Path, out: Path) -> list[subprocess.Popen]:
-    """--with-sim: a realtime sim (standing) and t1-runtime in this namespace; their output goes to files
-    under `out` (a pipe nobody reads would fill and stall them during a long drive)."""
-    if not RUNTIME.exists():
-        raise SystemExit(f"teleop: {RUNTIME} is not built: run `make build`")
+def start_sim_and_runtime(policy: Path, folder: Path, load: Path, out: Path) -> tuple[list[subprocess.Popen], RunKey]:
+    """--with-sim: a realtime sim (standing) and t1-runtime in this namespace, the runtime with a fresh key of
+    this run, its policy folder `folder`, --policy and the load_policy artifact approved; their output goes
+    to files under `out` (a pipe nobody reads would fill and stall them during a long drive)."""
     out.mkdir(parents=True, exist_ok=True)
     sim = start_sim("--clock", "realtime", "--spawn", "standing", "--scenario", "flat")
-    runtime = subprocess.Popen([str(RUNTIME), "--policy", str(policy), "--quiet", "--clock", "realtime"],
-                               stdout=open(out / "runtime.log", "w"), stderr=subprocess.STDOUT)
+    runtime = start_runtime(policy, "--clock", "realtime", "--policy-dir", str(folder),
+                            output=open(out / "runtime.log", "w"))
+    runtime.run_key.approve(load)
     print(f"teleop: started sim_hil and t1-runtime ({policy}); runtime log {out / 'runtime.log'}; "
           "press 0 (damping), 1 (prepare), 2 (policy), then hold w/a/s/d/q/e to walk", file=sys.stderr)
-    return [sim, runtime]
+    return [sim, runtime], runtime.run_key
+
+
+def operator_signer(key_file: str | None) -> Signer:
+    """The signer of --key FILE's first sender; without one a fresh key nobody else has, said on stderr."""
+    if key_file:
+        return Signer(read_key_file(key_file)[0])
+    print("teleop: no --key: signing with a fresh key of this run only; a runtime started elsewhere takes "
+          "nothing of it but estop (pass --key FILE, this operator's line of the runtime's key file)", file=sys.stderr)
+    return RunKey().signer()
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m sim_hil.teleop", description=__doc__.splitlines()[0])
     p.add_argument("--policy", default=str(DEFAULT_POLICY), help="artifact whose command_ranges bound the command")
-    p.add_argument("--load", default=None, help="file the load_policy key sends (default: --policy)")
+    p.add_argument("--load", default=None, help="artifact the load_policy key sends: its name in the runtime's "
+                   "policy folder (default: --policy's; with --with-sim a path, inside --policy's folder)")
+    p.add_argument("--key", default=None, help="this operator's key file (messages/auth.py); not with --with-sim")
     p.add_argument("--device", default="auto", help="auto (first gamepad, else keyboard) | /dev/input/eventN")
     p.add_argument("--keyboard", action="store_true", help="keyboard only, do not look for a gamepad")
     p.add_argument("--bindings", default=None, help="JSON file of {keys|buttons|axes: {...}} over the table")
@@ -117,19 +134,36 @@ def main(argv: list[str] | None = None) -> int:
         pad = None
         if not args.keyboard:
             pad = find_gamepad(bindings) if args.device == "auto" else GamepadReader.open(args.device, bindings)
-    except ValueError as e:
+        if args.with_sim:
+            if args.key:
+                raise ValueError("--key and --with-sim exclude each other (--with-sim signs with a fresh key)")
+            if not RUNTIME.exists():
+                raise ValueError(f"{RUNTIME} is not built: run `make build`")
+            policy = Path(args.policy).resolve()
+            folder = POLICIES if policy.is_relative_to(POLICIES) else policy.parent
+            load = Path(args.load).resolve() if args.load else policy
+            if not load.is_relative_to(folder):
+                raise ValueError(f"--load {args.load}: not inside the runtime's policy folder {folder}")
+            load_name = str(load.relative_to(folder))
+        else:
+            signer = operator_signer(args.key)
+            load_name = args.load or Path(args.policy).name
+    except (ValueError, KeyFileError) as e:
         print(f"teleop: {e}", file=sys.stderr)
         return 2
     if pad is None and not args.keyboard:
         print("teleop: no gamepad found under /dev/input (or no permission to read it): using the keyboard",
               file=sys.stderr)
-    core = TeleopCore(ranges, bindings, load_path=str(Path(args.load or args.policy).resolve()))
+    core = TeleopCore(ranges, bindings, load_path=load_name)
     print(help_text(bindings, pad is not None), file=sys.stderr)
     print(f"teleop: command ranges {ranges}" + (f"; gamepad '{pad.name}'" if pad else ""), file=sys.stderr)
-    children = start_sim_and_runtime(Path(args.policy), BUILD.parent / "out" / "teleop") if args.with_sim else []
+    children = []
+    if args.with_sim:
+        children, run_key = start_sim_and_runtime(policy, folder, load, BUILD.parent / "out" / "teleop")
+        signer = run_key.signer()
     readers = ([pad] if pad else []) + ([KeyboardReader(sys.stdin.fileno())] if sys.stdin.isatty() or pad is None else [])
     try:
-        reason = run(core, readers, LcmPublisher(args.lcm_url or contract.lcm_url()), args.duration,
+        reason = run(core, readers, LcmPublisher(args.lcm_url or contract.lcm_url(), signer), args.duration,
                      log=lambda s: print(s, file=sys.stderr))
     except KeyboardInterrupt:
         reason = "interrupted"

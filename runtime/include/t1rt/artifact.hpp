@@ -62,6 +62,8 @@ class ArtifactError : public std::runtime_error {
 
 // Reads and validates every field of the artifact at `path`; throws ArtifactError (or nothing).
 PolicyArtifact load_artifact(const std::string& path);
+// The same for the bytes of the file at `path`, already read (PolicyStore: the bytes it hashed).
+PolicyArtifact parse_artifact(const std::string& path, const std::string& file);
 
 // Canonical size of a known observation term; -1 if the name is unknown.
 int obs_term_size(const std::string& name);

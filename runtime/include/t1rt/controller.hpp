@@ -12,11 +12,13 @@
 #include "t1/controller_status_t.hpp"
 #include "t1/joint_command_t.hpp"
 #include "t1/observation_t.hpp"
+#include "t1rt/command_auth.hpp"
 #include "t1rt/composite.hpp"
 #include "t1rt/dds_transport.hpp"
 #include "t1rt/handover.hpp"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/policy.hpp"
+#include "t1rt/policy_store.hpp"
 #include "t1rt/safety.hpp"
 #include "t1rt/transport.hpp"
 
@@ -38,7 +40,17 @@ struct ControllerOptions {
   double duration_s = 0.0;      // wall-clock run time; <= 0: until SIGINT/SIGTERM
   int lockstep_wait_ms = 100;   // one handleTimeout slice while waiting for a state in lockstep
   SafetyConfig safety;
+  // Who may command (command_auth.hpp; safety rule R11). kSigned: keys is the --key file.
+  AuthMode auth = AuthMode::kEstopOnly;
+  std::shared_ptr<const KeyRing> keys;
+  AuthConfig auth_config;
+  std::string policy_dir;      // load_policy's folder; empty: the folder of policy_path
+  std::string approvals_path;  // with keys: the approvals file; empty: policy_dir/approvals
 };
+
+// The policy folder of these options (policy_store.hpp): approvals checked when they have keys. Throws
+// PolicyRefused when the folder does not exist.
+PolicyStore make_policy_store(const ControllerOptions& options);
 
 class Controller {
  public:
@@ -74,6 +86,8 @@ class Controller {
   int64_t policy_ticks() const { return policy_ticks_; }
   const t1::joint_command_t& last_command() const { return command_; }
   std::string reload_message();  // last reload result (copy, for tests)
+  const CommandAuth& auth() const { return auth_; }
+  const PolicyStore& policy_store() const { return store_; }
 
  private:
   void handle_commands();
@@ -90,6 +104,8 @@ class Controller {
 
   ControllerOptions opt_;
   Supervisor supervisor_;
+  CommandAuth auth_;
+  PolicyStore store_;
   LcmTransport transport_;
   std::unique_ptr<DdsTransport> dds_;  // RobotLink::kDds: the robot's state in, joint commands out
   PeriodicTask task_;
@@ -112,13 +128,14 @@ class Controller {
     char mode[16];
     char last_fault[64];
     char composite[64];  // empty unless composite mode
+    bool unauthenticated;  // --unauthenticated: the line says so
     int64_t ticks, policy_ticks, overruns;
     float lateness_p99_us, compute_p99_us, imu_age_ms, joint_age_ms;
   };
   Latest<LiveLine> live_line_;
   std::thread live_line_thread_;
 
-  // reload worker state (guarded by reload_mutex_)
+  // reload worker state (guarded by reload_mutex_; reload_path_ is a load_policy name, current_path_ a path)
   std::mutex reload_mutex_;
   std::condition_variable reload_cv_;
   std::thread reload_thread_;

@@ -42,6 +42,12 @@
 //  R10 Impossible reading (issue 69): a reply past its range by more than kImpossibleRangeMarginRad, or a step
 //     from the motor's previous reply faster than kImpossibleSpeedFactor x its class's v_max; at once.
 //     Why these signals and values, the latencies and the false-alarm argument: t1rt/safety.hpp.
+//  R11 Operator authority (MAVLink 2 signing; an emergency stop works from any station, a reset needs the
+//     authority to run): estop is obeyed from any sender, signed or not; every other runtime_cmd_t (reset,
+//     set_mode of any mode, load_policy) and the joystick only when authorised: signed by a key of the
+//     runtime's key file with a fresh timestamp (t1rt/command_auth.hpp), or the runtime was started
+//     --unauthenticated. So after anyone's estop only the key holder releases R1's hold or leaves
+//     FAULT/DAMPING for PREPARE or POLICY. A refused message changes nothing and is counted by reason.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -192,6 +198,10 @@ class Supervisor {
   // --autostart: walk the mode ladder as soon as each step's preconditions hold, unless the operator holds.
   void set_autostart(bool on) { autostart_ = on; }
   bool operator_hold() const { return operator_hold_; }
+
+  // Rule R11: whether an operator input is obeyed, given whether its sender is authorised.
+  enum class OperatorInput { kEstop, kCommand, kJoystick };
+  static bool admits(OperatorInput input, bool authorised);
 
   // Operator inputs (runtime_cmd_t), applied before the tick they arrive in.
   void request_mode(Mode target);  // takes effect in the next begin_tick (needs the state); refusals -> last_info()

@@ -4,7 +4,9 @@
 // one preallocated buffer and sends it from a socket of our own without waiting (t1_lcm_group.hpp's sender:
 // a full send buffer drops the message and counts it in send_dropped(), the loop never blocks on it).
 // Heap use that remains, on purpose, off the hot path: runtime_cmd_t carries std::string verb/argument,
-// so decoding an operator command allocates (rare, operator-driven, never per tick).
+// so decoding an operator command allocates (rare, operator-driven, never per tick); verifying a signed
+// message allocates inside OpenSSL (command_auth.hpp). runtime_cmd_t and joystick_t are taken only when
+// the CommandAuth and safety rule R11 admit them.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -17,10 +19,11 @@
 #include "t1/runtime_cmd_t.hpp"
 #include "t1/sim_status_t.hpp"
 #include "t1_lcm_group.hpp"
+#include "t1rt/safety.hpp"
 
 namespace t1rt {
 
-class Supervisor;
+class CommandAuth;
 
 enum class ClockMode { kRealtime, kLockstep };
 const char* clock_name(ClockMode mode);
@@ -51,7 +54,8 @@ class LcmTransport {
   // mode only (T1_SIM_STATUS is privileged simulator truth; a single policy never listens to it).
   // subscribe_robot_state false: the robot's state comes from another transport (DDS), so T1_IMU and
   // T1_JOINT_STATE on LCM are ignored (one source for the live state, never two).
-  bool open(const std::string& url, ClockMode clock, Supervisor* supervisor, std::string* error,
+  // auth: who may command (null: nobody but estop).
+  bool open(const std::string& url, ClockMode clock, Supervisor* supervisor, CommandAuth* auth, std::string* error,
             bool subscribe_sim_status = false, bool subscribe_robot_state = true);
   int handle(int timeout_ms);  // >0 handled datagrams (waiting up to timeout_ms for the first), 0 timeout
   void drain();                // handle everything already queued, without waiting
@@ -95,6 +99,9 @@ class LcmTransport {
   void on_joystick(const Datagram& d);
   void on_sim_status(const Datagram& d);
   void on_command(const Datagram& d);
+  // Whether a decoded runtime_cmd_t / joystick_t is obeyed (CommandAuth, rule R11); a refusal is counted.
+  bool admitted(Supervisor::OperatorInput input, const char* channel, const Datagram& d, int64_t sender_id,
+                int64_t timestamp_us, const char* what);
   void subscribe(const char* channel, Handler handler);
   int handle_queued();   // datagrams read now on subscribed channels
   double stamp(int64_t utime) const;
@@ -111,6 +118,7 @@ class LcmTransport {
   std::size_t subscription_count_ = 0;
   ClockMode clock_ = ClockMode::kRealtime;
   Supervisor* supervisor_ = nullptr;
+  CommandAuth* auth_ = nullptr;
   std::vector<uint8_t> buffer_;
 };
 

@@ -1,0 +1,252 @@
+"""Who may command the runtime: the signing of runtime_cmd_t and joystick_t, key files, artifact approvals.
+The one definition of the protocol; C++ verifies it in runtime/include/t1rt/command_auth.hpp, held to this
+file by the golden vector tests/golden/command_auth.json (`python -m messages.auth golden tests/golden`).
+
+Signed message (MAVLink 2 signing as the model): sender_id (its line in the key file, > 0; 0 = unsigned),
+timestamp_us (the sender's wall clock [us since the epoch], strictly increasing per sender and channel) and
+tag, the message's last field:  tag = HMAC-SHA256(key, channel name + NUL + the message's LCM encoding up to
+tag), i.e. every payload byte but the last 32, the type's fingerprint included. The runtime takes a message
+only when its tag verifies under the sender's key, its timestamp is after the last one taken from that sender
+on that channel, and it lies within the runtime's freshness window (t1rt::AuthConfig) and not before the
+runtime started. estop is the exception: obeyed from anyone.
+
+Key file: text, one sender a line, "<sender_id> <key: 64 hex digits>", '#' comments; open to its owner only
+(mode 0600: the runtime and these tools refuse anything else). The runtime's file lists every sender it
+takes (one line per operator laptop); a sender's own file holds its own line (the first line signs).
+
+Approval: a line "<sha256 of the artifact file, hex> <sender_id> <tag, hex> [name]" in the runtime's
+approvals file, tag = HMAC-SHA256(key, approval_context + NUL + the file's SHA-256 digest): the key holder's
+word that these bytes may run. Only the key holder can write one, so the file itself needs no protection.
+
+  python -m messages.auth new-key FILE [--sender ID]           a fresh key file (mode 0600), one sender
+  python -m messages.auth approve --key FILE --approvals OUT ARTIFACT...    append approvals to OUT
+  python -m messages.auth golden DIR                           write the golden vector
+(tools/t1key runs this module with the project's Python.)
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import hmac
+import json
+import os
+import secrets
+import shutil
+import stat
+import sys
+import tempfile
+import threading
+import time
+import weakref
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from messages import contract
+
+TAG_BYTES = 32                                   # runtime_cmd_t.tag / joystick_t.tag
+KEY_BYTES = int(contract.AUTH["key_bytes"])
+APPROVAL_CONTEXT = contract.AUTH["approval_context"].encode()
+SIGNED_CHANNELS = frozenset(contract.CHANNELS[k] for k in contract.AUTH["signed_channels"])
+UNSIGNED_SENDER = 0
+NEW_SENDER_ID_MAX = 2**31 - 1                    # new-key's random ids lie in [1, this]
+GOLDEN_FILE = "command_auth.json"
+GOLDEN_COMMAND = "python -m messages.auth golden tests/golden"
+
+
+class KeyFileError(ValueError):
+    """A key file that cannot be used: open to others, malformed, or a duplicate sender."""
+
+
+@dataclass(frozen=True)
+class Sender:
+    sender_id: int
+    key: bytes = field(repr=False)               # never printed
+
+
+def tag(key: bytes, channel: str, body: bytes) -> bytes:
+    """HMAC-SHA256(key, channel + NUL + body): body is the message's encoding up to its tag field."""
+    return hmac.new(key, channel.encode() + b"\0" + body, hashlib.sha256).digest()
+
+
+def approval_tag(key: bytes, artifact_sha256: bytes) -> bytes:
+    return hmac.new(key, APPROVAL_CONTEXT + b"\0" + artifact_sha256, hashlib.sha256).digest()
+
+
+def new_sender(sender_id: int | None = None) -> Sender:
+    sender_id = secrets.randbelow(NEW_SENDER_ID_MAX) + 1 if sender_id is None else sender_id
+    if not 0 < sender_id <= 2**63 - 1:
+        raise KeyFileError(f"sender id {sender_id}: must be a positive 64-bit integer (0 means unsigned)")
+    return Sender(sender_id, secrets.token_bytes(KEY_BYTES))
+
+
+def read_key_file(path: str | os.PathLike) -> list[Sender]:
+    """The senders of a key file, refusing one that its group or others may open (as the runtime does)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError as e:
+        raise KeyFileError(f"key file {path}: {e.strerror}") from None
+    with os.fdopen(fd) as f:
+        mode = os.fstat(f.fileno()).st_mode
+        if not stat.S_ISREG(mode) or mode & 0o077:
+            raise KeyFileError(f"key file {path}: mode {stat.filemode(mode)} lets its group or others at the key; "
+                               f"chmod 600 {path}")
+        text = f.read()
+    senders: list[Sender] = []
+    for number, line in enumerate(text.splitlines(), 1):
+        words = line.split("#", 1)[0].split()
+        if not words:
+            continue
+        try:
+            sender_id, key = int(words[0]), bytes.fromhex(words[1])
+            if len(words) != 2 or sender_id <= 0 or len(key) != KEY_BYTES:
+                raise ValueError
+        except (ValueError, IndexError):
+            raise KeyFileError(f"key file {path} line {number}: expected '<sender_id > 0> <key: "
+                               f"{2 * KEY_BYTES} hex digits>'") from None
+        if any(s.sender_id == sender_id for s in senders):
+            raise KeyFileError(f"key file {path} line {number}: sender {sender_id} listed twice")
+        senders.append(Sender(sender_id, key))
+    if not senders:
+        raise KeyFileError(f"key file {path}: no sender line")
+    return senders
+
+
+def write_key_file(path: str | os.PathLike, senders: list[Sender]) -> None:
+    """A new key file (mode 0600, created only if absent, so a key is never overwritten)."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "w") as f:
+        f.write("# t1 command key file (messages/auth.py): <sender_id> <key>; keep it mode 0600, never share it\n")
+        f.writelines(f"{s.sender_id} {s.key.hex()}\n" for s in senders)
+
+
+class Signer:
+    """Signs what one sender sends. Its timestamps strictly increase per channel, also across a step back of
+    the wall clock (they then run on from the last one, 1 us a message, until the clock catches up)."""
+
+    def __init__(self, sender: Sender, clock_ns=time.time_ns):
+        self.sender, self._clock_ns = sender, clock_ns
+        self._last_us: dict[str, int] = {}
+        self._lock = threading.Lock()
+
+    def sign(self, channel: str, msg) -> bytes:
+        """Sets msg's sender_id, timestamp_us and tag; returns its signed encoding, to publish on channel."""
+        if channel not in SIGNED_CHANNELS:
+            raise ValueError(f"{channel} is not a signed channel ({sorted(SIGNED_CHANNELS)})")
+        with self._lock:
+            stamp = max(self._clock_ns() // 1000, self._last_us.get(channel, 0) + 1)
+            self._last_us[channel] = stamp
+        msg.sender_id, msg.timestamp_us, msg.tag = self.sender.sender_id, stamp, bytes(TAG_BYTES)
+        body = msg.encode()[:-TAG_BYTES]
+        msg.tag = tag(self.sender.key, channel, body)
+        return body + msg.tag
+
+
+def unsigned(msg) -> bytes:
+    """msg's encoding as a program without a key sends it: sender_id 0, a zero tag (the runtime obeys it only
+    for estop). lcm-gen's Python default tag is empty, which would make the datagram 32 bytes short."""
+    msg.sender_id, msg.tag = UNSIGNED_SENDER, bytes(TAG_BYTES)
+    return msg.encode()
+
+
+def file_sha256(path: str | os.PathLike) -> bytes:
+    return hashlib.sha256(Path(path).read_bytes()).digest()
+
+
+def approval_line(sender: Sender, artifact: str | os.PathLike) -> str:
+    digest = file_sha256(artifact)
+    return f"{digest.hex()} {sender.sender_id} {approval_tag(sender.key, digest).hex()} {Path(artifact).name}\n"
+
+
+def append_approvals(approvals: str | os.PathLike, sender: Sender, artifacts) -> None:
+    lines = [approval_line(sender, a) for a in artifacts]       # every file read before anything is written
+    fd = os.open(approvals, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o600)
+    with os.fdopen(fd, "a") as f:
+        f.writelines(lines)
+
+
+class RunKey:
+    """A fresh key for one run: a private temporary folder (mode 0700) holding the key file (0600) and the
+    run's approvals file, removed by close() or at exit. The launcher hands both to the runtime (--key,
+    --approvals) and the run's clients sign with signer(). The key never leaves the folder."""
+
+    def __init__(self):
+        self.dir = Path(tempfile.mkdtemp(prefix="t1-run-key-"))
+        self.key_path, self.approvals_path = self.dir / "key", self.dir / "approvals"
+        self.senders = [new_sender(1)]
+        write_key_file(self.key_path, self.senders)
+        self.approvals_path.touch(mode=0o600)
+        self._finalizer = weakref.finalize(self, shutil.rmtree, self.dir, True)
+
+    def signer(self, index: int = 0) -> Signer:
+        return Signer(self.senders[index])
+
+    def add_sender(self) -> Sender:
+        """A second sender with its own key and id, added to the runtime's key file (read at its start)."""
+        sender = new_sender(len(self.senders) + 1)
+        self.senders.append(sender)
+        self.key_path.unlink()
+        write_key_file(self.key_path, self.senders)
+        return sender
+
+    def approve(self, *artifacts) -> None:
+        append_approvals(self.approvals_path, self.senders[0], artifacts)
+
+    def close(self) -> None:
+        self._finalizer()
+
+
+def golden_document() -> dict:
+    """Fixed key, sender, timestamps and fields: the signed encodings and an approval tag."""
+    from t1 import joystick_t, runtime_cmd_t
+    key = bytes(range(KEY_BYTES))
+    clock = iter([1_700_000_000_000_000, 1_700_000_000_020_000])
+    signer = Signer(Sender(7, key), clock_ns=lambda: next(clock) * 1000)
+    cmd = runtime_cmd_t()
+    cmd.utime, cmd.seq, cmd.verb, cmd.argument = 123456, 5, "load_policy", "student/student.safetensors"
+    stick = joystick_t()
+    stick.utime, stick.seq, stick.vx, stick.vy, stick.yaw_rate = 654321, 9, 0.5, -0.25, 0.125
+    messages = []
+    for channel, msg in ((contract.CH_RUNTIME_CMD, cmd), (contract.CH_JOYSTICK, stick)):
+        data = signer.sign(channel, msg)
+        messages.append({"channel": channel, "sender_id": msg.sender_id, "timestamp_us": msg.timestamp_us,
+                         "encoded_hex": data.hex(), "tag_hex": msg.tag.hex()})
+    digest = hashlib.sha256(b"T1 golden artifact bytes\n").digest()
+    return {"_comment": f"Signed runtime_cmd_t / joystick_t and an approval under a fixed key (messages/auth.py); "
+                        f"regenerate with `{GOLDEN_COMMAND}`",
+            "key_hex": key.hex(), "messages": messages,
+            "approval": {"artifact_sha256_hex": digest.hex(), "sender_id": 7, "tag_hex": approval_tag(key, digest).hex()}}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m messages.auth", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="what", required=True)
+    new = sub.add_parser("new-key", help="write a fresh key file (mode 0600) for one sender")
+    new.add_argument("file")
+    new.add_argument("--sender", type=int, default=None, help="sender id > 0 (default: random)")
+    ok = sub.add_parser("approve", help="append approvals of artifacts, signed with the key file's first sender")
+    ok.add_argument("--key", required=True)
+    ok.add_argument("--approvals", required=True, help="the runtime's approvals file (t1-runtime --approvals)")
+    ok.add_argument("artifacts", nargs="+")
+    gold = sub.add_parser("golden", help="write the golden vector of the protocol")
+    gold.add_argument("directory")
+    args = p.parse_args(argv)
+    try:
+        if args.what == "new-key":
+            sender = new_sender(args.sender)
+            write_key_file(args.file, [sender])
+            print(f"{args.file}: sender {sender.sender_id} (add this line to the runtime's key file)")
+        elif args.what == "approve":
+            append_approvals(args.approvals, read_key_file(args.key)[0], args.artifacts)
+            print(f"{args.approvals}: approved {len(args.artifacts)} artifact(s)")
+        else:
+            path = Path(args.directory) / GOLDEN_FILE
+            path.write_text(json.dumps(golden_document(), indent=1) + "\n")
+            print(path)
+    except (KeyFileError, OSError) as e:
+        print(f"messages.auth: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

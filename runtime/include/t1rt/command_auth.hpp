@@ -1,0 +1,113 @@
+// Who may command the runtime: the runtime's side of messages/auth.py (the protocol's one definition, held to
+// this code by tests/golden/command_auth.json). runtime_cmd_t and joystick_t carry sender_id, timestamp_us and
+// tag = HMAC-SHA256(key, channel + NUL + the payload before tag); an artifact approval is
+// HMAC-SHA256(key, t1::kApprovalContext + NUL + the artifact file's SHA-256). OpenSSL's libcrypto computes
+// every MAC and digest; nothing here is hand-written crypto.
+//
+// Modes: kSigned (--key FILE): a message is taken when its tag verifies under its sender's key and its
+// timestamp is fresh (AuthConfig) and after the sender's last one on that channel. kUnauthenticated (the
+// explicit bench flag): every message is taken, as before signing existed. kEstopOnly (neither flag, the
+// default): nothing is taken. estop is obeyed in every mode (safety rule R11, src/safety_supervisor.cpp).
+#pragma once
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "t1_contract.hpp"
+
+typedef struct evp_mac_ctx_st EVP_MAC_CTX;
+
+namespace t1rt {
+
+inline constexpr std::size_t kTagBytes = 32;     // runtime_cmd_t.tag, joystick_t.tag
+inline constexpr std::size_t kKeyBytes = t1::kAuthKeyBytes;
+inline constexpr std::size_t kMaxSenders = 16;   // lines of a key file
+inline constexpr std::size_t kSha256Bytes = 32;
+
+struct AuthConfig {
+  double max_age_s = 2.0;   // a timestamp this much behind the runtime's wall clock is stale (a late replay)
+  double max_lead_s = 2.0;  // this much ahead of it too (the sender's clock is off: synchronise it)
+};
+
+enum class AuthMode { kEstopOnly, kSigned, kUnauthenticated };
+
+// Why a message was refused (controller_status_t.refused_*), in that order.
+enum class Refusal : int { kNoKey, kUnsigned, kUnknownSender, kBadTag, kReplayed, kStale, kCount };
+const char* refusal_text(Refusal r);
+
+// The senders of a key file (messages/auth.py: "<sender_id> <64 hex digits>" lines, mode 0600). Immutable
+// once loaded, so both threads may read it; the key bytes are wiped when it goes.
+class KeyRing {
+ public:
+  ~KeyRing();
+  // nullptr and *error when the file is missing, open to its group or others, malformed or empty.
+  static std::shared_ptr<const KeyRing> load(const std::string& path, std::string* error);
+  std::size_t size() const { return count_; }
+  int64_t sender_id(std::size_t i) const { return senders_[i].id; }
+  int index_of(int64_t sender_id) const;  // -1: not in the file
+  const std::string& path() const { return path_; }
+  // Keys an HMAC-SHA256 context with key i (CommandAuth's per-sender contexts).
+  bool key_context(std::size_t i, EVP_MAC_CTX* ctx) const;
+  // HMAC-SHA256(key i, head + body) -> out (one-shot; allocates inside OpenSSL: never on the loop).
+  bool mac(std::size_t i, const void* head, std::size_t head_size, const void* body, std::size_t body_size,
+           uint8_t out[kTagBytes]) const;
+  // Signs an encoded runtime_cmd_t / joystick_t in place (its sender_id and timestamp_us already set): the
+  // payload's last kTagBytes become the tag over channel + NUL + the bytes before them. Tests and benches.
+  bool sign(std::size_t i, const char* channel, uint8_t* payload, std::size_t size) const;
+  // Whether `approvals` (messages/auth.py's approval lines) approves the file whose SHA-256 is `digest`;
+  // false with *why naming what is missing or wrong.
+  bool approves(const std::string& approvals, const uint8_t digest[kSha256Bytes], std::string* why) const;
+
+ private:
+  struct Entry {
+    int64_t id = 0;
+    std::array<uint8_t, kKeyBytes> key{};
+  };
+  std::array<Entry, kMaxSenders> senders_{};
+  std::size_t count_ = 0;
+  std::string path_;
+};
+
+// The loop's verifier: one keyed HMAC context per sender made at open(), so a verification allocates nothing
+// of ours (OpenSSL 3.0 copies two digest states inside, 2 small allocations a message: counted by
+// NoHeap.SignedJoystickAllocatesOnlyInsideOpenSSL). Loop thread only.
+class CommandAuth {
+ public:
+  enum Stream : int { kCommandStream = 0, kJoystickStream = 1, kStreams = 2 };  // timestamps per channel
+  CommandAuth() = default;
+  ~CommandAuth();
+  CommandAuth(const CommandAuth&) = delete;
+  CommandAuth& operator=(const CommandAuth&) = delete;
+
+  // keys: required for kSigned. false + *error if OpenSSL cannot key a context.
+  bool open(AuthMode mode, std::shared_ptr<const KeyRing> keys, const AuthConfig& config, std::string* error);
+  AuthMode mode() const { return mode_; }
+  // One decoded datagram on a signed channel: whether it is the key holder's (always under kUnauthenticated,
+  // never under kEstopOnly). A taken timestamp becomes the sender's last on that stream.
+  bool verify(Stream stream, const char* channel, const uint8_t* payload, std::size_t size, int64_t sender_id,
+              int64_t timestamp_us);
+  Refusal last_verdict() const { return verdict_; }
+  // Counts the last verify()'s refusal and names it (`what`: e.g. "runtime_cmd_t set_mode passive").
+  void refuse(const char* what, int64_t sender_id);
+  int64_t refused(Refusal r) const { return refused_[static_cast<int>(r)]; }
+  const char* last_refusal() const { return last_refusal_.data(); }  // "" until one
+  const char* describe() const { return describe_.data(); }          // controller_status_t.command_auth
+
+ private:
+  static int64_t wall_us();
+  AuthMode mode_ = AuthMode::kEstopOnly;
+  std::shared_ptr<const KeyRing> keys_;
+  AuthConfig cfg_;
+  std::array<EVP_MAC_CTX*, kMaxSenders> ctx_{};
+  std::array<std::array<int64_t, kStreams>, kMaxSenders> last_us_{};
+  int64_t start_us_ = 0;
+  Refusal verdict_ = Refusal::kNoKey;
+  double verdict_offset_s_ = 0.0;  // kStale: timestamp minus the wall clock [s]
+  std::array<int64_t, static_cast<int>(Refusal::kCount)> refused_{};
+  std::array<char, 200> last_refusal_{};
+  std::array<char, 96> describe_{};
+};
+
+}  // namespace t1rt
