@@ -23,7 +23,7 @@ def planner_row(seed: int = 123) -> str:
     obs, q = obs[:FIT_PAIRS], q[:FIT_PAIRS]
     p = teacher.p
     learner = new_learner(obs, list(cfg.fit.hidden_layer_sizes), 0, env.manifest_fields(), p.lo, p.hi)
-    cfg.fit.epochs = 2
+    cfg.fit.steps = 200
     learner, _ = fit(learner, obs, learner.label_actions(q), cfg.fit, 0)
     qpos, qvel = (a.astype(np.float64) for a in env.fallen_starts(STARTS, seed))
     expert.PROFILE.reset()

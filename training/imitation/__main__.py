@@ -24,13 +24,16 @@ def main(argv=None) -> int:
     p.add_argument("--rounds", type=int, default=None, help="stop after this many rounds (default: config.rounds)")
     p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE", help="a setting, repeatable")
     p.add_argument("--max-minutes", type=float, default=None, help="start no new round after this long")
+    p.add_argument("--refit", action="store_true",
+                   help="redo the rounds' fits and evaluations with the current fit settings on the stored data")
     p.add_argument("--eval-dir", type=Path, default=None, help="where each round's batch evaluation goes")
     args = p.parse_args(argv)
     try:
         if args.rounds is not None and args.rounds < 1:
             raise ValueError(f"--rounds must be at least 1, got {args.rounds}")
         cfg, teacher, env = build(args.config)
-        state = dagger.run(args.out, args.demos, cfg, teacher, env, args.rounds, args.max_minutes, args.eval_dir)
+        state = dagger.run(args.out, args.demos, cfg, teacher, env, args.rounds, args.max_minutes, args.eval_dir,
+                           args.refit)
     except ValueError as e:
         print(f"imitation: {e}", file=sys.stderr)
         return 2

@@ -27,12 +27,13 @@ def default_config() -> config_dict.ConfigDict:
             horizon_s=0.5,
         ),
         # the fit: brax's tanh-normal policy MLP (the getup experts' network), MSE of tanh(loc) to the labels'
-        # actions, warm-started from the previous round
+        # actions, warm-started from the previous round; Adam, the rate cosine-decayed to final_lr_share of it
         fit=config_dict.create(
             hidden_layer_sizes=[512, 256, 128],
-            epochs=40,
+            steps=6000,
             batch_size=1024,
-            learning_rate=3e-4,
+            learning_rate=1e-3,
+            final_lr_share=0.01,
             seed=0,
         ),
         eval_seeds=200,

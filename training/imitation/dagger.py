@@ -25,6 +25,7 @@ STATE = "state.json"
 POLICY = "policy.npz"
 ARTIFACT = "getup_kneel_dagger.safetensors"
 DATA = "data"
+COLLECTED = "collected.json"
 FACING_Z = 0.5        # the evaluation's split of starts: face down below −this, on the back above it
 
 
@@ -91,22 +92,49 @@ def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:
                            "minutes": round((time.monotonic() - started) / 60.0, 2)}}
 
 
-class Campaign:
-    """A DAgger run's folder: data/round_XX.npz, policy.npz (the newest learner), state.json (config and one
-    row per finished round), report.md and curve.png; a stopped run resumes at its next round."""
+FIT_ONLY = ("fit", "rounds", "eval_seeds", "eval_seconds")   # settings that do not shape the data
 
-    def __init__(self, folder: Path, cfg, planner_cfg):
+
+class Campaign:
+    """A DAgger run's folder: data/ (round_XX.npz and collected.json: the settings that made the data and each
+    round's rollout figures), policy.npz (the newest learner), state.json (the whole config and one row per
+    finished round), report.md and curve.png. A stopped run resumes at its next round; `refit` starts the rows
+    over with the current fit settings on the stored data, whose settings must match."""
+
+    def __init__(self, folder: Path, cfg, planner_cfg, refit: bool = False):
         self.folder, self.cfg = Path(folder), cfg
-        self.config = {"dagger": cfg.to_dict(), "planner": planner_cfg.to_dict()}
-        self.folder.mkdir(parents=True, exist_ok=True)
+        whole = cfg.to_dict()
+        self.config = {"dagger": whole, "planner": planner_cfg.to_dict()}
+        data_config = {"dagger": {k: v for k, v in whole.items() if k not in FIT_ONLY},
+                       "planner": planner_cfg.to_dict()}
+        self.data = self.folder / DATA
+        self.data.mkdir(parents=True, exist_ok=True)
+        path = self.data / COLLECTED
+        self.collected = json.loads(path.read_text()) if path.exists() else {"config": data_config, "rounds": {}}
+        if self.collected["config"] != data_config:
+            raise ValueError(f"{self.data}: its rounds were collected with other settings; use a new folder")
         path = self.folder / STATE
-        self.state = json.loads(path.read_text()) if path.exists() else {"config": self.config, "rounds": []}
+        self.state = json.loads(path.read_text()) if path.exists() and not refit else \
+            {"config": self.config, "rounds": []}
         if self.state["config"] != self.config:
-            raise ValueError(f"{folder}: its rounds were run with another config; use a new folder")
+            raise ValueError(f"{folder}: its rounds were fitted with other settings (fit, eval): --refit redoes "
+                             "them with these, or use a new folder")
 
     @property
     def next_round(self) -> int:
         return len(self.state["rounds"])
+
+    def collected_round(self, k: int) -> dict | None:
+        return self.collected["rounds"].get(str(k))
+
+    def store_round(self, k: int, got: dict, starts: int) -> dict:
+        dataset.save_round(self.data, k, got["obs"], got["q_des"])
+        stats = {"rollouts": starts, "rollouts_met_gate": got["met_gate"], "labels": len(got["obs"]),
+                 "label_cpu_s": round(got["cpu_s"], 1),
+                 "cpu_s_per_label": round(got["cpu_s"] / max(len(got["obs"]), 1), 4)}
+        self.collected["rounds"][str(k)] = stats
+        (self.data / COLLECTED).write_text(json.dumps(self.collected, indent=1))
+        return stats
 
     def finish_round(self, row: dict, learner) -> None:
         learner.save(self.folder / POLICY)
@@ -117,9 +145,9 @@ class Campaign:
 
 
 def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: int | None = None,
-        max_minutes: float | None = None, eval_dir: Path | None = None, log=print) -> dict:
-    camp = Campaign(folder, cfg, teacher.p.cfg)
-    data = camp.folder / DATA
+        max_minutes: float | None = None, eval_dir: Path | None = None, refit: bool = False, log=print) -> dict:
+    camp = Campaign(folder, cfg, teacher.p.cfg, refit)
+    data = camp.data
     eval_dir = Path(eval_dir or Path("runs") / "imitation_eval")
     fields = env.manifest_fields()
     p = teacher.p
@@ -139,15 +167,15 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
         b = beta(cfg, k)
         row = {"round": k, "beta": b}
         t0 = time.monotonic()
-        if k > 0 and not dataset.round_path(data, k).exists():
-            seed0 = int(cfg.first_seed) + (k - 1) * int(cfg.starts_per_round)
-            qpos, qvel = (a.astype(np.float64) for a in env.fallen_starts(int(cfg.starts_per_round), seed0))
-            got = collect(teacher, learner, qpos, qvel, b, float(cfg.rollout_s),
-                          np.random.default_rng([int(cfg.seed), k]))
-            dataset.save_round(data, k, got["obs"], got["q_des"])
-            row.update(rollouts=len(qpos), rollouts_met_gate=got["met_gate"], labels=len(got["obs"]),
-                       label_cpu_s=round(got["cpu_s"], 1),
-                       cpu_s_per_label=round(got["cpu_s"] / max(len(got["obs"]), 1), 4))
+        if k > 0:
+            stats = camp.collected_round(k)
+            if stats is None or not dataset.round_path(data, k).exists():
+                n = int(cfg.starts_per_round)
+                qpos, qvel = (a.astype(np.float64) for a in env.fallen_starts(n, int(cfg.first_seed) + (k - 1) * n))
+                got = collect(teacher, learner, qpos, qvel, b, float(cfg.rollout_s),
+                              np.random.default_rng([int(cfg.seed), k]))
+                stats = camp.store_round(k, got, n)
+            row.update(stats)
         obs, q = dataset.aggregate(data, k + 1)
         learner, loss = fit(learner, obs, learner.label_actions(q), cfg.fit, int(cfg.fit.seed) + k)
         row.update(labels_total=len(obs), fit_loss=round(loss[-1], 4))
@@ -155,9 +183,8 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
         learner.export(artifact, manifest(fields, len(obs), k, started))
         row.update(evaluate_batch(artifact, eval_dir / f"round_{k:02d}", int(cfg.eval_seeds),
                                   float(cfg.eval_seconds)))
-        prior = sum(r.get("label_cpu_s", 0.0) for r in camp.state["rounds"])
-        row.update(cpu_hours_total=round((prior + row.get("label_cpu_s", 0.0)) / 3600.0, 3),
-                   minutes=round((time.monotonic() - t0) / 60.0, 1))
+        spent = sum(r.get("label_cpu_s", 0.0) for r in camp.state["rounds"]) + row.get("label_cpu_s", 0.0)
+        row.update(cpu_hours_total=round(spent / 3600.0, 3), minutes=round((time.monotonic() - t0) / 60.0, 1))
         camp.finish_round(row, learner)
         log("imitation: " + json.dumps(row))
     return camp.state

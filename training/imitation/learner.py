@@ -81,8 +81,8 @@ def load_learner(path: Path, like: Learner) -> Learner:
 
 
 def fit(learner: Learner, obs: np.ndarray, actions: np.ndarray, cfg, seed: int) -> tuple[Learner, list[float]]:
-    """cfg.epochs of Adam on mean((tanh(loc) − action)²), from the learner's params. Returns the fitted learner
-    and the loss per epoch as a share of the actions' variance."""
+    """cfg.steps of Adam on mean((tanh(loc) − action)²) over shuffled batches, from the learner's params. Returns
+    the fitted learner and the loss per pass over the data as a share of the actions' variance."""
     import jax
     import jax.numpy as jnp
     import optax
@@ -101,7 +101,9 @@ def fit(learner: Learner, obs: np.ndarray, actions: np.ndarray, cfg, seed: int) 
                 h = jax.nn.swish(h)
         return jnp.tanh(h[:, :action_size])
 
-    opt = optax.adam(float(cfg.learning_rate))
+    lr = float(cfg.learning_rate)
+    steps = int(cfg.steps)
+    opt = optax.adam(optax.cosine_decay_schedule(lr, max(steps, 1), alpha=float(cfg.final_lr_share)))
 
     @jax.jit
     def step(params, opt_state, xb, yb):
@@ -114,15 +116,16 @@ def fit(learner: Learner, obs: np.ndarray, actions: np.ndarray, cfg, seed: int) 
     rng = np.random.default_rng(seed)
     bs = min(int(cfg.batch_size), len(x))
     var = float(np.mean(np.var(y, axis=0))) + 1e-12
-    history = []
-    for _ in range(int(cfg.epochs)):
-        order = rng.permutation(len(x))
-        losses = []
-        for k in range(len(x) // bs):
-            idx = order[k * bs:(k + 1) * bs]
-            params, opt_state, loss = step(params, opt_state, x[idx], y[idx])
-            losses.append(float(loss))
-        history.append(float(np.mean(losses)) / var)
+    per_pass = max(len(x) // bs, 1)
+    history, losses, order = [], [], rng.permutation(len(x))
+    for k in range(steps):
+        j = k % per_pass
+        if j == 0 and k > 0:
+            history.append(float(np.mean(losses)) / var)
+            losses, order = [], rng.permutation(len(x))
+        params, opt_state, loss = step(params, opt_state, x[order[j * bs:(j + 1) * bs]], y[order[j * bs:(j + 1) * bs]])
+        losses.append(loss)
+    history.append(float(np.mean(np.asarray(losses))) / var)
     fitted = Learner(params=jax.tree.map(np.asarray, params), obs_mean=learner.obs_mean, obs_std=learner.obs_std,
                      default_pose=learner.default_pose, action_scale=learner.action_scale, lo=learner.lo,
                      hi=learner.hi)

@@ -1,0 +1,98 @@
+"""DAgger with the planner as the expert (training/imitation/) on a tiny case: the takeover labels, their
+reproducibility, the data set on disk, the learner's export and the CLI's errors."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from common import observation as obsdef
+from training.artifact_policy import ArtifactPolicy
+from training.imitation import __main__ as cli
+from training.imitation import build, dagger, dataset, expert
+from training.imitation.learner import fit, load_learner, new_learner
+
+TINY = ["expert.policy_samples=2", "expert.plan_samples=2", "expert.horizon_s=0.2", "fit.steps=16",
+        "fit.batch_size=64"]
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    cfg, teacher, env = build(TINY)
+    obs, q = dataset.demonstration_pairs(dagger.DEFAULT_DEMOS)
+    p = teacher.p
+    learner = new_learner(obs[:512], list(cfg.fit.hidden_layer_sizes), 0, env.manifest_fields(), p.lo, p.hi)
+    return cfg, teacher, env, learner, (obs[:512], q[:512])
+
+
+def _starts(env, n, seed):
+    return (a.astype(np.float64) for a in env.fallen_starts(n, seed))
+
+
+def test_a_round_labels_every_takeover_step_reproducibly_from_its_seed(tiny):
+    cfg, teacher, env, learner, _ = tiny
+    qpos, qvel = _starts(env, 2, 5)
+    p = teacher.p
+    seg = int(cfg.expert.takeover_replans) * p.replan_knots * p.spk
+    a, b = (dagger.collect(teacher, learner, qpos, qvel, 0.5, seg * p.ctrl_dt, np.random.default_rng(3))
+            for _ in range(2))
+    c = dagger.collect(teacher, learner, qpos, qvel, 0.5, seg * p.ctrl_dt, np.random.default_rng(4))
+    assert a["obs"].shape == (2 * seg, obsdef.observation_size(obsdef.TERMS_GETUP)) and a["q_des"].shape == (2 * seg, 23)
+    assert np.array_equal(a["obs"], b["obs"]) and np.array_equal(a["q_des"], b["q_des"])
+    assert not np.array_equal(a["q_des"], c["q_des"])
+    assert np.all(a["q_des"] >= p.lo - 1e-5) and np.all(a["q_des"] <= p.hi + 1e-5)
+    # the first label of each robot is at its start: the takeover begins where the learner is
+    np.testing.assert_allclose(a["obs"][:2, -23:], qvel[:, 6:], atol=1e-4)
+    assert a["cpu_s"] > 0 and a["met_gate"] == 0
+
+
+def test_the_takeover_warm_starts_from_the_policy_and_moves_the_robots(tiny):
+    cfg, teacher, env, learner, _ = tiny
+    qpos, qvel = _starts(env, 2, 9)
+    robots = expert.Robots(teacher.p.physics, 2)
+    robots.b.qpos[:], robots.b.qvel[:], robots.b.time[:], robots.b.qacc_warmstart[:] = qpos, qvel, 0.0, 0.0
+    robots.b.forward()
+    proposal = teacher.proposal(robots, learner.targets)
+    assert proposal.shape == (2, teacher.p.K, 23)
+    np.testing.assert_allclose(proposal[:, 0], learner.targets(teacher.observe(robots)), atol=1e-6)
+    np.testing.assert_allclose(robots.b.qpos, qpos)          # the proposal ran on a copy
+
+
+def test_the_data_set_round_trips_compactly_and_refuses_corrupt_files(tmp_path):
+    obs = np.random.default_rng(0).normal(size=(10, 52)).astype(np.float32)
+    q = np.random.default_rng(1).uniform(-1, 1, size=(10, 23)).astype(np.float32)
+    path = dataset.save_round(tmp_path, 1, obs, q)
+    back_obs, back_q = dataset.load_round(tmp_path, 1)
+    np.testing.assert_allclose(back_obs, obs, atol=5e-3)
+    np.testing.assert_allclose(back_q, q, atol=1e-3)
+    assert np.load(path)["obs"].dtype == np.float16
+    path.write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match="round_01.npz"):
+        dataset.load_round(tmp_path, 1)
+    with pytest.raises(ValueError, match="finite"):
+        dataset.save_round(tmp_path, 2, obs * np.nan, q)
+
+
+def test_the_fitted_learner_exports_as_the_artifact_the_runtime_runs(tiny, tmp_path):
+    cfg, teacher, env, learner, (obs, q) = tiny
+    fitted, loss = fit(learner, obs, learner.label_actions(q), cfg.fit, 0)
+    assert len(loss) == 2 and loss[1] < loss[0]
+    fitted.export(tmp_path / "k.safetensors", dagger.manifest(env.manifest_fields(), len(obs), 0, 0.0))
+    art = ArtifactPolicy.load(tmp_path / "k.safetensors")
+    art.check_env(env)
+    assert art.trained and art.manifest["obs_terms"] == [list(t) for t in obsdef.TERMS_GETUP]
+    layers, mean, std = art.params
+    ours = obsdef.policy_forward(layers, obs[:8], mean, std, art.manifest["activation"], art.manifest["output_rule"])
+    np.testing.assert_allclose(ours, fitted.actions(obs[:8]), atol=1e-5)
+    fitted.save(tmp_path / "p.npz")
+    again = load_learner(tmp_path / "p.npz", fitted)
+    np.testing.assert_allclose(again.actions(obs[:8]), fitted.actions(obs[:8]), atol=1e-6)
+
+
+def test_bad_input_is_refused_naming_the_problem(tmp_path, capsys):
+    assert cli.main(["--out", str(tmp_path), "--rounds", "0"]) == 2
+    assert "--rounds" in capsys.readouterr().err
+    assert cli.main(["--out", str(tmp_path), "--config", "no_such_knob=1"]) == 2
+    assert "no_such_knob" in capsys.readouterr().err
+    assert cli.main(["--out", str(tmp_path), "--demos", str(tmp_path / "none"), *sum(
+        (["--config", o] for o in TINY), [])]) == 2
+    assert "no planner demonstrations" in capsys.readouterr().err
