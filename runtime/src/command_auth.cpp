@@ -74,6 +74,8 @@ const char* refusal_text(Refusal r) {
 }
 
 // ------------------------------------------------------------------------------------------------ KeyRing
+// The keys live in this process's memory as long as it runs (its HMAC contexts hold them too); the ring's own
+// copy is wiped when the ring goes.
 KeyRing::~KeyRing() { OPENSSL_cleanse(senders_.data(), sizeof(senders_)); }
 
 std::shared_ptr<const KeyRing> KeyRing::load(const std::string& path, std::string* error) {
@@ -109,10 +111,8 @@ std::shared_ptr<const KeyRing> KeyRing::load(const std::string& path, std::strin
         !parse_hex(key_text, e.key.data(), kKeyBytes)) {
       *error = "key file " + line_of(path, number) + ": expected '<sender_id > 0> <key: " +
                std::to_string(2 * kKeyBytes) + " hex digits>'";
-      OPENSSL_cleanse(&key_text[0], key_text.size());
       return nullptr;
     }
-    OPENSSL_cleanse(&key_text[0], key_text.size());
     if (ring->index_of(e.id) >= 0) {
       *error = "key file " + line_of(path, number) + ": sender " + id_text + " listed twice";
       return nullptr;
@@ -122,9 +122,7 @@ std::shared_ptr<const KeyRing> KeyRing::load(const std::string& path, std::strin
       return nullptr;
     }
     ring->senders_[ring->count_++] = e;
-    OPENSSL_cleanse(e.key.data(), e.key.size());
   }
-  if (!text.empty()) OPENSSL_cleanse(&text[0], text.size());
   if (ring->count_ == 0) {
     *error = "key file " + path + ": no sender line";
     return nullptr;

@@ -64,9 +64,11 @@ TEST(NoHeap, CounterSeesAllocations) {
 }
 
 // N lockstep ticks through POLICY (observation, MLP, supervisor, LCM handle + publish of every message,
-// status at 10 Hz), a joystick every tick (taken unsigned: --unauthenticated): zero allocations on the loop
-// thread. With signing, SignedJoystickAllocatesOnlyInsideOpenSSL below.
-static ControllerOptions noheap_options(const char* name) {
+// status at 10 Hz) with a joystick every tick, unsigned to a --unauthenticated runtime or signed to one with a
+// key (ring non-null). The loop thread's allocations are left in g_allocations.
+static void run_joystick_loop(const char* name, std::shared_ptr<const KeyRing> ring) {
+  LcmPeer peer;
+  ASSERT_TRUE(peer.ok()) << "run inside tools/netns";
   ControllerOptions opt;
   opt.policy_path = write_spec(name, make_spec({256, 128, 128}));
   opt.lcm_url = resolve_lcm_url("");
@@ -74,14 +76,9 @@ static ControllerOptions noheap_options(const char* name) {
   opt.quiet = true;
   opt.autostart = true;
   opt.safety.prepare_duration_s = 0.02;
-  return opt;
-}
-
-TEST(NoHeap, LoopTicksAllocateNothing) {
-  LcmPeer peer;
-  ASSERT_TRUE(peer.ok()) << "run inside tools/netns";
-  ControllerOptions opt = noheap_options("noheap");
-  opt.auth = AuthMode::kUnauthenticated;
+  opt.auth = ring ? AuthMode::kSigned : AuthMode::kUnauthenticated;
+  opt.keys = ring;
+  if (ring) peer.sign_with(ring);
   Controller ctrl(opt, std::make_unique<PolicyEngine>(load_artifact(opt.policy_path)));
   std::string error;
   ASSERT_TRUE(ctrl.open(&error)) << error;
@@ -96,13 +93,18 @@ TEST(NoHeap, LoopTicksAllocateNothing) {
     imu.utime = js.utime = stick.utime = k * 2000;
     imu.seq = js.seq = stick.seq = k;
     peer.publish(t1::CH_IMU, imu);
-    peer.publish(t1::CH_JOYSTICK, stick);
+    if (ring) peer.publish_signed(t1::CH_JOYSTICK, stick);
+    else peer.publish(t1::CH_JOYSTICK, stick);
     peer.publish(t1::CH_JOINT_STATE, js);
   });
   EXPECT_EQ(ctrl.supervisor().mode(), Mode::kPolicy) << ctrl.supervisor().last_fault();
   EXPECT_GE(ctrl.policy_ticks(), kCounted / kPolicyDecimation);
   EXPECT_EQ(counted_ticks, kCounted);
-  EXPECT_EQ(ctrl.transport().joystick.received, kWarmup + kCounted);
+  EXPECT_EQ(ctrl.transport().joystick.received, kWarmup + kCounted) << ctrl.auth().last_refusal();
+}
+
+TEST(NoHeap, LoopTicksAllocateNothing) {
+  run_joystick_loop("noheap", nullptr);
   EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in " << kCounted << " loop ticks";
 }
 
@@ -111,32 +113,7 @@ TEST(NoHeap, LoopTicksAllocateNothing) {
 // verification with Debian 12's 3.0.x). Bounded here, as Cyclone's below, not claimed to be zero.
 TEST(NoHeap, SignedJoystickAllocatesOnlyInsideOpenSSL) {
   constexpr long kOpenSslAllocationsPerVerify = 2;
-  LcmPeer peer;
-  ASSERT_TRUE(peer.ok()) << "run inside tools/netns";
-  ControllerOptions opt = noheap_options("noheap_signed");
-  opt.auth = AuthMode::kSigned;
-  opt.keys = test_ring("noheap", {test_sender(1, 0x33)});
-  peer.sign_with(opt.keys);
-  Controller ctrl(opt, std::make_unique<PolicyEngine>(load_artifact(opt.policy_path)));
-  std::string error;
-  ASSERT_TRUE(ctrl.open(&error)) << error;
-  const JointArray pose = ctrl.policy().artifact().default_pose;
-  t1::imu_t imu{};
-  imu.quat[0] = 1.0f;
-  t1::joint_state_t js{};
-  std::copy(pose.begin(), pose.end(), js.q);
-  t1::joystick_t stick{};
-  stick.vx = 0.5f;
-  const long counted_ticks = run_counted_ticks(ctrl, peer, [&](int k) {
-    imu.utime = js.utime = stick.utime = k * 2000;
-    imu.seq = js.seq = stick.seq = k;
-    peer.publish(t1::CH_IMU, imu);
-    peer.publish_signed(t1::CH_JOYSTICK, stick);
-    peer.publish(t1::CH_JOINT_STATE, js);
-  });
-  EXPECT_EQ(counted_ticks, kCounted);
-  EXPECT_EQ(ctrl.supervisor().mode(), Mode::kPolicy) << ctrl.supervisor().last_fault();
-  EXPECT_EQ(ctrl.transport().joystick.received, kWarmup + kCounted) << ctrl.auth().last_refusal();
+  run_joystick_loop("noheap_signed", test_ring("noheap", {test_sender(1, 0x33)}));
   std::printf("signed joystick: %ld allocations in %d ticks\n", g_allocations.load(), kCounted);
   EXPECT_LE(g_allocations.load(), kOpenSslAllocationsPerVerify * kCounted);
 }
