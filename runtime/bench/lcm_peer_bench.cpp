@@ -5,12 +5,16 @@
 // t1rt_bench_lcm_echo on a second LCM URL is driven in alternation, so both see the same machine load. Ticks on which the
 // runtime evaluated the policy are told apart by the T1_ACTION it publishes after that tick's command (its utime is
 // the state's); the peer reads what is queued before each exchange, so such telemetry is never timed.
+// --joystick-every N sends a T1_JOYSTICK right after every Nth state, inside its timed exchange (the runtime
+// decodes, and with --key verifies, it before that tick), signed with --key FILE's first sender if given.
 // Prints one JSON line for tests/bench/runtime_bench.py.
 #include <lcm/lcm.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <ctime>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -18,9 +22,11 @@
 #include "t1/action_t.hpp"
 #include "t1/controller_status_t.hpp"
 #include "t1/imu_t.hpp"
+#include "t1/joystick_t.hpp"
 #include "t1/joint_command_t.hpp"
 #include "t1/joint_state_t.hpp"
 #include "t1_contract.hpp"
+#include "t1rt/command_auth.hpp"
 #include "t1rt/constants.hpp"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/transport.hpp"
@@ -40,7 +46,7 @@ constexpr float kEncoderDitherRad = 1e-4f;
 
 const char* kHelp =
     "usage: t1rt_bench_lcm_peer [--count N] [--warmup N] [--wait-policy] [--timeout-ms MS] [--connect-s S]\n"
-    "                           [--lcm-url URL] [--echo-url URL]\n"
+    "                           [--lcm-url URL] [--echo-url URL] [--joystick-every N [--key FILE]]\n"
     "  --lcm-url URL    the target's LCM URL (default $T1_LCM_URL, else the contract default)\n"
     "  --echo-url URL   also drive a t1rt_bench_lcm_echo listening on URL, alternating exchange by exchange\n"
     "  --count N        recorded exchanges (default 5000)\n"
@@ -48,7 +54,10 @@ const char* kHelp =
     "  --wait-policy    keep warming up until T1_CONTROLLER_STATUS reports POLICY (for t1-runtime --autostart)\n"
     "  --timeout-ms MS  give up when one command takes longer (default 1000)\n"
     "  --connect-s S    how long to wait for the first answer (default 10)\n"
-    "prints one JSON line: latency [us] median/p99/max, overall, split into policy / non-policy ticks, echo\n";
+    "  --joystick-every N  a T1_JOYSTICK after every Nth state, in its timed exchange (default 0: none)\n"
+    "  --key FILE       sign that joystick with FILE's first sender (messages/auth.py)\n"
+    "prints one JSON line: latency [us] median/p99/max, overall, split into policy ticks, joystick ticks (no\n"
+    "policy) and the others, echo\n";
 
 struct Peer {
   lcm_t* lcm = nullptr;
@@ -57,6 +66,11 @@ struct Peer {
   t1::joint_command_t command{};
   t1::controller_status_t status{};
   t1::action_t action{};
+  t1::joystick_t joystick{};
+  int joystick_every = 0;
+  std::shared_ptr<const t1rt::KeyRing> key;  // null: the joystick goes unsigned
+  int64_t last_timestamp_us = 0;
+  std::vector<uint8_t> joystick_bytes;
   std::vector<uint8_t> buffer;
   std::vector<int64_t> policy_seqs;  // states answered by a policy tick (from T1_ACTION's utime)
   int64_t want_seq = -1;
@@ -93,6 +107,23 @@ void on_status(const lcm_recv_buf_t* rbuf, const char*, void* user) {
   p->fault = p->status.last_fault;
 }
 
+// State k's joystick_t encoded into p.joystick_bytes, signed (sender, fresh increasing timestamp, tag) when the
+// peer has a key: made before the exchange is timed, so only its sending is the peer's share of it.
+void prepare_joystick(Peer& p, int64_t k) {
+  p.joystick.utime = k * kSimTickUs;
+  p.joystick.seq = k;
+  if (p.key) {
+    timespec ts{};
+    clock_gettime(CLOCK_REALTIME, &ts);
+    p.last_timestamp_us = std::max(p.last_timestamp_us + 1, static_cast<int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000);
+    p.joystick.sender_id = p.key->sender_id(0);
+    p.joystick.timestamp_us = p.last_timestamp_us;
+  }
+  p.joystick_bytes.resize(static_cast<std::size_t>(p.joystick.getEncodedSize()));
+  p.joystick.encode(p.joystick_bytes.data(), 0, static_cast<int>(p.joystick_bytes.size()));
+  if (p.key) p.key->sign(0, t1::CH_JOYSTICK, p.joystick_bytes.data(), p.joystick_bytes.size());
+}
+
 // Publishes state k; returns the latency [us] of its answer, or a negative value on timeout.
 double exchange(Peer& p, int64_t k, int timeout_ms) {
   p.imu.seq = p.state.seq = k;
@@ -102,9 +133,12 @@ double exchange(Peer& p, int64_t k, int timeout_ms) {
   p.want_seq = k;
   for (float& q : p.state.q) q = static_cast<float>(k % 2) * kEncoderDitherRad;
   p.answered = false;
+  const bool stick = p.joystick_every > 0 && k % p.joystick_every == 0;
+  if (stick) prepare_joystick(p, k);
   p.publish(t1::CH_IMU, p.imu);
   const int64_t t0 = t1rt::monotonic_ns();
   p.publish(t1::CH_JOINT_STATE, p.state);
+  if (stick) lcm_publish(p.lcm, t1::CH_JOYSTICK, p.joystick_bytes.data(), static_cast<unsigned>(p.joystick_bytes.size()));
   const int64_t deadline = t0 + static_cast<int64_t>(timeout_ms) * 1'000'000;
   while (!p.answered) {
     const int64_t left_ms = (deadline - t1rt::monotonic_ns()) / 1'000'000;
@@ -139,7 +173,8 @@ int main(int argc, char** argv) {
   int count = 5000, warmup = 2000, timeout_ms = 1000;
   double connect_s = 10.0;
   bool wait_policy = false;
-  std::string url, echo_url;
+  std::string url, echo_url, key_path;
+  int joystick_every = 0;
   Args args(argc, argv);
   while (args.next()) {
     const std::string f = args.flag();
@@ -151,10 +186,17 @@ int main(int argc, char** argv) {
     else if (f == "--connect-s") connect_s = args.number(0.1);
     else if (f == "--lcm-url") url = args.value();
     else if (f == "--echo-url") echo_url = args.value();
+    else if (f == "--joystick-every") joystick_every = static_cast<int>(args.number(1));
+    else if (f == "--key") key_path = args.value();
     else usage_error(argv[0], "unknown argument '" + f + "'");
   }
   const bool with_echo = !echo_url.empty();
   Peer p, echo;
+  p.joystick_every = joystick_every;
+  if (!key_path.empty()) {
+    std::string error;
+    if (!(p.key = t1rt::KeyRing::load(key_path, &error))) usage_error(argv[0], error);
+  }
   if (!open_peer(p, t1rt::resolve_lcm_url(url)) || (with_echo && !open_peer(echo, echo_url))) {
     std::fprintf(stderr, "%s: lcm_create failed\n", argv[0]);
     return t1rt::bench::kExitRun;
@@ -200,12 +242,17 @@ int main(int argc, char** argv) {
   while (lcm_handle_timeout(p.lcm, 0) > 0) {
   }
   std::sort(p.policy_seqs.begin(), p.policy_seqs.end());
-  std::vector<double> policy_us, plain_us;
-  for (std::size_t i = 0; i < all_us.size(); ++i)
-    (std::binary_search(p.policy_seqs.begin(), p.policy_seqs.end(), seqs[i]) ? policy_us : plain_us).push_back(all_us[i]);
+  // Policy ticks; ticks with a joystick (and no policy); plain ticks (neither): the same run's reference.
+  std::vector<double> policy_us, joystick_us, plain_us;
+  for (std::size_t i = 0; i < all_us.size(); ++i) {
+    const bool policy = std::binary_search(p.policy_seqs.begin(), p.policy_seqs.end(), seqs[i]);
+    const bool stick = joystick_every > 0 && seqs[i] % joystick_every == 0;
+    (policy ? policy_us : stick ? joystick_us : plain_us).push_back(all_us[i]);
+  }
   std::string out;
   t1rt::bench::json_summary(out, "latency_us", t1rt::bench::summarize(all_us));
   t1rt::bench::json_summary(out, "policy_tick_us", t1rt::bench::summarize(policy_us));
+  t1rt::bench::json_summary(out, "joystick_tick_us", t1rt::bench::summarize(joystick_us));
   t1rt::bench::json_summary(out, "plain_tick_us", t1rt::bench::summarize(plain_us));
   t1rt::bench::json_summary(out, "echo_us", t1rt::bench::summarize(echo_all_us));
   t1rt::bench::json_number(out, "warmup_exchanges", warm);

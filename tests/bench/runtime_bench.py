@@ -6,7 +6,8 @@
    in the separate bench venv .venv-bench, see tools/bench_env.sh) and against the memory-bandwidth bounds
    of its weights (DRAM streaming, L2-resident, weights-sized buffer).
 2. 500 Hz loop lateness of the runtime's PeriodicTask, default and --rt, against cyclictest.
-3. State -> command latency over LCM: t1-runtime --clock lockstep against a raw LCM echo.
+3. State -> command latency over LCM: t1-runtime --clock lockstep against a raw LCM echo, with a joystick
+   every 10th state, unsigned (--unauthenticated) and signed (--key), the two runs in the same invocation.
 4. The same over DDS (t1-runtime --transport dds, Cyclone, the T1's own topics), next to the LCM row.
 
     python -m tests.bench.runtime_bench [--quick] [--seconds S] [--only mlp,loop,lcm,dds] [--policy PATH]
@@ -18,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import shutil
 import subprocess
@@ -29,12 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from messages import contract
 
-ROOT = Path(__file__).resolve().parents[2]
-BUILD = Path(os.environ.get("T1_BUILD", ROOT / "build"))
-BENCH_BIN = BUILD / "runtime" / "bench"
-RUNTIME_BIN = BUILD / "runtime" / "t1-runtime"
+from tests.bench.bench_tools import BENCH_BIN, ROOT, bench_binary, ratio, run_json
+from tests.bench.link_latency import bench_dds, bench_lcm
+
 STUDENT_POLICY = ROOT / "tests" / "golden" / "random_policy.safetensors"  # random weights, student shape
 STUDENT_SHAPE = "82-512-256-128-46"
 MATCH_TOL = 1e-5                   # max |t1rt::Mlp - onnxruntime| on the action before any timing counts
@@ -115,24 +113,6 @@ def _time_calls(call, iterations: int) -> dict:
 
 
 # ------------------------------------------------------------------------------------ helpers
-def _bench_binary(name: str) -> Path:
-    path = BENCH_BIN / name
-    if not path.exists():
-        raise SystemExit(f"runtime_bench: {path} missing: run `make build` (runtime/bench is part of the build)")
-    return path
-
-
-def _run_json(cmd: list, timeout_s: float) -> dict:
-    proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=timeout_s)
-    if proc.returncode != 0:
-        raise RuntimeError(f"{Path(str(cmd[0])).name} exited {proc.returncode}: {proc.stderr.strip()[-800:]}")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
-
-
-def _ratio(a: float, b: float) -> str:
-    return f"{a / b:.2f}" if b > 0 else "n/a"
-
-
 def _bench_python() -> tuple[Path | None, str]:
     """The bench venv's python, or None and why not. This runs inside the network namespace, where no
     registry is reachable: it only checks; `make bench-env` (run by `make bench` before it enters the
@@ -168,32 +148,32 @@ def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
         np.savez(tmp / "weights.npz", n_layers=len(layers), action_size=layers[-1][0].shape[0] // 2,
                  **{f"w{i}": np.asarray(w, np.float32) for i, (w, _) in enumerate(layers)},
                  **{f"b{i}": np.asarray(b, np.float32) for i, (_, b) in enumerate(layers)})
-        mlp_cmd = [_bench_binary("t1rt_bench_mlp"), "--policy", policy, "--input", tmp / "input.bin"]
+        mlp_cmd = [bench_binary("t1rt_bench_mlp"), "--policy", policy, "--input", tmp / "input.bin"]
         ort_cmd = [bench_py, __file__, "--ort-worker", tmp]
         # Check first: no timing is reported unless both implementations give the same action.
-        ours_action = np.array(_run_json(mlp_cmd + ["--iterations", 0], 120)["action"])
+        ours_action = np.array(run_json(mlp_cmd + ["--iterations", 0], 120)["action"])
         ort = None
         if bench_py is None:
             print(f"onnxruntime reference unavailable (.venv-bench not ready): {why}")
         else:
-            ort_check = _run_json(ort_cmd + ["--iterations", 0], 300)
+            ort_check = run_json(ort_cmd + ["--iterations", 0], 300)
             err = float(np.max(np.abs(ours_action - np.array(ort_check["action"]))))
             ok = err <= MATCH_TOL
             print(f"check: max |t1rt::Mlp - onnxruntime {ort_check['version']}| over the {ours_action.size} actions = "
                   f"{err:.2e} ({'ok' if ok else 'MISMATCH'}, tolerance {MATCH_TOL:g})")
             if not ok:
                 raise SystemExit("runtime_bench: t1rt::Mlp and onnxruntime disagree; timings would compare different maths")
-            ort = _run_json(ort_cmd + ["--iterations", iterations], 600)
-        ours = _run_json(mlp_cmd + ["--iterations", iterations, "--cold-iterations", cold_iterations], 600)
+            ort = run_json(ort_cmd + ["--iterations", iterations], 600)
+        ours = run_json(mlp_cmd + ["--iterations", iterations, "--cold-iterations", cold_iterations], 600)
         # The same binary forced onto the portable kernel, and the whole policy code rebuilt for this CPU.
         others = {}
         for label, cmd in (("portable kernel (fallback), warm", mlp_cmd + ["--portable"]),
                            ("rebuilt -march=native, warm", [BENCH_BIN / "t1rt_bench_mlp_native"] + mlp_cmd[1:])):
             if not Path(cmd[0]).exists():  # the native target is optional (compiler without -march=native)
                 continue
-            err = float(np.max(np.abs(np.array(_run_json(cmd + ["--iterations", 0], 120)["action"]) - ours_action)))
+            err = float(np.max(np.abs(np.array(run_json(cmd + ["--iterations", 0], 120)["action"]) - ours_action)))
             if err <= MATCH_TOL:
-                others[label] = _run_json(cmd + ["--iterations", iterations, "--cold-iterations", 0], 600)
+                others[label] = run_json(cmd + ["--iterations", iterations, "--cold-iterations", 0], 600)
             else:
                 print(f"note: t1rt::Mlp {label.split(',')[0]} differs from the dispatched kernel by {err:.2e}: not timed")
 
@@ -203,17 +183,17 @@ def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
     name = f"t1rt::Mlp ({ours['variant']} kernel)"
     print(f"{name + ', warm, back to back':<44}{med * us:>11.1f}{ours['warm_ns_p99'] * us:>10.1f}{'1.00':>11}")
     print(f"{name + ', cold':<44}{ours['cold_ns_median'] * us:>11.1f}"
-          f"{ours['cold_ns_p99'] * us:>10.1f}{_ratio(med, ours['cold_ns_median']):>11}")
+          f"{ours['cold_ns_p99'] * us:>10.1f}{ratio(med, ours['cold_ns_median']):>11}")
     for label, other in others.items():
         print(f"{'t1rt::Mlp ' + label:<44}{other['warm_ns_median'] * us:>11.1f}"
-              f"{other['warm_ns_p99'] * us:>10.1f}{_ratio(med, other['warm_ns_median']):>11}")
+              f"{other['warm_ns_p99'] * us:>10.1f}{ratio(med, other['warm_ns_median']):>11}")
     if ort:
         o, oh = ort["ns"], ort["overhead_ns"]
         print(f"{'onnxruntime ' + ort['version'] + ' (Python session.run)':<44}{o['median'] * us:>11.1f}"
-              f"{o['p99'] * us:>10.1f}{_ratio(med, o['median']):>11}")
+              f"{o['p99'] * us:>10.1f}{ratio(med, o['median']):>11}")
         net = o["median"] - oh["median"]
         print(f"{'  minus call overhead (Identity graph ' + format(oh['median'] * us, '.1f') + ' µs)':<44}"
-              f"{net * us:>11.1f}{'':>10}{_ratio(med, net):>11}")
+              f"{net * us:>11.1f}{'':>10}{ratio(med, net):>11}")
     wb, l2, llc = ours["weight_bytes"], ours["l2_bytes"], ours["llc_bytes"]
     fits_l2 = wb <= l2
     warm_level = "L2" if fits_l2 else ("LLC" if wb <= llc else "DRAM")
@@ -221,7 +201,7 @@ def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
               (f"bound: L2-resident read {ours['l2_read_GBps']:.1f} GB/s", ours["l2_bound_ns"]),
               (f"bound: weights-sized buffer ({warm_level}) {ours['cache_read_GBps']:.1f} GB/s", ours["cache_bound_ns"])]
     for label, ns in bounds:
-        print(f"{label:<44}{ns * us:>11.1f}{'':>10}{_ratio(med, ns):>11}")
+        print(f"{label:<44}{ns * us:>11.1f}{'':>10}{ratio(med, ns):>11}")
     print(f"weights {wb / 1e6:.2f} MB ({wb:.0f} B); L2 {l2 / 2**10:.0f} KiB per core, LLC {llc / 2**20:.0f} MiB; "
           f"DRAM copy {ours['dram_copy_GBps']:.1f} GB/s over {ours['stream_bytes'] / 2**20:.0f} MiB.")
     if fits_l2:
@@ -260,9 +240,9 @@ def cyclictest(seconds: float) -> dict:
 
 def bench_loop(seconds: float) -> None:
     print(f"\n== 500 Hz loop lateness, {seconds:g} s each, sequential (µs; ratio = ours / cyclictest) ==")
-    loop = _bench_binary("t1rt_bench_loop")
-    runs = {"PeriodicTask default": _run_json([loop, "--seconds", seconds], seconds + 60),
-            "PeriodicTask --rt": _run_json([loop, "--seconds", seconds, "--rt", "--rt-cpu", LOOP_RT_CPU], seconds + 60)}
+    loop = bench_binary("t1rt_bench_loop")
+    runs = {"PeriodicTask default": run_json([loop, "--seconds", seconds], seconds + 60),
+            "PeriodicTask --rt": run_json([loop, "--seconds", seconds, "--rt", "--rt-cpu", LOOP_RT_CPU], seconds + 60)}
     try:
         ref = cyclictest(seconds)
     except (RuntimeError, subprocess.TimeoutExpired) as e:
@@ -272,83 +252,13 @@ def bench_loop(seconds: float) -> None:
     print(f"{'':<24}{'median':>9}{'p99':>9}{'max':>9}{'overruns':>10}   ratio median / p99 / max")
     for name, r in list(runs.items()) + ([(f"cyclictest -p {CYCLICTEST_PRIO} -m", ref)] if ref else []):
         vals = [r[f"lateness_us_{k}"] for k in keys]
-        ratios = " / ".join(_ratio(v, ref[f"lateness_us_{k}"]) for v, k in zip(vals, keys)) if ref else "n/a"
+        ratios = " / ".join(ratio(v, ref[f"lateness_us_{k}"]) for v, k in zip(vals, keys)) if ref else "n/a"
         print(f"{name:<24}{vals[0]:>9.1f}{vals[1]:>9.1f}{vals[2]:>9.1f}{int(r['overruns']):>10}   {ratios}")
     rt = runs["PeriodicTask --rt"]
     if not rt["rt_ok"]:
         print(f"note: --rt setup incomplete: {rt['rt_report']}")
     print(f"(--rt = SCHED_FIFO {CYCLICTEST_PRIO} + mlockall + CPU {LOOP_RT_CPU} + cpu_dma_latency 0; cyclictest the "
           f"same core and priority; overruns = ticks woken more than one period ({LOOP_PERIOD_US} µs) late)")
-
-
-# ------------------------------------------------------------------------------------ 3. LCM latency
-def _echo_url(url: str) -> str:
-    """The echo's own LCM URL: the runtime's with the port + 1, so both run at once and the peer alternates."""
-    return contract.lcm_url_on_port(1, url)
-
-
-def bench_lcm(policy: Path, count: int) -> dict:
-    print(f"\n== State -> command latency over LCM, lockstep, {count} exchanges each, runtime and echo alternating "
-          f"(µs; ratio = runtime / echo) ==")
-    url = os.environ.get("T1_LCM_URL")
-    if url is None:
-        raise RuntimeError("T1_LCM_URL unset: run inside tools/netns (make bench does)")
-    echo_url, budget_s = _echo_url(url), 300.0
-    servers = [subprocess.Popen([str(c) for c in cmd], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-               for cmd in ([_bench_binary("t1rt_bench_lcm_echo"), "--seconds", budget_s, "--lcm-url", echo_url],
-                           [RUNTIME_BIN, "--clock", "lockstep", "--policy", policy, "--autostart", "--quiet",
-                            "--duration", budget_s, "--lcm-url", url])]
-    try:
-        r = _run_json([_bench_binary("t1rt_bench_lcm_peer"), "--count", count, "--wait-policy", "--lcm-url", url,
-                       "--echo-url", echo_url], budget_s)
-    finally:
-        for server in servers:
-            server.terminate()
-            _, err = server.communicate(timeout=10)
-            if server.returncode not in (0, -15):
-                raise RuntimeError(f"{server.args[0]} exited {server.returncode}: {err.strip()[-400:]}")
-    print(f"{'':<40}{'n':>7}{'median':>9}{'p99':>9}{'max':>9}   ratio median / p99")
-    rows = [("raw LCM echo (C++)", "echo_us"), ("t1-runtime lockstep, all ticks", "latency_us"),
-            ("  ticks without policy (9 of 10)", "plain_tick_us"), ("  policy ticks (MLP, every 10th)", "policy_tick_us")]
-    for label, key in rows:
-        print(f"{label:<40}{int(r[key + '_count']):>7}{r[key + '_median']:>9.1f}{r[key + '_p99']:>9.1f}"
-              f"{r[key + '_max']:>9.1f}   {_ratio(r[key + '_median'], r['echo_us_median'])} / "
-              f"{_ratio(r[key + '_p99'], r['echo_us_p99'])}")
-    print("(peer publishes T1_IMU + T1_JOINT_STATE k, times until the T1_JOINT_CMD with state_seq k arrives; runtime "
-          f"in POLICY mode after --autostart on {url}, echo on {echo_url}; the two exchanges alternate)")
-    return r
-
-
-# ------------------------------------------------------------------------------------ 4. DDS latency
-def bench_dds(policy: Path, count: int, lcm: dict | None) -> None:
-    """The same runtime with --transport dds against a DDS robot peer, in the same run as the LCM rows."""
-    print(f"\n== State -> command latency over DDS (Cyclone, rt/low_state -> rt/joint_ctrl) vs LCM, lockstep, "
-          f"{count} exchanges (µs; ratio = DDS / LCM runtime) ==")
-    if not os.environ.get("CYCLONEDDS_URI"):
-        raise RuntimeError("CYCLONEDDS_URI unset: run inside tools/netns (make bench does), loopback-only DDS")
-    budget_s = 300.0
-    # Its own LCM port for status/telemetry, so it cannot meet the LCM section's peers.
-    status_url = _echo_url(_echo_url(os.environ["T1_LCM_URL"]))
-    server = subprocess.Popen([str(c) for c in (RUNTIME_BIN, "--transport", "dds", "--clock", "lockstep", "--policy",
-                                                policy, "--autostart", "--quiet", "--duration", budget_s,
-                                                "--lcm-url", status_url)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    try:
-        r = _run_json([_bench_binary("t1rt_bench_dds_peer"), "--count", count], budget_s)
-    finally:
-        server.terminate()
-        _, err = server.communicate(timeout=10)
-        if server.returncode not in (0, -15):
-            raise RuntimeError(f"t1-runtime --transport dds exited {server.returncode}: {err.strip()[-400:]}")
-    print(f"{'':<40}{'n':>7}{'median':>9}{'p99':>9}{'max':>9}   ratio median / p99")
-    rows = [("t1-runtime lockstep over DDS", r)] + ([("t1-runtime lockstep over LCM (above)", lcm)] if lcm else [])
-    for label, x in rows:
-        ratio = (f"{_ratio(x['latency_us_median'], lcm['latency_us_median'])} / "
-                 f"{_ratio(x['latency_us_p99'], lcm['latency_us_p99'])}") if lcm else "-"
-        print(f"{label:<40}{int(x['latency_us_count']):>7}{x['latency_us_median']:>9.1f}{x['latency_us_p99']:>9.1f}"
-              f"{x['latency_us_max']:>9.1f}   {ratio}")
-    print("(peer writes LowState_ and times until the next LowCmd_ arrives; runtime in POLICY mode after --autostart "
-          "and 2000 warm-up exchanges; all ticks, policy ticks included)")
 
 
 # ------------------------------------------------------------------------------------ entry points
