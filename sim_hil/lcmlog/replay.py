@@ -1,9 +1,11 @@
 """Re-run the C++ runtime on a log's states, in lockstep, and compare its commands with the logged ones.
 
 Only the runtime's inputs are replayed (T1_IMU, T1_JOINT_STATE, T1_JOYSTICK, T1_RUNTIME_CMD, T1_SIM_STATUS),
-in the logged order, byte for byte but for the operator's messages: T1_JOYSTICK and T1_RUNTIME_CMD are
-signed again with the replay's own fresh key (their logged tags were made with a key of the logged run,
-and their timestamps are old: the runtime takes neither); after each joint state the replay waits for the command answering
+in the logged order, byte for byte but for the operator's messages: a signed T1_JOYSTICK or T1_RUNTIME_CMD
+is signed again with the replay's own fresh key (its logged tag was made with a key of the logged run and its
+timestamp is old: the runtime would take neither); an unsigned one goes as logged, refused again as it was
+(one signed with a key the logged runtime did not hold cannot be told apart: it is taken in the replay);
+after each joint state the replay waits for the command answering
 it (state_seq), exactly as the lockstep simulator does. With the logged policy and a lockstep log this
 reproduces the logged T1_JOINT_CMD stream bit for bit (same inputs, same binary); with another policy the
 report says where and by how much the new commands differ — what to look at before loading new weights
@@ -23,6 +25,7 @@ import numpy as np
 from t1 import joint_command_t, joint_state_t, joystick_t, runtime_cmd_t
 
 from messages import contract
+from messages.auth import UNSIGNED_SENDER
 from sim_hil.launch import start_runtime, stop, wait_until_listening
 from sim_hil.lcmlog.eventlog import ProjectLog
 
@@ -110,13 +113,12 @@ def replay(log: ProjectLog, policy: Path | None = None, url: str | None = None) 
     lc = lcm.LCM(url)
     lc.subscribe(contract.CH_JOINT_CMD, lambda _c, d: _keep(answers, joint_command_t.decode(d)))
     runtime = start_runtime(chosen, *args, "--lcm-url", url)
-    signer = runtime.run_key.signer()
+    signer = runtime.run_key.signer() if runtime.run_key else None   # None: the log's runtime was unauthenticated
     unanswered = 0
     try:
         wait_until_listening(runtime)
         for ev in inputs:
-            kind = SIGNED_INPUTS.get(ev.channel)
-            lc.publish(ev.channel, signer.sign(ev.channel, kind.decode(ev.data)) if kind else ev.data)
+            lc.publish(ev.channel, _resigned(ev.channel, ev.data, signer))
             if ev.channel != contract.CH_JOINT_STATE:
                 continue
             seq = joint_state_t.decode(ev.data).seq
@@ -134,6 +136,12 @@ def replay(log: ProjectLog, policy: Path | None = None, url: str | None = None) 
     comparison.states_replayed, comparison.unanswered_states = len(states), unanswered
     comparison.identical = comparison.identical and unanswered == 0
     return comparison, answers
+
+
+def _resigned(channel: str, data: bytes, signer) -> bytes:
+    kind = SIGNED_INPUTS.get(channel)
+    msg = kind.decode(data) if kind and signer else None
+    return signer.sign(channel, msg) if msg is not None and msg.sender_id != UNSIGNED_SENDER else data
 
 
 def _keep(answers: dict, cmd: joint_command_t) -> None:
