@@ -137,6 +137,7 @@ def episode_row(t, readings, series) -> dict:
         "failed_after_switch": ev.failed_after_switch,
         "through_kneel_gate": math.nan if gate is None else float(gate),
         "reached_kneel": float(reached_kneel(readings[:, 0], readings[:, 1])),
+        "peak_trunk_m": float(readings[:, 0].max()),
         "energy_J": float(series["energy_J"].sum()),
         "energy_to_stand_J": float(series["energy_J"][:stand_tick].sum()) if stood else math.nan,
         "max_energy_J": float(series["max_energy_J"].max()),

@@ -70,7 +70,7 @@ def collect(teacher: expert.Teacher, learner, qpos: np.ndarray, qvel: np.ndarray
 
 def evaluate_batch(artifact: Path, out: Path, seeds: int, seconds: float) -> dict:
     """training/evaluate.py's batch from fallen seeds 0 … seeds − 1: the share that reached the kneel, in all,
-    face down and on the back."""
+    face down and on the back, and the median of the episodes' highest trunk height [m]."""
     from training.evaluate import evaluate
     evaluate(artifact, out, seeds=seeds, seconds=seconds, backend="cpu", command="python -m training.imitation")
     with (out / "per_env.csv").open() as f:
@@ -79,8 +79,9 @@ def evaluate_batch(artifact: Path, out: Path, seeds: int, seconds: float) -> dic
     fz = np.array([float(r["start_forward_z"]) for r in rows])
     def share(mask):
         return round(float(reached[mask].mean()), 3) if mask.any() else None
+    peak = [float(r["peak_trunk_m"]) for r in rows if "peak_trunk_m" in r]
     return {"reached_kneel": share(np.ones(len(rows), bool)), "face_down": share(fz < -FACING_Z),
-            "on_back": share(fz > FACING_Z)}
+            "on_back": share(fz > FACING_Z), "median_peak_trunk_m": round(float(np.median(peak)), 3) if peak else None}
 
 
 def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:
