@@ -82,7 +82,7 @@ TEST(CommandAuth, AgreesWithThePythonGoldenVector) {
     EXPECT_EQ(std::vector<uint8_t>(mine.end() - kTagBytes, mine.end()), from_hex(m["tag_hex"])) << channel;
   }
   const auto& a = doc["approval"];
-  const std::string approvals = test_dir() + "t1rt_golden.approvals";
+  const std::string approvals = own_path("golden", ".approvals");
   std::ofstream(approvals) << a["artifact_sha256_hex"].get<std::string>() << " 7 " << a["tag_hex"].get<std::string>() << " golden\n";
   std::string why;
   EXPECT_TRUE(ring->approves(approvals, from_hex(a["artifact_sha256_hex"]).data(), &why)) << why;
@@ -95,7 +95,7 @@ TEST(CommandAuth, KeyFileOpenToOthersOrMalformedIsRefused) {
     EXPECT_FALSE(KeyRing::load(write_key_file("open", {test_sender(1, 1)}, mode), &error)) << std::oct << mode;
     EXPECT_NE(error.find("chmod 600"), std::string::npos) << error;
   }
-  EXPECT_FALSE(KeyRing::load(test_dir() + "t1rt_missing.key", &error));
+  EXPECT_FALSE(KeyRing::load(own_path("missing", ".key"), &error));
   EXPECT_NE(error.find("No such file"), std::string::npos) << error;
   EXPECT_FALSE(KeyRing::load(write_key_file("dup", {test_sender(3, 1), test_sender(3, 2)}), &error));
   EXPECT_NE(error.find("listed twice"), std::string::npos) << error;
@@ -154,7 +154,7 @@ TEST(CommandAuth, EveryRefusalReason) {
 class PolicyFolder : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = test_dir() + "t1rt_policy_folder";
+    dir_ = own_path("policy_folder", "");
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_ + "/sub");
     ArtifactSpec s = make_spec({8});
@@ -163,7 +163,7 @@ class PolicyFolder : public ::testing::Test {
     s.meta["name"] = "unapproved";
     write_file(dir_ + "/unapproved.safetensors", serialise(s));
     s.meta["name"] = "outside";
-    outside_ = write_file(test_dir() + "t1rt_outside.safetensors", serialise(s));
+    outside_ = write_file(own_path("outside", ".safetensors"), serialise(s));
     std::filesystem::create_symlink(outside_, dir_ + "/link.safetensors");
     ring_ = test_ring("folder", {test_sender(4, 0x51)});
     approvals_ = dir_ + "/approvals";
@@ -185,8 +185,9 @@ class PolicyFolder : public ::testing::Test {
 TEST_F(PolicyFolder, NamesInsideOnlyAndApprovedContentOnly) {
   const PolicyStore store(dir_, ring_, approvals_);
   EXPECT_EQ(store.load_name("sub/approved.safetensors").name, "approved");
-  EXPECT_NE(refusal(store, "../t1rt_outside.safetensors").find("'..' leaves the policy folder"), std::string::npos);
-  EXPECT_NE(refusal(store, "sub/../../t1rt_outside.safetensors").find("'..'"), std::string::npos);
+  const std::string up = "../" + outside_.substr(outside_.rfind('/') + 1);  // the outside file, by '..'
+  EXPECT_NE(refusal(store, up).find("'..' leaves the policy folder"), std::string::npos);
+  EXPECT_NE(refusal(store, "sub/../" + up).find("'..'"), std::string::npos);
   EXPECT_NE(refusal(store, outside_).find("an absolute path"), std::string::npos);
   EXPECT_NE(refusal(store, "link.safetensors").find("outside the policy folder"), std::string::npos);
   EXPECT_NE(refusal(store, "missing.safetensors").find("No such file"), std::string::npos);
@@ -202,14 +203,14 @@ TEST_F(PolicyFolder, NamesInsideOnlyAndApprovedContentOnly) {
   // Without a key (--unauthenticated) the folder rule holds, content is not checked.
   const PolicyStore bench(dir_, nullptr, approvals_);
   EXPECT_EQ(bench.load_name("unapproved.safetensors").name, "unapproved");
-  EXPECT_NE(refusal(bench, "../t1rt_outside.safetensors").find("'..'"), std::string::npos);
+  EXPECT_NE(refusal(bench, up).find("'..'"), std::string::npos);
 }
 
 // t1-runtime's start: a key file open to others, both modes at once, a startup policy outside the folder or not
 // approved: refused with the exit code and a message naming the problem (never reaching LCM).
 TEST_F(PolicyFolder, RuntimeRefusesToStartWithoutTheKeyRules) {
   auto run = [&](const std::string& args, std::string* err_text) {
-    const std::string err = test_dir() + "t1rt_cli_auth.err";
+    const std::string err = own_path("cli_auth", ".err");
     const int status = std::system((std::string(T1_RUNTIME_BIN) + " " + args + " --duration 0.1 --quiet 2> " + err).c_str());
     std::ifstream in(err);
     std::ostringstream ss;

@@ -20,6 +20,10 @@
 namespace t1rt::testing {
 
 inline std::string test_dir() { return ::testing::TempDir().empty() ? std::string("/tmp/") : ::testing::TempDir(); }
+// A file name of this test process's own ("t1rt_<name>_<pid><suffix>"): two test runs at once never share one.
+inline std::string own_path(const std::string& name, const std::string& suffix) {
+  return test_dir() + "t1rt_" + name + "_" + std::to_string(::getpid()) + suffix;
+}
 
 // A key of byte value `fill` for sender `id` (distinct fills: distinct keys).
 inline std::pair<int64_t, std::string> test_sender(int64_t id, int fill) {
@@ -33,7 +37,7 @@ inline std::pair<int64_t, std::string> test_sender(int64_t id, int fill) {
 // Writes a key file of these senders with `mode` (0600: accepted) and returns its path.
 inline std::string write_key_file(const std::string& name, const std::vector<std::pair<int64_t, std::string>>& senders,
                                   mode_t mode = 0600) {
-  const std::string path = test_dir() + "t1rt_" + name + ".key";
+  const std::string path = own_path(name, ".key");
   ::unlink(path.c_str());
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0600);
   std::string text = "# test key file\n";

@@ -2,6 +2,7 @@
 // runtime runs its normal lockstep (or realtime) path and answers on T1_JOINT_CMD.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <fstream>
 
@@ -18,6 +19,7 @@ using namespace t1rt::testing;
 namespace {
 constexpr int kKnee = 14, kHipPitch = 11;
 constexpr int64_t kTickUs = 2000;
+constexpr int kReloadLivenessS = 10;  // a reload's result within this [s] (not a timing check)
 
 // A policy whose action is 0 everywhere but the left knee (tanh(20) = 1, scaled by the largest allowed
 // 1.5 rad from a 1.0 rad default): a constant target beyond the joint range that exercises the clamps.
@@ -50,7 +52,7 @@ class SupervisorLcm : public ::testing::Test {
     opt.safety.prepare_duration_s = 0.02;  // 10 ticks: keeps the tests short
     opt.auth = AuthMode::kSigned;          // the operator signs (test_command_auth.cpp: everyone else)
     opt.keys = ring_ = test_ring("supervisor", {test_sender(1, 0x11)});
-    opt.approvals_path = approvals_ = test_dir() + "t1rt_supervisor.approvals";
+    opt.approvals_path = approvals_ = own_path("supervisor", ".approvals");
     std::ofstream(approvals_, std::ios::trunc);
     peer_.sign_with(ring_);
     ctrl_ = std::make_unique<Controller>(opt, std::make_unique<PolicyEngine>(load_artifact(opt.policy_path)));
@@ -93,6 +95,13 @@ class SupervisorLcm : public ::testing::Test {
   }
   Mode mode() { return ctrl_->supervisor().mode(); }
 
+  // Lockstep ticks until done() (the reload worker's result), within a liveness bound of wall time: the
+  // worker runs on its own thread, so no number of ticks is enough on a loaded machine.
+  template <class Done>
+  void step_until(Done done) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(kReloadLivenessS);
+    while (!done() && std::chrono::steady_clock::now() < deadline) step();
+  }
   // load_policy of an artifact written by write_spec: approved by the operator, sent by its name in the folder.
   void load_policy(const std::string& name, const ArtifactSpec& spec) {
     const std::string path = write_spec(name, spec);
@@ -308,7 +317,7 @@ TEST_F(SupervisorLcm, HotReloadRejectsBadFileAndSwapsGoodOne) {
   ArtifactSpec bad = clamp_spec();
   bad.meta["control_dt"] = 0.01;
   load_policy("reload_bad", bad);
-  for (int i = 0; i < 200 && ctrl_->reload_message().empty(); ++i) step();
+  step_until([&] { return !ctrl_->reload_message().empty(); });
   EXPECT_NE(ctrl_->reload_message().find("control_dt"), std::string::npos) << ctrl_->reload_message();
   for (int i = 0; i < 60; ++i) step();
   EXPECT_EQ(ctrl_->policy().artifact().content_hash, old_hash);
@@ -321,7 +330,7 @@ TEST_F(SupervisorLcm, HotReloadRejectsBadFileAndSwapsGoodOne) {
   ArtifactSpec good = clamp_spec();
   good.meta["name"] = "reloaded";
   load_policy("reload_good", good);
-  for (int i = 0; i < 300 && ctrl_->policy().artifact().name != "reloaded"; ++i) step();
+  step_until([&] { return ctrl_->policy().artifact().name == "reloaded"; });
   EXPECT_EQ(ctrl_->policy().artifact().name, "reloaded");
   EXPECT_EQ(mode(), Mode::kPolicy);
 }
