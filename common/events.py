@@ -1,9 +1,10 @@
 """THE definitions of "fall", "getup attempt", "success" and "time to stand" over a time series.
 
-One module, numpy only (no jax, no LCM), so the MJX batch evaluator (training/) and the HIL evaluation
-(sim_hil/eval) count the same events from the same kind of signals: trunk height [m] (Trunk origin = IMU
-above the floor) and up_z (world z component of the Trunk's z axis: 1 upright, 0 on its side, -1 upside
-down; `up_z_from_quat` gets it from the IMU orientation).
+One module, numpy only (no jax, no LCM; the kneel gate also takes `xp`, so the getup rewards evaluate the same
+function under jax), so the MJX batch evaluator (training/) and the HIL evaluation (sim_hil/eval) count the same
+events from the same kind of signals: trunk height [m] (Trunk origin = IMU above the floor) and up_z (world z
+component of the Trunk's z axis: 1 upright, 0 on its side, -1 upside down; `up_z_from_quat` gets it from the
+IMU orientation).
 
 Definitions (one sample = one control tick; the series is read causally, left to right):
 - standing: trunk_height >= standing_trunk_height_m AND up_z >= upright_up_z.
@@ -136,12 +137,22 @@ def standing_mask(trunk_height, up_z, th: EventThresholds = EventThresholds()) -
     return (h >= th.standing_trunk_height_m) & (u >= th.upright_up_z)
 
 
+def at_kneel_gate_height(trunk_height, xp=np):
+    """The kneel gate's height condition (§4.8): 0.4 − min(h, 0.4) < 0.005 m, trunk height h [m].
+    xp: numpy or jax.numpy (the getup rewards read the same definition under jit)."""
+    return KNEEL_GATE_HEIGHT_M - xp.minimum(trunk_height, KNEEL_GATE_HEIGHT_M) < KNEEL_GATE_HEIGHT_TOL_M
+
+
+def kneel_gate(trunk_height, up_z, xp=np):
+    """The seed's kneel gate (§4.8) per sample: at its height and ‖u − e_z‖ = √(2 − 2·u_z) < 0.01, from trunk
+    height [m] and up_z. xp: numpy or jax.numpy, as common/observation.py's functions."""
+    up_error = xp.sqrt(xp.maximum(2.0 - 2.0 * up_z, 0.0))
+    return at_kneel_gate_height(trunk_height, xp) & (up_error < KNEEL_GATE_UP_ERROR)
+
+
 def kneel_gate_mask(trunk_height, up_z) -> np.ndarray:
-    """Per-sample kneel gate of the seed (§4.8) from trunk height [m] and up_z."""
-    h = np.asarray(trunk_height, dtype=np.float64)
-    up_error = np.sqrt(np.maximum(2.0 - 2.0 * np.asarray(up_z, dtype=np.float64), 0.0))
-    return (KNEEL_GATE_HEIGHT_M - np.minimum(h, KNEEL_GATE_HEIGHT_M) < KNEEL_GATE_HEIGHT_TOL_M) & \
-        (up_error < KNEEL_GATE_UP_ERROR)
+    """kneel_gate over a float64 series (the evaluations' reading of recorded signals)."""
+    return kneel_gate(np.asarray(trunk_height, dtype=np.float64), np.asarray(up_z, dtype=np.float64))
 
 
 def reached_kneel(trunk_height, up_z, th: EventThresholds = EventThresholds()) -> bool:
@@ -154,8 +165,8 @@ def reached_kneel(trunk_height, up_z, th: EventThresholds = EventThresholds()) -
 def through_kneel_gate(t, trunk_height, up_z, events: GetupEvents,
                        th: EventThresholds = EventThresholds()) -> bool | None:
     """Whether the trunk met the kneel gate on its way up: at a sample that does not count as standing,
-    between the start of the first down phase and its stand-up (issue 14: a keyframe getup rises through
-    the kneel; any upright stand meets the gate, so standing samples do not count). None when it never
+    between the start of the first down phase and its stand-up (a keyframe getup rises through the kneel;
+    any upright stand meets the gate, so standing samples do not count). None when it never
     stood up from that phase."""
     if math.isnan(events.time_to_stand_s):
         return None

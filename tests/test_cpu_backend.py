@@ -182,6 +182,6 @@ def test_the_host_profile_counts_physics_and_copies():
 def test_the_bench_profile_times_each_part_of_a_ppo_step():
     """make bench-train's env JAX, policy-pass and update rows, at the toy preset's sizes."""
     from tests.bench import train_profile
-    parts = train_profile.profile("joystick", None, preset="toy")
+    parts = train_profile.profile("joystick", preset="toy")
     assert set(parts) == {"env JAX", "policy pass", "update"}
     assert all(0.0 < s < 1.0 for s in parts.values()), parts     # seconds per env step

@@ -78,14 +78,14 @@ def test_bad_folders_and_settings_are_named(tmp_path):
     with pytest.raises(ValueError, match="demo_1.npz is not a planner demonstration"):
         demos.demo_bank(str(tmp_path), 0.5, 8, 0)
     with pytest.raises(ValueError, match="demo_starts.prob > 0 needs demo_starts.folder"):
-        envs.make("getup", config_overrides={"fallen.bank_starts": 2, "demo_starts.prob": 0.5})
+        envs.make("getup_kneel", config_overrides={"fallen.bank_starts": 2, "demo_starts.prob": 0.5})
 
 
-def test_the_getup_env_starts_its_fallen_episodes_from_the_demonstrations(tmp_path):
+def test_the_kneel_task_starts_its_fallen_episodes_from_the_demonstrations(tmp_path):
     folder = tmp_path / "demos"
     shutil.copytree(demos.REPO_ROOT / DEMOS, folder)
-    env = envs.make("getup", config_overrides={
-        "backend": "cpu", "stage": "stage1", "fallen.bank_starts": 2, "demo_starts.prob": 1.0,
+    env = envs.make("getup_kneel", config_overrides={
+        "backend": "cpu", "fallen.bank_starts": 2, "demo_starts.prob": 1.0,
         "demo_starts.folder": str(folder), "demo_starts.bank_starts": 8})
     qpos, qvel = demos.demo_bank(str(folder), 0.5, 8, int(env._config.demo_starts.seed))
     reset = jax.jit(jax.vmap(env.reset))

@@ -205,7 +205,8 @@ def test_export_brax_ppo_matches_brax_deterministic_policy(tmp_path):
     policy = ppo_networks.make_inference_fn(networks)(params, deterministic=True)
     obs = np.asarray(jax.random.normal(key_obs, (64, obs_size)) * 2.0, dtype=np.float32)
     brax_action = np.asarray(policy(jnp.asarray(obs), jax.random.PRNGKey(1))[0])
-    ours = ob.mlp_forward([(w.astype(np.float64), b.astype(np.float64)) for w, b in layers],
-                          ob.normalize(obs.astype(np.float64), mean.astype(np.float64), std.astype(np.float64)),
-                          manifest["activation"], manifest["output_rule"])
-    np.testing.assert_allclose(ours, brax_action, atol=1e-5)
+    runtime_action = ob.mlp_forward([(w.astype(np.float64), b.astype(np.float64)) for w, b in layers],
+                                    ob.normalize(obs.astype(np.float64), mean.astype(np.float64),
+                                                 std.astype(np.float64)),
+                                    manifest["activation"], manifest["output_rule"])
+    np.testing.assert_allclose(runtime_action, brax_action, atol=1e-5)

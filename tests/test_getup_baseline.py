@@ -1,4 +1,4 @@
-"""The baseline getup env's options (training/envs/getup_baseline.py): the energy fine-tune and the
+"""The baseline getup task's options (training/envs/getup_baseline.py): the energy fine-tune and the
 standing-start share, stepped on the CPU backend (compiles in seconds)."""
 from __future__ import annotations
 
@@ -15,12 +15,12 @@ ENERGY_WEIGHT = 0.01
 
 def _one_step(start_probs, energy_weight, action):
     env = envs.make("getup_baseline", config_overrides={**SMALL, "start_probs": start_probs,
-                                                         "energy_weight": energy_weight})
+                                                         "reward.scales.energy": -energy_weight})
     state = jax.jit(env.reset)(jax.random.PRNGKey(3))
     return env, jax.jit(env.step)(state, action)
 
 
-def test_energy_weight_subtracts_the_seeds_energy_cost():
+def test_a_negative_energy_scale_subtracts_the_seeds_energy_cost():
     action = jnp.full(23, 0.3)          # targets away from the fallen pose: the motors work
     env0, plain = _one_step([1.0, 0.0, 0.0], 0.0, action)
     env1, tuned = _one_step([1.0, 0.0, 0.0], ENERGY_WEIGHT, action)
@@ -45,4 +45,4 @@ def test_standing_starts_count_as_success_but_not_from_fallen():
 
 def test_default_is_the_seeds_baseline():
     cfg = envs.default_config("getup_baseline")
-    assert list(cfg.start_probs) == [1.0, 0.0, 0.0] and cfg.energy_weight == 0.0
+    assert list(cfg.start_probs) == [1.0, 0.0, 0.0] and cfg.reward.scales.to_dict() == {"height": 1.0, "energy": 0.0}

@@ -1,5 +1,5 @@
 """The seed's getup rewards (thesis §4.7–4.8, training/envs/getup_rewards.py) against hand computations,
-and the getup env's per-stage reward terms on fixed states. No env jit here: fast."""
+and each getup task's reward terms on fixed states. Few env jits here (CPU backend): fast."""
 from __future__ import annotations
 
 import math
@@ -64,15 +64,17 @@ def test_energy_cost():
     (0.67, _tilted(0.5), True), (0.67, _tilted(0.6), False),         # ‖u − e_z‖ < 0.01: tilt < 0.573°
     (0.1, UP, False)])
 def test_gate_exactly_as_written(h, up, ok):
-    assert bool(G.gate(h, jnp.asarray(up))) is ok
+    assert bool(G.gate(jnp.float32(h), jnp.float32(up[2]))) is ok
 
 
 def test_gate_is_the_evaluations_kneel_gate():
+    """One definition (common/events.kneel_gate): the reward's float32 jax reading agrees with the evaluations'
+    float64 numpy one, here and around both edges."""
     from common.events import kneel_gate_mask
     for h in (0.3, 0.3949, 0.3951, 0.67):
-        for deg in (0.0, 0.5, 0.6, 10.0):
-            up = _tilted(deg)
-            assert bool(G.gate(h, jnp.asarray(up))) == bool(kneel_gate_mask(h, up[2])), (h, deg)
+        for deg in (0.0, 0.5, 0.56, 0.59, 0.6, 10.0):
+            up_z = _tilted(deg)[2]
+            assert bool(G.gate(jnp.float32(h), jnp.float32(up_z))) == bool(kneel_gate_mask(h, up_z)), (h, deg)
 
 
 def test_gated_terms_by_hand():
@@ -83,10 +85,29 @@ def test_gated_terms_by_hand():
     assert float(G.gated_pose_reward(on, 0.4, 0.5)) == pytest.approx(0.6 + 100 * 0.5)
 
 
-# ------------------------------------------------------------------ the env's terms
+def test_the_latched_gate_holds_until_the_trunk_is_down():
+    on, off = jnp.asarray(True), jnp.asarray(False)
+    assert bool(G.latched_gate(on, off, 0.4)) and bool(G.latched_gate(off, on, 0.36))       # met, then held
+    assert not bool(G.latched_gate(off, on, 0.34)) and not bool(G.latched_gate(off, off, 0.6))   # down; never met
+
+
+# ------------------------------------------------------------------ the tasks' terms
+SMALL = {"fallen.bank_starts": 2, "episode_length": 20}
+
+
 @pytest.fixture(scope="module")
 def full_env():
-    return envs.make("getup", config_overrides={"fallen.bank_starts": 2, "episode_length": 20})
+    return envs.make("getup", config_overrides=SMALL)
+
+
+@pytest.fixture(scope="module")
+def kneel_env():
+    return envs.make("getup_kneel", config_overrides=SMALL)
+
+
+@pytest.fixture(scope="module")
+def stand_env():
+    return envs.make("getup_stand", config_overrides=SMALL)
 
 
 def _fake_data(qpos, qvel, tau):
@@ -101,6 +122,11 @@ def _state(env, dq_joint=0.3, tau=2.0):
     return _fake_data(qpos, qvel, np.full(23, tau))
 
 
+def _info(h, up, waist=0.29, **extra):
+    return {"trunk_height": jnp.float32(h), "waist_height": jnp.float32(waist), "up": jnp.asarray(up, jnp.float32),
+            "up_z": jnp.float32(up[2]), **extra}
+
+
 def test_kneel_targets_come_from_the_keyframe(full_env):
     torso, waist = (float(v) for v in full_env._kneel_targets)
     assert torso == pytest.approx(float(full_env._kneel_qpos[2]), abs=1e-6)    # the root is the Trunk
@@ -113,16 +139,15 @@ def test_full_task_terms_by_hand(full_env, gate_on):
     torso_k, waist_k = (float(v) for v in full_env._kneel_targets)
     h_torso, h_waist = 0.41, 0.3
     up = UP if gate_on else _tilted(5.0)
-    info = {"trunk_height": jnp.asarray(h_torso), "waist_height": jnp.asarray(h_waist),
-            "up_z": jnp.asarray(up[2]), "up": jnp.asarray(up)}
-    info["gate"] = full_env.gate_state(info, jnp.asarray(False))
-    terms = full_env.reward_terms(_state(full_env), info)
+    info = _info(h_torso, up, h_waist)
+    info["gate"] = full_env._gate_state(G.gate(info["trunk_height"], info["up_z"]), jnp.asarray(False), info)
+    terms = full_env._reward_terms(_state(full_env), info)
     r_ori = (0.25 * up[2] + 0.5) ** 2
     ho = lambda t, w: 2 * r_ori * (min(h_torso, t) / t + min(h_waist, w) / w + 1) / 3  # noqa: E731
     q = np.asarray(full_env._kneel_qpos[7:]) + 0.05
     pose_kneel = math.exp(-0.5 * 23 * 0.05 ** 2)
     pose_stand = math.exp(-0.5 * float(np.sum((q - np.asarray(full_env._default_pose)) ** 2)))
-    assert bool(terms["gate"]) is gate_on
+    assert bool(info["gate"]) is gate_on and set(terms) == set(full_env.config.reward.scales)
     if gate_on:
         assert float(terms["height"]) == pytest.approx(1.83 + ho(0.67, 0.55), rel=1e-5)
         assert float(terms["pose"]) == pytest.approx(0.6 + 100 * pose_stand, rel=1e-4)
@@ -133,161 +158,128 @@ def test_full_task_terms_by_hand(full_env, gate_on):
     assert float(terms["energy"]) == pytest.approx(float(np.sum(0.3 * 2.0 / limits)), rel=1e-5)
 
 
-def test_gate_latches_until_the_trunk_is_down(full_env):
-    """Passing the gate, then tilting: still the standing reward; down below 0.35 m: the keyframe reward
-    again, until the gate holds once more (the getup module docstring's choice)."""
-    state = _state(full_env)
-    upright = {"trunk_height": jnp.asarray(0.6), "waist_height": jnp.asarray(0.5), "up_z": jnp.asarray(1.0),
-               "up": jnp.asarray(UP)}
-    tilted = dict(upright, up=jnp.asarray(_tilted(3.0)), up_z=jnp.asarray(_tilted(3.0)[2]))
-    down = dict(tilted, trunk_height=jnp.asarray(0.3))
-    assert not bool(full_env.gate_state(tilted, jnp.asarray(False)))      # never met: off
-    on = full_env.gate_state(upright, jnp.asarray(False))
-    still = full_env.gate_state(tilted, on)
-    assert bool(on) and bool(still)
-    assert float(full_env.reward_terms(state, dict(tilted, gate=still))["height"]) > 1.83
-    off = full_env.gate_state(down, still)
-    assert not bool(off)
-    assert not bool(full_env.gate_state(tilted, off))                     # tilted again: needs the gate anew
-    per_step = envs.make("getup", config_overrides={"fallen.bank_starts": 2, "gate_latches": False})
-    assert not bool(per_step.gate_state(tilted, on))                      # the seed's literal reading
+def test_the_full_task_s_gate_is_per_step_and_the_kneel_s_latches(full_env, kneel_env):
+    """The full task switches its rewards on §4.8's gate as written (a latched one was reward-hacked:
+    LESSONS, `getup_full_from_baseline`); the kneel task carries the kneel reached and not lost since."""
+    upright, tilted = _info(0.6, UP, 0.5), _info(0.6, _tilted(3.0), 0.5)
+    down = _info(0.3, _tilted(3.0), 0.2)
+    on, off = jnp.asarray(True), jnp.asarray(False)
+    assert not bool(full_env._gate_state(off, on, tilted)) and bool(full_env._gate_state(on, off, upright))
+    assert float(full_env._reward_terms(_state(full_env), dict(tilted, gate=off))["height"]) < 1.83
+    still = kneel_env._gate_state(off, on, tilted)
+    assert bool(still) and not bool(kneel_env._gate_state(off, still, down))
 
 
-def test_env_carries_the_latched_gate_through_steps():
+def test_the_kneel_task_carries_its_latched_gate_through_steps():
     # the CPU backend: the gate's carry is the env's own code on either physics, and MJX's compile takes minutes
-    env = envs.make("getup", config_overrides={"fallen.bank_starts": 2, "episode_length": 20, "backend": "cpu"})
+    env = envs.make("getup_kneel", config_overrides={**SMALL, "backend": "cpu"})
     state = jax.jit(env.reset)(jax.random.PRNGKey(3))
     step = jax.jit(env.step)
     for _ in range(3):
         state = step(state, jnp.zeros(23))
-    expected = env.gate_state(state.info, jnp.asarray(False))
+    expected = G.gate(state.info["trunk_height"], state.info["up_z"])
     assert state.info["gate"].dtype == jnp.bool_
-    assert float(state.metrics["gate"]) == float(state.info["gate"])
+    assert float(state.metrics["gate"]) == float(state.info["gate"]) == float(state.metrics["success"])
     assert bool(state.info["gate"]) >= bool(expected)
 
 
 def test_gate_reached_counts_the_first_step_the_gate_holds():
-    """Stage 1's success: an episode's sum of gate_reached is 1 when §4.8's gate held at any step since the reset."""
-    env = envs.make("getup", config_overrides={"stage": "stage2", "episode_length": 20, "backend": "cpu"})
+    """The kneel's success: an episode's sum of gate_reached is 1 when §4.8's gate held at any step since the reset."""
+    env = envs.make("getup_stand", config_overrides={"episode_length": 20, "backend": "cpu"})
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))     # at the kneel keyframe, the gate's pose
     step = jax.jit(env.step)
     scale = jnp.asarray(env.manifest_fields()["action_scale"])
-    hold = jnp.asarray((env._kneel_pose - env._default_pose) / scale, jnp.float32)
+    hold = jnp.asarray((env._kneel_qpos[7:] - env._default_pose) / scale, jnp.float32)
     reached, held = [], []
     for _ in range(6):
         state = step(state, hold)
         reached.append(float(state.metrics["gate_reached"]))
-        held.append(bool(G.gate(state.info["trunk_height"], state.info["up"])))
+        held.append(bool(G.gate(state.info["trunk_height"], state.info["up_z"])))
     assert any(held), "the kneel keyframe held by its own targets meets the gate at first"
     first = held.index(True)
     assert reached == [1.0 if i == first else 0.0 for i in range(6)], (reached, held)
 
 
-def test_stage_rewards(full_env):
-    info = {"trunk_height": jnp.asarray(0.2), "waist_height": jnp.asarray(0.15), "up_z": jnp.asarray(0.0),
-            "up": jnp.asarray(_tilted(90.0))}
-    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
-    s2 = envs.make("getup", config_overrides={"stage": "stage2"})
-    info["gate"] = jnp.asarray(False)
-    t1, t2 = s1.reward_terms(_state(s1), info), s2.reward_terms(_state(s2), info)
+def test_the_stages_rewards(kneel_env, stand_env):
+    info = _info(0.2, _tilted(90.0), 0.15, gate=jnp.asarray(False))
+    t1, t2 = kneel_env._reward_terms(_state(kneel_env), info), stand_env._reward_terms(_state(stand_env), info)
     assert float(t1["height"]) < 1.0                     # stage 1: the keyframe reward only
+    assert float(t1["pose"]) == pytest.approx(math.exp(-0.5 * 23 * 0.05 ** 2), rel=1e-5)
     # stage 2: §4.7's rewards toward standing, no gate bonuses: HO(torso 0.67, waist 0.55) and pose(q, q_init)
     r_height = (0.2 / 0.67) + (0.15 / 0.55)
     assert float(t2["height"]) == pytest.approx(2.0 * 0.25 * (r_height + 1.0) / 3.0, rel=1e-5)
-    assert float(t2["pose"]) == pytest.approx(float(G.pose_reward(_state(s2).qpos[7:], s2._default_pose)), rel=1e-5)
+    assert float(t2["pose"]) == pytest.approx(float(G.pose_reward(_state(stand_env).qpos[7:],
+                                                                  stand_env._default_pose)), rel=1e-5)
+    assert set(t1) == {"height", "pose", "gate", "upright", "energy"} and set(t2) == {"height", "pose", "energy"}
 
 
-def test_stage1_pays_its_gate_reward_only_while_the_gate_holds_this_step():
-    """stage1_gate_reward (ours; 0 = the seed): added to stage 1's Height Reward on a step that meets §4.8's
-    gate (trunk above 0.395 m, within 0.573° of vertical), whatever the latched gate says."""
-    plain = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
-    paid = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_gate_reward": 1.5})
+def test_the_kneel_s_gate_term_pays_only_while_the_gate_holds_this_step(kneel_env):
+    """reward.scales.gate (ours; 0 = the seed): the term is 1 on a step that meets §4.8's gate (trunk above
+    0.395 m, within 0.573° of vertical), whatever the latched gate says."""
     for tilt_deg, h, meets in ((0.3, 0.40, True), (1.25, 0.40, False), (0.3, 0.39, False)):
-        info = {"trunk_height": jnp.asarray(h), "waist_height": jnp.asarray(0.29), "up": jnp.asarray(_tilted(tilt_deg)),
-                "up_z": jnp.asarray(float(_tilted(tilt_deg)[2])), "gate": jnp.asarray(True)}
-        extra = float(paid.reward_terms(_state(paid), info)["height"] - plain.reward_terms(_state(plain), info)["height"])
-        assert extra == pytest.approx(1.5 if meets else 0.0, abs=1e-6), (tilt_deg, h)
-    with pytest.raises(ValueError, match="stage1_gate_reward"):
-        envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_gate_reward": -1.0})
+        terms = kneel_env._reward_terms(_state(kneel_env), _info(h, _tilted(tilt_deg), gate=jnp.asarray(True)))
+        assert float(terms["gate"]) == (1.0 if meets else 0.0), (tilt_deg, h)
 
 
-def test_stage1_upright_reward_slopes_to_the_gate_at_its_height():
-    """stage1_upright_reward (ours; 0 = the seed): × exp(−up error / 0.01) while the trunk is at the gate's
-    height: 1 upright, e⁻¹ at the gate's edge, falling with the tilt, nothing below the gate's height."""
-    plain = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
-    paid = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2,
-                                                "stage1_upright_reward": 2.0})
-    extra = []
-    for tilt_deg, h in ((0.0, 0.40), (0.573, 0.40), (2.0, 0.40), (0.0, 0.39)):
-        info = {"trunk_height": jnp.asarray(h), "waist_height": jnp.asarray(0.29), "up": jnp.asarray(_tilted(tilt_deg)),
-                "up_z": jnp.asarray(float(_tilted(tilt_deg)[2])), "gate": jnp.asarray(False)}
-        extra.append(float(paid.reward_terms(_state(paid), info)["height"]
-                           - plain.reward_terms(_state(plain), info)["height"]))
-    assert extra[0] == pytest.approx(2.0, rel=1e-4) and extra[1] == pytest.approx(2.0 / np.e, rel=1e-2)
-    assert 0.0 < extra[2] < 0.1 and extra[3] == 0.0
-    with pytest.raises(ValueError, match="stage1_upright_reward"):
-        envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_upright_reward": -1.0})
+def test_the_kneel_s_upright_term_slopes_to_the_gate_at_its_height(kneel_env):
+    """reward.scales.upright (ours; 0 = the seed): exp(−up error / 0.01) while the trunk is at the gate's height:
+    1 upright, e⁻¹ at the gate's edge, falling with the tilt, nothing below the gate's height."""
+    upright = [float(kneel_env._reward_terms(_state(kneel_env), _info(h, _tilted(deg), gate=jnp.asarray(False)))
+                     ["upright"]) for deg, h in ((0.0, 0.40), (0.573, 0.40), (2.0, 0.40), (0.0, 0.39))]
+    assert upright[0] == pytest.approx(1.0, rel=1e-4) and upright[1] == pytest.approx(1.0 / np.e, rel=1e-2)
+    assert 0.0 < upright[2] < 0.05 and upright[3] == 0.0
 
 
-def test_start_probabilities_per_stage(full_env):
+def test_start_probabilities_per_task(full_env, kneel_env, stand_env):
     assert full_env.start_probabilities() == pytest.approx([0.4, 0.4, 0.2])
-    s2 = envs.make("getup", config_overrides={"stage": "stage2"})
-    assert s2.start_probabilities() == [0.0, 1.0, 0.0]
-    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
-    assert s1.start_probabilities() == [1.0, 0.0, 0.0]                      # the seed's stage 1
-    s1_kneel = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2,
-                                                   "stage1_start_probs": [0.7, 0.3, 0.0]})
-    assert s1_kneel.start_probabilities() == pytest.approx([0.7, 0.3, 0.0])   # a kneeling share (ours)
-    assert envs.make("getup_baseline", config_overrides={"fallen.bank_starts": 2}).start_probabilities() == [1.0, 0, 0]
-    with pytest.raises(ValueError, match="stage"):
-        envs.make("getup", config_overrides={"stage": "stage3", "fallen.bank_starts": 2})
+    assert stand_env.start_probabilities() == [0.0, 1.0, 0.0]
+    assert kneel_env.start_probabilities() == [1.0, 0.0, 0.0]                      # the seed's stage 1
+    kneeling_share = envs.make("getup_kneel", config_overrides={**SMALL, "start_probs": [0.7, 0.3, 0.0]})
+    assert kneeling_share.start_probabilities() == pytest.approx([0.7, 0.3, 0.0])
+    assert envs.make("getup_baseline", config_overrides=SMALL).start_probabilities() == [1.0, 0, 0]
     with pytest.raises(ValueError, match="start_probs"):
-        envs.make("getup", config_overrides={"start_probs": [0.5, 0.5, 0.5], "fallen.bank_starts": 2})
+        envs.make("getup", config_overrides={**SMALL, "start_probs": [0.5, 0.5, 0.5]})
 
 
 def test_robustness_noise_is_unit_uniform_on_every_entry():
-    env = envs.make("getup", config_overrides={"fallen.bank_starts": 2, "obs_noise_scale": 1.0})
-    assert env._noise_level() == 1.0 and np.all(np.asarray(env._noise_scale) == 1.0)
-    assert envs.make("getup", config_overrides={"fallen.bank_starts": 2})._noise_level() == 0.0
+    env = envs.make("getup", config_overrides={**SMALL, "obs_noise_scale": 1.0})
+    assert np.all(np.asarray(env._noise_scale) == 1.0)
+    assert all(envs.default_config(t).obs_noise_scale == 0.0 for t in ("getup", "getup_kneel", "getup_stand"))
 
 
-def test_getup_actions_reach_the_kneel_keyframe_within_each_joint_range():
+def test_getup_actions_reach_the_kneel_keyframe_within_each_joint_range(stand_env):
     """±0.5 rad around home cannot reach the kneel (knee 1.9 vs 0.4 rad): the getup tasks use 2 rad per unit,
     capped per joint at the joint's range (what the runtime accepts), the kneel well inside tanh's ±1."""
-    env = envs.make("getup", config_overrides={"stage": "stage2"})
-    scale = np.asarray(env.manifest_fields()["action_scale"])
-    ranges = np.asarray(env._q_max - env._q_min)
+    scale = np.asarray(stand_env.manifest_fields()["action_scale"])
+    ranges = np.asarray(stand_env._q_max - stand_env._q_min)
     assert scale.shape == (23,) and np.all(scale <= ranges + 1e-6) and scale.max() == pytest.approx(2.0)
-    needed = (np.asarray(env._kneel_pose) - np.asarray(env._default_pose)) / scale
+    needed = (np.asarray(stand_env._kneel_qpos[7:]) - np.asarray(stand_env._default_pose)) / scale
     assert np.max(np.abs(needed)) < 0.8
     assert envs.make("joystick").manifest_fields()["action_scale"] == 0.5   # unchanged: one number
 
 
-def test_only_stage2_ends_when_the_trunk_falls_below_the_fall_height(full_env):
+def test_only_the_stand_task_ends_when_the_trunk_falls_below_the_fall_height(full_env, kneel_env, stand_env):
     """Stage 2 starts kneeling (trunk 0.405 m, upright): dropping below 0.35 m or tilting past up_z 0.7 ends
     it, so lying or leaning back with straight legs cannot pay. Stage 1 and the full task never end so."""
-    s2 = envs.make("getup", config_overrides={"stage": "stage2"})
-    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
-    fall_m = s2._config.stage2_fall_trunk_height_m
-    assert fall_m < s2._kneel_targets[0]          # the kneel start itself is not a fall
-    up_z = s2._config.stage2_fall_up_z
+    fall_m, up_z = stand_env.config.fall_trunk_height_m, stand_env.config.fall_up_z
+    assert fall_m < stand_env._kneel_targets[0]          # the kneel start itself is not a fall
     cases = ((fall_m - 0.01, 1.0, True), (fall_m + 0.01, 1.0, False), (0.405, 1.0, False), (0.67, 1.0, False),
              (0.405, up_z - 0.02, True), (0.405, up_z + 0.02, False), (0.32, 0.72, True))   # v5's leaning back
     for h, u, ends in cases:
         info = {"trunk_height": jnp.float32(h), "up_z": jnp.float32(u), "gate_height_met": jnp.asarray(True)}
-        assert bool(s2.fell_from_kneel(info)) is ends, (h, u)
-        assert not bool(s1.fell_from_kneel(info)) and not bool(full_env.fell_from_kneel(info))
+        assert bool(stand_env._terminated(info)) is ends, (h, u)
+        assert not bool(kneel_env._terminated(info)) and not bool(full_env._terminated(info))
 
 
-def test_stage1_ends_when_a_reached_kneel_sags_if_asked():
-    """stage1_drop_below_m (ours; 0 = the seed: stage 1 never ends early): once the trunk has been at the gate's
+def test_the_kneel_ends_when_a_reached_kneel_sags_if_asked():
+    """drop_below_gate_m (ours; 0 = the seed: stage 1 never ends early): once the trunk has been at the gate's
     height, dropping that far below it ends the episode; a rise still below it does not end."""
-    s1 = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_drop_below_m": 0.03})
+    s1 = envs.make("getup_kneel", config_overrides={**SMALL, "drop_below_gate_m": 0.03})
     for h, met, ends in ((0.36, True, True), (0.375, True, False), (0.36, False, False), (0.2, False, False)):
         info = {"trunk_height": jnp.float32(h), "up_z": jnp.float32(1.0), "gate_height_met": jnp.asarray(met)}
-        assert bool(s1.fell_from_kneel(info)) is ends, (h, met)
-    with pytest.raises(ValueError, match="stage1_drop_below_m"):
-        envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "stage1_drop_below_m": -0.1})
+        assert bool(s1._terminated(info)) is ends, (h, met)
+    with pytest.raises(ValueError, match="drop_below_gate_m"):
+        envs.make("getup_kneel", config_overrides={**SMALL, "drop_below_gate_m": -0.1})
 
 
 # ------------------------------------------------------------------ the failed-rise tracker
@@ -326,9 +318,9 @@ def test_failed_rises_count_as_the_events_definition(segments):
 
 
 def test_a_failed_rise_counts_once_in_the_metric():
-    """One step of the CPU-backend getup env from a state whose tracker holds an attempt that peaked 1 m up:
+    """One step of the CPU-backend getup task from a state whose tracker holds an attempt that peaked 1 m up:
     the trunk is far below peak − 0.15 m, so the attempt fails and the metric counts it."""
-    env = envs.make("getup", config_overrides={"backend": "cpu", "fallen.bank_starts": 2, "episode_length": 20})
+    env = envs.make("getup", config_overrides={**SMALL, "backend": "cpu"})
     assert "failed_rises" in env.metric_names()
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
     track = dict(state.info["rise_track"], down=jnp.asarray(True), rising=jnp.asarray(True),

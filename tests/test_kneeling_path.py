@@ -20,7 +20,7 @@ def model():
 
 @pytest.fixture(scope="module")
 def waypoints():
-    from training.envs.getup import default_config
+    from training.envs.getup_stand import default_config
     return default_config().reverse_curriculum.left_leg_waypoints
 
 
@@ -97,13 +97,13 @@ def test_bad_waypoints_are_refused(model):
             kneeling_path.path_points(model, home, kneel, bad)
 
 
-def test_stage2_env_draws_starts_up_to_max_progress_and_at_the_kneel():
+def test_the_stand_task_draws_starts_up_to_max_progress_and_at_the_kneel():
     import jax
     from training import envs
-    cfg = envs.default_config("getup")
-    cfg.stage, cfg.backend = "stage2", "cpu"
+    cfg = envs.default_config("getup_stand")
+    cfg.backend = "cpu"
     cfg.reverse_curriculum.max_progress = 1.0
-    env = envs.make("getup", config=cfg)
+    env = envs.make("getup_stand", config=cfg)
     qpos, _, kind = jax.vmap(env._start_state)(jax.random.split(jax.random.PRNGKey(0), 2000))
     qpos, kind = np.asarray(qpos), np.asarray(kind)
     at_kneel = kind == 1
@@ -113,33 +113,33 @@ def test_stage2_env_draws_starts_up_to_max_progress_and_at_the_kneel():
     left_knee = qpos[~at_kneel, env.mj_model.joint("Left_Knee_Pitch").qposadr[0]]
     assert left_knee.max() <= HALF_KNEEL_RAD[1] + 1e-5 and len(np.unique(np.round(left_knee, 4))) == 21
     cfg.reverse_curriculum.min_progress, cfg.reverse_curriculum.max_progress = 1.0, 2.0   # the swing only
-    swing = envs.make("getup", config=cfg)
+    swing = envs.make("getup_stand", config=cfg)
     bank = kneeling_path.path_bank(env.mj_model, np.asarray(env._home_qpos), np.asarray(env._kneel_qpos),
                                 cfg.reverse_curriculum.left_leg_waypoints, cfg.reverse_curriculum.bank_size)
     assert np.allclose(np.asarray(swing._path_bank), bank[20:], atol=1e-6)    # half kneel (p 1) … kneel
     cfg.reverse_curriculum.min_progress = 0.0
     cfg.reverse_curriculum.max_progress = 0.0      # off: the seed's start, every episode at the kneel
-    _, _, kind = jax.vmap(envs.make("getup", config=cfg)._start_state)(jax.random.split(jax.random.PRNGKey(0), 64))
+    _, _, kind = jax.vmap(envs.make("getup_stand", config=cfg)._start_state)(jax.random.split(jax.random.PRNGKey(0), 64))
     assert np.all(np.asarray(kind) == 1)
 
 
 def test_bad_curriculum_config_is_refused():
     from training import envs
-    cfg = envs.default_config("getup")
-    cfg.stage, cfg.backend = "stage2", "cpu"
+    cfg = envs.default_config("getup_stand")
+    cfg.backend = "cpu"
     cfg.reverse_curriculum.kneel_prob = 1.5
     with pytest.raises(ValueError, match="kneel_prob"):
-        envs.make("getup", config=cfg)
+        envs.make("getup_stand", config=cfg)
 
 
 def test_cpu_backend_resets_a_batch_whose_start_velocity_is_shared():
     """The path starts share one zero qvel; the CPU backend's reset callback must broadcast it (vmap)."""
     import jax
     from training import envs
-    cfg = envs.default_config("getup")
-    cfg.stage, cfg.backend = "stage2", "cpu"
+    cfg = envs.default_config("getup_stand")
+    cfg.backend = "cpu"
     cfg.reverse_curriculum.max_progress = 2.0
-    env = envs.make("getup", config=cfg)
+    env = envs.make("getup_stand", config=cfg)
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 8))
     assert state.data.qpos.shape == (8, env.mj_model.nq)
     assert np.all(np.asarray(state.info["trunk_height"]) > 0.35)

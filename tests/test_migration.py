@@ -1,6 +1,7 @@
-"""A saved run's configs come back in today's schema in one place (training/migration.py): every committed
-campaign's run state migrates and keeps what it trained with, a key it predates gets today's default, a renamed
-key is moved, and a removed or unknown key is refused by its name (unless a removed one is at its neutral value)."""
+"""A saved run's task and configs come back in today's schema in one place (training/migration.py): every committed
+campaign's run state migrates, keeps what it trained with and resumes, a getup run from before the getup tasks
+were split becomes its stage's task, a key it predates gets today's default, a renamed key is moved, and a removed
+or unknown key is refused by its name (unless a removed one is at its neutral value)."""
 from __future__ import annotations
 
 import json
@@ -19,34 +20,78 @@ def _leaves(tree, prefix=""):
     return migration._flatten(tree, prefix)
 
 
+def _moved(state) -> dict:
+    """old dotted path → (today's path, conversion) of a saved env config (RENAMED, and SPLIT for an old getup run)."""
+    stage = state["env_config"].get("stage", "full") if state["task"] == "getup" else None
+    renamed = {**migration.RENAMED["env"], **migration.SPLIT.get(stage, {}).get("renamed", {})}
+    return {old: new if isinstance(new, tuple) else (new, lambda v: v) for old, new in renamed.items()}
+
+
+def _removed(state) -> set:
+    stage = state["env_config"].get("stage", "full") if state["task"] == "getup" else None
+    return set(migration.REMOVED["env"]) | set(migration.SPLIT.get(stage, {}).get("removed", {}))
+
+
 @pytest.mark.parametrize("path", CAMPAIGN_STATES, ids=lambda p: f"{p.parent.parent.name}/{p.parent.name}")
 def test_every_campaign_run_state_migrates_and_keeps_its_settings(path):
     state = json.loads(path.read_text())
+    task = migration.run_task(state, str(path))
     ppo_cfg, env_cfg = migration.run_configs(state, str(path))
-    for what, saved, cfg, default in (
-            ("ppo", state["ppo_config"], ppo_cfg, ppo_config(state["task"], state["preset"])),
-            ("env", state["env_config"], env_cfg, envs.default_config(state["task"]))):
+    for cfg, default in ((ppo_cfg, ppo_config(task, state["preset"])), (env_cfg, envs.default_config(task))):
         assert set(_leaves(cfg.to_dict())) == set(_leaves(default.to_dict())), "today's keys, no more, no less"
-        today = _leaves(cfg.to_dict())
-        for old, new in migration.RENAMED[what].items():    # a renamed key keeps its saved value
-            if old in _leaves(saved):
-                assert today[new] == _leaves(saved)[old], (old, new)
-        removed = set(migration.REMOVED["env"]) | set(migration.REMOVED["ppo"])
-        for key, value in _leaves(saved).items():
-            if key in today and not any(key == r or key.startswith(r + ".") for r in removed):
-                assert list(today[key]) == list(value) if isinstance(value, list) else today[key] == value, key
+    today, saved = _leaves(env_cfg.to_dict()), _leaves(state["env_config"])
+    moved, removed = _moved(state), _removed(state)
+    for old, (new, convert) in moved.items():             # a renamed key keeps its saved value (converted)
+        if old in saved:
+            assert today[new] == convert(saved[old]), (old, new)
+    for key, value in saved.items():
+        if key in today and key not in moved and not any(key == r or key.startswith(r + ".") for r in removed):
+            assert list(today[key]) == list(value) if isinstance(value, list) else today[key] == value, key
+    for key, value in _leaves(state["ppo_config"]).items():
+        assert _leaves(ppo_cfg.to_dict())[key] == (tuple(value) if isinstance(value, list) else value), key
 
 
 def test_campaigns_are_there_to_migrate():
-    assert len(CAMPAIGN_STATES) >= 1     # getup stage 2 (v12); the student's DAgger stage keeps distill_state.json
+    assert len(CAMPAIGN_STATES) >= 3     # the kneel's stage 1 (rise_near, rise_mid) and stage 2 (stand)
+
+
+def test_a_getup_run_before_the_split_comes_back_as_its_stage_s_task():
+    """task "getup" with env_config "stage": stage 1 → getup_kneel with its stage-1 keys moved (its start mix,
+    gate and slope rewards, sag end), stage 2 → getup_stand, full → getup; the keys a stage never read are dropped,
+    the energy weight becomes the energy term's negative scale."""
+    old = {"stage": "stage1", "start_probs": [0.4, 0.4, 0.2], "stage1_start_probs": [0.7, 0.3, 0.0],
+           "stage2_start_probs": [0.0, 1.0, 0.0], "stage1_gate_reward": 1.0, "stage1_upright_reward": 0.5,
+           "stage1_drop_below_m": 0.03, "stage2_fall_trunk_height_m": 0.35, "stage2_fall_up_z": 0.7,
+           "gate_latches": True, "energy_weight": 0.01, "reverse_curriculum": {"max_progress": 2.0}}
+    state = {"task": "getup", "preset": "cpu", "ppo_config": {}, "env_config": old}
+    assert migration.run_task(state) == "getup_kneel"
+    env = migration.run_configs(state)[1]
+    assert list(env.start_probs) == [0.7, 0.3, 0.0] and env.drop_below_gate_m == 0.03
+    assert env.reward.scales.to_dict() == {"height": 1.0, "pose": 1.0, "gate": 1.0, "upright": 0.5, "energy": -0.01}
+    stand = {**state, "env_config": {"stage": "stage2", "stage2_fall_up_z": 0.6, "stage1_gate_reward": 1.0}}
+    assert migration.run_task(stand) == "getup_stand" and migration.run_configs(stand)[1].fall_up_z == 0.6
+    full = {**state, "env_config": {"gate_latches": False, "stage2_fall_up_z": 0.6, "energy_weight": 0.0}}
+    assert migration.run_task(full) == "getup"          # a run before "stage" existed: the full task
+    assert set(migration.run_configs(full)[1]) == set(envs.default_config("getup"))
+    with pytest.raises(migration.MigrationError, match=r"env\.stage='stage3'"):
+        migration.run_task({**state, "env_config": {"stage": "stage3"}}, "runs/x/run_state.json")
+
+
+@pytest.mark.parametrize("stage, latches", [("full", True), ("stage2", True), ("stage1", False)])
+def test_a_run_with_another_gate_than_its_task_s_is_refused(stage, latches):
+    """gate_latches is gone: the kneel task's gate latches, the others' is §4.8's per-step condition; a run made
+    the other way cannot go on as it was made (LESSONS.md, "Knobs and modules removed")."""
+    state = {"task": "getup", "preset": "cpu", "ppo_config": {},
+             "env_config": {"stage": stage, "gate_latches": latches}}
+    with pytest.raises(migration.MigrationError, match=rf"env\.gate_latches={latches}"):
+        migration.run_configs(state, "runs/old/run_state.json")
 
 
 def test_a_key_the_run_predates_gets_today_s_default():
-    saved = envs.default_config("getup").to_dict()
-    del saved["stage1_gate_reward"], saved["reverse_curriculum"]["min_progress"]
-    saved["stage"] = "stage1"
-    cfg = migration.migrate(saved, envs.default_config("getup"), "env")
-    assert cfg.stage1_gate_reward == 0.0 and cfg.reverse_curriculum.min_progress == 0.0 and cfg.stage == "stage1"
+    saved = envs.default_config("getup_kneel").to_dict()
+    del saved["reward"]["scales"]["upright"], saved["demo_starts"]["gated_only"], saved["action_space"]
+    cfg = migration.migrate(saved, envs.default_config("getup_kneel"), "env")
+    assert cfg.reward.scales.upright == 0.0 and cfg.demo_starts.gated_only is False and cfg.action_space == "full"
 
 
 def test_a_renamed_key_moves(monkeypatch):
@@ -74,20 +119,26 @@ def test_an_unknown_key_is_refused_by_name():
         migration.migrate(saved, envs.default_config("joystick"), "env")
 
 
-def test_a_campaign_checkpoint_resumes_on_today_s_code(tmp_path):
-    """The kneel campaign's stage-2 checkpoint (the cheapest env to build) goes on: its migrated configs build the
-    env and the network, and the call (at its target already: no PPO update) exports its params."""
+CAMPAIGN_RUNS = sorted(p.parent for p in CAMPAIGN_STATES)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("stored", CAMPAIGN_RUNS, ids=lambda p: f"{p.parent.name}/{p.name}")
+def test_every_stored_campaign_resumes_on_today_s_code(tmp_path, stored):
+    """Each stored campaign's checkpoint goes on: its migrated configs build its task's env and the network, and
+    the call (at its steps already: no PPO update) exports its params and saves the run back in today's schema."""
     import shutil
     from common.artifact import read_artifact
     from training import train
-    run = tmp_path / "stand"
-    shutil.copytree(ROOT / "training" / "campaigns" / "getup_keyframe" / "stand", run)
-    steps = json.loads((run / "run_state.json").read_text())["env_steps"]
-    result = train.train("getup", run, steps=steps, resume=True, progress=False, backend="mjx")
+    run = tmp_path / stored.name
+    shutil.copytree(stored, run)
+    state = json.loads((run / "run_state.json").read_text())
+    task, steps = migration.run_task(state), state["env_steps"]
+    result = train.train(task, run, steps=steps, resume=True, progress=False, backend="mjx")
     assert result.complete and result.env_steps == steps
     assert read_artifact(result.artifact)[3]["provenance"]["steps"] == steps
     state = json.loads((run / "run_state.json").read_text())
-    assert set(state["env_config"]) == set(envs.default_config("getup").to_dict())   # saved back in today's schema
+    assert state["task"] == task and set(state["env_config"]) == set(envs.default_config(task).to_dict())
 
 
 @pytest.mark.parametrize("key, value", [("gravity_scale", 0.5), ("upright_policy", "policies/joystick/joystick.safetensors"),

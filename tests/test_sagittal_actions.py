@@ -1,4 +1,4 @@
-"""The sagittal, mirrored action space of the getup env's stage 1 (training/envs/sagittal.py)."""
+"""The sagittal, mirrored action space (training/envs/sagittal.py) the kneel task's backplay learns in."""
 from __future__ import annotations
 
 import numpy as np
@@ -33,16 +33,15 @@ def test_the_kneel_is_in_the_sagittal_space():
     np.testing.assert_allclose(m @ reduced, delta, atol=1e-9)
 
 
-def test_getup_env_expands_the_policy_action():
-    env = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2,
-                                               "action_space": "sagittal"})
+def test_the_kneel_task_expands_the_policy_action():
+    env = envs.make("getup_kneel", config_overrides={"fallen.bank_starts": 2, "action_space": "sagittal"})
     assert env.action_size == len(sagittal.PITCH_JOINTS)
     a = np.linspace(-0.5, 0.5, env.action_size)
     np.testing.assert_allclose(np.asarray(env.full_action(a)), sagittal.expansion() @ a, rtol=1e-6)
-    full = envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2})
+    full = envs.make("getup_kneel", config_overrides={"fallen.bank_starts": 2})
     assert full.action_size == NUM_JOINTS
     with pytest.raises(ValueError, match="action_space 'mirrored' unknown"):
-        envs.make("getup", config_overrides={"stage": "stage1", "fallen.bank_starts": 2, "action_space": "mirrored"})
+        envs.make("getup_kneel", config_overrides={"fallen.bank_starts": 2, "action_space": "mirrored"})
 
 
 def test_a_sagittal_policy_exports_as_the_same_policy_over_the_23_joints(tmp_path):
@@ -71,8 +70,9 @@ def test_a_sagittal_policy_exports_as_the_same_policy_over_the_23_joints(tmp_pat
     obs = np.asarray(jax.random.normal(k_obs, (16, obs_size)), np.float32)
     brax_action = np.asarray(ppo_networks.make_inference_fn(nets)(params, deterministic=True)(
         jnp.asarray(obs), jax.random.PRNGKey(1))[0])
-    ours = ob.mlp_forward(layers, ob.normalize(obs, mean, std), manifest["activation"], manifest["output_rule"])
-    np.testing.assert_allclose(ours, brax_action @ sagittal.expansion().T, atol=1e-5)
+    runtime_action = ob.mlp_forward(layers, ob.normalize(obs, mean, std), manifest["activation"],
+                                    manifest["output_rule"])
+    np.testing.assert_allclose(runtime_action, brax_action @ sagittal.expansion().T, atol=1e-5)
     with pytest.raises(ValueError, match="sagittal: the policy's output layer has 46 outputs"):
         sagittal.expand_policy(jax.tree_util.tree_map(np.asarray, ppo_networks.make_ppo_networks(
             obs_size, NUM_JOINTS, policy_hidden_layer_sizes=(8,)).policy_network.init(k_pol)))

@@ -1,6 +1,6 @@
 """The start sources as a registry (training/envs/starts/): every source's module owns its config group and, for
-a share of the getup env's fallen starts, its bank function; the task configs hold exactly the registered groups,
-the getup env checks the shares before rolling anything, the recipe runner shrinks every registered bank at toy
+a share of a getup task's fallen starts, its bank function; the task configs hold exactly the registered groups,
+the getup tasks check the shares before rolling anything, the recipe runner shrinks every registered bank at toy
 size, and the evaluation's mid-fall starts are found by name."""
 from __future__ import annotations
 
@@ -18,14 +18,14 @@ def test_every_source_owns_its_config_group(source):
     group = config()
     assert group.get("prob", 0.0) == 0.0                                          # optional sources off by default
     assert not source.source_key or group[source.source_key] == ""
-    assert bank is None or source.tasks == ("getup",)                             # banks replace getup's fallen starts
+    assert bank is None or set(source.tasks) <= set(starts.GETUP_TASKS)           # banks replace fallen starts
     for task in source.tasks:
         assert envs.default_config(task)[source.group].to_dict() == group.to_dict()
     others = set(envs.TASKS) - set(source.tasks)
     assert not any(source.group in envs.default_config(task) for task in others)
 
 
-def test_the_getup_env_checks_the_shares_before_rolling_a_bank():
+def test_the_getup_task_checks_the_shares_before_rolling_a_bank():
     with pytest.raises(ValueError, match=r"knockdown_starts.prob > 0 needs knockdown_starts.joystick_policy"):
         envs.make("getup", config_overrides={"fallen.bank_starts": 2, "knockdown_starts.prob": 0.5})
     with pytest.raises(ValueError, match=r"knockdown_starts.prob must be in \[0, 1\]"):

@@ -147,7 +147,7 @@ def test_the_skills_reward_pays_each_expert_its_own_on_its_side_of_the_switch(sk
     data, info = _info_at(env, "kneel")                    # the kneel keyframe: the getup expert's, gate on
     reward, terms = env._skills_reward(data, jnp.zeros(obsdef.NUM_JOINTS), info)
     assert float(terms["standing"]) == 0.0 and float(terms["gate"]) == 1.0
-    height, pose = env.full_task_rewards(data.qpos[7:], info, jnp.ones((), bool))
+    height, pose = env.gated_rewards(data.qpos[7:], info, jnp.ones((), bool))
     assert float(terms["reward/getup"]) == pytest.approx(cfg.getup.scale * float(height + pose), rel=1e-4)
     assert 0.0 < float(terms["reward/getup"]) < bonus       # the switch is no wall to stay below
     with pytest.raises(ValueError, match="reward.mode 'walk'"):

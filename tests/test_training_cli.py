@@ -141,12 +141,11 @@ def toy_runs(tmp_path_factory):
     """Toy PPO runs of every task (joystick twice: the second call resumes it), a distillation and an
     evaluation, all through the CLI. Returns {name: run directory or output folder}."""
     root = tmp_path_factory.mktemp("toy_runs")
-    dirs = {t: root / t for t in ("joystick", "getup", "getup_baseline")}
+    dirs = {t: root / t for t in ("joystick", "getup_stand", "getup_baseline")}
     toy = ["--toy", "--no-progress", "--seed", "1"]
     _run_parallel({
         "joystick": ["train", "joystick", "--steps", str(TOY_STEPS), "--out", str(dirs["joystick"]), *toy],
-        "getup": ["train", "getup", "--stage", "stage2", "--steps", str(TOY_STEPS), "--out", str(dirs["getup"]),
-                  *toy]})
+        "getup_stand": ["train", "getup_stand", "--steps", str(TOY_STEPS), "--out", str(dirs["getup_stand"]), *toy]})
     dirs["boxed"], dirs["student"], dirs["eval"] = root / "boxed", root / "student", root / "eval"
     dirs["joystick_first"] = json.loads((dirs["joystick"] / checkpoints.RUN_STATE).read_text())["env_steps"]
     _run_parallel({
@@ -158,11 +157,11 @@ def toy_runs(tmp_path_factory):
         # the other PPO runs take the default backend (cpu here: no GPU); this one keeps MJX's PPO path tested
         "boxed": ["train", "joystick", "--backend", "mjx", "--steps", str(50 * TOY_STEPS), "--max-minutes", "0",
                   "--out", str(dirs["boxed"]), *toy],
-        "distill": ["distill", "--getup", str(dirs["getup"] / "getup_stage2.safetensors"), "--joystick",
+        "distill": ["distill", "--getup", str(dirs["getup_stand"] / "getup_stand.safetensors"), "--joystick",
                     str(dirs["joystick"]), "--out", str(dirs["student"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)",
                     "--name", "student_toy", *toy]})  # default --task: the unified env (no fallen starts: their precompute is slow)
     dirs["eval_joystick"] = root / "eval_joystick"
-    _run_parallel({"evaluate": ["evaluate", "--policy", str(dirs["getup"] / "getup_stage2.safetensors"),
+    _run_parallel({"evaluate": ["evaluate", "--policy", str(dirs["getup_stand"] / "getup_stand.safetensors"),
                                 "--baseline", str(dirs["getup_baseline"] / "getup_baseline.safetensors"),
                                 "--seeds", "2", "--seconds", "0.2", "--out", str(dirs["eval"])],
                    "evaluate_joystick": ["evaluate", "--task", "joystick", "--policy",
@@ -188,7 +187,7 @@ def test_the_epoch_after_a_calls_first_is_estimated_from_its_throughput():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("task", ["joystick", "getup", "getup_baseline"])
+@pytest.mark.parametrize("task", ["joystick", "getup_stand", "getup_baseline"])
 def test_toy_ppo_run_exports_an_artifact(toy_runs, task):
     run_dir = toy_runs[task]
     state = json.loads((run_dir / checkpoints.RUN_STATE).read_text())
@@ -304,7 +303,7 @@ def test_distill_goes_on_from_a_run(toy_runs, tmp_path, capsys):
     from training.distill import STATE_FILE
     first = json.loads((toy_runs["student"] / STATE_FILE).read_text())
     out = tmp_path / "more"
-    args = ["distill", "--getup", str(toy_runs["getup"] / "getup_stage2.safetensors"), "--joystick",
+    args = ["distill", "--getup", str(toy_runs["getup_stand"] / "getup_stand.safetensors"), "--joystick",
             str(toy_runs["joystick"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)", "--toy", "--no-progress",
             "--from", str(toy_runs["student"])]
     assert cli.main([*args, "--out", str(out)]) == 0
@@ -325,7 +324,7 @@ def test_a_killed_distillation_goes_on_from_its_newest_checkpoint(toy_runs, tmp_
     from training.distill import STATE_FILE, prior_progress
     first = json.loads((toy_runs["student"] / STATE_FILE).read_text())
     run_dir = tmp_path / "killed"
-    run_until_killed(["distill", "--getup", str(toy_runs["getup"] / "getup_stage2.safetensors"), "--joystick",
+    run_until_killed(["distill", "--getup", str(toy_runs["getup_stand"] / "getup_stand.safetensors"), "--joystick",
                       str(toy_runs["joystick"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)", "--config",
                       "bc.dagger_steps=2000", "--config", "bc.num_evals=1001", "--toy", "--no-progress",
                       "--from", str(toy_runs["student"]), "--out", str(run_dir)],
@@ -369,7 +368,7 @@ def test_evaluate_joystick_writes_the_tracking_table(toy_runs):
 def test_runtime_accepts_exported_artifacts(netns, toy_runs):
     if not RUNTIME.exists():
         pytest.skip(f"{RUNTIME} not built (make build)")
-    artifacts = [_artifact(toy_runs[t]) for t in ("joystick", "getup", "getup_baseline")]
+    artifacts = [_artifact(toy_runs[t]) for t in ("joystick", "getup_stand", "getup_baseline")]
     for path in artifacts + [toy_runs["student"] / "student_toy.safetensors"]:
         proc = subprocess.run([str(RUNTIME), "--policy", str(path), "--clock", "lockstep", "--duration", "0.1",
                                "--quiet"], capture_output=True, text=True, timeout=30)

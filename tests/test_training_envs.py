@@ -19,6 +19,8 @@ from training.envs import collision, motor
 OBS_SIZES = {  # actor size from the terms; critic = actor + base extras + task extras
     "joystick": (82, 82 + 37 + 2 + 6),
     "getup": (52, 52 + 37 + 2),
+    "getup_kneel": (52, 52 + 37 + 2),
+    "getup_stand": (52, 52 + 37 + 2),
     "getup_baseline": (52, 52 + 37 + 2),
     "unified": (82, 82 + 37 + 6),
 }
@@ -40,15 +42,20 @@ def env_by_task():
 
 # ------------------------------------------------------------------ API / config
 def test_tasks_and_configs():
-    assert envs.TASKS == ("joystick", "getup", "getup_baseline", "unified")
+    assert envs.TASKS == ("joystick", "getup", "getup_kneel", "getup_stand", "getup_baseline", "unified")
     for task in envs.TASKS:
         cfg = envs.default_config(task)
         assert cfg.ctrl_dt == pytest.approx(0.02) and cfg.sim_dt == pytest.approx(0.002)
         assert cfg.impl == "jax" and cfg.episode_length > 0
-    assert envs.default_config("getup").stage == "full"
-    assert envs.default_config("getup").energy_weight == 0.0
-    assert envs.default_config("getup").obs_noise_scale == 0.0
-    assert list(envs.default_config("getup").start_probs) == [0.4, 0.4, 0.2]
+    # the keyframe curriculum's three tasks as the seed runs them (§4.5): fallen → kneel, kneel → stand, the full
+    # task's mixed starts; no energy term, no observation noise until the fine-tunes
+    for task, probs in (("getup_kneel", [1.0, 0.0, 0.0]), ("getup_stand", [0.0, 1.0, 0.0]),
+                        ("getup", [0.4, 0.4, 0.2]), ("getup_baseline", [1.0, 0.0, 0.0])):
+        cfg = envs.default_config(task)
+        assert list(cfg.start_probs) == probs and cfg.reward.scales.energy == 0.0 and cfg.obs_noise_scale == 0.0
+        assert cfg.action_space == "full" and cfg.collision == "full_body", task
+    assert envs.default_config("getup_kneel").reward.scales.to_dict() == {
+        "height": 1.0, "pose": 1.0, "gate": 0.0, "upright": 0.0, "energy": 0.0}      # the seed's stage 1
     uni, joy = envs.default_config("unified"), envs.default_config("joystick")
     assert list(uni.start_probs) == [0.4, 0.4, 0.2] and uni.collision == "full_body"
     assert uni.episode_length == 1000 and uni.command_resample_steps == 500 and uni.zero_command_prob == 0.1
@@ -247,7 +254,7 @@ def test_joystick_rollout():
     assert float(states[-1].info["up_z"].min()) > 0.9  # three ticks from home: still upright
 
 
-@pytest.mark.parametrize("task", ["getup", "getup_baseline"])
+@pytest.mark.parametrize("task", ["getup", "getup_kneel", "getup_stand", "getup_baseline"])
 def test_getup_rollout(task):
     # on the CPU backend (MJX's getup step: tests/test_cpu_backend.py's evaluation parity test)
     env, states = _rollout(task, batch=3, backend="cpu")
@@ -256,8 +263,10 @@ def test_getup_rollout(task):
     for s in states:
         np.testing.assert_allclose(np.asarray(s.obs["state"]), _observation_reference(env, s, zeros3, phase0),
                                    atol=1e-5)
-        assert "success" in s.metrics
-        # both tasks count the standing steps of fallen-start episodes apart (the evaluation's aim)
+        # every task logs its scaled terms and the same bookkeeping
+        assert set(s.metrics) == {*(f"reward/{k}" for k in env.config.reward.scales), "failed_rises", "gate",
+                                  "gate_reached", "success", "success_from_kneel", "success_from_fallen"}
+        # every task counts the successes of fallen-start episodes apart (the evaluation's aim)
         np.testing.assert_array_equal(np.asarray(s.metrics["success_from_fallen"]),
                                       np.asarray(s.metrics["success"]) * (np.asarray(s.info["start_kind"]) == 0))
 

@@ -72,9 +72,9 @@ def test_a_target_jump_reaches_the_motors_at_the_runtimes_rate():
     10 ticks × 0.05 rad at most, as the deployed runtime would have sent (on MJX the same: the parity test
     of tests/test_cpu_backend.py, which compiles MJX's step anyway)."""
     import jax
-    cfg = envs.default_config("getup")
-    cfg.backend, cfg.stage = "cpu", "stage2"
-    env = envs.make("getup", config=cfg)
+    cfg = envs.default_config("getup_stand")
+    cfg.backend = "cpu"
+    env = envs.make("getup_stand", config=cfg)
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
     before = np.asarray(state.info["runtime_target"])
     after = np.asarray(jax.jit(env.step)(state, jnp.ones(23)).info["runtime_target"])

@@ -38,12 +38,12 @@ class ArtifactPolicy:
         """The artifact must command the motors the way the env's model does, or the rollout lies."""
         fields = env.manifest_fields()
         for key in keys:
-            ours, theirs = np.asarray(self.manifest[key], float), np.asarray(fields[key], float)
-            if ours.shape != theirs.shape and ours.size != 1:
-                raise ValueError(f"{self.path}: {key} has shape {ours.shape}, the env has {theirs.shape}")
-            if np.max(np.abs(ours - theirs)) > MATCH_TOLERANCE:
+            mine, env_value = np.asarray(self.manifest[key], float), np.asarray(fields[key], float)
+            if mine.shape != env_value.shape and mine.size != 1:
+                raise ValueError(f"{self.path}: {key} has shape {mine.shape}, the env has {env_value.shape}")
+            if np.max(np.abs(mine - env_value)) > MATCH_TOLERANCE:
                 raise ValueError(f"{self.path}: manifest {key} differs from the evaluation env's "
-                                 f"(max |Δ| = {np.max(np.abs(ours - theirs)):.3g})")
+                                 f"(max |Δ| = {np.max(np.abs(mine - env_value)):.3g})")
 
     @property
     def params(self):

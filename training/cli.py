@@ -10,18 +10,18 @@ import shlex
 import sys
 from typing import Sequence
 
-TASKS = ("joystick", "getup", "getup_baseline", "unified")  # = training.envs.TASKS (checked when the envs load)
-STAGES = ("stage1", "stage2", "full")
+# = training.envs.TASKS (checked when the envs load)
+TASKS = ("joystick", "getup", "getup_kneel", "getup_stand", "getup_baseline", "unified")
 RUNS_DIR = "runs"   # experiments' default home (ignored by git): = training.recipe_runner.RUNS_ROOT
 
 
 # ---------------------------------------------------------------- subcommands
 def _cmd_train(args, command: str) -> int:
     from training import train
-    out = args.out or f"{RUNS_DIR}/{args.name or args.task + (f'_{args.stage}' if args.stage else '')}"
+    out = args.out or f"{RUNS_DIR}/{args.name or args.task}"
     result = train.train(
         args.task, out, steps=args.steps, num_envs=args.envs, seed=args.seed, resume=args.resume,
-        max_minutes=args.max_minutes, overrides=args.config, stage=args.stage, from_checkpoint=args.from_,
+        max_minutes=args.max_minutes, overrides=args.config, from_checkpoint=args.from_,
         preset="toy" if args.toy else args.preset, ship=args.ship, name=args.name, command=command,
         progress=not args.no_progress, backend=args.backend)
     state = "complete" if result.complete else "stopped at a checkpoint (--max-minutes): run again with --resume"
@@ -132,7 +132,6 @@ def _add_train(sub) -> None:
     p.add_argument("--envs", type=int, help="parallel envs (default: the preset's, 8192 on GPU)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     p.add_argument("--max-minutes", type=float, help="stop at the last checkpoint that fits in this wall time")
-    p.add_argument("--stage", choices=STAGES, help="getup curriculum stage")
     p.add_argument("--from", dest="from_", metavar="CHECKPOINT",
                    help="initialise from a checkpoint folder or run directory (fine-tunes; steps restart at 0)")
     p.add_argument("--config", action="append", default=[], metavar="KEY=VALUE",
@@ -141,7 +140,7 @@ def _add_train(sub) -> None:
     p.add_argument("--preset", choices=("gpu", "cpu"), default="gpu",
                    help="PPO sizes: gpu (8192 envs, Playground's recipe) or cpu (256 envs, see train.py)")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
-    p.add_argument("--name", help="policy name (default: task, or getup_<stage>)")
+    p.add_argument("--name", help="policy name (default: the task)")
     p.add_argument("--ship", action="store_true",
                    help="when complete: copy the artifact to policies/<name>/ and append a row to its CARD.md")
     _common(p)

@@ -1,5 +1,5 @@
-"""A run's configs: the PPO presets (`ppo_config`) and the env's (`envs.default_config`), with `--stage` and
-`--config key=value` applied (`build_configs`). A saved run's configs come back through training/migration.py."""
+"""A run's configs: the PPO presets (`ppo_config`) and the env's (`envs.default_config`), with `--config
+key=value` applied (`build_configs`). A saved run's configs come back through training/migration.py."""
 from __future__ import annotations
 
 from typing import Sequence
@@ -36,7 +36,7 @@ def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
         policy_std_scale=1.0,
         # steps at the start of a run in which only the critic learns (the policy gets no gradient): a
         # fine-tune on new starts first fits the value of states the pretrained critic never saw, so the
-        # first policy updates do not follow its errors (issue 14: full getup from stage 2)
+        # first policy updates do not follow its errors (the full getup task from stage 2's policy)
         value_warmup_steps=0,
         # "normal" = a Gaussian around the mean the policy acts with (no tanh), std starting at init_noise_std
         # [action units]: the student's fine-tune (ppo_networks.py)
@@ -71,16 +71,12 @@ def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
     return cfg
 
 
-def build_configs(task: str, preset: str, stage: str | None, overrides: Sequence[str]):
-    """(ppo config, env config) with --stage and --config key=value applied."""
+def build_configs(task: str, preset: str, overrides: Sequence[str]):
+    """(ppo config, env config) with --config key=value applied."""
     from training import envs
     if task not in envs.TASKS:
         raise ValueError(f"task: {task!r} is not one of {envs.TASKS}")
     ppo_cfg, env_cfg = ppo_config(task, preset), envs.default_config(task)
-    if stage is not None:
-        if "stage" not in env_cfg:
-            raise ValueError(f"--stage: task {task!r} has no stages (only the getup task has)")
-        env_cfg.stage = stage
     if preset == "toy":
         env_cfg.update({k: v for k, v in TOY_ENV_OVERRIDES.items() if k in env_cfg})
     apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)

@@ -1,4 +1,4 @@
-"""Batched evaluation of a joystick ARTIFACT: fall rate and command tracking (issue 13's targets).
+"""Batched evaluation of a joystick ARTIFACT: fall rate and command tracking against the joystick expert's targets.
 
     python -m training evaluate --task joystick --policy policies/joystick/joystick.safetensors --seeds 256 \
         --seconds 20 --out out/eval_joystick [--backend cpu|mjx]
@@ -6,9 +6,9 @@
 The episodes are the joystick env's own (training/envs/joystick.py: randomised start pose and heading,
 commands drawn from the training ranges, zero with p 0.1, resampled every command_resample_steps) on flat
 ground, with the nominal model (no domain randomisation), no pushes and no observation noise: the policy
-is judged on tracking, not on robustness. Either physics backend steps them (default as `train`). Actions come from the ARTIFACT (common/observation.py's MLP
-with xp=jax.numpy on the env's clean actor observation, deterministic tanh(mean)), so this also checks
-the export.
+is judged on tracking, not on robustness. Either physics backend steps them (default as `train`). Actions
+come from the ARTIFACT (common/observation.py's MLP with xp=jax.numpy on the env's clean actor observation,
+deterministic tanh(mean)), so this also checks the export.
 
 Per episode: fell (common/events.py's fall: trunk below the fallen height), and while it has not
 fallen, the tracking errors in the trunk frame: linear ‖(vx, vy)_cmd − (vx, vy)‖ and yaw-rate |ω_cmd − ω_z|
@@ -29,7 +29,7 @@ from training.artifact_policy import ArtifactPolicy, policy_action
 SETTLE_S = 1.0  # [s] after a command change before "settled" tracking is counted
 STEP_RESPONSE_S = (0.0, 0.2, 0.4, 0.6, 1.0, 2.0)   # times after a mid-episode command change [s]
 YAW_BINS_RADPS = (0.0, 0.25, 0.5, 0.75, 1.0)   # |commanded yaw rate| bins of the yaw breakdown [rad/s]
-TARGETS = {"fall_rate": 0.05, "rms_lin_vel_mps": 0.15, "rms_yaw_rate_radps": 0.2}   # issue 13
+TARGETS = {"fall_rate": 0.05, "rms_lin_vel_mps": 0.15, "rms_yaw_rate_radps": 0.2}   # policies/joystick/CARD.md
 
 
 def eval_env(backend: str = "mjx"):

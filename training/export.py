@@ -29,10 +29,11 @@ def student_layers(policy) -> dict:
 
 def exported_policy(policy, ppo_config, env_config) -> tuple[dict, str]:
     """(policy params as the artifact's MLP, output rule) of a PPO run's policy: a fine-tuned student acts with
-    its mean (`linear`), any other PPO policy is brax's tanh-normal (a sagittal one expanded to the 23 joints)."""
+    its mean (`linear`), any other PPO policy is brax's tanh-normal (a sagittal one expanded to the 23 joints).
+    env_config: the run's in today's schema (training/migration.py)."""
     if ppo_config["policy_distribution"] == NORMAL:
         return student_layers(policy), "linear"
-    if env_config.get("action_space", "full") == "sagittal":
+    if env_config["action_space"] == "sagittal":
         return sagittal.expand_policy(policy), "tanh_normal"
     return policy, "tanh_normal"
 

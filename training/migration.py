@@ -1,28 +1,48 @@
-"""A saved run's configs brought to today's schema, in one place: resume and checkpoint export read a run's
-configs only through `run_configs`, so the envs and networks see today's keys and defend against no older run.
+"""A saved run's task and configs brought to today's schema, in one place: resume and checkpoint export read a
+run only through `run_task` and `run_configs`, so the envs and networks see today's keys and defend against no
+older run.
 
 * a key the run predates gets today's default (`envs.default_config(task)`, `configs.ppo_config(task, preset)`):
   every knob was added with the default that keeps the behaviour before it;
-* RENAMED maps a key's old dotted path to today's;
+* RENAMED maps a key's old dotted path to today's (with a conversion where its meaning's sign changed);
 * REMOVED lists the knobs of finished experiments (training/LESSONS.md names the removing commit). A run that set
   one to its neutral value (what the code did without the experiment) drops it silently: it trained as today's
   code trains. Any other value is refused with the key's name: the code that read it is gone, so the run cannot
   go on as it was made;
+* a getup run from before each getup stage had a task of its own (task "getup" with env_config "stage") becomes
+  a run of that stage's task (GETUP_STAGES); SPLIT moves its stage's keys to that task's and drops the keys its
+  stage never read (UNUSED) or refuses them as REMOVED does;
 * a key in none of these (a typo, a newer schema) is refused as well.
 """
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 from ml_collections import config_dict
 
 from training.configs import ppo_config
 
-# old dotted path → today's, per config ("env", "ppo")
-RENAMED: dict[str, dict[str, str]] = {
+
+def _cost_scale(weight):
+    """A cost's weight (subtracted) → its term's reward scale (added): the same reward."""
+    return -weight if weight else 0.0
+
+
+# old dotted path → today's (or (today's, conversion of the value)), per config ("env", "ppo")
+RENAMED: dict[str, dict[str, str | tuple[str, Callable]]] = {
     "env": {"fallen_bank_size": "fallen.bank_starts", "fallen_seed": "fallen.seed",
-            "fallen_prepare_s": "fallen.prepare_s"},
+            "fallen_prepare_s": "fallen.prepare_s", "energy_weight": ("reward.scales.energy", _cost_scale)},
     "ppo": {}}
+
+
+class _Unused:
+    """A removed key the run's task never read: dropped whatever its value."""
+
+    def __repr__(self) -> str:
+        return "unused"
+
+
+UNUSED = _Unused()
 
 # removed dotted path → its neutral value: a scalar the saved value must equal, or, for a group, the
 # {field: value} that switches the group off (its other fields are then irrelevant)
@@ -33,6 +53,27 @@ REMOVED: dict[str, dict[str, Any]] = {
             "push.torso_shove_prob": 0.0, "harness": {"stiffness_n_per_m": 0.0}, "rise_starts": {"prob": 0.0},
             "collapse_starts": {"prob": 0.0}, "prone_starts": {"prob": 0.0}},
     "ppo": {}}
+
+# getup runs before the split: env_config["stage"] (default "full") → today's task
+GETUP_STAGES = {"stage1": "getup_kneel", "stage2": "getup_stand", "full": "getup"}
+_STAGE1_KEYS = ("stage1_start_probs", "stage1_gate_reward", "stage1_upright_reward", "stage1_drop_below_m")
+_STAGE2_KEYS = ("stage2_start_probs", "stage2_fall_trunk_height_m", "stage2_fall_up_z")
+# per old stage: {"renamed": old → today's path, "removed": path → neutral value or UNUSED}. gate_latches: the
+# kneel task's gate latches, the others' is per step (LESSONS.md, "Knobs and modules removed")
+SPLIT: dict[str, dict[str, dict[str, Any]]] = {
+    "stage1": {"renamed": {"stage1_start_probs": "start_probs", "stage1_gate_reward": "reward.scales.gate",
+                           "stage1_upright_reward": "reward.scales.upright",
+                           "stage1_drop_below_m": "drop_below_gate_m"},
+               "removed": {"stage": UNUSED, "start_probs": UNUSED, **dict.fromkeys(_STAGE2_KEYS, UNUSED),
+                           "reverse_curriculum": UNUSED, "gate_latches": True, "knockdown_starts": {"prob": 0.0}}},
+    "stage2": {"renamed": {"stage2_start_probs": "start_probs", "stage2_fall_trunk_height_m": "fall_trunk_height_m",
+                           "stage2_fall_up_z": "fall_up_z"},
+               "removed": {"stage": UNUSED, "start_probs": UNUSED, **dict.fromkeys(_STAGE1_KEYS, UNUSED),
+                           "gate_latches": False, "knockdown_starts": {"prob": 0.0}, "demo_starts": {"prob": 0.0}}},
+    "full": {"renamed": {},
+             "removed": {"stage": UNUSED, **dict.fromkeys(_STAGE1_KEYS + _STAGE2_KEYS, UNUSED),
+                         "reverse_curriculum": UNUSED, "gate_latches": False, "demo_starts": {"prob": 0.0}}},
+}
 
 
 class MigrationError(ValueError):
@@ -51,6 +92,8 @@ def _flatten(tree: Mapping, prefix: str = "") -> dict[str, Any]:
 
 
 def _neutral(value, neutral) -> bool:
+    if neutral is UNUSED:
+        return True
     if isinstance(neutral, Mapping):
         return isinstance(value, Mapping) and all(value.get(k) == v for k, v in neutral.items())
     return value == neutral
@@ -78,15 +121,19 @@ def _drop_removed(saved: dict, removed: Mapping[str, Any], what: str, source: st
     return saved
 
 
-def migrate(saved: Mapping, default: config_dict.ConfigDict, what: str, source: str = "saved config"
+def migrate(saved: Mapping, default: config_dict.ConfigDict, what: str, source: str = "saved config",
+            renamed: Mapping[str, Any] | None = None, removed: Mapping[str, Any] | None = None
             ) -> config_dict.ConfigDict:
-    """`saved` (a run's config as JSON) on today's `default`: renamed keys moved, removed keys dropped or refused,
-    every key it lacks from `default`, every unknown one refused."""
-    saved = _drop_removed(saved, REMOVED[what], what, source)
+    """`saved` (a run's config as JSON) on today's `default`: renamed keys moved, removed keys dropped or refused
+    (RENAMED / REMOVED and the extra `renamed` / `removed`), every key it lacks from `default`, every unknown one
+    refused."""
+    saved = _drop_removed(saved, {**REMOVED[what], **(removed or {})}, what, source)
     flat = _flatten(saved)
-    for old, new in RENAMED[what].items():
+    for old, new in {**RENAMED[what], **(renamed or {})}.items():
         if old in flat:
-            flat[new] = flat.pop(old)
+            new, convert = new if isinstance(new, tuple) else (new, None)
+            value = flat.pop(old)
+            flat[new] = convert(value) if convert else value
     known = _flatten(default.to_dict())
     unknown = sorted(k for k in flat if k not in known and not any(k.startswith(p + ".") for p in known))
     if unknown:
@@ -102,9 +149,25 @@ def migrate(saved: Mapping, default: config_dict.ConfigDict, what: str, source: 
     return config_dict.ConfigDict(merged)
 
 
+def _getup_stage(state: Mapping, source: str) -> str | None:
+    """The keyframe stage of a getup run saved before the split (None: a run of today's tasks)."""
+    if state["task"] != "getup":
+        return None
+    stage = state["env_config"].get("stage", "full")
+    if stage not in GETUP_STAGES:
+        raise MigrationError(f"{source}: env.stage={stage!r} is none of the getup stages {', '.join(GETUP_STAGES)}")
+    return stage
+
+
+def run_task(state: Mapping, source: str = "run state") -> str:
+    """Today's task of a saved PPO run (its run_state.json)."""
+    stage = _getup_stage(state, source)
+    return state["task"] if stage is None else GETUP_STAGES[stage]
+
+
 def run_configs(state: Mapping, source: str = "run state") -> tuple[config_dict.ConfigDict, config_dict.ConfigDict]:
-    """(ppo config, env config) of a saved PPO run (its run_state.json) in today's schema."""
+    """(ppo config, env config) of a saved PPO run (its run_state.json) in today's schema, for run_task's task."""
     from training import envs
-    task = state["task"]
+    task, split = run_task(state, source), SPLIT.get(_getup_stage(state, source), {})
     return (migrate(state["ppo_config"], ppo_config(task, state["preset"]), "ppo", source),
-            migrate(state["env_config"], envs.default_config(task), "env", source))
+            migrate(state["env_config"], envs.default_config(task), "env", source, **split))

@@ -25,9 +25,8 @@ REF_PREFIX = "@"
 class Stage:
     name: str
     kind: str = "ppo"
-    task: str = ""                 # ppo: joystick | getup | getup_baseline; distill: the env (default unified)
+    task: str = ""                 # ppo: a task of training/envs (envs.TASKS); distill: the env (default unified)
     steps: int = 0                 # ppo: env steps of this stage; distill: DAgger phases
-    getup_stage: str | None = None    # getup: the keyframe curriculum's stage (stage1 | stage2 | full)
     init: str | None = None        # the stage to fine-tune from (this recipe's, or @RECIPE/STAGE); None = scratch
     config: Mapping[str, Any] = field(default_factory=dict)   # {"env.x": v, "ppo.y": v, "bc.z": v}: the diff
     # distill: {"getup": ref, "joystick": ref}; ppo: the same for a behaviour-cloning term (ppo.teacher.*)

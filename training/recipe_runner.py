@@ -140,8 +140,6 @@ def _overrides(config: dict, toy: bool) -> list[str]:
     return out
 
 
-
-
 def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: bool = False,
         max_minutes: float | None = None, backend: str | None = None, toy: bool = False, ship: bool = False,
         progress: bool = True) -> bool:
@@ -207,7 +205,7 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         preset = "toy" if toy else ("gpu" if (backend or train.default_backend()) == "mjx" else "cpu")
         train.train(s.task, out, steps=TOY_PPO_STEPS if toy else s.steps, num_envs=None if toy else s.envs,
                     resume=again, max_minutes=max_minutes, overrides=() if again else overrides,
-                    stage=s.getup_stage, from_checkpoint=None if again else init, preset=preset, name=name,
+                    from_checkpoint=None if again else init, preset=preset, name=name,
                     command=command, progress=progress, backend=backend, recipe=provenance,
                     advance_at=s.advance_at)
         return

@@ -1,5 +1,5 @@
-"""RL fine-tuning of the distilled student (issue 47 item 3; AHC, arXiv 2511.06371: distil, then fine-tune by
-RL on the student's own outcomes): PPO on the unified env's "skills" reward (training/envs/unified.py) from the
+"""RL fine-tuning of the distilled student (AHC, arXiv 2511.06371: distil, then fine-tune by RL on the student's
+own outcomes): PPO on the unified env's "skills" reward (training/envs/unified.py) from the
 DAgger weights, plus a behaviour-cloning term toward the stitched teacher's labels that decays, so the student
 keeps both skills while PPO changes what the teacher does badly (the seam at the waist switch).
 

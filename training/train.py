@@ -108,10 +108,6 @@ def next_epoch_estimate_s(epoch_s: float, epoch_steps: int, sps: float | None, f
     return epoch_s
 
 
-def run_name(task: str, env_cfg) -> str:
-    return f"{task}_{env_cfg.stage}" if task.startswith("getup") and "stage" in env_cfg else task
-
-
 @dataclass
 class _Run:
     """A call's run: its directory and state, its configs, the params it starts from and its PPO extension."""
@@ -126,11 +122,12 @@ class _Run:
 def _resume_run(task: str, run_dir: Path, steps, overrides: Sequence[str]) -> _Run:
     _check_resume_overrides(overrides)
     state = checkpoints.load_run_state(run_dir)
-    if state["task"] != task:
-        raise ValueError(f"--resume: {run_dir} is a {state['task']!r} run, not {task!r}")
-    ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
+    source = str(run_dir / checkpoints.RUN_STATE)
+    if migration.run_task(state, source) != task:
+        raise ValueError(f"--resume: {run_dir} is a {migration.run_task(state, source)!r} run, not {task!r}")
+    ppo_cfg, env_cfg = migration.run_configs(state, source)
     apply_overrides({"ppo": ppo_cfg, "env": env_cfg}, overrides)
-    state["ppo_config"], state["env_config"] = ppo_cfg.to_dict(), env_cfg.to_dict()
+    state["task"], state["ppo_config"], state["env_config"] = task, ppo_cfg.to_dict(), env_cfg.to_dict()
     if steps is not None:
         state["target_steps"] = int(steps)  # extending a finished run is allowed
     started = state["env_steps"] > 0
@@ -140,15 +137,15 @@ def _resume_run(task: str, run_dir: Path, steps, overrides: Sequence[str]) -> _R
     return _Run(run_dir, state, ppo_cfg, env_cfg, restored if started else ext.initial_params(restored), ext)
 
 
-def _new_run(task: str, run_dir: Path, *, steps, overrides, preset, stage, from_checkpoint, name, seed, recipe) -> _Run:
+def _new_run(task: str, run_dir: Path, *, steps, overrides, preset, from_checkpoint, name, seed, recipe) -> _Run:
     if (run_dir / checkpoints.RUN_STATE).exists():
         raise FileExistsError(f"{run_dir} already holds a run: pass --resume to continue it or pick another --out")
-    ppo_cfg, env_cfg = build_configs(task, preset, stage, overrides)
+    ppo_cfg, env_cfg = build_configs(task, preset, overrides)
     init = str(checkpoints.resolve_checkpoint(from_checkpoint)) if from_checkpoint else None
     restored = checkpoints.load_checkpoint(init) if init else None
     ext = student_finetune.extension(ppo_cfg, restored)
     params = ext.initial_params(restored)
-    state = {"task": task, "name": name or run_name(task, env_cfg), "preset": preset, "seed": seed,
+    state = {"task": task, "name": name or task, "preset": preset, "seed": seed,
              "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
              "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
              "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {}),
@@ -277,7 +274,7 @@ def _train_phases(run: _Run, env, epochs: _Epochs, seed: int) -> bool:
 
 def train(task: str, out, steps: int | None = None, num_envs: int | None = None, seed: int = 0,
           resume: bool = False, max_minutes: float | None = None, overrides: Sequence[str] = (),
-          stage: str | None = None, from_checkpoint=None, preset: str = "gpu", ship: bool = False,
+          from_checkpoint=None, preset: str = "gpu", ship: bool = False,
           name: str | None = None, command: str = "", progress: bool = True,
           backend: str | None = None, recipe: dict | None = None,
           advance_at: tuple[str, float] | None = None) -> TrainResult:
@@ -291,7 +288,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     if resume:
         run = _resume_run(task, run_dir, steps, overrides)
     else:
-        run = _new_run(task, run_dir, steps=steps, overrides=overrides, preset=preset, stage=stage,
+        run = _new_run(task, run_dir, steps=steps, overrides=overrides, preset=preset,
                        from_checkpoint=from_checkpoint, name=name, seed=seed, recipe=recipe)
     preset = run.state["preset"]  # a resumed toy run stays a toy run (and its artifact untrained)
     if advance_at is not None:

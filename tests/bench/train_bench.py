@@ -1,7 +1,7 @@
 """`make bench-train`: PPO throughput on the CPU backend against the raw physics rate, where the rest goes, and
 MJX on the same CPU.
 
-    python -m tests.bench.train_bench [--tasks joystick getup unified] [--updates N] [--quick]
+    python -m tests.bench.train_bench [--tasks joystick getup_stand unified] [--updates N] [--quick]
 
 For each task, in this process one after the other (same machine, same load):
 * the raw physics rate M: the CPU backend's batched C physics alone (firmware motor law and R6 in MuJoCo's
@@ -9,7 +9,7 @@ For each task, in this process one after the other (same machine, same load):
   changing every control step; the time inside `Batch.step` only;
 * a short `--preset cpu` PPO run of the real training code (training/train.py, brax's ppo.train, networks as
   shipped): N, the median of brax's per-epoch `training/sps` after the first (which includes compilation),
-  the number `python -m training train` records; R = N / M (issue: R ≥ 0.8 for getup and unified);
+  the number `python -m training train` records; R = N / M (target: R ≥ 0.8 for getup_stand and unified);
 * the run's profile: the shares of a steady env step's wall time spent in the C physics and in the host
   callback's copies (cpu_backend.PROFILE), in the env's JAX code, the policy pass and PPO's update (each timed
   alone at the run's sizes: train_profile.py), the rest (GAE, normaliser, PPO's loop); and each core's idle
@@ -27,8 +27,8 @@ import time
 
 import numpy as np
 
-TASK_STAGES = {"joystick": None, "getup": "stage2", "unified": None}
-TARGET_SHARE = {"getup": 0.8, "unified": 0.8}      # of the raw physics rate
+TASKS = ("joystick", "getup_stand", "unified")
+TARGET_SHARE = {"getup_stand": 0.8, "unified": 0.8}      # of the raw physics rate
 TARGET_MJX_RATIO = 8.0            # the CPU backend's PPO rate over MJX's on the same CPU
 STEPS_PER_UPDATE = 256 * 4 * 20   # --preset cpu: batch_size · num_minibatches · unroll_length
 RAW_CONTROL_STEPS = 40            # control steps of the raw-physics measurement (after one warm-up step)
@@ -46,8 +46,7 @@ def raw_physics_rate(task: str, num_envs: int, seed: int = 0) -> float:
     import jax
     from training import envs
     from training.envs import cpu_backend
-    over = {"backend": "cpu"} | ({"stage": TASK_STAGES[task]} if TASK_STAGES[task] else {})
-    env = envs.make(task, config_overrides=over)
+    env = envs.make(task, config_overrides={"backend": "cpu"})
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(seed), num_envs))
     qpos, qvel = np.asarray(state.data.qpos), np.asarray(state.data.qvel)
     warm, t = np.zeros_like(qvel), np.zeros(num_envs, np.float32)
@@ -73,7 +72,7 @@ def ppo_run(task: str, backend: str, updates: int) -> dict:
     jiffies, t0 = _cpu_jiffies(), time.monotonic()
     with tempfile.TemporaryDirectory(prefix=f"bench_{task}_{backend}_") as out:
         result = train.train(task, out, steps=STEPS_PER_UPDATE * (updates + 1), preset="cpu", backend=backend,
-                             stage=TASK_STAGES[task], progress=False,
+                             progress=False,
                              overrides=[f"ppo.checkpoint_every_steps={STEPS_PER_UPDATE}", "ppo.run_evals=False"])
     d = _cpu_jiffies() - jiffies
     p, sps = cpu_backend.PROFILE, result.env_steps_per_s
@@ -86,7 +85,7 @@ def main(argv=None) -> int:
     from training import configs
     from tests.bench import train_profile
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--tasks", nargs="+", choices=(*TASK_STAGES, "planner"), default=[*TASK_STAGES, "planner"],
+    ap.add_argument("--tasks", nargs="+", choices=(*TASKS, "planner"), default=[*TASKS, "planner"],
                     help="PPO tasks, and `planner`: DAgger's expert (tests/bench/planner_bench.py)")
     ap.add_argument("--updates", type=int, default=3, help="timed PPO updates per run (after a warm-up one)")
     ap.add_argument("--quick", action="store_true", help="CPU backend only (no MJX compile)")
@@ -103,7 +102,7 @@ def main(argv=None) -> int:
         verdict = f"   target ≥ {target:g}: {'met' if share >= target else 'NOT met'}" if target else ""
         print(f"{task:9s} PPO {run['sps']:,.0f} env-steps/s = {share:.2f} of the raw physics rate ({raw:,.0f})"
               + verdict)
-        parts = {k: s * run["sps"] for k, s in train_profile.profile(task, TASK_STAGES[task]).items()}
+        parts = {k: s * run["sps"] for k, s in train_profile.profile(task).items()}
         rest = 1.0 - run["physics"] - run["copies"] - sum(parts.values())
         print(f"{'':9s} physics {run['physics']:.0%}, callback copies {run['copies']:.0%}, "
               + "".join(f"{k} {v:.0%}, " for k, v in parts.items()) + f"rest {rest:.0%}; idle per core "

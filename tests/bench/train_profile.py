@@ -104,10 +104,10 @@ def update_s(env, cfg) -> float:
     return per_minibatch * cfg.num_updates_per_batch * cfg.num_minibatches / steps_per_update
 
 
-def profile(task: str, stage: str | None, preset: str = "cpu") -> dict[str, float]:
+def profile(task: str, preset: str = "cpu") -> dict[str, float]:
     """{part: seconds per env step} of a `preset` run of `task` (module docstring)."""
     from training import configs, envs
     cfg = configs.ppo_config(task, preset)
-    env = envs.make(task, config_overrides={"backend": "cpu"} | ({"stage": stage} if stage else {}))
+    env = envs.make(task, config_overrides={"backend": "cpu"})
     return {"env JAX": env_jax_s(env, cfg.num_envs), "policy pass": policy_pass_s(env, cfg),
             "update": update_s(env, cfg)}

@@ -1,19 +1,21 @@
 """MJX training envs for the T1 (JAX backend over mujoco_playground's MjxEnv).
 
     from training import envs
-    envs.TASKS                      # ("joystick", "getup", "getup_baseline", "unified")
-    cfg = envs.default_config("getup"); cfg.stage = "stage1"
-    env = envs.make("getup", cfg, config_overrides={"episode_length": 20})
+    envs.TASKS                      # ("joystick", "getup", "getup_kneel", "getup_stand", "getup_baseline", "unified")
+    cfg = envs.default_config("getup_kneel"); cfg.reward.scales.gate = 1.0
+    env = envs.make("getup_kneel", cfg, config_overrides={"episode_length": 20})
     env.observation_size            # {"state": (n_actor,), "privileged_state": (n_critic,)}
     env.manifest_fields()           # artifact manifest fields (policies/ARTIFACT.md)
     envs.domain_randomize           # brax randomization_fn(mjx_model, rng) -> (model, in_axes)
     envs.fallen_states(num, seed)   # seeded settled fallen (qpos, qvel), numpy, cached
 
-One file per task over base.py; rewards are small named functions (joystick_rewards.py,
-getup_rewards.py); configs are ml_collections ConfigDicts in Playground's style.
+One file per task over base.py (the getup tasks over getup_base.py); rewards are small named functions
+(joystick_rewards.py, getup_rewards.py) weighted by the config's `reward.scales`; configs are ml_collections
+ConfigDicts in Playground's style, a task's a diff of its base's.
 """
 from __future__ import annotations
 
+import importlib
 from typing import Callable
 
 from ml_collections import config_dict
@@ -21,22 +23,19 @@ from ml_collections import config_dict
 from training.envs.starts.fallen import fallen_states
 from training.envs.randomize import domain_randomize
 
-# unified: the distillation env (walk, get pushed, fall, get up in one episode; envs/unified.py).
-TASKS: tuple[str, ...] = ("joystick", "getup", "getup_baseline", "unified")
+# task → (module under training/envs, env class). getup_kneel and getup_stand are the keyframe curriculum's
+# stages 1 and 2, getup its gated full task; unified: the distillation env (walk, get pushed, fall, get up).
+_REGISTRY: dict[str, tuple[str, str]] = {
+    "joystick": ("joystick", "Joystick"), "getup": ("getup", "Getup"), "getup_kneel": ("getup_kneel", "GetupKneel"),
+    "getup_stand": ("getup_stand", "GetupStand"), "getup_baseline": ("getup_baseline", "GetupBaseline"),
+    "unified": ("unified", "Unified")}
+TASKS: tuple[str, ...] = tuple(_REGISTRY)
 
 
 def _module(task: str):
-    if task == "joystick":
-        from training.envs import joystick as mod
-    elif task == "getup":
-        from training.envs import getup as mod
-    elif task == "getup_baseline":
-        from training.envs import getup_baseline as mod
-    elif task == "unified":
-        from training.envs import unified as mod
-    else:
+    if task not in _REGISTRY:
         raise ValueError(f"unknown task {task!r}; valid: {', '.join(TASKS)}")
-    return mod
+    return importlib.import_module(f"training.envs.{_REGISTRY[task][0]}")
 
 
 def default_config(task: str) -> config_dict.ConfigDict:
@@ -45,9 +44,7 @@ def default_config(task: str) -> config_dict.ConfigDict:
 
 
 def env_class(task: str) -> Callable:
-    mod = _module(task)
-    return {"joystick": getattr(mod, "Joystick", None), "getup": getattr(mod, "Getup", None),
-            "getup_baseline": getattr(mod, "GetupBaseline", None), "unified": getattr(mod, "Unified", None)}[task]
+    return getattr(_module(task), _REGISTRY[task][1])
 
 
 def make(task: str, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None):

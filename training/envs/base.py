@@ -30,7 +30,8 @@ from mujoco_playground._src import mjx_env
 
 from common import model as t1model
 from common import observation as obsdef
-from training.envs import collision, cpu_backend, motor, wall_course
+from common.golden import DEFAULT_ACTION_SCALE
+from training.envs import collision, cpu_backend, motor, sagittal, wall_course
 
 BACKENDS = ("mjx", "cpu")
 FLOOR_GEOM = "floor"
@@ -50,7 +51,8 @@ def base_config() -> config_dict.ConfigDict:
         ctrl_dt=0.02,
         sim_dt=0.002,
         episode_length=1000,
-        action_scale=0.5,  # training/export.py DEFAULT_ACTION_SCALE: ±0.5 rad around home at |a| = 1
+        action_scale=DEFAULT_ACTION_SCALE,   # rad per unit action: ±0.5 around home at |a| = 1
+        action_space="full",   # the policy's action: "full" (23 joints) or "sagittal" (sagittal.py)
         collision="full_body",
         max_contacts=t1model.MJX_NCONMAX,
         max_geom_pairs=t1model.MJX_NCONMAX,
@@ -129,6 +131,8 @@ class T1Env(mjx_env.MjxEnv):
         self._q_min, self._q_max = jnp.asarray(ranges[:, 0]), jnp.asarray(ranges[:, 1])
         self._action_scale_np = capped_action_scale(cfg.action_scale, ranges)
         self._action_scale = jnp.asarray(self._action_scale_np, jnp.float32)
+        self._action_size = sagittal.action_size(cfg.action_space)
+        self._expansion = jnp.asarray(sagittal.expansion()) if cfg.action_space == "sagittal" else None
         self._d_safe = jnp.asarray(motor.D_SAFE_NMS)
         mid, half = 0.5 * (ranges[:, 0] + ranges[:, 1]), 0.5 * (ranges[:, 1] - ranges[:, 0]) * range_fraction
         self._range_lo, self._range_hi = jnp.asarray(mid - half), jnp.asarray(mid + half)
@@ -194,7 +198,11 @@ class T1Env(mjx_env.MjxEnv):
 
     @property
     def action_size(self) -> int:
-        return NUM_JOINTS
+        return self._action_size
+
+    def full_action(self, action: jax.Array) -> jax.Array:
+        """The 23 joints' action of the policy's: what every step reads (observations, targets, artifacts)."""
+        return action if self._expansion is None else self._expansion @ action
 
     @property
     def mj_model(self) -> mujoco.MjModel:

@@ -73,7 +73,7 @@ def load_expert(path, name: str | None = None) -> Expert:
     # a checkpoint has no manifest: its task's action map, from the terms (getup or joystick config)
     from common import model as t1model
     from training.envs import base
-    from training.envs.getup_config import GETUP_ACTION_SCALE_RAD
+    from training.envs.getup_base import GETUP_ACTION_SCALE_RAD
     scale = base.capped_action_scale(GETUP_ACTION_SCALE_RAD if terms == obsdef.TERMS_GETUP
                                      else base.base_config().action_scale,
                                      t1model.joint_ranges(t1model.load_model()))

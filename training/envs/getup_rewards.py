@@ -1,4 +1,5 @@
-"""The seed's getup rewards (thesis §4.7–4.8), each a small pure function (tests compute them by hand).
+"""The getup tasks' reward terms (thesis §4.7–4.8), each a small pure function (tests compute them by hand);
+a task's config weights them by `reward.scales` (envs/getup_base.py sums them × ctrl_dt).
 
 Height & orientation (§4.7), per body part p ∈ {torso, waist} with desired height h_p^des [m]:
     r_p      = 1 − clip((h_p^des − min(h_p, h_p^des)) / h_p^des, 0, 1)
@@ -7,19 +8,14 @@ Height & orientation (§4.7), per body part p ∈ {torso, waist} with desired he
     reward   = 2·r_ori·(r_height + 1) / 3
 Pose (§4.7): exp(−0.5·‖q − q_ref‖²) over the 23 joint angles [rad].
 Energy cost (§4.7): Σ_i |v_i · τ_i / τmax_i| [rad/s], used only in the energy fine-tune.
-Failed rise (ours, not the seed's): the rise tracker counts a getup attempt that fails by common/events.py's
-definitions (the trunk rose ATTEMPT_RISE_M from its low while down, then dropped ATTEMPT_RISE_M below the
-attempt's peak before a stand-up held STAND_HOLD_S): the getup env's metric failed_rises, and the unified env's
-reward.getup.failed_rise_cost.
-Gate (§4.8), exactly as written: height  0.4 − min(h_torso, 0.4) < 0.005 m   (i.e. h_torso > 0.395 m)
-                                   upright ‖u − e_z‖ < 0.01              (a tilt below 0.573°)
+Gate (§4.8): common/events.kneel_gate, the evaluations' own definition (trunk above 0.395 m, tilt below 0.573°).
 Gated terms (§4.8):
     Height Reward = (1 − gate)·HO(kneel targets) + gate·(1.83 + HO(standing targets: torso 0.67, waist 0.55))
     Pose Reward   = (1 − gate)·pose(q, q_kneel)  + gate·(0.6 + 100·pose(q, q_init))   (q_init: standing pose)
-
-`gate` is the per-step condition exactly as written. Whether it latches, the seed does not say: the getup
-env (training/envs/getup.py) latches it, with the measurement that made us choose so (a per-step gate,
-our first choice, unlearned the stand-up: a standing robot is rarely within 0.573° of vertical).
+Failed rise (ours, not the seed's): the rise tracker counts a getup attempt that fails by common/events.py's
+definitions (the trunk rose ATTEMPT_RISE_M from its low while down, then dropped ATTEMPT_RISE_M below the
+attempt's peak before a stand-up held STAND_HOLD_S): the getup tasks' metric failed_rises, and the unified env's
+reward.getup.failed_rise_cost.
 """
 from __future__ import annotations
 
@@ -27,9 +23,7 @@ import jax.numpy as jnp
 
 from common import events
 
-# the gate's numbers live with the event definitions, so the evaluations count gate passes the same way
 GATE_HEIGHT_M = events.KNEEL_GATE_HEIGHT_M            # torso height the gate checks [m]
-GATE_HEIGHT_TOL_M = events.KNEEL_GATE_HEIGHT_TOL_M    # 0.4 − min(h, 0.4) below this [m]
 GATE_UP_ERROR = events.KNEEL_GATE_UP_ERROR            # ‖u − e_z‖ below this
 STANDUP_HEIGHT_BONUS = 1.83    # gate·(1.83 + …) in the Height Reward
 STANDUP_POSE_BONUS = 0.6       # gate·(0.6 + …) in the Pose Reward
@@ -92,29 +86,25 @@ def up_error(up):
     return jnp.linalg.norm(up - jnp.array([0.0, 0.0, 1.0]), axis=-1)
 
 
-def gate(h_torso, up):
-    """(0.4 − min(h_torso, 0.4) < 0.005) ∧ (‖u − e_z‖ < 0.01), per step (see the module docstring)."""
-    return at_gate_height(h_torso) & (up_error(up) < GATE_UP_ERROR)
+def gate(h_torso, up_z):
+    """§4.8's gate at this step (common/events.kneel_gate under jax)."""
+    return events.kneel_gate(h_torso, up_z, jnp)
 
 
 def at_gate_height(h_torso):
     """The gate's height condition alone: 0.4 − min(h_torso, 0.4) < 0.005."""
-    return GATE_HEIGHT_M - jnp.minimum(h_torso, GATE_HEIGHT_M) < GATE_HEIGHT_TOL_M
+    return events.at_kneel_gate_height(h_torso, jnp)
+
+
+def latched_gate(gate_now, was_on, h_torso):
+    """The gate held since it was last met, until the trunk is down (below the fallen height)."""
+    return (gate_now | was_on) & (h_torso >= events.FALLEN_TRUNK_HEIGHT_M)
 
 
 def upright_at_gate_height(h_torso, up):
     """exp(−‖u − e_z‖ / the gate's 0.01) while the trunk is at the gate's height: a slope over the last degrees
-    to the gate (0.37 at its edge, 0.03 at 2°), where the orientation reward (a square of up_z) is flat."""
+    to the gate (0.37 at its edge, 0.03 at 2°), where the orientation reward (a square of up_z) is flat (ours)."""
     return at_gate_height(h_torso).astype(jnp.float32) * jnp.exp(-up_error(up) / GATE_UP_ERROR)
-
-
-def kneel_height_reward(gate_now, ho_kneel, gate_reward, upright_now=0.0, upright_reward=0.0):
-    """Stage 1's Height Reward: HO(kneel targets) + gate_reward while §4.8's gate holds this step +
-    upright_reward × upright_at_gate_height (both ours; 0 = the seed's). Why: holding the kneel keyframe's joint
-    angles under PD sags the trunk 1.25° (the gate wants 0.57°), which the pose term pays 0.999 of its best:
-    without a reward for the gate itself, stage 1 meets it only by chance, and without a slope toward it
-    only by exploring to it."""
-    return ho_kneel + gate_reward * gate_now.astype(jnp.float32) + upright_reward * upright_now
 
 
 def gated_height_reward(gate_ok, ho_kneel, ho_standing):

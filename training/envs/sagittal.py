@@ -1,11 +1,11 @@
-"""A sagittal, left-right mirrored action space (FRASA's reduced getup; the kneel issue's item 4).
+"""A sagittal, left-right mirrored action space (FRASA's reduced getup; ours: the kneel task's backplay uses it).
 
 The policy sets the pitch joints only, one value per left/right pair; every roll and yaw joint (head yaw,
-shoulder and hip roll, elbow and hip yaw, the waist, ankle roll) keeps its home target (action 0). Why: the
-planner's arrivals at the kneel are sprawled (hip yaw ±0.8 rad, waist ±1 rad) and two periods of PPO over all
-23 joints from them let the trunk sag below the gate; the kneel itself differs from home in hip, knee and ankle
-pitch only, and both sides' pitch joints share one axis, so mirroring is a copy. The env expands the action
-before anything reads it, so observations (last_action), targets and artifacts stay in the 23-joint contract.
+shoulder and hip roll, elbow and hip yaw, the waist, ankle roll) keeps its home target (action 0). Why: the kneel
+differs from home in hip, knee and ankle pitch only, and both sides' pitch joints share one axis, so mirroring is a
+copy; over all 23 joints the learner sprawled from the planner's arrivals and let the trunk sag below the gate
+(training/LESSONS.md). The env expands the action before anything reads it (base.T1Env.full_action), so
+observations (last_action), targets and artifacts stay in the 23-joint contract.
 """
 from __future__ import annotations
 

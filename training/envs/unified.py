@@ -2,8 +2,8 @@
 fine-tuned in (student_finetune.py).
 
 The seed's student learns the whole task, so one episode mixes what the two experts do: full-body collision;
-the getup expert's fallen / kneeling / standing starts (getup.GetupBase); the joystick env's commands and pushes
-(borrowed from joystick.Joystick); 1000-step episodes that end only on non-finite physics (the student must get
+the getup tasks' fallen / kneeling / standing starts (getup_base.GetupStarts); the joystick env's commands,
+pushes and reward terms (walking.Walking, a base of both); 1000-step episodes that end only on non-finite physics (the student must get
 up); actor observation TERMS_UNION (82). Ours, off by default: knockdown.prob of the pushes are as hard as the
 loop's push test (knockdown.KNOCKDOWN_MPS, or knockdown.shove "torso": the test's own torso shove), and
 walls.prob of the episodes walk into the low-wall course (wall_course.py) at a held forward command.
@@ -38,11 +38,10 @@ from training.envs.starts.bank import place
 from training.envs.starts.push import TorsoShove
 from training.envs import getup_rewards as G
 from training.envs import joystick_rewards as R
-from common.events import STAND_HOLD_S
-from training.envs.getup import START_KINDS, GetupBase
-from training.envs.getup_config import getup_common_config
-from training.envs.joystick import Joystick
+from training.envs.getup import default_config as getup_config
+from training.envs.getup_base import START_KINDS, GetupStarts
 from training.envs.joystick import default_config as joystick_config
+from training.envs.walking import Walking
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 METRIC_NAMES = ("reward/alive", "reward/height", "reward/tracking_lin_vel", "reward/tracking_ang_vel",
@@ -53,7 +52,7 @@ REWARD_MODES = ("monitor", "skills")
 
 
 def default_config() -> config_dict.ConfigDict:
-    getup, joy = getup_common_config(), joystick_config()
+    getup, joy = getup_config(), joystick_config()
     cfg = base.base_config()
     cfg.collision = "full_body"
     cfg.episode_length = 1000
@@ -89,20 +88,9 @@ def default_config() -> config_dict.ConfigDict:
     return cfg
 
 
-class Unified(GetupBase):
+class Unified(GetupStarts, Walking):
     """Getup starts + joystick commands and pushes on the full-body model; actor obs TERMS_UNION."""
 
-    # Borrowed as plain functions: they only read config fields this env also has (command_ranges,
-    # zero_command_prob, push) and info["push_step"/"push_interval_steps"], so walking episodes here
-    # draw commands and pushes from exactly the joystick env's distributions.
-    sample_command = Joystick.sample_command
-    _reward_terms = Joystick._reward_terms   # the "skills" reward above the switch
-    _scaled_reward_terms = Joystick._scaled_reward_terms
-    _feet_touchdown = Joystick._feet_touchdown
-    _feet_after_step = staticmethod(Joystick._feet_after_step)
-    _push_interval_steps = Joystick._push_interval_steps
-    _walking_push_magnitude = Joystick._push_magnitude
-    _advance_clock_and_command = Joystick._advance_clock_and_command
     SHOVES = ("velocity", "torso", "mixed")   # knockdown.shove
 
     def _wall_share(self) -> float:
@@ -127,8 +115,7 @@ class Unified(GetupBase):
         if self._reward_mode not in REWARD_MODES:
             raise ValueError(f"reward.mode {self._reward_mode!r}: one of {', '.join(REWARD_MODES)}")
         if self._reward_mode == "skills":
-            Joystick._init_reward_constants(self)
-            self._stand_hold_ticks = int(round(STAND_HOLD_S / self.dt))
+            self._init_reward_constants()
             self._progress_weight = self._config.reward.course.progress_weight
             self._walk_after_stand_up = bool(self._config.reward.walk_after_stand_up)
             if not self._config.reward.getup.scale > 0:
@@ -168,7 +155,7 @@ class Unified(GetupBase):
             **self.body_readings(data),
         }
         if self._reward_mode == "skills":
-            info.update(Joystick.initial_feet_info(), rise_track=G.rise_track_start(info["trunk_height"]),
+            info.update(self.initial_feet_info(), rise_track=G.rise_track_start(info["trunk_height"]),
                         course_best_x=qpos[0], course_credit_x=qpos[0])   # [m]: nothing banked at the start
         obs = self._observe(data, info, k_obs)
         names = SKILLS_METRIC_NAMES if self._reward_mode == "skills" else METRIC_NAMES
@@ -176,6 +163,7 @@ class Unified(GetupBase):
         return mjx_env.State(data, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
 
     def step(self, state: mjx_env.State, action: jax.Array) -> mjx_env.State:
+        action = self.full_action(action)
         info = dict(state.info)
         info["rng"], k_theta, k_mag, k_cmd, k_obs = jax.random.split(info["rng"], 5)
         data = self._apply_push(state.data, info, k_theta, k_mag)
@@ -202,10 +190,10 @@ class Unified(GetupBase):
         """The joystick env's push (with knockdown.shove "velocity", knockdown.prob of them knockdowns); with
         "torso", that share of the pushes is instead the loop's push-test shove ("mixed": torso_share of it)."""
         if self._torso_shove is None:
-            return Joystick._apply_push(self, data, info, k_theta, k_mag)
+            return super()._apply_push(data, info, k_theta, k_mag)
         k_pick, k_walk, k_shove = jax.random.split(k_mag, 3)
         due = jnp.mod(info["push_step"] + 1, info["push_interval_steps"]) == 0
-        walked = Joystick._apply_push(self, data, info, k_theta, k_walk)   # counts the push step, sets info["push"]
+        walked = super()._apply_push(data, info, k_theta, k_walk)   # counts the push step, sets info["push"]
         shove_prob = self._config.knockdown.prob * self._torso_share
         shoved = due & jax.random.bernoulli(k_pick, shove_prob) & bool(self._config.push.enable)
         dqvel = self._torso_shove.dqvel(data.qpos, k_shove)
@@ -217,11 +205,11 @@ class Unified(GetupBase):
         _apply_push) a knockdown (module docstring)."""
         k_walk, k_hard, k_pick = jax.random.split(rng, 3)
         if self._torso_share == 1.0:
-            return self._walking_push_magnitude(k_walk)
+            return super()._push_magnitude(k_walk)
         kd = self._config.knockdown
         hard = jax.random.uniform(k_hard, minval=kd.magnitude_range_mps[0], maxval=kd.magnitude_range_mps[1])
         knocked = jax.random.bernoulli(k_pick, kd.prob * (1.0 - self._torso_share))
-        return jnp.where(knocked, hard, self._walking_push_magnitude(k_walk))
+        return jnp.where(knocked, hard, super()._push_magnitude(k_walk))
 
     def _skills_reward(self, data, action, info):
         """The "skills" reward of the state after the step (module docstring) and its metrics; advances the
@@ -231,8 +219,8 @@ class Unified(GetupBase):
         standing = info["waist_height"] >= cfg.standing_waist_height_m
         walk = self._scaled_reward_terms(cfg.joystick_scales, data, action, info, first_contact, contact)
         joystick = jnp.maximum(sum(walk.values()), 0.0) + cfg.getup.scale * G.gated_reward_max()
-        gate = G.gate(info["trunk_height"], self.up_vector(data))
-        height, pose = self.full_task_rewards(data.qpos[7:], info, gate)
+        gate = G.gate(info["trunk_height"], info["up_z"])
+        height, pose = self.gated_rewards(data.qpos[7:], info, gate)
         getup = cfg.getup.scale * (height + pose - cfg.getup.energy_weight * self.energy_cost(data))
         info["rise_track"], failed = G.rise_track_step(info["rise_track"], info["trunk_height"], self.standing(info),
                                                        self._stand_hold_ticks)

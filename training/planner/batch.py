@@ -23,7 +23,7 @@ def build(overrides: list[str]):
     from training import envs
     cfg = planner_config.default_config()
     apply_overrides({"planner": cfg}, overrides)
-    env = envs.make("getup", config_overrides={"backend": "cpu", "stage": "stage1", "fallen.bank_starts": 1})
+    env = envs.make("getup_kneel", config_overrides={"backend": "cpu", "fallen.bank_starts": 1})
     fields = env.manifest_fields()
     planner = Planner(env.cpu_physics, cfg, np.asarray(fields["default_pose"]), np.asarray(fields["action_scale"]))
     return cfg, env, planner

@@ -20,5 +20,5 @@ RECIPE = Recipe(
                       "env.start_probs": [0.8, 0.0, 0.2]}),
         Stage("energy", task="getup_baseline", steps=13_557_760, init="stand",
               config={**QUIET, "ppo.discounting": 0.99, "ppo.value_warmup_steps": 500_000,
-                      "env.start_probs": [0.8, 0.0, 0.2], "env.energy_weight": 0.01}),
+                      "env.start_probs": [0.8, 0.0, 0.2], "env.reward.scales.energy": -0.01}),
     ))

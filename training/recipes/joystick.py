@@ -1,5 +1,5 @@
 """The joystick expert: MuJoCo Playground's T1 joystick recipe (domain randomisation on), then two fine-tunes
-that weigh and sharpen yaw-rate tracking (issue 13's yaw target)."""
+that weigh and sharpen yaw-rate tracking (to reach evaluate_joystick.py's yaw-rate target)."""
 from training.recipe import Recipe, Stage
 
 RECIPE = Recipe(

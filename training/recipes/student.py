@@ -1,7 +1,7 @@
 """The student: one network distilled by DAgger (Table 5.2 settings, the unified env) from the stitched
 teacher (getup expert below the 0.5 m waist switch, joystick expert above), then continued with knockdown
 pushes and wall-course episodes (ours): DAgger-3400, the walls stage's 400 phases.
-`finetune` (issue 47; training/student_finetune.py), what ships: PPO on the unified env's "skills" reward from
+`finetune` (training/student_finetune.py), what ships: PPO on the unified env's "skills" reward from
 those DAgger weights, critic warm-up first, a behaviour-cloning term toward the same teacher that decays over
 30 M steps (held in wall-course episodes; the stage stops at 3 M), starts mixing fallen, kneeling and standing
 states, knockdowns and the push test's torso shoves, and the low-wall course (CARD.md)."""

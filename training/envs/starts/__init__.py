@@ -1,14 +1,14 @@
 """Every way a training or evaluation episode can start, one module each in this folder, and their registry.
 
 A start source's module owns its config group (`<config>()`: its defaults, off where it is optional) and, where
-it replaces a share of the getup env's fallen starts, its bank (`<bank>(env, group)` → (qpos, qvel), rolled once
-when the env is built). The task configs, the getup env and the recipe runner read SOURCES instead of naming
+it replaces a share of a getup task's fallen starts, its bank (`<bank>(env, group)` → (qpos, qvel), rolled once
+when the env is built). The task configs, the getup tasks and the recipe runner read SOURCES instead of naming
 them; a new start source is a module and one line here. The evaluation's mid-fall starts (`evaluate --starts`)
 are LANDINGS: each a module's bank of where the joystick expert, pushed or walked into a wall, hands over.
 
   fallen.py         seeded fallen states after the runtime's PREPARE ramp (every getup task's fallen starts)
-  kneeling_path.py  stage 2's reverse curriculum along standing → half kneel → kneel
-  demos.py          states along the planner's rises to the kneel (stage 1's backplay)
+  kneeling_path.py  the stand task's reverse curriculum along standing → half kneel → kneel
+  demos.py          states along the planner's rises to the kneel (the kneel task's backplay)
   knockdown.py      the joystick expert knocked over by a velocity push, mid-fall
   push.py           the loop's push test (a torso impulse), mid-fall; the unified env's torso shove
   wall_approach.py  the low-wall course's approaches, and where the joystick expert falls over a wall
@@ -37,12 +37,14 @@ class StartSource:
         return getattr(mod, self.config), getattr(mod, self.bank) if self.bank else None
 
 
+GETUP_TASKS = ("getup", "getup_kneel", "getup_stand", "getup_baseline")
 SOURCES: tuple[StartSource, ...] = (
-    StartSource(("getup", "getup_baseline", "unified"), "fallen", "training.envs.starts.fallen", "fallen_config"),
-    StartSource(("getup",), "reverse_curriculum", "training.envs.starts.kneeling_path", "path_config"),
+    StartSource((*GETUP_TASKS, "unified"), "fallen", "training.envs.starts.fallen", "fallen_config"),
+    StartSource(("getup_stand",), "reverse_curriculum", "training.envs.starts.kneeling_path", "path_config"),
     StartSource(("getup",), "knockdown_starts", "training.envs.starts.knockdown", "knockdown_config",
                 "knockdown_starts", "joystick_policy"),
-    StartSource(("getup",), "demo_starts", "training.envs.starts.demos", "demo_config", "demo_starts", "folder"),
+    StartSource(("getup_kneel",), "demo_starts", "training.envs.starts.demos", "demo_config", "demo_starts",
+                "folder"),
     StartSource(("joystick",), "handover", "training.envs.starts.handover", "handover_config", "", "getup_policy"),
     StartSource(("unified",), "walls", "training.envs.starts.wall_approach", "walls_config"),
 )
@@ -64,11 +66,11 @@ def add_config_groups(cfg, task: str) -> None:
 
 
 def fallen_share_banks(env, cfg) -> list[tuple[float, tuple]]:
-    """(share of the fallen starts, (qpos, qvel)) of the getup sources switched on in `cfg`, in registry order;
-    the shares are checked before any bank is rolled."""
+    """(share of the fallen starts, (qpos, qvel)) of the banked sources whose group `cfg` holds, switched on, in
+    registry order; the shares are checked before any bank is rolled."""
     wanted = []
-    for s in sources("getup"):
-        if not s.bank:
+    for s in SOURCES:
+        if not s.bank or s.group not in cfg:
             continue
         group = cfg[s.group]
         if not 0.0 <= group.prob <= 1.0:

@@ -1,4 +1,5 @@
-"""Reverse curriculum for getup stage 2 (ours, not the seed's): starts along a path from standing to the kneel.
+"""Reverse curriculum for the stand task (getup_stand.py; ours, not the seed's): starts along a path from standing
+to the kneel.
 
 Why: stage 2 from the kneel alone (the seed's start) learned to hold the kneel and never stood
 (training/LESSONS.md). Standing up from this model's kneel (both knees and both toe tips
@@ -11,14 +12,12 @@ The path, by "progress" p in [0, 2]: joint angles piecewise linear between waypo
 point on the floor.
   p = 0     standing (the `home` keyframe)
   p = 1     half kneel: right leg as the kneel, left foot forward flat on the floor (left hip pitch −1.5,
-            knee 2.2, ankle −0.7 rad; foot pitch hip + knee + ankle = 0). Designed numerically (MuJoCo
-            4.0.0): the flat-footed left legs whose sole is level with the right knee; held by the shared
-            PD gains for 3 s it sinks 3 cm and stays at up_z ≥ 0.97 (tests/test_kneeling_path.py).
+            knee 2.2, ankle −0.7 rad; foot pitch hip + knee + ankle = 0): the flat-footed left leg whose sole is
+            level with the right knee, a pose the PD gains hold (tests/test_kneeling_path.py).
   p = 1 … 2 the left leg swings back to the kneel with its knee lifted and its shin folded (knee up to the
-            joint's 2.34 rad, ankle at −0.87), so the right knee stays on the floor (root within 6 mm of the
-            kneel's height over a 201-start bank), as when a person kneeling on both knees brings one foot
-            forward; a straight blend from the half kneel to the kneel would push the left toes through the
-            floor and lift the right knee by up to 9 cm.
+            joint's 2.34 rad, ankle at −0.87), so the right knee stays on the floor, as when a person kneeling
+            on both knees brings one foot forward; a straight blend from the half kneel to the kneel would push
+            the left toes through the floor and lift the right knee.
   p = 2     the `kneel` keyframe.
 Waypoints: config.reverse_curriculum.left_leg_waypoints, rows of (progress, left hip pitch, knee, ankle pitch).
 """
@@ -35,8 +34,8 @@ LEFT_LEG = ("Left_Hip_Pitch", "Left_Knee_Pitch", "Left_Ankle_Pitch")
 
 
 def path_config() -> config_dict.ConfigDict:
-    """Stage 2's reverse curriculum. max_progress 0 = off: every stage-2 episode starts at the kneel, as the
-    seed's. Else a start is drawn at progress U{min_progress … max_progress} along the path, or at the kneel with
+    """The stand task's reverse curriculum. max_progress 0 = off: every episode starts at the kneel, as the
+    seed's stage 2. Else a start is drawn at progress U{min_progress … max_progress} along the path, or at the kneel with
     kneel_prob, from a bank of `bank_size` points; min_progress > 0 spends the starts on the part still to learn
     (the swing, p 1 … 2). left_leg_waypoints: rows of (progress, left hip pitch, knee, ankle pitch [rad]); 1.0 is
     the half kneel, the rest swing the leg back with the knee lifted (module docstring)."""

@@ -1,0 +1,67 @@
+"""Getup stage 2, kneel → stand (thesis §4.5): Height = HO(standing targets: torso 0.67 m, waist 0.55 m),
+Pose = pose(q, q_init), from the kneel keyframe. The gate's 1.83 / 0.6 bonuses and 100· weight belong to the
+full task (§4.8, getup.py): without a gate they pay standing-like joint angles in any posture.
+
+Ours: an episode ends when the robot leaves the kneel downward (trunk below fall_trunk_height_m, or up_z below
+fall_up_z): stage 2's Pose pays straight legs in any posture, and without the end PPO learned to lie or lean
+back with straight legs (training/LESSONS.md, `getup_stage2`). Off by default: the reverse curriculum
+(`reverse_curriculum`, starts/kneeling_path.py) draws starts along a path from standing to the kneel.
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from ml_collections import config_dict
+
+from training.envs import getup_base, starts
+from training.envs import getup_rewards as G
+from training.envs.starts import kneeling_path
+
+
+def default_config() -> config_dict.ConfigDict:
+    cfg = getup_base.base_config()
+    cfg.start_probs = [0.0, 1.0, 0.0]      # (fallen, kneeling, standing): the seed's stage 2 starts kneeling
+    cfg.reward = config_dict.create(scales=config_dict.create(height=1.0, pose=1.0, energy=0.0))
+    cfg.fall_trunk_height_m = 0.35         # the episode ends with the trunk below this [m] (docstring)
+    cfg.fall_up_z = 0.7                    # ... or with the trunk's up_z below this (46° of tilt)
+    starts.add_config_groups(cfg, "getup_stand")   # fallen starts, the reverse curriculum
+    return cfg
+
+
+class GetupStand(getup_base.GetupTask):
+    """Stand up from the kneel keyframe."""
+
+    def __init__(self, config: config_dict.ConfigDict | None = None, config_overrides: dict | None = None,
+                 make_env=None):
+        super().__init__(config if config is not None else default_config(), config_overrides, make_env)
+        rc = self._config.reverse_curriculum
+        if not (0.0 <= rc.max_progress <= kneeling_path.PATH_END and 0.0 <= rc.kneel_prob <= 1.0):
+            raise ValueError(f"reverse_curriculum: max_progress must be in [0, {kneeling_path.PATH_END}] and "
+                             f"kneel_prob in [0, 1], got {rc.max_progress} and {rc.kneel_prob}")
+        self._path_bank = None
+        if rc.max_progress > 0:
+            rows = kneeling_path.bank_range(rc.min_progress, rc.max_progress, int(rc.bank_size))
+            bank = kneeling_path.path_bank(self._mj_model, np.asarray(self._home_qpos), np.asarray(self._kneel_qpos),
+                                           rc.left_leg_waypoints, int(rc.bank_size))
+            self._path_bank = jnp.asarray(bank[rows], jnp.float32)
+
+    def _reward_terms(self, data, info) -> dict[str, jax.Array]:
+        return {"height": self.height_orientation(info, self._standing_targets),
+                "pose": G.pose_reward(data.qpos[7:], self._default_pose),
+                "energy": self.energy_cost(data)}
+
+    def _terminated(self, info) -> jax.Array:
+        cfg = self._config
+        return (info["trunk_height"] < cfg.fall_trunk_height_m) | (info["up_z"] < cfg.fall_up_z)
+
+    def _start_state(self, rng):
+        """With the reverse curriculum on, a start drawn along the start path or at the kneel."""
+        if self._path_bank is None:
+            return super()._start_state(rng)
+        k_kneel, k_idx = jax.random.split(rng)
+        at_kneel = jax.random.uniform(k_kneel) < self._config.reverse_curriculum.kneel_prob
+        idx = jax.random.randint(k_idx, (), 0, self._path_bank.shape[0])
+        qpos = jnp.where(at_kneel, self._kneel_qpos, self._path_bank[idx])
+        # start_kind: the kneel is "kneeling"; a path start is counted with "standing" (it is on the way up)
+        return qpos, jnp.zeros(self._mj_model.nv), jnp.where(at_kneel, 1, 2).astype(jnp.int32)
