@@ -43,24 +43,23 @@ class Robots:
         self.b = physics.evaluation_batch(n)
 
     def copy_from(self, other: "Robots", rows=None) -> None:
-        """State (and R6's last targets) of `other`'s robots, row i of self from row rows[i] of other."""
-        rows = np.arange(self.n) if rows is None else rows
-        for f in STATE:
-            getattr(self.b, f)[:] = getattr(other.b, f)[rows]
-        nu = self.nu
-        self.b.userdata[:, nu:2 * nu] = other.b.userdata[rows, nu:2 * nu]
-        self.b.forward()
+        """State, wanted targets and R6's last targets of `other`'s robots, row i of self from row rows[i]."""
+        self._copy(other, np.arange(self.n), np.arange(self.n) if rows is None else rows)
 
     def take_rows(self, other: "Robots", mask: np.ndarray) -> None:
         """Rows where mask holds become other's same rows."""
         idx = np.flatnonzero(mask)
-        if idx.size == 0:
-            return
+        if idx.size:
+            self._copy(other, idx, idx)
+
+    def _copy(self, other: "Robots", dst: np.ndarray, src: np.ndarray) -> None:
         for f in STATE:
-            getattr(self.b, f)[idx] = getattr(other.b, f)[idx]
-        nu = self.nu
-        self.b.userdata[idx, nu:2 * nu] = other.b.userdata[idx, nu:2 * nu]
-        self.b.forward()
+            getattr(self.b, f)[dst] = getattr(other.b, f)[src]
+        both = slice(0, 2 * self.nu)
+        self.b.userdata[dst, both] = other.b.userdata[src, both]
+        last = self.b.userdata[:, self.nu:2 * self.nu].copy()
+        self.b.forward()        # fresh kinematics and sensors; its control callback moved R6's target: undone
+        self.b.userdata[:, self.nu:2 * self.nu] = last
 
     def step(self, q_des: np.ndarray) -> None:
         self.physics.write_targets(self.b, q_des)
