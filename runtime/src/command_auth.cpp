@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cinttypes>
 #include <cstdio>
@@ -264,6 +265,16 @@ bool CommandAuth::verify(Stream stream, const char* channel, const uint8_t* payl
   if (timestamp_us <= last) return false;
   last = timestamp_us;
   return true;
+}
+
+void CommandAuth::report(t1::controller_status_t& s) const {
+  s.command_auth.assign(describe_.data(), std::min(std::strlen(describe_.data()), s.command_auth.capacity()));
+  s.refused_no_key = refused(Refusal::kNoKey);
+  s.refused_unsigned = refused(Refusal::kUnsigned);
+  s.refused_unknown_sender = refused(Refusal::kUnknownSender);
+  s.refused_bad_tag = refused(Refusal::kBadTag);
+  s.refused_replayed = refused(Refusal::kReplayed);
+  s.refused_stale = refused(Refusal::kStale);
 }
 
 void CommandAuth::refuse(const char* what, int64_t sender_id) {

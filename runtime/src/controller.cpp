@@ -304,13 +304,7 @@ void Controller::publish_status(double now_s) {
   status_.joystick_age_ms = age_ms(transport_.joystick.have, transport_.joystick.stamp_s);
   status_.fault_bits = supervisor_.fault_bits();
   assign_bounded(status_.last_fault, supervisor_.last_fault());
-  assign_bounded(status_.command_auth, auth_.describe());
-  status_.refused_no_key = auth_.refused(Refusal::kNoKey);
-  status_.refused_unsigned = auth_.refused(Refusal::kUnsigned);
-  status_.refused_unknown_sender = auth_.refused(Refusal::kUnknownSender);
-  status_.refused_bad_tag = auth_.refused(Refusal::kBadTag);
-  status_.refused_replayed = auth_.refused(Refusal::kReplayed);
-  status_.refused_stale = auth_.refused(Refusal::kStale);
+  auth_.report(status_);
   if (message_changed_.load()) {
     std::unique_lock<std::mutex> lock(reload_mutex_, std::try_to_lock);
     if (lock.owns_lock()) {
@@ -324,14 +318,13 @@ void Controller::publish_status(double now_s) {
                   "signal), getup below %.2f m, active %s, switches %lld | ", transport_.sim_status.msg.waist_height,
                   kGetupSwitchWaistHeightM, member_name(member_), static_cast<long long>(member_switches_));
   // Who may command next to the mode: "commands unauthenticated" on a bench runtime, the last refusal.
-  char auth_info[240] = {0};
+  const char* bench = auth_.mode() == AuthMode::kUnauthenticated ? " | commands unauthenticated" : "";
   const char* refusal = auth_.last_refusal();
-  std::snprintf(auth_info, sizeof(auth_info), "%s%s%s%s", auth_.mode() == AuthMode::kUnauthenticated ? " | " : "",
-                auth_.mode() == AuthMode::kUnauthenticated ? "commands unauthenticated" : "", refusal[0] ? " | " : "", refusal);
-  char info[kStringReserve + 840];  // composite (160) + supervisor (160) + auth (240) + reload message + DDS reject (160)
+  char info[kStringReserve + 880];  // composite (160) + supervisor (160) + auth (230) + reload message + DDS reject (160)
   const char* dds_info = dds_ && dds_->rejected ? dds_->last_reject.data() : "";
-  std::snprintf(info, sizeof(info), "%s%s%s%s%s%s%s", composite_info, supervisor_.last_info(), auth_info,
-                reload_info_[0] ? " | " : "", reload_info_, dds_info[0] ? " | " : "", dds_info);
+  std::snprintf(info, sizeof(info), "%s%s%s%s%s%s%s%s%s", composite_info, supervisor_.last_info(), bench,
+                refusal[0] ? " | " : "", refusal, reload_info_[0] ? " | " : "", reload_info_, dds_info[0] ? " | " : "",
+                dds_info);
   assign_bounded(status_.info, info);
   transport_.publish(t1::CH_CONTROLLER_STATUS, status_);
   if (!opt_.quiet) post_live_line();

@@ -15,6 +15,7 @@
 #include <memory>
 #include <string>
 
+#include "t1/controller_status_t.hpp"
 #include "t1_contract.hpp"
 
 typedef struct evp_mac_ctx_st EVP_MAC_CTX;
@@ -94,6 +95,8 @@ class CommandAuth {
   int64_t refused(Refusal r) const { return refused_[static_cast<int>(r)]; }
   const char* last_refusal() const { return last_refusal_.data(); }  // "" until one
   const char* describe() const { return describe_.data(); }          // controller_status_t.command_auth
+  // controller_status_t.command_auth and refused_* (its strings' capacity reserved: no allocation).
+  void report(t1::controller_status_t& status) const;
 
  private:
   static int64_t wall_us();
