@@ -1,4 +1,4 @@
-"""`python -m sim_hil --viewer`: MuJoCo's own interactive viewer on the running simulation (issue 50, live view).
+"""`python -m sim_hil --viewer`: MuJoCo's own interactive viewer on the running simulation (a live view).
 
 The passive viewer renders on its own thread (GLFW, needs an X display; it does not use MUJOCO_GL, so it
 coexists with --record's offscreen osmesa/egl renderer). The sim's loop calls maybe_sync() after each tick;
