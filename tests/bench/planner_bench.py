@@ -34,8 +34,9 @@ def planner_row(seed: int = 123) -> str:
     n_rate, m_rate = prof.env_steps / wall, prof.env_steps / prof.physics_s
     per_label = got["cpu_s"] / len(got["obs"])
     verdict = "met" if per_label <= TARGET_CPU_S_PER_LABEL else "NOT met"
-    return (f"planner   env-steps/s {n_rate:,.0f} = {n_rate / m_rate:.2f} of the raw physics rate ({m_rate:,.0f}); "
-            f"{len(got['obs'])} labels at {per_label:.3f} CPU s each (target ≤ {TARGET_CPU_S_PER_LABEL:g}: {verdict})")
+    return (f"planner   env-steps/s {n_rate:,.0f} = {n_rate / m_rate:.2f} of the raw physics rate "
+            f"({m_rate:,.0f}); {len(got['obs'])} labels at {per_label:.3f} CPU s each "
+            f"(target ≤ {TARGET_CPU_S_PER_LABEL:g}: {verdict})")
 
 
 if __name__ == "__main__":

@@ -22,7 +22,6 @@ from training.planner import costs
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_DEMOS = REPO_ROOT / "training" / "campaigns" / "getup_keyframe" / "demos"   # the planner's stored rises
 STATE = "state.json"
-POLICY = "policy.npz"
 ARTIFACT = "getup_kneel_dagger.safetensors"
 DATA = "data"
 COLLECTED = "collected.json"
@@ -97,10 +96,10 @@ FIT_ONLY = ("fit", "rounds", "eval_seeds", "eval_seconds")   # settings that do 
 
 
 class Campaign:
-    """A DAgger run's folder: data/ (round_XX.npz and collected.json: the settings that made the data and each
-    round's rollout figures), policy.npz (the newest learner), state.json (the whole config and one row per
-    finished round), report.md and curve.png. A stopped run resumes at its next round; `refit` starts the rows
-    over with the current fit settings on the stored data, whose settings must match."""
+    """A DAgger run's folder: data/ (round_XX.npz from round 1 on, and collected.json: the settings that made the
+    data and each round's rollout figures), the newest learner as its artifact, state.json (the whole config and
+    one row per finished round), report.md and curve.png. A stopped run resumes at its next round; `refit` starts
+    the rows over with the current fit settings on the stored data, whose settings must match."""
 
     def __init__(self, folder: Path, cfg, planner_cfg, refit: bool = False):
         self.folder, self.cfg = Path(folder), cfg
@@ -137,8 +136,7 @@ class Campaign:
         (self.data / COLLECTED).write_text(json.dumps(self.collected, indent=1))
         return stats
 
-    def finish_round(self, row: dict, learner) -> None:
-        learner.save(self.folder / POLICY)
+    def finish_round(self, row: dict) -> None:
         self.state["rounds"].append(row)
         (self.folder / STATE).write_text(json.dumps(self.state, indent=1))
         from training.imitation import report
@@ -154,12 +152,10 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
     p = teacher.p
     started = time.monotonic()
     last = int(cfg.rounds) if rounds is None else min(int(rounds), int(cfg.rounds))
-    if not dataset.round_path(data, 0).exists():
-        dataset.save_round(data, 0, *dataset.demonstration_pairs(demos))
-    obs0, _ = dataset.load_round(data, 0)
+    obs0, _ = dataset.demonstration_pairs(demos)
     learner = new_learner(obs0, list(cfg.fit.hidden_layer_sizes), int(cfg.fit.seed), fields, p.lo, p.hi)
     if camp.next_round > 0:
-        learner = load_learner(camp.folder / POLICY, learner)
+        learner = load_learner(camp.folder / ARTIFACT, learner)
     while camp.next_round < last:
         if max_minutes is not None and time.monotonic() - started > 60.0 * max_minutes:
             log(f"imitation: --max-minutes {max_minutes:g} reached before round {camp.next_round}")
@@ -177,7 +173,7 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
                               np.random.default_rng([int(cfg.seed), k]))
                 stats = camp.store_round(k, got, n)
             row.update(stats)
-        obs, q = dataset.aggregate(data, k + 1)
+        obs, q = dataset.aggregate(data, demos, k + 1)
         learner, loss = fit(learner, obs, learner.label_actions(q), cfg.fit, int(cfg.fit.seed) + k)
         row.update(labels_total=len(obs), fit_loss=round(loss[-1], 4))
         artifact = camp.folder / ARTIFACT
@@ -186,6 +182,6 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
                                   float(cfg.eval_seconds)))
         spent = sum(r.get("label_cpu_s", 0.0) for r in camp.state["rounds"]) + row.get("label_cpu_s", 0.0)
         row.update(cpu_hours_total=round(spent / 3600.0, 3), minutes=round((time.monotonic() - t0) / 60.0, 1))
-        camp.finish_round(row, learner)
+        camp.finish_round(row)
         log("imitation: " + json.dumps(row))
     return camp.state

@@ -1,7 +1,8 @@
 """DAgger's aggregated data set on disk: per round one file of observations and the planner's joint targets,
 float16 (the observation's joint velocities to 0.01 rad/s and targets to 1e-3 rad; the fit reads what is stored,
 so a run resumed on another machine fits the same numbers). Nothing derivable is stored: the labels' actions
-come from the targets through the learner's action map. Round 0 is the planner's stored demonstrations."""
+come from the targets through the learner's action map. Round 0 is the planner's stored demonstrations, read from
+their folder (rounded the same way, so the fit does not depend on where they came from)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -27,7 +28,12 @@ def demonstration_pairs(folder: Path) -> tuple[np.ndarray, np.ndarray]:
         d = planner_demos.load(path)
         obs.append(d.obs[:len(d.targets)])
         q.append(d.targets)
-    return np.concatenate(obs), np.concatenate(q)
+    return _stored(np.concatenate(obs)), _stored(np.concatenate(q))
+
+
+def _stored(x: np.ndarray) -> np.ndarray:
+    """As a round's file holds it, back in float32."""
+    return x.astype(DTYPE).astype(np.float32)
 
 
 def save_round(folder: Path, k: int, obs: np.ndarray, q_des: np.ndarray) -> Path:
@@ -51,7 +57,7 @@ def load_round(folder: Path, k: int) -> tuple[np.ndarray, np.ndarray]:
     return obs, q
 
 
-def aggregate(folder: Path, rounds: int) -> tuple[np.ndarray, np.ndarray]:
-    """Rounds 0 … rounds − 1 together."""
-    parts = [load_round(folder, k) for k in range(rounds)]
+def aggregate(folder: Path, demos: Path, rounds: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rounds 0 (the demonstrations in `demos`) … rounds − 1 together."""
+    parts = [demonstration_pairs(demos)] + [load_round(folder, k) for k in range(1, rounds)]
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])

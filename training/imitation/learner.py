@@ -44,11 +44,6 @@ class Learner:
         return np.clip(obsdef.targets_to_action(self.default_pose, self.action_scale, q_des),
                        -ACTION_LIMIT, ACTION_LIMIT)
 
-    def save(self, path: Path) -> None:
-        flat = {f"{layer}/{k}": np.asarray(v, np.float32)
-                for layer, kv in self.params["params"].items() for k, v in kv.items()}
-        np.savez(path, obs_mean=self.obs_mean, obs_std=self.obs_std, **flat)
-
     def export(self, path: Path, manifest_fields: dict) -> str:
         from training.export import export_brax_ppo
         norm = SimpleNamespace(mean=self.obs_mean, std=self.obs_std)
@@ -68,16 +63,14 @@ def new_learner(obs: np.ndarray, hidden: list[int], seed: int, env_fields: dict,
                    lo=np.asarray(lo), hi=np.asarray(hi))
 
 
-def load_learner(path: Path, like: Learner) -> Learner:
-    """A saved learner's params and normaliser, the action map of `like`."""
-    z = np.load(path)
-    params: dict = {}
-    for key in z.files:
-        if "/" in key:
-            layer, k = key.split("/")
-            params.setdefault(layer, {})[k] = z[key]
-    return Learner(params={"params": params}, obs_mean=z["obs_mean"], obs_std=z["obs_std"],
-                   default_pose=like.default_pose, action_scale=like.action_scale, lo=like.lo, hi=like.hi)
+def load_learner(artifact: Path, like: Learner) -> Learner:
+    """The learner an artifact of `export` holds (its layers are brax's, the scale half included), with the
+    action map of `like`."""
+    from common.artifact import read_artifact
+    layers, mean, std, _ = read_artifact(artifact)
+    params = {f"hidden_{i}": {"kernel": np.ascontiguousarray(w.T), "bias": b} for i, (w, b) in enumerate(layers)}
+    return Learner(params={"params": params}, obs_mean=mean, obs_std=std, default_pose=like.default_pose,
+                   action_scale=like.action_scale, lo=like.lo, hi=like.hi)
 
 
 def fit(learner: Learner, obs: np.ndarray, actions: np.ndarray, cfg, seed: int) -> tuple[Learner, list[float]]:

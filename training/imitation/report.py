@@ -6,8 +6,9 @@ from pathlib import Path
 
 COLUMNS = (("round", "round"), ("beta", "β"), ("labels", "labels"), ("labels_total", "labels in total"),
            ("cpu_s_per_label", "CPU s per label"), ("cpu_hours_total", "labelling CPU h in total"),
-           ("rollouts_met_gate", "rollouts that met the gate (β mixture)"), ("fit_loss", "fit loss (share of var)"),
-           ("reached_kneel", "reached the kneel (batch)"), ("face_down", "… face down"), ("on_back", "… on the back"),
+           ("rollouts_met_gate", "rollouts that met the gate (β mixture)"),
+           ("fit_loss", "fit loss (share of var)"), ("reached_kneel", "reached the kneel (batch)"),
+           ("face_down", "… face down"), ("on_back", "… on the back"),
            ("median_peak_trunk_m", "median peak trunk height [m]"))
 
 
