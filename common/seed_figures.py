@@ -47,7 +47,7 @@ _PUSH_F = "Table 6.5; Table 6.6's per-trial lists give means 1.15 and 3.45"
 _PUSH_B = "Table 6.7; std computed from Table 6.8"
 SEED_FIGURES: dict[str, dict[str, SeedFigure]] = {
     "getup": {
-        "success rate": SeedFigure("100 %", None, "issue 16's target (every getup of the seed's ch. 6 succeeded)"),
+        "success rate": SeedFigure("100 %", None, "the project's target (every getup of the seed's ch. 6 succeeded)"),
         "energy Σ|τ·q̇|·dt [J]": _t43("Average Energy Sum"),
         "max energy per tick [J]": _t43("Average Max Energy"),
         "max torque [N·m]": _t43("Average Max Torques"),

@@ -157,7 +157,7 @@ def test_rejects_gains_over_limits(tmp_path):
     ({"provenance": {"git_commit": "x"}}, "provenance"),
     ({"command_ranges": {"vx": [1, -1], "vy": [0, 0], "yaw_rate": [0, 0]}}, "command_ranges"),
     ({"content_hash": "0" * 64}, "content_hash"),
-    ({"action_scale": 1e6}, "action_scale"),            # issue 17: the runtime's documented maxima
+    ({"action_scale": 1e6}, "action_scale"),            # the runtime's documented maxima
     ({"action_scale": -0.5}, "action_scale"),
     ({"gait_frequency": 1e4}, "gait_frequency"),
     ({"command_ranges": {"vx": [-1e9, 1e9], "vy": [0, 0], "yaw_rate": [0, 0]}}, "command_ranges"),

@@ -143,7 +143,7 @@ def test_numpy_and_jax_agree_under_jit_and_vmap():
 
 
 # The float64 reference outputs go through BLAS matmuls and SIMD tanh/exp whose last digits differ between
-# x86-64 CPUs (issue 17: 1.3e-13 on the action between two machines). A fresh write must equal the committed
+# x86-64 CPUs (1.3e-13 on the action between two machines). A fresh write must equal the committed
 # file up to this absolute tolerance: ~1000x that noise, 1e5x below the 1e-5 C++ parity the file exists for,
 # so no real change of the pipeline can hide in it. Everything else (keys, sizes, inputs, text fields,
 # the artifact's bytes) must be identical.

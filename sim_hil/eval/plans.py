@@ -24,7 +24,7 @@ GETUP_SECONDS = 12.0            # 2 s PREPARE ramp + 10 s to get up
 # push: 20 forward and 10 backward torso impulses (the draw: common/push_test.py)
 PUSH_FORWARD, PUSH_BACKWARD = 20, 10
 PUSH_SECONDS = 16.0
-# walk: the joystick expert's in-the-loop targets (issue 13), standing starts on flat ground
+# walk: the joystick expert's in-the-loop targets (policies/joystick/CARD.md), standing starts on flat ground
 WALK_SECONDS = 20.0
 WALK_FORWARD_MPS = 0.4
 WALK_YAW_RPS = 0.5
@@ -163,7 +163,7 @@ def push_rows(trials: list[TrialResult]) -> dict[str, str]:
 WALK_CONDITIONS = (   # tag, vx [m/s], yaw rate [rad/s], clock, stops (zero command after WALK_STOP_AT)
     ("forward", WALK_FORWARD_MPS, 0.0, "lockstep", False), ("stand", 0.0, 0.0, "lockstep", False),
     ("turn", 0.0, WALK_YAW_RPS, "lockstep", False), ("forward realtime", WALK_FORWARD_MPS, 0.0, "realtime", False),
-    # not an issue-13 target: stopping from a walk (a joystick expert once fell after its stop in make demo)
+    # not a card target: stopping from a walk (a joystick expert once fell after its stop in make demo)
     ("walk, turn, stop", WALK_FORWARD_MPS, WALK_YAW_RPS, "lockstep", True))
 
 

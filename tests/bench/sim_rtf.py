@@ -1,7 +1,7 @@
 """Lockstep real-time factor of the full-collision simulated T1 with the C++ runtime in the loop (separate
 process, over LCM, through the emulated CAN buses and the firmware motors), standing and fallen; next to
 the same with every tick in Python (--python-tick) and with the python-can buses as well (--can-interface
-virtual: the simulator before issue 49), with a scripted Python client, and the bare physics of the same
+virtual: the simulator before its C host link), with a scripted Python client, and the bare physics of the same
 model stepped in this process (the ceiling the bus and LCM overhead is measured against). Target: >= 10x."""
 from __future__ import annotations
 
