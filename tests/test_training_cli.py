@@ -41,11 +41,11 @@ def test_config_overrides_prefixed_bare_and_errors():
 
 
 def test_config_overrides_take_json_booleans():
-    env = config_dict.create(gate_latches=True, deterministic=False)
-    overrides.apply_overrides({"env": env}, ["env.gate_latches=false", "env.deterministic=True"])
-    assert env.gate_latches is False and env.deterministic is True
-    with pytest.raises(ValueError, match="gate_latches=maybe"):
-        overrides.apply_overrides({"env": env}, ["env.gate_latches=maybe"])
+    env = config_dict.create(enabled=True, deterministic=False)
+    overrides.apply_overrides({"env": env}, ["env.enabled=false", "env.deterministic=True"])
+    assert env.enabled is False and env.deterministic is True
+    with pytest.raises(ValueError, match="enabled=maybe"):
+        overrides.apply_overrides({"env": env}, ["env.enabled=maybe"])
 
 
 def test_cli_rejects_bad_usage(capsys):
