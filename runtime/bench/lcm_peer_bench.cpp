@@ -6,7 +6,9 @@
 // runtime evaluated the policy are told apart by the T1_ACTION it publishes after that tick's command (its utime is
 // the state's); the peer reads what is queued before each exchange, so such telemetry is never timed.
 // --joystick-every N sends a T1_JOYSTICK right after every Nth state, inside its timed exchange (the runtime
-// decodes, and with --key verifies, it before that tick), signed with --key FILE's first sender if given.
+// decodes, and with --key verifies, it before that tick), signed with --key FILE's first sender if given; the
+// same to the --echo-url side (signed with --echo-key FILE), which may be a second t1-runtime: then the two
+// runtimes are compared exchange by exchange under the same load (--wait-policy waits for both).
 // Prints one JSON line for tests/bench/runtime_bench.py.
 #include <lcm/lcm.h>
 
@@ -46,7 +48,7 @@ constexpr float kEncoderDitherRad = 1e-4f;
 
 const char* kHelp =
     "usage: t1rt_bench_lcm_peer [--count N] [--warmup N] [--wait-policy] [--timeout-ms MS] [--connect-s S]\n"
-    "                           [--lcm-url URL] [--echo-url URL] [--joystick-every N [--key FILE]]\n"
+    "                           [--lcm-url URL] [--echo-url URL] [--joystick-every N [--key F] [--echo-key F]]\n"
     "  --lcm-url URL    the target's LCM URL (default $T1_LCM_URL, else the contract default)\n"
     "  --echo-url URL   also drive a t1rt_bench_lcm_echo listening on URL, alternating exchange by exchange\n"
     "  --count N        recorded exchanges (default 5000)\n"
@@ -56,6 +58,7 @@ const char* kHelp =
     "  --connect-s S    how long to wait for the first answer (default 10)\n"
     "  --joystick-every N  a T1_JOYSTICK after every Nth state, in its timed exchange (default 0: none)\n"
     "  --key FILE       sign that joystick with FILE's first sender (messages/auth.py)\n"
+    "  --echo-key FILE  the same for the --echo-url side's joystick\n"
     "prints one JSON line: latency [us] median/p99/max, overall, split into policy ticks, joystick ticks (no\n"
     "policy) and the others, echo\n";
 
@@ -173,7 +176,7 @@ int main(int argc, char** argv) {
   int count = 5000, warmup = 2000, timeout_ms = 1000;
   double connect_s = 10.0;
   bool wait_policy = false;
-  std::string url, echo_url, key_path;
+  std::string url, echo_url, key_path, echo_key_path;
   int joystick_every = 0;
   Args args(argc, argv);
   while (args.next()) {
@@ -188,14 +191,15 @@ int main(int argc, char** argv) {
     else if (f == "--echo-url") echo_url = args.value();
     else if (f == "--joystick-every") joystick_every = static_cast<int>(args.number(1));
     else if (f == "--key") key_path = args.value();
+    else if (f == "--echo-key") echo_key_path = args.value();
     else usage_error(argv[0], "unknown argument '" + f + "'");
   }
   const bool with_echo = !echo_url.empty();
   Peer p, echo;
-  p.joystick_every = joystick_every;
-  if (!key_path.empty()) {
+  for (auto [peer, path] : {std::pair<Peer*, std::string*>{&p, &key_path}, {&echo, &echo_key_path}}) {
+    peer->joystick_every = joystick_every;
     std::string error;
-    if (!(p.key = t1rt::KeyRing::load(key_path, &error))) usage_error(argv[0], error);
+    if (!path->empty() && !(peer->key = t1rt::KeyRing::load(*path, &error))) usage_error(argv[0], error);
   }
   if (!open_peer(p, t1rt::resolve_lcm_url(url)) || (with_echo && !open_peer(echo, echo_url))) {
     std::fprintf(stderr, "%s: lcm_create failed\n", argv[0]);
@@ -218,7 +222,9 @@ int main(int argc, char** argv) {
   int64_t k = 1;
   int warm = 0;
   double target_us = 0.0, echo_us = 0.0;
-  for (; warm < warmup || (wait_policy && p.mode != t1::joint_command_t::MODE_POLICY); ++k, ++warm) {
+  // An echo sends no status (mode -1); a second runtime must reach POLICY too.
+  auto in_policy = [](const Peer& x) { return x.mode == t1::joint_command_t::MODE_POLICY; };
+  for (; warm < warmup || (wait_policy && (!in_policy(p) || (echo.mode != -1 && !in_policy(echo)))); ++k, ++warm) {
     if (warm >= kMaxWarmupExchanges || p.mode == t1::joint_command_t::MODE_FAULT) {
       std::fprintf(stderr, "%s: answering process did not reach POLICY (status mode %d, last fault '%s')\n",
                    argv[0], p.mode, p.fault.c_str());

@@ -58,6 +58,13 @@ OSSL_PARAM* sha256_params() {
   return params;
 }
 
+// OpenSSL's HMAC, fetched once (a fetch looks the algorithm up in the provider store: the costly part of a
+// one-shot MAC); an EVP_MAC is reference counted and may be shared between threads.
+EVP_MAC* hmac_algorithm() {
+  static EVP_MAC* const alg = EVP_MAC_fetch(nullptr, "HMAC", nullptr);
+  return alg;
+}
+
 std::string line_of(const std::string& path, int number) { return path + " line " + std::to_string(number); }
 }  // namespace
 
@@ -143,15 +150,13 @@ bool KeyRing::key_context(std::size_t i, EVP_MAC_CTX* ctx) const {
 
 bool KeyRing::mac(std::size_t i, const void* head, std::size_t head_size, const void* body, std::size_t body_size,
                   uint8_t out[kTagBytes]) const {
-  EVP_MAC* alg = EVP_MAC_fetch(nullptr, "HMAC", nullptr);
-  EVP_MAC_CTX* ctx = alg ? EVP_MAC_CTX_new(alg) : nullptr;
+  EVP_MAC_CTX* ctx = hmac_algorithm() ? EVP_MAC_CTX_new(hmac_algorithm()) : nullptr;
   std::size_t n = 0;
   const bool ok = ctx && key_context(i, ctx) &&
                   EVP_MAC_update(ctx, static_cast<const uint8_t*>(head), head_size) &&
                   EVP_MAC_update(ctx, static_cast<const uint8_t*>(body), body_size) &&
                   EVP_MAC_final(ctx, out, &n, kTagBytes) && n == kTagBytes;
   EVP_MAC_CTX_free(ctx);
-  EVP_MAC_free(alg);
   return ok;
 }
 
@@ -213,14 +218,12 @@ bool CommandAuth::open(AuthMode mode, std::shared_ptr<const KeyRing> keys, const
       *error = "signed commands need a key file";
       return false;
     }
-    EVP_MAC* alg = EVP_MAC_fetch(nullptr, "HMAC", nullptr);
     // The keyed context of each sender; verify() re-initialises it with the same key (EVP_MAC_init, no key).
-    bool ok = alg != nullptr;
+    bool ok = hmac_algorithm() != nullptr;
     for (std::size_t i = 0; ok && i < keys_->size(); ++i) {
-      ctx_[i] = EVP_MAC_CTX_new(alg);
+      ctx_[i] = EVP_MAC_CTX_new(hmac_algorithm());
       ok = ctx_[i] && keys_->key_context(i, ctx_[i]);
     }
-    EVP_MAC_free(alg);
     if (!ok) {
       *error = "OpenSSL could not key an HMAC-SHA256 context";
       return false;

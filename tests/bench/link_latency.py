@@ -1,6 +1,8 @@
 """State -> command latency of `make bench` (sections 3 and 4 of runtime_bench.py): t1-runtime --clock lockstep
-over LCM against a raw LCM echo, its joystick unsigned (--unauthenticated) and signed (--key) in the same run,
-and over DDS (Cyclone, the T1's own topics) next to the LCM row."""
+over LCM against a raw LCM echo, its joystick signed (--key) and unsigned (--unauthenticated); the signed and
+the unsigned runtime side by side, the peer alternating between them exchange by exchange, so both meet the
+same load (on a shared 2-core VM the runs apart differ by 2x: where the scheduler puts each process); and over
+DDS (Cyclone, the T1's own topics) next to the LCM row."""
 from __future__ import annotations
 
 import os
@@ -14,7 +16,7 @@ from messages.auth import RunKey
 from tests.bench.bench_tools import RUNTIME_BIN, bench_binary, ratio, run_json
 
 JOYSTICK_EVERY = 10                # the peer's joystick every 10th state: a gamepad's 50 Hz at 500 Hz states
-SIGNING_ROUNDS = 3                 # unsigned and signed runs, in turn: the median of their ratios is reported
+SIGNING_ROUNDS = 4                 # signed and unsigned runtime side by side, each first in turn: their median
 
 
 # ------------------------------------------------------------------------------------ 3. LCM latency
@@ -23,19 +25,26 @@ def _echo_url(url: str) -> str:
     return contract.lcm_url_on_port(1, url)
 
 
-def _lcm_pair(policy: Path, count: int, url: str, key: RunKey | None) -> dict:
-    """One runtime (--key KEY, else --unauthenticated) and the echo, the peer alternating between them and
-    sending the runtime a joystick every JOYSTICK_EVERY states (signed with KEY when given)."""
-    echo_url, budget_s = _echo_url(url), 300.0
+def _runtime_cmd(policy: Path, url: str, key: RunKey | None, budget_s: float) -> list:
+    """t1-runtime --clock lockstep --autostart with --key KEY, else --unauthenticated."""
     auth = ["--key", key.key_path, "--approvals", key.approvals_path] if key else ["--unauthenticated"]
+    return [RUNTIME_BIN, "--clock", "lockstep", "--policy", policy, "--autostart", "--quiet", "--duration", budget_s,
+            "--lcm-url", url, *auth]
+
+
+def _lcm_run(policy: Path, count: int, url: str, key: RunKey | None, second: str, second_key: RunKey | None) -> dict:
+    """A runtime on `url` (signed joystick with KEY, else unsigned to a --unauthenticated one) and, on the next
+    port, the echo (second "echo") or another runtime (second "runtime", SECOND_KEY likewise); the peer alternates
+    between them exchange by exchange, a joystick to each every JOYSTICK_EVERY states."""
+    echo_url, budget_s = _echo_url(url), 300.0
+    other = ([bench_binary("t1rt_bench_lcm_echo"), "--seconds", budget_s, "--lcm-url", echo_url] if second == "echo"
+             else _runtime_cmd(policy, echo_url, second_key, budget_s))
     servers = [subprocess.Popen([str(c) for c in cmd], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-               for cmd in ([bench_binary("t1rt_bench_lcm_echo"), "--seconds", budget_s, "--lcm-url", echo_url],
-                           [RUNTIME_BIN, "--clock", "lockstep", "--policy", policy, "--autostart", "--quiet",
-                            "--duration", budget_s, "--lcm-url", url, *auth])]
+               for cmd in (other, _runtime_cmd(policy, url, key, budget_s))]
+    keys = [*(["--key", key.key_path] if key else []), *(["--echo-key", second_key.key_path] if second_key else [])]
     try:
         return run_json([bench_binary("t1rt_bench_lcm_peer"), "--count", count, "--wait-policy", "--lcm-url", url,
-                          "--echo-url", echo_url, "--joystick-every", JOYSTICK_EVERY,
-                          *(["--key", key.key_path] if key else [])], budget_s)
+                         "--echo-url", echo_url, "--joystick-every", JOYSTICK_EVERY, *keys], budget_s)
     finally:
         for server in servers:
             server.terminate()
@@ -45,47 +54,43 @@ def _lcm_pair(policy: Path, count: int, url: str, key: RunKey | None) -> dict:
 
 
 def bench_lcm(policy: Path, count: int) -> dict:
-    print(f"\n== State -> command latency over LCM, lockstep, {count} exchanges a run, runtime and echo alternating "
-          f"(µs; ratio = runtime / echo); the runtime's joystick unsigned (--unauthenticated) and signed (--key), "
-          f"{SIGNING_ROUNDS} runs each in turn ==")
+    print(f"\n== State -> command latency over LCM, lockstep, {count} exchanges a run, two answering processes "
+          f"alternating exchange by exchange (µs); a joystick every {JOYSTICK_EVERY}th state, signed to a runtime "
+          f"with --key, unsigned to one with --unauthenticated ==")
     url = os.environ.get("T1_LCM_URL")
     if url is None:
         raise RuntimeError("T1_LCM_URL unset: run inside tools/netns (make bench does)")
     key = RunKey()
-    runs: dict[str, list[dict]] = {"unsigned": [], "signed": []}
     try:
         key.approve(policy)
-        for _ in range(SIGNING_ROUNDS):      # in turn, so both see the machine's load drift alike
-            runs["unsigned"].append(_lcm_pair(policy, count, url, None))
-            runs["signed"].append(_lcm_pair(policy, count, url, key))
+        against_echo = {name: _lcm_run(policy, count, url, k, "echo", None) for name, k in (("signed", key),
+                                                                                           ("unsigned", None))}
+        # The two runtimes side by side, each first in turn (a process's place on the cores is its own).
+        paired = [_lcm_run(policy, count, url, key, "runtime", None) if i % 2 == 0 else
+                  _lcm_run(policy, count, url, None, "runtime", key) for i in range(SIGNING_ROUNDS)]
     finally:
         key.close()
-    rows = [("raw LCM echo (C++)", "echo_us"), ("t1-runtime lockstep, all ticks", "latency_us"),
-            ("  ticks without policy or joystick", "plain_tick_us"), ("  joystick ticks (without policy)", "joystick_tick_us"),
-            ("  policy ticks (MLP, every 10th)", "policy_tick_us")]
-    normalised = {name: {k: float(np.median([r[k + "_median"] / r["echo_us_median"] for r in rs])) for _, k in rows}
-                  for name, rs in runs.items()}
-    print(f"{'(the run of median all-ticks ratio)':<44}{'n':>7}{'median':>9}{'p99':>9}{'max':>9}   ratio median / p99")
-    for name, rs in runs.items():
-        r = sorted(rs, key=lambda x: x["latency_us_median"] / x["echo_us_median"])[len(rs) // 2]
-        for label, k in rows:
+    rows = [("t1-runtime lockstep, all ticks", "latency_us"), ("  ticks without policy or joystick", "plain_tick_us"),
+            ("  joystick ticks (without policy)", "joystick_tick_us"), ("  policy ticks (MLP, every 10th)", "policy_tick_us")]
+    print(f"{'against the raw LCM echo (C++)':<44}{'n':>7}{'median':>9}{'p99':>9}{'max':>9}   ratio to the echo median / p99")
+    for name, r in against_echo.items():
+        for label, k in [("raw LCM echo (C++)", "echo_us")] + rows:
             print(f"{label + f' [{name}]':<44}{int(r[k + '_count']):>7}{r[k + '_median']:>9.1f}{r[k + '_p99']:>9.1f}"
                   f"{r[k + '_max']:>9.1f}   {ratio(r[k + '_median'], r['echo_us_median'])} / "
                   f"{ratio(r[k + '_p99'], r['echo_us_p99'])}")
-    s, u = normalised["signed"], normalised["unsigned"]
-    for label, k in rows[1:]:
-        print(f"signed / unsigned, {label.strip():<34} (median / echo median, median of {SIGNING_ROUNDS} runs): "
-              f"{s[k]:.2f} / {u[k]:.2f} = {s[k] / u[k]:.2f}x")
-    # Within one runtime process, so free of the runs' placement on the cores: a joystick tick over a plain one.
-    within = {name: float(np.median([r["joystick_tick_us_median"] - r["plain_tick_us_median"] for r in rs]))
-              for name, rs in runs.items()}
-    print(f"joystick tick - plain tick, same run (median of {SIGNING_ROUNDS}): signed {within['signed']:+.1f} µs, "
-          f"unsigned {within['unsigned']:+.1f} µs: verifying costs {within['signed'] - within['unsigned']:+.1f} µs "
-          f"on a joystick tick")
-    print(f"(peer publishes T1_IMU + T1_JOINT_STATE k, times until the T1_JOINT_CMD with state_seq k arrives; a "
-          f"T1_JOYSTICK follows every {JOYSTICK_EVERY}th state inside its exchange; runtime in POLICY mode after "
-          f"--autostart on {url}, echo on {_echo_url(url)}; the two exchanges alternate)")
-    return sorted(runs["signed"], key=lambda x: x["latency_us_median"] / x["echo_us_median"])[SIGNING_ROUNDS // 2]
+    signed_over = []
+    for i, r in enumerate(paired):          # even runs: the signed runtime is the peer's target, odd: its echo side
+        s_, u_ = ("latency_us", "echo_us") if i % 2 == 0 else ("echo_us", "latency_us")
+        signed_over.append((r[s_ + "_median"] / r[u_ + "_median"], r[s_ + "_p99"] / r[u_ + "_p99"]))
+        print(f"side by side, run {i + 1}: signed runtime median / p99 {r[s_ + '_median']:.1f} / {r[s_ + '_p99']:.1f} µs, "
+              f"unsigned {r[u_ + '_median']:.1f} / {r[u_ + '_p99']:.1f} µs")
+    med = np.median(np.asarray(signed_over), axis=0)
+    print(f"signed / unsigned runtime, all ticks, side by side (median of {SIGNING_ROUNDS} runs): median {med[0]:.2f}x, "
+          f"p99 {med[1]:.2f}x")
+    print(f"(peer publishes T1_IMU + T1_JOINT_STATE k, times until the T1_JOINT_CMD with state_seq k arrives; the "
+          f"T1_JOYSTICK follows the state inside its exchange; runtimes in POLICY after --autostart, on {url} and "
+          f"{_echo_url(url)})")
+    return against_echo["signed"]
 
 
 # ------------------------------------------------------------------------------------ 4. DDS latency

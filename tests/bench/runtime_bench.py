@@ -6,8 +6,9 @@
    in the separate bench venv .venv-bench, see tools/bench_env.sh) and against the memory-bandwidth bounds
    of its weights (DRAM streaming, L2-resident, weights-sized buffer).
 2. 500 Hz loop lateness of the runtime's PeriodicTask, default and --rt, against cyclictest.
-3. State -> command latency over LCM: t1-runtime --clock lockstep against a raw LCM echo, with a joystick
-   every 10th state, unsigned (--unauthenticated) and signed (--key), the two runs in the same invocation.
+3. State -> command latency over LCM: t1-runtime --clock lockstep against a raw LCM echo, a joystick every
+   10th state, signed (--key) and unsigned (--unauthenticated); and the two runtimes side by side, exchange
+   by exchange (tests/bench/link_latency.py).
 4. The same over DDS (t1-runtime --transport dds, Cyclone, the T1's own topics), next to the LCM row.
 
     python -m tests.bench.runtime_bench [--quick] [--seconds S] [--only mlp,loop,lcm,dds] [--policy PATH]
