@@ -119,7 +119,8 @@ def test_the_stand_task_draws_starts_up_to_max_progress_and_at_the_kneel():
     assert np.allclose(np.asarray(swing._path_bank), bank[20:], atol=1e-6)    # half kneel (p 1) … kneel
     cfg.reverse_curriculum.min_progress = 0.0
     cfg.reverse_curriculum.max_progress = 0.0      # off: the seed's start, every episode at the kneel
-    _, _, kind = jax.vmap(envs.make("getup_stand", config=cfg)._start_state)(jax.random.split(jax.random.PRNGKey(0), 64))
+    env = envs.make("getup_stand", config=cfg)
+    _, _, kind = jax.vmap(env._start_state)(jax.random.split(jax.random.PRNGKey(0), 64))
     assert np.all(np.asarray(kind) == 1)
 
 

@@ -63,8 +63,8 @@ def test_viewer_without_a_display_says_so_and_runs_headless(netns):
 
 @NEEDS_XVFB
 def test_viewer_window_shows_the_robot(netns, tmp_path):
-    """The test runs itself on a virtual display and grabs the screen until a frame shows the robot (or the timeout), then
-    stops the sim as its users do (SIGTERM: a clean exit)."""
+    """The test runs itself on a virtual display and grabs the screen until a frame shows the robot (or the
+    timeout), then stops the sim as its users do (SIGTERM: a clean exit)."""
     script = tmp_path / "shot.py"
     script.write_text(inspect.getsource(_shows_robot) + f"""
 import os, signal, subprocess, sys, time

@@ -3,10 +3,11 @@ fine-tuned in (student_finetune.py).
 
 The seed's student learns the whole task, so one episode mixes what the two experts do: full-body collision;
 the getup tasks' fallen / kneeling / standing starts (getup_base.GetupStarts); the joystick env's commands,
-pushes and reward terms (walking.Walking, a base of both); 1000-step episodes that end only on non-finite physics (the student must get
-up); actor observation TERMS_UNION (82). Ours, off by default: knockdown.prob of the pushes are as hard as the
-loop's push test (knockdown.KNOCKDOWN_MPS, or knockdown.shove "torso": the test's own torso shove), and
-walls.prob of the episodes walk into the low-wall course (wall_course.py) at a held forward command.
+pushes and reward terms (walking.Walking, a base of both); 1000-step episodes that end only on non-finite
+physics (the student must get up); actor observation TERMS_UNION (82). Ours, off by default: knockdown.prob of
+the pushes are as hard as the loop's push test (knockdown.KNOCKDOWN_MPS, or knockdown.shove "torso": the test's
+own torso shove), and walls.prob of the episodes walk into the low-wall course (wall_course.py) at a held
+forward command.
 
 Reward (reward.mode), per control step × ctrl_dt:
 * "monitor" (default; brax bc ignores it, it only makes DAgger's eval curves mean something):

@@ -34,11 +34,11 @@ LEFT_LEG = ("Left_Hip_Pitch", "Left_Knee_Pitch", "Left_Ankle_Pitch")
 
 
 def path_config() -> config_dict.ConfigDict:
-    """The stand task's reverse curriculum. max_progress 0 = off: every episode starts at the kneel, as the
-    seed's stage 2. Else a start is drawn at progress U{min_progress … max_progress} along the path, or at the kneel with
-    kneel_prob, from a bank of `bank_size` points; min_progress > 0 spends the starts on the part still to learn
-    (the swing, p 1 … 2). left_leg_waypoints: rows of (progress, left hip pitch, knee, ankle pitch [rad]); 1.0 is
-    the half kneel, the rest swing the leg back with the knee lifted (module docstring)."""
+    """The stand task's reverse curriculum. max_progress 0 = off: every episode starts at the kneel, as in the
+    seed's stage 2. Else a start is drawn at progress U{min_progress … max_progress} along the path, or at the
+    kneel with kneel_prob, from a bank of `bank_size` points; min_progress > 0 spends the starts on the part still
+    to learn (the swing, p 1 … 2). left_leg_waypoints: rows of (progress, left hip pitch, knee, ankle pitch
+    [rad]); 1.0 is the half kneel, the rest swing the leg back with the knee lifted (module docstring)."""
     return config_dict.create(
         max_progress=0.0, min_progress=0.0, kneel_prob=0.25, bank_size=41,
         left_leg_waypoints=[[1.0, -1.5, 2.2, -0.7], [1.3, -1.4, 2.3, -0.87], [1.5, -1.2, 2.34, -0.87],
