@@ -1,8 +1,8 @@
 """State -> command latency of `make bench` (sections 3 and 4 of runtime_bench.py): t1-runtime --clock lockstep
 over LCM against a raw LCM echo, its joystick signed (--key) and unsigned (--unauthenticated); the signed and
-the unsigned runtime side by side, the peer alternating between them exchange by exchange, so both meet the
-same load (on a shared 2-core VM the runs apart differ by 2x: where the scheduler puts each process); and over
-DDS (Cyclone, the T1's own topics) next to the LCM row."""
+the unsigned runtime side by side, the peer alternating between them exchange by exchange and all three on one
+core, so both meet the same load and the same scheduler (unpinned, each process's place on a shared 2-core VM
+moved its median 27 <-> 67 us from run to run); and over DDS (Cyclone, the T1's own topics) next to the LCM row."""
 from __future__ import annotations
 
 import os
@@ -16,7 +16,8 @@ from messages.auth import RunKey
 from tests.bench.bench_tools import RUNTIME_BIN, bench_binary, ratio, run_json
 
 JOYSTICK_EVERY = 10                # the peer's joystick every 10th state: a gamepad's 50 Hz at 500 Hz states
-SIGNING_ROUNDS = 4                 # signed and unsigned runtime side by side, each first in turn: their median
+PAIRED_CPU = 1                     # the side-by-side runs share this core: one scheduler queue for all three
+SIGNING_ROUNDS = 6                 # signed and unsigned runtime side by side, each first in turn (even)
 
 
 # ------------------------------------------------------------------------------------ 3. LCM latency
@@ -32,19 +33,22 @@ def _runtime_cmd(policy: Path, url: str, key: RunKey | None, budget_s: float) ->
             "--lcm-url", url, *auth]
 
 
-def _lcm_run(policy: Path, count: int, url: str, key: RunKey | None, second: str, second_key: RunKey | None) -> dict:
+def _lcm_run(policy: Path, count: int, url: str, key: RunKey | None, second: str, second_key: RunKey | None,
+             cpu: int | None = None) -> dict:
     """A runtime on `url` (signed joystick with KEY, else unsigned to a --unauthenticated one) and, on the next
     port, the echo (second "echo") or another runtime (second "runtime", SECOND_KEY likewise); the peer alternates
-    between them exchange by exchange, a joystick to each every JOYSTICK_EVERY states."""
+    between them exchange by exchange, a joystick to each every JOYSTICK_EVERY states. cpu: all three pinned
+    to that core (taskset), so none is placed apart from the others."""
     echo_url, budget_s = _echo_url(url), 300.0
     other = ([bench_binary("t1rt_bench_lcm_echo"), "--seconds", budget_s, "--lcm-url", echo_url] if second == "echo"
              else _runtime_cmd(policy, echo_url, second_key, budget_s))
-    servers = [subprocess.Popen([str(c) for c in cmd], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    pin = ["taskset", "-c", cpu] if cpu is not None else []
+    servers = [subprocess.Popen([str(c) for c in pin + cmd], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
                for cmd in (other, _runtime_cmd(policy, url, key, budget_s))]
     keys = [*(["--key", key.key_path] if key else []), *(["--echo-key", second_key.key_path] if second_key else [])]
     try:
-        return run_json([bench_binary("t1rt_bench_lcm_peer"), "--count", count, "--wait-policy", "--lcm-url", url,
-                         "--echo-url", echo_url, "--joystick-every", JOYSTICK_EVERY, *keys], budget_s)
+        return run_json(pin + [bench_binary("t1rt_bench_lcm_peer"), "--count", count, "--wait-policy", "--lcm-url", url,
+                               "--echo-url", echo_url, "--joystick-every", JOYSTICK_EVERY, *keys], budget_s)
     finally:
         for server in servers:
             server.terminate()
@@ -66,8 +70,8 @@ def bench_lcm(policy: Path, count: int) -> dict:
         against_echo = {name: _lcm_run(policy, count, url, k, "echo", None) for name, k in (("signed", key),
                                                                                            ("unsigned", None))}
         # The two runtimes side by side, each first in turn (a process's place on the cores is its own).
-        paired = [_lcm_run(policy, count, url, key, "runtime", None) if i % 2 == 0 else
-                  _lcm_run(policy, count, url, None, "runtime", key) for i in range(SIGNING_ROUNDS)]
+        paired = [_lcm_run(policy, count, url, key, "runtime", None, PAIRED_CPU) if i % 2 == 0 else
+                  _lcm_run(policy, count, url, None, "runtime", key, PAIRED_CPU) for i in range(SIGNING_ROUNDS)]
     finally:
         key.close()
     rows = [("t1-runtime lockstep, all ticks", "latency_us"), ("  ticks without policy or joystick", "plain_tick_us"),
@@ -84,9 +88,10 @@ def bench_lcm(policy: Path, count: int) -> dict:
         signed_over.append((r[s_ + "_median"] / r[u_ + "_median"], r[s_ + "_p99"] / r[u_ + "_p99"]))
         print(f"side by side, run {i + 1}: signed runtime median / p99 {r[s_ + '_median']:.1f} / {r[s_ + '_p99']:.1f} µs, "
               f"unsigned {r[u_ + '_median']:.1f} / {r[u_ + '_p99']:.1f} µs")
-    med = np.median(np.asarray(signed_over), axis=0)
-    print(f"signed / unsigned runtime, all ticks, side by side (median of {SIGNING_ROUNDS} runs): median {med[0]:.2f}x, "
-          f"p99 {med[1]:.2f}x")
+    # The geometric mean over runs that put each runtime first equally often: a bias of the position cancels.
+    gm = np.exp(np.mean(np.log(np.asarray(signed_over)), axis=0))
+    print(f"signed / unsigned runtime, all ticks, side by side (geometric mean of {SIGNING_ROUNDS} runs, each runtime "
+          f"first in half): median {gm[0]:.2f}x, p99 {gm[1]:.2f}x")
     print(f"(peer publishes T1_IMU + T1_JOINT_STATE k, times until the T1_JOINT_CMD with state_seq k arrives; the "
           f"T1_JOYSTICK follows the state inside its exchange; runtimes in POLICY after --autostart, on {url} and "
           f"{_echo_url(url)})")
