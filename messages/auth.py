@@ -3,12 +3,14 @@ The one definition of the protocol; C++ verifies it in runtime/include/t1rt/comm
 file by the golden vector tests/golden/command_auth.json (`python -m messages.auth golden tests/golden`).
 
 Signed message (MAVLink 2 signing as the model): sender_id (its line in the key file, > 0; 0 = unsigned),
-timestamp_us (the sender's wall clock [us since the epoch], strictly increasing per sender and channel) and
-tag, the message's last field:  tag = HMAC-SHA256(key, channel name + NUL + the message's LCM encoding up to
-tag), i.e. every payload byte but the last 32, the type's fingerprint included. The runtime takes a message
+timestamp_us (the sender's wall clock [us since the epoch], strictly increasing per sender and channel), and
+the last two fields tag_size = TAG_BYTES and tag = HMAC-SHA256(key, channel name + NUL + the message's LCM
+encoding before tag_size), i.e. every payload byte but the last 2 + TAG_BYTES, the type's fingerprint
+included. An unsigned message has tag_size 0 and no tag: what lcm-gen's types encode by default, so any
+program's plain runtime_cmd_t is a whole datagram; any other tag_size is refused. The runtime takes a message
 only when its tag verifies under the sender's key, its timestamp is after the last one taken from that sender
 on that channel, and it lies within the runtime's freshness window (t1rt::AuthConfig) and not before the
-runtime started. estop is the exception: obeyed from anyone.
+runtime started. estop is the exception: obeyed from anyone, signed or not.
 
 Key file: text, one sender a line, "<sender_id> <key: 64 hex digits>", '#' comments; open to its owner only
 (mode 0600: the runtime and these tools refuse anything else). The runtime's file lists every sender it
@@ -43,7 +45,8 @@ from pathlib import Path
 
 from messages import contract
 
-TAG_BYTES = 32                                   # runtime_cmd_t.tag / joystick_t.tag
+TAG_BYTES = 32                                   # tag_size of a signed runtime_cmd_t / joystick_t (0: unsigned)
+TAG_SIZE_BYTES = 2                               # the int16_t tag_size field, just before the tag
 KEY_BYTES = int(contract.AUTH["key_bytes"])
 APPROVAL_CONTEXT = contract.AUTH["approval_context"].encode()
 SIGNED_CHANNELS = frozenset(contract.CHANNELS[k] for k in contract.AUTH["signed_channels"])
@@ -64,8 +67,13 @@ class Sender:
 
 
 def tag(key: bytes, channel: str, body: bytes) -> bytes:
-    """HMAC-SHA256(key, channel + NUL + body): body is the message's encoding up to its tag field."""
+    """HMAC-SHA256(key, channel + NUL + body): body is the message's encoding before tag_size (signed_body)."""
     return hmac.new(key, channel.encode() + b"\0" + body, hashlib.sha256).digest()
+
+
+def signed_body(data: bytes) -> bytes:
+    """The bytes of a signed encoding that its tag covers: all but tag_size and the tag at its end."""
+    return data[:-(TAG_SIZE_BYTES + TAG_BYTES)]
 
 
 def approval_tag(key: bytes, artifact_sha256: bytes) -> bytes:
@@ -129,23 +137,17 @@ class Signer:
         self._lock = threading.Lock()
 
     def sign(self, channel: str, msg) -> bytes:
-        """Sets msg's sender_id, timestamp_us and tag; returns its signed encoding, to publish on channel."""
+        """Sets msg's sender_id, timestamp_us, tag_size and tag; returns its signed encoding, to publish on channel."""
         if channel not in SIGNED_CHANNELS:
             raise ValueError(f"{channel} is not a signed channel ({sorted(SIGNED_CHANNELS)})")
         with self._lock:
             stamp = max(self._clock_ns() // 1000, self._last_us.get(channel, 0) + 1)
             self._last_us[channel] = stamp
-        msg.sender_id, msg.timestamp_us, msg.tag = self.sender.sender_id, stamp, bytes(TAG_BYTES)
-        body = msg.encode()[:-TAG_BYTES]
-        msg.tag = tag(self.sender.key, channel, body)
-        return body + msg.tag
-
-
-def unsigned(msg) -> bytes:
-    """msg's encoding as a program without a key sends it: sender_id 0, a zero tag (the runtime obeys it only
-    for estop). lcm-gen's Python default tag is empty, which would make the datagram 32 bytes short."""
-    msg.sender_id, msg.tag = UNSIGNED_SENDER, bytes(TAG_BYTES)
-    return msg.encode()
+        msg.sender_id, msg.timestamp_us = self.sender.sender_id, stamp
+        msg.tag_size, msg.tag = TAG_BYTES, bytes(TAG_BYTES)
+        data = msg.encode()
+        msg.tag = tag(self.sender.key, channel, signed_body(data))
+        return data[:-TAG_BYTES] + msg.tag
 
 
 def file_sha256(path: str | os.PathLike) -> bytes:
@@ -209,7 +211,7 @@ def golden_document() -> dict:
     for channel, msg in ((contract.CH_RUNTIME_CMD, cmd), (contract.CH_JOYSTICK, stick)):
         data = signer.sign(channel, msg)
         messages.append({"channel": channel, "sender_id": msg.sender_id, "timestamp_us": msg.timestamp_us,
-                         "encoded_hex": data.hex(), "tag_hex": msg.tag.hex()})
+                         "tag_size": msg.tag_size, "encoded_hex": data.hex(), "tag_hex": msg.tag.hex()})
     digest = hashlib.sha256(b"T1 golden artifact bytes\n").digest()
     return {"_comment": f"Signed runtime_cmd_t / joystick_t and an approval under a fixed key (messages/auth.py); "
                         f"regenerate with `{GOLDEN_COMMAND}`",

@@ -12,7 +12,6 @@ import numpy as np
 from t1 import controller_status_t, imu_t, joint_command_t, joint_state_t, joystick_t, observation_t, runtime_cmd_t
 
 from messages import contract
-from messages.auth import unsigned
 from sim_hil.launch import start_runtime, stop
 from common.artifact import read_artifact
 
@@ -76,8 +75,9 @@ class RuntimePeer:
         return js
 
     def signed(self, channel: str, msg) -> bytes:
-        """msg's encoding, signed as the operator when the runtime has the run's key (else unsigned)."""
-        return self.signer.sign(channel, msg) if self.signer else unsigned(msg)
+        """msg's encoding, signed as the operator when the runtime has the run's key (else as lcm-gen encodes
+        it: unsigned)."""
+        return self.signer.sign(channel, msg) if self.signer else msg.encode()
 
     def command(self, verb: str, argument: str = "") -> None:
         self.publish(contract.CH_RUNTIME_CMD, self.signed(contract.CH_RUNTIME_CMD, self.command_msg(verb, argument)))

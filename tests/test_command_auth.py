@@ -1,6 +1,7 @@
 """messages/auth.py, the signing protocol's one definition: the committed golden vector (which the C++ runtime
 is held to in runtime/tests/test_command_auth.cpp) is what this code writes; key files open to others are
-refused; timestamps only increase; the per-run key stays private and goes with the run."""
+refused; timestamps only increase; a default-constructed message is a whole unsigned one; the per-run key stays
+private and goes with the run."""
 from __future__ import annotations
 
 import json
@@ -23,14 +24,18 @@ def test_golden_vector_regenerates_identically():
     assert json.loads(GOLDEN.read_text()) == auth.golden_document(), f"stale golden: run `{auth.GOLDEN_COMMAND}`"
 
 
-def test_the_tag_covers_every_byte_before_it_and_the_channel():
+def test_the_tag_covers_every_byte_before_tag_size_and_the_channel():
     sender = auth.new_sender(3)
     data = auth.Signer(sender).sign(contract.CH_RUNTIME_CMD, _cmd("set_mode", "policy"))
-    body, tag = data[:-auth.TAG_BYTES], data[-auth.TAG_BYTES:]
+    body, tag = auth.signed_body(data), data[-auth.TAG_BYTES:]
+    assert data == body + auth.TAG_BYTES.to_bytes(auth.TAG_SIZE_BYTES, "big") + tag
     assert tag == auth.tag(sender.key, contract.CH_RUNTIME_CMD, body)
     assert tag != auth.tag(sender.key, contract.CH_JOYSTICK, body), "the channel is not bound"
     decoded = runtime_cmd_t.decode(data)
-    assert (decoded.sender_id, decoded.argument, decoded.tag) == (3, "policy", tag)
+    assert (decoded.sender_id, decoded.argument, decoded.tag_size, decoded.tag) == (3, "policy", auth.TAG_BYTES, tag)
+    same_fields_untagged = _cmd("set_mode", "policy")
+    same_fields_untagged.sender_id, same_fields_untagged.timestamp_us = 3, decoded.timestamp_us
+    assert body == same_fields_untagged.encode()[:-auth.TAG_SIZE_BYTES], "the tag covers the fields before tag_size"
 
 
 def test_timestamps_strictly_increase_per_channel_even_when_the_clock_steps_back():
@@ -43,10 +48,14 @@ def test_timestamps_strictly_increase_per_channel_even_when_the_clock_steps_back
         signer.sign(contract.CH_IMU, joystick_t())
 
 
-def test_unsigned_messages_are_whole_datagrams():
-    data = auth.unsigned(_cmd("estop"))
-    assert len(data) == len(auth.Signer(auth.new_sender(1)).sign(contract.CH_RUNTIME_CMD, _cmd("estop")))
-    assert runtime_cmd_t.decode(data).sender_id == auth.UNSIGNED_SENDER
+def test_a_default_constructed_message_is_a_whole_unsigned_one():
+    for msg in (_cmd("estop"), joystick_t()):
+        data = msg.encode()                                  # as any program with lcm-gen's types sends it
+        decoded = type(msg).decode(data)
+        assert (decoded.sender_id, decoded.tag_size, decoded.tag) == (auth.UNSIGNED_SENDER, 0, b"")
+        channel = contract.CH_RUNTIME_CMD if isinstance(msg, runtime_cmd_t) else contract.CH_JOYSTICK
+        signed = auth.Signer(auth.new_sender(1)).sign(channel, msg)
+        assert len(signed) == len(data) + auth.TAG_BYTES
 
 
 def test_key_files_open_to_others_or_malformed_are_refused(tmp_path):

@@ -245,7 +245,6 @@ def test_fault_and_exit_both_leave_the_robot_damped(dds_runtime, netns):
 def test_estop_over_lcm_damps_the_dds_robot_within_a_tick(dds_runtime, netns):
     """The operator channels stay on LCM: an e-stop there turns the very next LowCmd_ into damping."""
     from t1 import runtime_cmd_t
-    from messages.auth import unsigned
     peer, proc = dds_runtime("--autostart", "--prepare-s", "0.02")
     watch = LcmWatch()
     q0 = np.asarray(read_artifact(UNTRAINED_STUDENT)[3]["default_pose"], np.float64)
@@ -255,7 +254,7 @@ def test_estop_over_lcm_damps_the_dds_robot_within_a_tick(dds_runtime, netns):
         time.sleep(0.002)
     estop = runtime_cmd_t()
     estop.verb = "estop"
-    watch.lc.publish(contract.CH_RUNTIME_CMD, unsigned(estop))   # unsigned: estop is obeyed from anyone
+    watch.lc.publish(contract.CH_RUNTIME_CMD, estop.encode())    # unsigned: estop is obeyed from anyone
     damped = False
     while time.monotonic() < deadline and not damped:
         peer.write(low_state(q0))

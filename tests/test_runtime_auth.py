@@ -2,8 +2,9 @@
 against the fake robot of tests/runtime_peer.py, inside tools/netns), its operator signing with the run's key,
 and a second program on the LCM group that is not the operator, trying what an outside program would: unsigned
 commands, another key, an altered argument, captured bytes sent again, an old timestamp, artifacts outside the
-policy folder or not approved, a joystick stream; estop from it is obeyed, its reset is not. Also a second
-operator with its own key and id, and the two modes without a key (estop only, --unauthenticated)."""
+policy folder or not approved, a joystick stream, a tag_size of neither kind and bytes no decoder should be
+given; estop from it (a plain default-constructed message) is obeyed, its reset is not. Also a second operator
+with its own key and id, and the two modes without a key (estop only, --unauthenticated)."""
 from __future__ import annotations
 
 import shutil
@@ -14,7 +15,7 @@ import pytest
 from t1 import runtime_cmd_t
 
 from messages import contract
-from messages.auth import RunKey, Sender, Signer, new_sender, unsigned
+from messages.auth import TAG_BYTES, TAG_SIZE_BYTES, RunKey, Sender, Signer, new_sender
 from sim_hil.launch import ROOT
 from tests.runtime_peer import MODE, RuntimePeer
 
@@ -44,7 +45,8 @@ def runtime(netns, tmp_path):
 
 
 class Outsider:
-    """Another program on the LCM group: publishes whatever bytes it has."""
+    """Another program on the LCM group: publishes whatever bytes it has; unsigned, a message as lcm-gen's
+    Python type encodes it with only its verb and argument set."""
 
     def __init__(self):
         self.lc = lcm.LCM(contract.lcm_url())
@@ -52,7 +54,7 @@ class Outsider:
     def command(self, verb: str, argument: str = "", signer: Signer | None = None) -> bytes:
         c = runtime_cmd_t()
         c.verb, c.argument = verb, argument
-        data = signer.sign(contract.CH_RUNTIME_CMD, c) if signer else unsigned(c)
+        data = signer.sign(contract.CH_RUNTIME_CMD, c) if signer else c.encode()
         self.send(data)
         return data
 
@@ -109,13 +111,18 @@ def test_replayed_bytes_and_an_old_timestamp_are_refused(runtime):
     assert modes(peer) == {MODE["POLICY"]}
 
 
-def test_unsigned_estop_is_obeyed_and_an_unsigned_reset_is_not(runtime):
-    peer, outsider = runtime(), Outsider()
-    outsider.command("estop")
+def test_a_plain_default_estop_is_obeyed_and_the_same_reset_or_set_mode_is_not(runtime):
+    peer, script = runtime(), lcm.LCM(contract.lcm_url())
+    estop = runtime_cmd_t()                                              # lcm-gen's defaults but the verb
+    estop.verb = "estop"
+    script.publish(contract.CH_RUNTIME_CMD, estop.encode())
     peer.until_mode("DAMPING", max_ticks=5)
-    for verb, argument in (("reset", ""), ("set_mode", "prepare"), ("set_mode", "policy")):
-        outsider.command(verb, argument)
-    refused(peer, "unsigned", 3)
+    for verb, argument in (("reset", ""), ("set_mode", ""), ("set_mode", "prepare"), ("set_mode", "policy")):
+        plain = runtime_cmd_t()
+        plain.verb, plain.argument = verb, argument
+        script.publish(contract.CH_RUNTIME_CMD, plain.encode())
+    status = refused(peer, "unsigned", 4)
+    assert "unsigned" in status.info and status.decode_errors == 0, (status.info, status.decode_errors)
     assert modes(peer) == {MODE["DAMPING"]}, "an unsigned command released the estop's hold"
     peer.command("reset")                                                # the operator's word
     peer.until_mode("POLICY")
@@ -124,7 +131,7 @@ def test_unsigned_estop_is_obeyed_and_an_unsigned_reset_is_not(runtime):
 def test_an_outsiders_joystick_is_not_taken_the_operators_is(runtime):
     peer, outsider = runtime(), Outsider()
     for _ in range(5):
-        outsider.send(unsigned(peer.joystick_msg(0.9, 0.0, 0.0)), contract.CH_JOYSTICK)
+        outsider.send(peer.joystick_msg(0.9, 0.0, 0.0).encode(), contract.CH_JOYSTICK)
         peer.steps(10)
     status = refused(peer, "unsigned", 5)
     assert status.joystick_age_ms == -1.0 and "joystick_t" in status.info, (status.joystick_age_ms, status.info)
@@ -133,6 +140,30 @@ def test_an_outsiders_joystick_is_not_taken_the_operators_is(runtime):
     peer.joystick(0.3, 0.0, 0.0)
     peer.steps(20)
     assert peer.last_status().joystick_age_ms >= 0.0
+
+
+def test_a_tag_size_of_neither_kind_is_refused_and_bytes_no_decoder_should_see_change_nothing(runtime):
+    peer, outsider = runtime(), Outsider()
+    odd = runtime_cmd_t()
+    odd.verb, odd.tag_size, odd.tag = "estop", 5, bytes(5)               # neither unsigned (0) nor signed (32)
+    outsider.send(odd.encode())
+    stick = peer.joystick_msg(0.9, 0.0, 0.0)
+    stick.tag_size, stick.tag = TAG_BYTES + 1, bytes(TAG_BYTES + 1)
+    outsider.send(stick.encode(), contract.CH_JOYSTICK)
+    status = refused(peer, "tag_size", 2)
+    assert "tag_size 33, neither 0 (unsigned) nor 32 (signed)" in status.info, status.info
+    # What lcm-gen's C++ decoder must never be given (it sizes a string or the tag from the field unchecked):
+    # a string length of 0 (no NUL), a negative tag_size, a huge one. Counted; the runtime runs on.
+    plain = runtime_cmd_t()
+    plain.verb = "estop"
+    data = plain.encode()
+    verb_length_at = 3 * 8                                               # fingerprint, utime, seq: int64 each
+    outsider.send(data[:verb_length_at] + bytes(4) + data[verb_length_at + 4:])
+    outsider.send(data[:-TAG_SIZE_BYTES] + b"\xff\xff")                 # tag_size -1
+    outsider.send(data[:-TAG_SIZE_BYTES] + b"\x7f\xff" + bytes(0x7fff))  # tag_size 32767, with its bytes
+    status = refused(peer, "tag_size", 4)                                # in order: the decode error is counted
+    assert status.decode_errors == 1 and status.joystick_age_ms == -1.0, (status.decode_errors, status.info)
+    assert modes(peer) == {MODE["POLICY"]} and peer.proc.poll() is None
 
 
 def test_load_policy_takes_approved_names_inside_the_policy_folder_only(runtime, tmp_path):

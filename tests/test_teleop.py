@@ -17,7 +17,7 @@ from evdev import ecodes
 from t1 import joystick_t
 
 from messages import contract
-from messages.auth import TAG_BYTES, RunKey, new_sender, tag, write_key_file
+from messages.auth import RunKey, new_sender, signed_body, tag, write_key_file
 from sim_hil.teleop.__main__ import LcmPublisher, main, run
 from sim_hil.teleop.core import KEY_RELEASE_TIMEOUT_S, TeleopCore, command_ranges, load_bindings
 from sim_hil.teleop.readers import EVENT, GamepadReader
@@ -205,8 +205,8 @@ def test_keyboard_through_a_pty_drives_t1_joystick_and_stops_after_the_timeout(n
         assert all(m.vx == 0 and m.yaw_rate == 0 for m in sub.collect(0.2)), "no key for 0.25 s, still moving"
         os.write(master, b"\x03")                                       # Ctrl-C: stops, sends a zero command
         assert proc.wait(5) == 0
-        assert sub.msgs and all(m.sender_id == 5 and d[-TAG_BYTES:] == tag(operator.key, contract.CH_JOYSTICK,
-                                                                           d[:-TAG_BYTES]) for m, d in zip(sub.msgs, sub.raw))
+        assert sub.msgs and all(m.sender_id == 5 and m.tag == tag(operator.key, contract.CH_JOYSTICK, signed_body(d))
+                                for m, d in zip(sub.msgs, sub.raw))
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -121,10 +121,11 @@ void prepare_joystick(Peer& p, int64_t k) {
     p.last_timestamp_us = std::max(p.last_timestamp_us + 1, static_cast<int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000);
     p.joystick.sender_id = p.key->sender_id(0);
     p.joystick.timestamp_us = p.last_timestamp_us;
+    p.joystick_bytes = p.key->encode_signed(0, t1::CH_JOYSTICK, p.joystick);
+  } else {
+    p.joystick_bytes.resize(static_cast<std::size_t>(p.joystick.getEncodedSize()));
+    p.joystick.encode(p.joystick_bytes.data(), 0, static_cast<int>(p.joystick_bytes.size()));
   }
-  p.joystick_bytes.resize(static_cast<std::size_t>(p.joystick.getEncodedSize()));
-  p.joystick.encode(p.joystick_bytes.data(), 0, static_cast<int>(p.joystick_bytes.size()));
-  if (p.key) p.key->sign(0, t1::CH_JOYSTICK, p.joystick_bytes.data(), p.joystick_bytes.size());
 }
 
 // Publishes state k; returns the latency [us] of its answer, or a negative value on timeout.

@@ -1,6 +1,8 @@
 // The runtime's side of messages/auth.py: key files, tag verification, freshness, approvals (command_auth.hpp).
 #include "t1rt/command_auth.hpp"
 
+#include "t1/joystick_t.hpp"
+
 #include <fcntl.h>
 #include <openssl/core_names.h>
 #include <openssl/crypto.h>
@@ -23,6 +25,39 @@ namespace t1rt {
 namespace {
 constexpr double kUsToS = 1e-6;
 constexpr double kSToUs = 1e6;
+constexpr std::size_t kTagSizeBytes = sizeof(int16_t);          // the tag_size field
+constexpr std::size_t kSignedTailBytes = kTagSizeBytes + kTagBytes;  // what the tag does not cover
+
+uint32_t big_endian(const uint8_t* p, std::size_t n) {
+  uint32_t v = 0;
+  for (std::size_t i = 0; i < n; ++i) v = v << 8 | p[i];
+  return v;
+}
+
+// Where lcm-gen's decoder reads tag_size: after the 8-byte fingerprint and the fields before it
+// (messages/t1/*.lcm; held to the generated encoding by CommandAuth.ReadsTagSizeWhereTheDecoderDoes). false:
+// the datagram ends first, or a string length the decoder would take for a negative size (an LCM string's
+// length counts its NUL, so it is at least 1).
+bool tag_size_offset(CommandAuth::Stream stream, const uint8_t* p, std::size_t size, std::size_t* offset) {
+  if (stream == CommandAuth::kJoystickStream) {  // fixed-size fields only: a default message's encoding
+    static const std::size_t joystick = static_cast<std::size_t>(t1::joystick_t{}.getEncodedSize()) - kTagSizeBytes;
+    *offset = joystick;
+    return true;
+  }
+  // runtime_cmd_t: fingerprint, utime, seq; verb, argument (int32 length, bytes, NUL); sender_id, timestamp_us
+  constexpr std::size_t kHead = 3 * sizeof(int64_t), kLength = sizeof(int32_t), kStrings = 2;
+  constexpr std::size_t kTail = 2 * sizeof(int64_t);
+  std::size_t pos = kHead;
+  for (std::size_t s = 0; s < kStrings; ++s) {
+    if (size < pos + kLength) return false;
+    const uint32_t length = big_endian(p + pos, kLength);
+    pos += kLength;
+    if (length < 1 || length > size - pos) return false;
+    pos += length;
+  }
+  *offset = pos + kTail;
+  return true;
+}
 
 int hex_value(char c) {
   if (c >= '0' && c <= '9') return c - '0';
@@ -71,11 +106,12 @@ std::string line_of(const std::string& path, int number) { return path + " line 
 const char* refusal_text(Refusal r) {
   switch (r) {
     case Refusal::kNoKey: return "the runtime has no --key: it takes estop only";
-    case Refusal::kUnsigned: return "unsigned (sender_id 0)";
+    case Refusal::kUnsigned: return "unsigned (tag_size 0 or sender_id 0)";
     case Refusal::kUnknownSender: return "sender not in the key file";
     case Refusal::kBadTag: return "tag does not verify (another key, or bytes altered)";
     case Refusal::kReplayed: return "replayed (timestamp not after the sender's last)";
     case Refusal::kStale: return "stale timestamp";
+    case Refusal::kTagSize: return "tag_size neither 0 (unsigned) nor 32 (signed)";
     case Refusal::kCount: break;
   }
   return "?";
@@ -161,8 +197,9 @@ bool KeyRing::mac(std::size_t i, const void* head, std::size_t head_size, const 
 }
 
 bool KeyRing::sign(std::size_t i, const char* channel, uint8_t* payload, std::size_t size) const {
-  if (size < kTagBytes) return false;
-  return mac(i, channel, std::strlen(channel) + 1, payload, size - kTagBytes, payload + size - kTagBytes);
+  if (size < kSignedTailBytes || big_endian(payload + size - kSignedTailBytes, kTagSizeBytes) != kTagBytes)
+    return false;
+  return mac(i, channel, std::strlen(channel) + 1, payload, size - kSignedTailBytes, payload + size - kTagBytes);
 }
 
 bool KeyRing::approves(const std::string& approvals, const uint8_t digest[kSha256Bytes], std::string* why) const {
@@ -236,13 +273,20 @@ bool CommandAuth::open(AuthMode mode, std::shared_ptr<const KeyRing> keys, const
   return true;
 }
 
+bool CommandAuth::read_tag_size(Stream stream, const uint8_t* payload, std::size_t size, int* tag_size) {
+  std::size_t at = 0;
+  if (!tag_size_offset(stream, payload, size, &at) || size < at + kTagSizeBytes) return false;
+  *tag_size = static_cast<int16_t>(big_endian(payload + at, kTagSizeBytes));
+  return true;
+}
+
 bool CommandAuth::verify(Stream stream, const char* channel, const uint8_t* payload, std::size_t size,
-                         int64_t sender_id, int64_t timestamp_us) {
+                         int64_t sender_id, int64_t timestamp_us, int tag_size) {
   if (mode_ == AuthMode::kUnauthenticated) return true;
   verdict_ = Refusal::kNoKey;
   if (mode_ == AuthMode::kEstopOnly) return false;
   verdict_ = Refusal::kUnsigned;
-  if (sender_id == 0 || size < kTagBytes) return false;
+  if (sender_id == 0 || tag_size != static_cast<int>(kTagBytes) || size < kSignedTailBytes) return false;
   verdict_ = Refusal::kUnknownSender;
   const int i = keys_->index_of(sender_id);
   if (i < 0) return false;
@@ -252,7 +296,7 @@ bool CommandAuth::verify(Stream stream, const char* channel, const uint8_t* payl
   std::size_t n = 0;
   const bool mac_ok = EVP_MAC_init(ctx, nullptr, 0, nullptr) &&
                       EVP_MAC_update(ctx, reinterpret_cast<const uint8_t*>(channel), std::strlen(channel) + 1) &&
-                      EVP_MAC_update(ctx, payload, size - kTagBytes) && EVP_MAC_final(ctx, want, &n, kTagBytes);
+                      EVP_MAC_update(ctx, payload, size - kSignedTailBytes) && EVP_MAC_final(ctx, want, &n, kTagBytes);
   verdict_ = Refusal::kBadTag;
   if (!mac_ok || n != kTagBytes || CRYPTO_memcmp(want, payload + size - kTagBytes, kTagBytes) != 0) return false;
   // Fresh (within the window, not before this runtime started: no replay of an older run's bytes), then
@@ -278,6 +322,14 @@ void CommandAuth::report(t1::controller_status_t& s) const {
   s.refused_bad_tag = refused(Refusal::kBadTag);
   s.refused_replayed = refused(Refusal::kReplayed);
   s.refused_stale = refused(Refusal::kStale);
+  s.refused_tag_size = refused(Refusal::kTagSize);
+}
+
+void CommandAuth::refuse_tag_size(const char* what, int tag_size) {
+  verdict_ = Refusal::kTagSize;
+  ++refused_[static_cast<int>(verdict_)];
+  std::snprintf(last_refusal_.data(), last_refusal_.size(), "refused %s: tag_size %d, neither 0 (unsigned) nor %zu "
+                "(signed)", what, tag_size, kTagBytes);
 }
 
 void CommandAuth::refuse(const char* what, int64_t sender_id) {

@@ -19,6 +19,10 @@ namespace t1rt {
 namespace {
 constexpr double kUsToS = 1e-6;
 constexpr double kMsToS = 1e-3;
+
+CommandAuth::Stream stream_of(Supervisor::OperatorInput input) {
+  return input == Supervisor::OperatorInput::kJoystick ? CommandAuth::kJoystickStream : CommandAuth::kCommandStream;
+}
 }  // namespace
 
 const char* clock_name(ClockMode mode) { return mode == ClockMode::kLockstep ? "lockstep" : "realtime"; }
@@ -56,6 +60,10 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
     subscribe(t1::CH_IMU, &LcmTransport::on_imu);
     subscribe(t1::CH_JOINT_STATE, &LcmTransport::on_joint);
   }
+  // A signed message's tag decodes into this capacity (every buffer a decode or a swap can reach): no allocation.
+  for (t1::joystick_t* m : {&joystick.msg, &joystick.scratch}) m->tag.reserve(kTagBytes);
+  command_scratch_.tag.reserve(kTagBytes);
+  for (t1::runtime_cmd_t& c : commands) c.tag.reserve(kTagBytes);
   subscribe(t1::CH_JOYSTICK, &LcmTransport::on_joystick);
   subscribe(t1::CH_RUNTIME_CMD, &LcmTransport::on_command);
   if (subscribe_sim_status) {
@@ -131,20 +139,30 @@ void LcmTransport::on_joint(const Datagram& d) {
   new_joint_state = true;
 }
 
-bool LcmTransport::admitted(Supervisor::OperatorInput input, const char* channel, const Datagram& d, int64_t sender_id,
-                            int64_t timestamp_us, const char* what) {
-  const auto stream = input == Supervisor::OperatorInput::kJoystick ? CommandAuth::kJoystickStream
-                                                                    : CommandAuth::kCommandStream;
-  const bool authorised = auth_ && auth_->verify(stream, channel, d.data, d.size, sender_id, timestamp_us);
+bool LcmTransport::decodable(Supervisor::OperatorInput input, const Datagram& d, const char* what) {
+  int tag_size = 0;
+  if (!CommandAuth::read_tag_size(stream_of(input), d.data, d.size, &tag_size)) {
+    ++decode_errors;
+    return false;
+  }
+  if (CommandAuth::tag_size_ok(tag_size)) return true;
+  if (auth_) auth_->refuse_tag_size(what, tag_size);
+  return false;
+}
+
+template <class Message>
+bool LcmTransport::admitted(Supervisor::OperatorInput input, const char* channel, const Datagram& d, const Message& m,
+                            const char* what) {
+  const bool authorised =
+      auth_ && auth_->verify(stream_of(input), channel, d.data, d.size, m.sender_id, m.timestamp_us, m.tag_size);
   if (Supervisor::admits(input, authorised)) return true;  // safety rule R11
-  if (auth_) auth_->refuse(what, sender_id);
+  if (auth_) auth_->refuse(what, m.sender_id);
   return false;
 }
 
 void LcmTransport::on_joystick(const Datagram& d) {
-  if (!decode_scratch(joystick, d)) return;
-  const t1::joystick_t& j = joystick.scratch;
-  if (admitted(Supervisor::OperatorInput::kJoystick, t1::CH_JOYSTICK, d, j.sender_id, j.timestamp_us, "joystick_t"))
+  if (!decodable(Supervisor::OperatorInput::kJoystick, d, "joystick_t") || !decode_scratch(joystick, d)) return;
+  if (admitted(Supervisor::OperatorInput::kJoystick, t1::CH_JOYSTICK, d, joystick.scratch, "joystick_t"))
     commit(joystick);
 }
 
@@ -157,6 +175,7 @@ void LcmTransport::on_sim_status(const Datagram& d) {
 }
 
 void LcmTransport::on_command(const Datagram& d) {
+  if (!decodable(Supervisor::OperatorInput::kCommand, d, "runtime_cmd_t")) return;
   t1::runtime_cmd_t& c = command_scratch_;
   const int used = c.decode(d.data, 0, static_cast<int>(d.size));
   if (used < 0 || static_cast<uint32_t>(used) != d.size) {
@@ -167,7 +186,7 @@ void LcmTransport::on_command(const Datagram& d) {
   char what[128];
   std::snprintf(what, sizeof(what), "runtime_cmd_t '%.24s %.64s'", c.verb.c_str(), c.argument.c_str());
   if (!admitted(estop ? Supervisor::OperatorInput::kEstop : Supervisor::OperatorInput::kCommand, t1::CH_RUNTIME_CMD,
-                d, c.sender_id, c.timestamp_us, what))
+                d, c, what))
     return;
   if (estop) {  // safety rule R2: outside the bounded queue
     estop_pending = true;

@@ -53,9 +53,7 @@ class LcmPeer {
     clock_gettime(CLOCK_REALTIME, &ts);
     last_us_ = std::max(last_us_ + 1, static_cast<int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000);
     m.timestamp_us = last_us_;
-    std::vector<uint8_t> buf(m.getEncodedSize());
-    m.encode(buf.data(), 0, static_cast<int>(buf.size()));
-    ring_->sign(sender_, channel, buf.data(), buf.size());
+    const std::vector<uint8_t> buf = ring_->encode_signed(sender_, channel, m);
     lcm_publish(lcm_, channel, buf.data(), static_cast<unsigned>(buf.size()));
   }
   void command(const std::string& verb, const std::string& arg = "") {

@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
@@ -40,9 +41,13 @@ std::vector<uint8_t> signed_bytes(const KeyRing& ring, std::size_t i, const char
                                   int64_t sender_id = -1) {
   m.sender_id = sender_id >= 0 ? sender_id : ring.sender_id(i);
   m.timestamp_us = timestamp_us;
-  std::vector<uint8_t> buf(m.getEncodedSize());
+  return ring.encode_signed(i, channel, m);
+}
+
+template <class M>
+std::vector<uint8_t> encoded(const M& m) {
+  std::vector<uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
   m.encode(buf.data(), 0, static_cast<int>(buf.size()));
-  ring.sign(i, channel, buf.data(), buf.size());
   return buf;
 }
 
@@ -55,7 +60,7 @@ struct Verifier {
   std::string joystick(const std::vector<uint8_t>& b, CommandAuth::Stream stream = CommandAuth::kJoystickStream) {
     t1::joystick_t m{};
     EXPECT_EQ(m.decode(b.data(), 0, static_cast<int>(b.size())), static_cast<int>(b.size()));
-    if (auth.verify(stream, t1::CH_JOYSTICK, b.data(), b.size(), m.sender_id, m.timestamp_us)) return "";
+    if (auth.verify(stream, t1::CH_JOYSTICK, b.data(), b.size(), m.sender_id, m.timestamp_us, m.tag_size)) return "";
     return refusal_text(auth.last_verdict());
   }
   CommandAuth auth;
@@ -79,6 +84,7 @@ TEST(CommandAuth, AgreesWithThePythonGoldenVector) {
     const auto mine = channel == t1::CH_RUNTIME_CMD ? signed_bytes(*ring, 0, t1::CH_RUNTIME_CMD, cmd, ts)
                                                     : signed_bytes(*ring, 0, t1::CH_JOYSTICK, stick, ts);
     EXPECT_EQ(mine, from_hex(m["encoded_hex"])) << channel;
+    EXPECT_EQ(m["tag_size"], static_cast<int>(kTagBytes)) << channel;
     EXPECT_EQ(std::vector<uint8_t>(mine.end() - kTagBytes, mine.end()), from_hex(m["tag_hex"])) << channel;
   }
   const auto& a = doc["approval"];
@@ -121,12 +127,12 @@ TEST(CommandAuth, EveryRefusalReason) {
   // The same timestamp is new on the other channel's stream, and for the other sender.
   EXPECT_EQ(v.joystick(good, CommandAuth::kCommandStream), "");
   EXPECT_EQ(v.joystick(signed_bytes(*ring, 1, t1::CH_JOYSTICK, js, t)), "");
-  auto unsigned_js = good;
-  t1::joystick_t plain = js;
-  plain.sender_id = 0;
-  unsigned_js.assign(plain.getEncodedSize(), 0);
-  plain.encode(unsigned_js.data(), 0, static_cast<int>(unsigned_js.size()));
+  const auto unsigned_js = encoded(js);                                     // default: sender 0, tag_size 0
   EXPECT_EQ(v.joystick(unsigned_js), refusal_text(Refusal::kUnsigned));
+  t1::joystick_t untagged = js;                                              // a known sender's id, no tag
+  untagged.sender_id = 1;
+  untagged.timestamp_us = t + 5;
+  EXPECT_EQ(v.joystick(encoded(untagged)), refusal_text(Refusal::kUnsigned));
   EXPECT_EQ(v.joystick(signed_bytes(*stranger, 1, t1::CH_JOYSTICK, js, t + 10)), refusal_text(Refusal::kUnknownSender));
   EXPECT_EQ(v.joystick(signed_bytes(*stranger, 0, t1::CH_JOYSTICK, js, t + 20)), refusal_text(Refusal::kBadTag));  // wrong key
   auto tampered = signed_bytes(*ring, 0, t1::CH_JOYSTICK, js, t + 30);
@@ -137,6 +143,10 @@ TEST(CommandAuth, EveryRefusalReason) {
   v.auth.refuse("joystick_t", 2);
   EXPECT_NE(std::string(v.auth.last_refusal()).find("stale timestamp (+"), std::string::npos) << v.auth.last_refusal();
   EXPECT_EQ(v.auth.refused(Refusal::kStale), 1);
+  v.auth.refuse_tag_size("joystick_t", 5);
+  EXPECT_NE(std::string(v.auth.last_refusal()).find("joystick_t: tag_size 5, neither 0"), std::string::npos)
+      << v.auth.last_refusal();
+  EXPECT_EQ(v.auth.refused(Refusal::kTagSize), 1);
   EXPECT_STREQ(v.auth.describe(), "signed (2 senders)");
   // A restarted runtime: the captured bytes are from before its start; an old timestamp is stale too.
   Verifier restarted(AuthMode::kSigned, ring);
@@ -148,6 +158,44 @@ TEST(CommandAuth, EveryRefusalReason) {
   EXPECT_EQ(nobody.joystick(good), refusal_text(Refusal::kNoKey));
   Verifier bench(AuthMode::kUnauthenticated, nullptr);
   EXPECT_EQ(bench.joystick(unsigned_js), "");
+}
+
+// The transport decodes a runtime_cmd_t / joystick_t only after reading its tag_size where lcm-gen's decoder
+// will (which sizes the tag vector from it unchecked): every string length, every tag_size, and what no
+// decoder may be given: a negative tag_size, a string length below 1, a datagram ending before tag_size.
+TEST(CommandAuth, ReadsTagSizeWhereTheDecoderDoes) {
+  auto ring = test_ring("tag_size", {test_sender(1, 0x61)});
+  auto tag_size = [](CommandAuth::Stream stream, const std::vector<uint8_t>& b) {
+    int n = -99;
+    return CommandAuth::read_tag_size(stream, b.data(), b.size(), &n) ? n : -99;
+  };
+  for (const std::string& text : {std::string(), std::string("estop"), std::string(300, 'x')}) {
+    t1::runtime_cmd_t c{};
+    c.verb = text;
+    c.argument = text + "/" + text;
+    EXPECT_EQ(tag_size(CommandAuth::kCommandStream, encoded(c)), 0) << text.size();
+    EXPECT_EQ(tag_size(CommandAuth::kCommandStream, signed_bytes(*ring, 0, t1::CH_RUNTIME_CMD, c, 1)), 32);
+    c.tag_size = 5;
+    c.tag.assign(5, 0xee);
+    EXPECT_EQ(tag_size(CommandAuth::kCommandStream, encoded(c)), 5) << text.size();
+  }
+  t1::joystick_t js{};
+  EXPECT_EQ(tag_size(CommandAuth::kJoystickStream, encoded(js)), 0);
+  EXPECT_EQ(tag_size(CommandAuth::kJoystickStream, signed_bytes(*ring, 0, t1::CH_JOYSTICK, js, 1)), 32);
+  auto negative = encoded(js);
+  negative[negative.size() - 2] = negative[negative.size() - 1] = 0xff;
+  EXPECT_EQ(tag_size(CommandAuth::kJoystickStream, negative), -1);
+  EXPECT_FALSE(CommandAuth::tag_size_ok(-1));
+  EXPECT_EQ(tag_size(CommandAuth::kJoystickStream, std::vector<uint8_t>(negative.begin(), negative.end() - 1)), -99);
+  t1::runtime_cmd_t estop{};
+  estop.verb = "estop";
+  auto empty_verb = encoded(estop);
+  const std::size_t verb_length_at = 3 * sizeof(int64_t);
+  std::fill(empty_verb.begin() + verb_length_at, empty_verb.begin() + verb_length_at + 4, 0);  // length 0: no NUL
+  EXPECT_EQ(tag_size(CommandAuth::kCommandStream, empty_verb), -99);
+  EXPECT_EQ(tag_size(CommandAuth::kCommandStream, std::vector<uint8_t>(10, 0)), -99);
+  std::vector<uint8_t> unsigned_estop = encoded(estop);
+  EXPECT_FALSE(ring->sign(0, t1::CH_RUNTIME_CMD, unsigned_estop.data(), unsigned_estop.size())) << "no room for a tag";
 }
 
 // load_policy's name rules and the approvals.

@@ -1,6 +1,7 @@
 // Who may command the runtime: the runtime's side of messages/auth.py (the protocol's one definition, held to
-// this code by tests/golden/command_auth.json). runtime_cmd_t and joystick_t carry sender_id, timestamp_us and
-// tag = HMAC-SHA256(key, channel + NUL + the payload before tag); an artifact approval is
+// this code by tests/golden/command_auth.json). runtime_cmd_t and joystick_t carry sender_id, timestamp_us and,
+// last, tag_size (0: unsigned, kTagBytes: signed) and tag = HMAC-SHA256(key, channel + NUL + the payload before
+// tag_size); an artifact approval is
 // HMAC-SHA256(key, t1::kApprovalContext + NUL + the artifact file's SHA-256). OpenSSL's libcrypto computes
 // every MAC and digest; nothing here is hand-written crypto.
 //
@@ -14,6 +15,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "t1/controller_status_t.hpp"
 #include "t1_contract.hpp"
@@ -22,7 +24,7 @@ typedef struct evp_mac_ctx_st EVP_MAC_CTX;
 
 namespace t1rt {
 
-inline constexpr std::size_t kTagBytes = 32;     // runtime_cmd_t.tag, joystick_t.tag
+inline constexpr std::size_t kTagBytes = 32;     // tag_size of a signed runtime_cmd_t / joystick_t (0: unsigned)
 inline constexpr std::size_t kKeyBytes = t1::kAuthKeyBytes;
 inline constexpr std::size_t kMaxSenders = 16;   // lines of a key file
 inline constexpr std::size_t kSha256Bytes = 32;
@@ -35,7 +37,7 @@ struct AuthConfig {
 enum class AuthMode { kEstopOnly, kSigned, kUnauthenticated };
 
 // Why a message was refused (controller_status_t.refused_*), in that order.
-enum class Refusal : int { kNoKey, kUnsigned, kUnknownSender, kBadTag, kReplayed, kStale, kCount };
+enum class Refusal : int { kNoKey, kUnsigned, kUnknownSender, kBadTag, kReplayed, kStale, kTagSize, kCount };
 const char* refusal_text(Refusal r);
 
 // The senders of a key file (messages/auth.py: "<sender_id> <64 hex digits>" lines, mode 0600). Immutable
@@ -54,9 +56,20 @@ class KeyRing {
   // HMAC-SHA256(key i, head + body) -> out (one-shot; allocates inside OpenSSL: never on the loop).
   bool mac(std::size_t i, const void* head, std::size_t head_size, const void* body, std::size_t body_size,
            uint8_t out[kTagBytes]) const;
-  // Signs an encoded runtime_cmd_t / joystick_t in place (its sender_id and timestamp_us already set): the
-  // payload's last kTagBytes become the tag over channel + NUL + the bytes before them. Tests and benches.
+  // Signs an encoded runtime_cmd_t / joystick_t in place (encoded with tag_size kTagBytes): its last kTagBytes
+  // become the tag over channel + NUL + the bytes before tag_size. false: not encoded with room for a tag.
   bool sign(std::size_t i, const char* channel, uint8_t* payload, std::size_t size) const;
+  // m's encoding signed by sender i, with m's sender_id and timestamp_us as the caller set them (allocates:
+  // tests, benches and peers, never the loop).
+  template <class Message>
+  std::vector<uint8_t> encode_signed(std::size_t i, const char* channel, Message m) const {
+    m.tag_size = static_cast<int16_t>(kTagBytes);
+    m.tag.assign(kTagBytes, 0);
+    std::vector<uint8_t> out(static_cast<std::size_t>(m.getEncodedSize()));
+    m.encode(out.data(), 0, static_cast<int>(out.size()));
+    sign(i, channel, out.data(), out.size());
+    return out;
+  }
   // Whether `approvals` (messages/auth.py's approval lines) approves the file whose SHA-256 is `digest`;
   // false with *why naming what is missing or wrong.
   bool approves(const std::string& approvals, const uint8_t digest[kSha256Bytes], std::string* why) const;
@@ -85,10 +98,19 @@ class CommandAuth {
   // keys: required for kSigned. false + *error if OpenSSL cannot key a context.
   bool open(AuthMode mode, std::shared_ptr<const KeyRing> keys, const AuthConfig& config, std::string* error);
   AuthMode mode() const { return mode_; }
-  // One decoded datagram on a signed channel: whether it is the key holder's (always under kUnauthenticated,
-  // never under kEstopOnly). A taken timestamp becomes the sender's last on that stream.
+  // The tag_size field of an encoded runtime_cmd_t (kCommandStream) / joystick_t (kJoystickStream), read
+  // where the generated decoder reads it; false when the datagram ends before it. lcm-gen's C++ decoder sizes
+  // the tag vector from this field before checking it against the datagram (a negative one throws, a large
+  // one allocates), so only a datagram whose tag_size tag_size_ok() may be decoded.
+  static bool read_tag_size(Stream stream, const uint8_t* payload, std::size_t size, int* tag_size);
+  static bool tag_size_ok(int tag_size) { return tag_size == 0 || tag_size == static_cast<int>(kTagBytes); }
+  // Counts a datagram whose tag_size is neither 0 nor kTagBytes (refused whatever its verb) and names it.
+  void refuse_tag_size(const char* what, int tag_size);
+  // One decoded datagram on a signed channel (its tag_size 0 or kTagBytes): whether it is the key holder's
+  // (always under kUnauthenticated, never under kEstopOnly). A taken timestamp becomes the sender's last on
+  // that stream.
   bool verify(Stream stream, const char* channel, const uint8_t* payload, std::size_t size, int64_t sender_id,
-              int64_t timestamp_us);
+              int64_t timestamp_us, int tag_size);
   Refusal last_verdict() const { return verdict_; }
   // Counts the last verify()'s refusal and names it (`what`: e.g. "runtime_cmd_t set_mode passive").
   void refuse(const char* what, int64_t sender_id);

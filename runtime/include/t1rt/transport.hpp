@@ -5,8 +5,9 @@
 // a full send buffer drops the message and counts it in send_dropped(), the loop never blocks on it).
 // Heap use that remains, on purpose, off the hot path: runtime_cmd_t carries std::string verb/argument,
 // so decoding an operator command allocates (rare, operator-driven, never per tick); verifying a signed
-// message allocates inside OpenSSL (command_auth.hpp). runtime_cmd_t and joystick_t are taken only when
-// the CommandAuth and safety rule R11 admit them.
+// message allocates inside OpenSSL (command_auth.hpp). runtime_cmd_t and joystick_t are decoded only when
+// their tag_size is 0 or 32 (CommandAuth::read_tag_size: their tags decode into reserved capacity) and taken
+// only when the CommandAuth and safety rule R11 admit them.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -99,9 +100,13 @@ class LcmTransport {
   void on_joystick(const Datagram& d);
   void on_sim_status(const Datagram& d);
   void on_command(const Datagram& d);
+  // Whether a runtime_cmd_t / joystick_t datagram may be decoded: its tag_size 0 or 32, else refused
+  // (counted, named) whatever its verb; one that ends before its tag_size is a decode error.
+  bool decodable(Supervisor::OperatorInput input, const Datagram& d, const char* what);
   // Whether a decoded runtime_cmd_t / joystick_t is obeyed (CommandAuth, rule R11); a refusal is counted.
-  bool admitted(Supervisor::OperatorInput input, const char* channel, const Datagram& d, int64_t sender_id,
-                int64_t timestamp_us, const char* what);
+  template <class Message>
+  bool admitted(Supervisor::OperatorInput input, const char* channel, const Datagram& d, const Message& m,
+                const char* what);
   void subscribe(const char* channel, Handler handler);
   int handle_queued();   // datagrams read now on subscribed channels
   double stamp(int64_t utime) const;
