@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <stdexcept>
 #include <utility>
 
 #include "t1_contract.hpp"
@@ -107,10 +108,15 @@ double LcmTransport::stamp(int64_t utime) const {
 }
 
 // Safety rule R3 (src/safety_supervisor.cpp): decode into scratch; only a datagram that decodes exactly
-// (no error, no trailing bytes) may replace the live message.
+// (no error, no trailing bytes) may replace the live message. lcm-gen's decoder throws std::length_error on a
+// string length below 1 (sim_status_t's strings; runtime_cmd_t's are checked before: CommandAuth::read_tag_size).
 template <class Message>
 bool LcmTransport::decode_scratch(MessageSlot<Message>& slot, const Datagram& d) {
-  const int used = slot.scratch.decode(d.data, 0, static_cast<int>(d.size));
+  int used = -1;
+  try {
+    used = slot.scratch.decode(d.data, 0, static_cast<int>(d.size));
+  } catch (const std::length_error&) {
+  }
   if (used < 0 || static_cast<uint32_t>(used) != d.size) {
     ++decode_errors;
     return false;

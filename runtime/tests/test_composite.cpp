@@ -210,6 +210,22 @@ TEST_F(CompositeLcm, NonFiniteWaistHeightFaults) {
   EXPECT_NE(ctrl_->supervisor().fault_bits() & fault_bit::kNonFiniteSimStatus, 0);
 }
 
+// A sim_status_t whose first string claims length 0 (no NUL: lcm-gen's decoder throws on it) is a decode
+// error and changes nothing.
+TEST_F(CompositeLcm, SimStatusWithAnImpossibleStringLengthIsADecodeError) {
+  to_policy(0.6f);
+  t1::sim_status_t st{};
+  std::vector<uint8_t> buf(static_cast<std::size_t>(st.getEncodedSize()));
+  st.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  const std::size_t scenario_length_at = 3 * sizeof(int64_t) + sizeof(float);  // fingerprint, utime, step, rtf
+  std::fill(buf.begin() + scenario_length_at, buf.begin() + scenario_length_at + sizeof(int32_t), 0);
+  const int64_t before = ctrl_->transport().decode_errors;
+  peer_.publish_raw(t1::CH_SIM_STATUS, buf.data(), buf.size());
+  step(0.6f);
+  EXPECT_EQ(ctrl_->transport().decode_errors, before + 1);
+  EXPECT_EQ(ctrl_->supervisor().mode(), Mode::kPolicy) << ctrl_->supervisor().last_fault();
+}
+
 TEST_F(CompositeLcm, HotReloadRejected) {
   to_policy(0.6f);
   write_spec("composite_reload", constant_spec("other", 0.0f, false));
