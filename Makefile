@@ -124,7 +124,7 @@ eval-puddle: build
 	$(NETNS) $(PY) -m sim_hil.eval puddle $(EVAL_FLAGS)
 # The seed's whole chapter 6 for EVAL_POLICY beside EVAL_BASELINE, every report under EVAL_OUT: getup over
 # 1000 fallen seeds in the batch (physics only, no LCM: ~15 min on 2 cores) and 20 in the loop, pushes,
-# walls, puddles (their default trials), and Fig. 5.1. Issue 16 asks for exactly these.
+# walls, puddles (their default trials), and Fig. 5.1.
 EVAL_OUT ?= out/eval/ch6
 EVAL_BATCH_SEEDS ?= 1000
 eval-ch6: build

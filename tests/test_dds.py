@@ -1,4 +1,4 @@
-"""Issue 18: the runtime faces a DDS robot. t1-runtime --transport dds against `python -m sim_hil --dds`
+"""The runtime faces a DDS robot. t1-runtime --transport dds against `python -m sim_hil --dds`
 (closed loop) and against a test peer writing LowState_ samples itself (malformed samples, damping on
 FAULT and on exit). Every process runs inside tools/netns with Cyclone on loopback only (tools/netns
 exports CYCLONEDDS_URI)."""

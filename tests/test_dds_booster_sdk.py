@@ -1,4 +1,4 @@
-"""Issue 18, the real client: the Booster SDK (booster-robotics-sdk-python 1.6.3, Fast DDS inside; a
+"""The real client: the Booster SDK (booster-robotics-sdk-python 1.6.3, Fast DDS inside; a
 test-only dependency) talks to `python -m sim_hil --dds` as to a T1. Its B1LowStateSubscriber receives the
 simulated state and its B1LowCmdPublisher moves the simulated robot.
 

@@ -1,4 +1,4 @@
-"""Issues 48 and 69: a silent motor or a frozen encoder is a FAULT (supervisor rules R8, R9 of
+"""A silent motor or a frozen encoder is a FAULT (supervisor rules R8, R9 of
 runtime/src/safety_supervisor.cpp), out of process: `python -m sim_hil` with its `dead` / `frozen` faults and
 `t1-runtime`, lockstep. Detection: the shipped student walking at 0.4 m/s on the LCM and the DDS robot link,
 a frozen encoder during a getup and as a push lands (the trips within 1 s measured over a larger matrix by

@@ -1,4 +1,4 @@
-"""Issue 17, out of process: the built `t1-runtime` as a child process, a fake robot (tests/runtime_peer.py)
+"""Out of process: the built `t1-runtime` as a child process, a fake robot (tests/runtime_peer.py)
 talking to it over real LCM inside tools/netns, the way the outside fault client found each defect.
 Lockstep where the defect needs the mode ladder; realtime in PASSIVE (which echoes the live q as q_des
 every tick and checks nothing but finiteness) where the defect is in what reaches the live state."""
@@ -205,7 +205,7 @@ def test_final_target_keeps_the_rate_limit_and_the_torque_limit_with_q_pressed_p
     assert peer.last_status().mode_name == "POLICY"
 
 
-# ---------------------------------------------------------------------------------------- issue 69, item 4
+# ---------------------------------------------------------------------------------------- impossible readings (R10)
 def test_every_joint_reading_3_rad_is_an_impossible_reading_that_faults_and_damps(runtime):
     """The outside client's case: every joint at 3.0 rad, beyond every joint's range by more than R10's margin."""
     peer = in_policy(runtime)

@@ -115,7 +115,7 @@ def test_bad_cli_input_is_named(netns):
 
 
 def test_nonsense_numbers_and_a_missing_gl_backend_are_named_without_traceback(netns, tmp_path):
-    """Issue 17 item 10: nan/inf/0/negative numbers, and --record where no GL backend can render."""
+    """nan/inf/0/negative numbers, and --record where no GL backend can render."""
     import os
     import subprocess
     import sys

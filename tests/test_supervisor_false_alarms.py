@@ -1,4 +1,4 @@
-"""Issue 69: a healthy robot is never faulted by its own supervisor. Every shipped policy, in lockstep
+"""A healthy robot is never faulted by its own supervisor. Every shipped policy, in lockstep
 against the simulated T1 (LCM), in each situation where a healthy encoder repeats its count under load or
 a joint is pressed past its stop: standing still 60 s, standing still 60 s after a getup from a fallen
 seed, lying while something holds its getup down, a kneeling start, leaning on a wall it is pushed

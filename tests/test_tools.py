@@ -46,7 +46,7 @@ def test_lcm_spy_finds_every_project_type(netns):
     assert f"Found {n_types} LCM types" in out, out[-2000:]
 
 
-# ------------------------------------------------------------------ issue 17 item 12: make bench's reference
+# ------------------------------------------------------------------ make bench's reference
 def _bench_env(*args: str, venv: Path, inside: bool) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k != "T1_NETNS_INSIDE"}
     env["BENCH_VENV"] = str(venv)

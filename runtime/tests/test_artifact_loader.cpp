@@ -51,7 +51,7 @@ std::vector<Malformed> malformed_cases() {
       {"nan_default_pose", with([](ArtifactSpec& s) { s.meta["default_pose"][2] = "nan"; }), "default_pose[2]"},
       {"bad_command_ranges", with([](ArtifactSpec& s) { s.meta["command_ranges"]["vx"] = {1, -1}; }), "command_ranges.vx"},
       {"trained_not_bool", with([](ArtifactSpec& s) { s.meta["trained"] = "yes"; }), "trained"},
-      // Issue 17: every manifest number is checked for sign and range, and a removed tensor entry whose
+      // Every manifest number is checked for sign and range, and a removed tensor entry whose
       // bytes stay in the file is named as the missing tensor.
       {"missing_tensor_bytes_kept", [] {
          const ArtifactSpec s = make_spec();
@@ -127,7 +127,7 @@ TEST(RuntimeCli, UsageAndHelpExitCodes) {
   EXPECT_EQ(WEXITSTATUS(std::system((bin + " --policy x --bogus 2> /dev/null").c_str())), 2);
 }
 
-// Issue 17 item 10: numbers that would run forever, exit at once with 0, or pin to a garbage core.
+// Numbers that would run forever, exit at once with 0, or pin to a garbage core.
 // The policy path is bogus on purpose: argument errors must be found first (exit 2, not 3).
 TEST(RuntimeCli, NonsenseNumbersAreUsageErrors) {
   const std::string bin = T1_RUNTIME_BIN;

@@ -2,7 +2,7 @@
 a few fallen starts, with the learner fitted to the stored demonstrations' first pairs. Its env-steps/s N (control
 steps of single simulations, the takeovers' candidates included, per wall second) against the raw physics rate M
 of the same batches (their steps over the time inside `Batch.step`), R = N / M, and the CPU seconds per label
-(issue target ≤ 0.1)."""
+(target ≤ 0.1)."""
 from __future__ import annotations
 
 import time

@@ -1,4 +1,4 @@
-"""`make bench-soak`: the worst case of the realtime loops under load (issue 67). The runtime in POLICY against
+"""`make bench-soak`: the worst case of the realtime loops under load. The runtime in POLICY against
 the realtime simulated T1, both --rt, while the other core runs a CPU and memory load; then cyclictest alone
 on the runtime's core, same priority, same load. Reports, side by side: the lateness histograms (PNG), max,
 p99.99 and overruns, and the simulator's state stream |period − 2 ms| (kernel receive timestamps, as

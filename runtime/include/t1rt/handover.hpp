@@ -1,7 +1,7 @@
 // Lock-free hand-over of the loop's newest value to another thread (a seqlock): the loop writes without ever
 // waiting; a reader retries while a write is under way. One writer, any number of readers; T trivially
 // copyable. For what leaves the 500 Hz loop for slow sinks (the live status line on stderr), so a blocked
-// terminal or pipe never reaches the loop (issue 67).
+// terminal or pipe never reaches the loop.
 #pragma once
 #include <atomic>
 #include <cstdint>

@@ -9,7 +9,7 @@
 // Operator precedence: estop and set_mode passive|damping suspend autostart until the operator's next
 // reset or set_mode prepare|policy. The rules, implemented in src/safety_supervisor.cpp:
 //
-// Rules added by issue 17 (each has a test named in runtime/README.md):
+// Rules of the link and the artifact (each has a test named in runtime/README.md):
 //  R1 Operator precedence. estop and set_mode passive|damping set an operator hold: autostart makes no
 //     request while it is set, so the operator's DAMPING/PASSIVE stands. Only the operator releases it:
 //     reset, or set_mode prepare|policy. (Autostart lives here, not in the controller, for that reason.)
@@ -29,17 +29,17 @@
 //     Each step picks the point of the allowed interval nearest to the wanted target, so with q outside
 //     the range the target moves toward the range at full allowed torque and never away from it.
 //  R7 A fault also rewrites the status info ("FAULT: <reason>"), so the info never names a stale mode.
-// Rules added by issues 48 and 69, counted once per joint state in every mode; FAULT naming the motor in
+// Motor health rules, counted once per joint state in every mode; FAULT naming the motor in
 // PREPARE/POLICY, in PASSIVE/DAMPING a warning that blocks PREPARE (as R4). Figures: tools/motor_watchdog_figures.py.
 //  R8 Silent motor: > kMotorSilentMaxCycles (10) consecutive states with NO_REPLY (no reply that bus cycle;
 //     on DDS MotorState_.lost changed). At 5 % random loss a run of 11 has odds 0.05^11 = 5e-15 per
 //     motor-cycle, one false trip in ~600 years of 23 motors at 500 Hz (longest run measured: 3). A dead
 //     motor trips 22 ms after its last reply, before its own 50 ms watchdog.
-//  R9 Frozen encoder (issue 69): q bit-identical on consecutive replies under a PD torque above
+//  R9 Frozen encoder: q bit-identical on consecutive replies under a PD torque above
 //     frozen_encoder_torque_nm, more than kFrozenEncoderStopMarginRad inside the range, while the IMU's
 //     low-passed angular rate says the body turns and the motors' low-passed speed says the limbs move, for
 //     more than kFrozenEncoderMaxCycles replies (80 ms). Missing replies neither advance nor reset it.
-//  R10 Impossible reading (issue 69): a reply past its range by more than kImpossibleRangeMarginRad, or a step
+//  R10 Impossible reading: a reply past its range by more than kImpossibleRangeMarginRad, or a step
 //     from the motor's previous reply faster than kImpossibleSpeedFactor x its class's v_max; at once.
 //     Why these signals and values, the latencies and the false-alarm argument: t1rt/safety.hpp.
 //  R11 Operator authority (MAVLink 2 signing; an emergency stop works from any station, a reset needs the
