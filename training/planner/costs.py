@@ -1,7 +1,7 @@
 """The planner's cost terms, per rollout and control step, as small named functions over (S, …) arrays.
 
 From the seed's stage-1 reward (§4.7: height and orientation toward the kneel, pose toward the kneel keyframe,
-energy) plus §4.8's gate, reshaped for a sampler (ours, stated in the kneel's card): the height is two-sided
+energy) plus §4.8's gate, reshaped for a sampler (ours, not the seed's reward): the height is two-sided
 (a one-sided term let the probe overshoot into a crouch), the pose is a weighted square (the seed's
 exp(−½‖Δq‖²) is flat far from the kneel, where a sampler needs a slope) and, near the kneel, the root's twist
 is charged so the plan balances rather than sways."""
