@@ -36,8 +36,7 @@ Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyE
       upright_(std::move(upright)) {
   supervisor_.set_autostart(opt_.autostart);  // the ladder and the operator's precedence: safety rule R1
   if (upright_) check_composite_pair(engine_->artifact(), upright_->artifact());  // throws before any thread
-  // Composite: PREPARE ramps to the upright member's default pose (a stand), which is also the member
-  // that runs first unless the waist is low.
+  // Composite: PREPARE ramps to the upright member's pose (a stand); it runs first unless the waist is low.
   active_ = upright_ ? upright_.get() : engine_.get();
   member_ = CompositeMember::kUpright;
   current_path_ = opt_.policy_path;
@@ -227,8 +226,7 @@ void Controller::tick(double now_s) {
   command_.state_seq = transport_.joint.have ? transport_.joint.msg.seq : -1;
   publish_command();
   ++ticks_;
-  // Telemetry only after the command: the robot's answer never waits for observers' messages.
-  if (policy_ran) publish_policy_telemetry(now_s);
+  if (policy_ran) publish_policy_telemetry(now_s);  // after the command: the robot never waits for observers
   // The next tick runs the policy: bring its weights into cache now, while the robot has its command.
   if (may_run_policy && policy_phase_ % kPolicyDecimation == 0) active_->warm_cache();
   if (ticks_ % kStatusEveryTicks == 0) publish_status(now_s);
