@@ -1,6 +1,7 @@
 """What a PPO run may add to brax's PPO, as one narrow interface: its first params, the env wrapper brax trains
 through, fields of the run state and an extra loss term. The trainer (train.py) knows only this; plain PPO is the
-base class, the student's fine-tune (student_finetune.py) the one extension there is."""
+base class, the student's fine-tune (student_finetune.py) and RL from the imitation policy (imitation/finetune.py) its
+extensions."""
 from __future__ import annotations
 
 import contextlib
@@ -10,8 +11,10 @@ import functools
 class PPOExtension:
     """Plain PPO: every hook leaves brax's run as it is."""
 
-    def initial_params(self, restored):
-        """A new run's first params from the checkpoint it starts --from (None: brax initialises them)."""
+    def initial_params(self, restored, env=None):
+        """A new run's first params from what it starts --from (None: brax initialises them); env: the task
+        (its observation sizes)."""
+        del env
         return restored
 
     def state_fields(self, params) -> dict:

@@ -2,9 +2,11 @@
 diff of its task's base config, so that `python -m training recipe NAME` makes the policy and its
 provenance names the recipe and a hash of its content.
 
-A stage is one PPO run (`train`), one DAgger run (`distill`) or the seeded random init of the untrained
-placeholder. `init` names the stage of the same recipe whose newest checkpoint it starts from (a fine-tune);
-`init` may also be `@RECIPE/STAGE`: that stage of another recipe, run into the same runs root. Policy
+A stage is one PPO run (`train`), one DAgger run (`distill`: the student from expert policies), one DAgger
+campaign with the rise planner as the expert (`imitation`: training/imitation/) or the seeded random init of
+the untrained placeholder. `init` names the stage of the same recipe whose newest checkpoint (an imitation
+campaign: its learner's artifact) it starts from (a fine-tune); `init` may also be `@RECIPE/STAGE`: that
+stage of another recipe, run into the same runs root. Policy
 references in a stage (`teacher`, or config values) are paths under policies/ or `@RECIPE/STAGE`, the
 artifact that stage exported.
 """
@@ -17,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-KINDS = ("ppo", "distill", "random_init")
+KINDS = ("ppo", "distill", "imitation", "random_init")
 REF_PREFIX = "@"
 
 
@@ -26,9 +28,10 @@ class Stage:
     name: str
     kind: str = "ppo"
     task: str = ""                 # ppo: a task of training/envs (envs.TASKS); distill: the env (default unified)
-    steps: int = 0                 # ppo: env steps of this stage; distill: DAgger phases
+    steps: int = 0                 # ppo: env steps of this stage; distill: DAgger phases; imitation: rounds
     init: str | None = None        # the stage to fine-tune from (this recipe's, or @RECIPE/STAGE); None = scratch
-    config: Mapping[str, Any] = field(default_factory=dict)   # {"env.x": v, "ppo.y": v, "bc.z": v}: the diff
+    # the diff: {"env.x": v, "ppo.y": v, "bc.z": v}; imitation: {"dagger.x": v, "planner.y": v}
+    config: Mapping[str, Any] = field(default_factory=dict)
     # distill: {"getup": ref, "joystick": ref}; ppo: the same for a behaviour-cloning term (ppo.teacher.*)
     teacher: Mapping[str, str] = field(default_factory=dict)
     envs: int | None = None        # parallel envs where the stage needs other than its preset's

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 from training import checkpoints, recipe as R
+from training.imitation import config as imitation_config
 
 RUNS_ROOT = checkpoints.REPO_ROOT / "runs"
 CAMPAIGNS_ROOT = checkpoints.REPO_ROOT / "training" / "campaigns"
@@ -23,6 +24,10 @@ DISTILL_STATE = "distill_state.json"   # = training.distill.STATE_FILE (not impo
 CURVE_FILES = ("metrics.csv", "learning_curve.png")
 TOY_PPO_STEPS = 80        # one toy PPO update: 8 envs × 5 unroll × 2 minibatches
 TOY_BANK_STARTS = 4       # landing banks of a toy stage (their rollouts dominate a toy run otherwise)
+# a toy imitation stage: the demonstrations' fit and one labelled round, of this size
+TOY_IMITATION = ("dagger.rounds=2", "dagger.starts_per_round=2", "dagger.rollout_s=0.2", "dagger.eval_seeds=2",
+                 "dagger.eval_seconds=0.2", "dagger.fit.steps=2", "dagger.fit.hidden_layer_sizes=[16, 16]",
+                 "dagger.expert.policy_samples=2", "dagger.expert.plan_samples=2", "dagger.expert.horizon_s=0.2")
 
 
 def describe() -> str:
@@ -49,6 +54,13 @@ def artifact_name(recipe: R.Recipe, stage: R.Stage) -> str:
     return recipe.policy if stage is recipe.stages[-1] else f"{recipe.policy}_{stage.name}"
 
 
+def stage_artifact(run_dir: Path, recipe: R.Recipe, stage: R.Stage) -> Path:
+    """The artifact a stage's run directory exports (an imitation campaign's newest learner)."""
+    if stage.kind == "imitation":
+        return run_dir / imitation_config.ARTIFACT
+    return run_dir / f"{artifact_name(recipe, stage)}.safetensors"
+
+
 def stage_complete(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
     dirs = stage_dirs(root, recipe, stage)
     if not dirs:
@@ -59,6 +71,10 @@ def stage_complete(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
     if stage.kind == "distill":
         state = _json(last / DISTILL_STATE)
         return bool(state.get("finished")) and not state.get("stopped_by_max_minutes")
+    if stage.kind == "imitation":    # its rounds, or fewer where the campaign's own config asks for fewer
+        state = _json(last / imitation_config.STATE)
+        rounds = min(int(stage.steps), int(state.get("config", {}).get("dagger", {}).get("rounds", stage.steps)))
+        return bool(state) and len(state["rounds"]) >= rounds
     state = _json(last / checkpoints.RUN_STATE)
     return bool(state) and (int(state["env_steps"]) >= int(state["target_steps"]) or "advanced" in state)
 
@@ -92,18 +108,32 @@ def _json(path: Path) -> dict:
     return json.loads(path.read_text()) if path.exists() else {}
 
 
-def _run_dir(init: str, recipe: R.Recipe, root: Path) -> Path:
-    """The newest run directory of `init` (a stage of `recipe`, or @RECIPE/STAGE)."""
+def _stage_of(init: str, recipe: R.Recipe) -> tuple[R.Recipe, R.Stage]:
+    """The recipe and stage `init` names (a stage of `recipe`, or @RECIPE/STAGE)."""
     if init.startswith(R.REF_PREFIX):
         name, _, stage_name = init[1:].partition("/")
         recipe = R.load(name)
     else:
         stage_name = init
-    dirs = stage_dirs(root, recipe, recipe.stage(stage_name))
+    return recipe, recipe.stage(stage_name)
+
+
+def _run_dir(init: str, recipe: R.Recipe, root: Path) -> Path:
+    """The newest run directory of `init` (a stage of `recipe`, or @RECIPE/STAGE)."""
+    recipe, stage = _stage_of(init, recipe)
+    dirs = stage_dirs(root, recipe, stage)
     if not dirs:
         raise FileNotFoundError(f"{init}: not run under {root}; run `python -m training recipe {recipe.name} "
-                                f"--stage {stage_name}` first (with the same --out)")
+                                f"--stage {stage.name}` first (with the same --out)")
     return dirs[-1]
+
+
+def _init_path(init: str, recipe: R.Recipe, root: Path) -> Path:
+    """What a stage starts from: the run directory of `init`, or, of an imitation campaign, its learner's
+    artifact (a PPO fine-tune of the DAgger policy)."""
+    run_dir = _run_dir(init, recipe, root)
+    recipe, stage = _stage_of(init, recipe)
+    return stage_artifact(run_dir, recipe, stage) if stage.kind == "imitation" else run_dir
 
 
 def resolve_ref(value, root: Path, shipped: bool = False):
@@ -117,7 +147,7 @@ def resolve_ref(value, root: Path, shipped: bool = False):
         return str(checkpoints.policy_dir(recipe.policy) / f"{recipe.policy}.safetensors")
     stage = recipe.stage(stage_name)
     dirs = stage_dirs(root, recipe, stage)
-    path = dirs[-1] / f"{artifact_name(recipe, stage)}.safetensors" if dirs else None
+    path = stage_artifact(dirs[-1], recipe, stage) if dirs else None
     if path is None or not path.exists():
         raise FileNotFoundError(f"{value}: no artifact under {root / name}; run `python -m training recipe {name} "
                                 f"--stage {stage_name}` first (with the same --out)")
@@ -130,10 +160,11 @@ def _overrides(config: dict, toy: bool) -> list[str]:
     if not toy:
         return [f"{k}={v!r}" for k, v in config.items()]
     from training.envs import starts
+    from training.imitation.finetune import LEARNER_KEYS as IMITATION_KEYS
     from training.student_finetune import LEARNER_KEYS
     banked = tuple(f"env.{s.group}" for s in starts.SOURCES if {"prob", "bank_starts"} <= set(s.functions()[0]()))
     out = [f"{k}={v!r}" for k, v in config.items()
-           if k.startswith(LEARNER_KEYS) or not k.startswith(("ppo.", "bc."))]
+           if k.startswith(LEARNER_KEYS + IMITATION_KEYS) or not k.startswith(("ppo.", "bc."))]
     for k, v in config.items():
         if k.endswith(".prob") and isinstance(v, float) and v > 0 and k[:-len(".prob")] in banked:
             out.append(f"{k[:-len('.prob')]}.bank_starts={TOY_BANK_STARTS}")
@@ -180,7 +211,7 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
 def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_minutes, backend, toy, progress,
                provenance: dict) -> None:
     dirs = stage_dirs(root, recipe, s)
-    init = _run_dir(s.init, recipe, root) if s.init else None
+    init = _init_path(s.init, recipe, root) if s.init else None
     command = (f"python -m training recipe {recipe.name} --stage {s.name}"
                f"{' --toy' if toy else ''} (recipe sha256 {provenance['sha256'][:12]})")
     # a toy stage's landing banks roll the policies its config names, which must be trained experts (a toy
@@ -195,6 +226,13 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         out = root / recipe.name / s.name
         out.mkdir(parents=True, exist_ok=True)
         untrained.main([str(out / f"{name}.safetensors")])
+        return
+    if s.kind == "imitation":
+        from training import imitation
+        if dirs and not resume:
+            raise FileExistsError(f"{dirs[-1]} holds an unfinished imitation stage {s.name}: pass --resume to go on")
+        imitation.run(root / recipe.name / s.name, overrides + list(TOY_IMITATION if toy else ()),
+                      rounds=int(s.steps), max_minutes=max_minutes)
         return
     if s.kind == "ppo":
         from training import train
@@ -236,16 +274,21 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
 def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS_ROOT) -> list[Path]:
     """Copy each run stage's newest checkpoint, run state and curve into campaigns/NAME/<stage dir>/
     (replacing what was there): what a campaign needs to go on on another machine. A superseded stage that
-    nothing reads is dropped from the campaign instead."""
+    nothing reads is dropped from the campaign instead. An imitation stage is its campaign folder, kept whole:
+    its data are the planner's labels, the costliest thing a campaign holds."""
     recipe = R.load(name)
     saved = []
     for s in recipe.stages:
-        drop = superseded(root, recipe, s) and not referenced(recipe, s)
+        drop = superseded(root, recipe, s) and not referenced(recipe, s) and s.kind != "imitation"
         for run_dir in stage_dirs(root, recipe, s):
             dest = campaigns / name / run_dir.name
             if dest.exists():
                 shutil.rmtree(dest)
             if drop:
+                continue
+            if s.kind == "imitation":
+                shutil.copytree(run_dir, dest)
+                saved.append(dest)
                 continue
             dest.mkdir(parents=True)
             for f in (checkpoints.RUN_STATE, DISTILL_STATE, *CURVE_FILES):

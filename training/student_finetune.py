@@ -120,7 +120,7 @@ class StudentFinetune(PPOExtension):
     def __init__(self, ppo_cfg):
         self._cfg = ppo_cfg
 
-    def initial_params(self, restored):
+    def initial_params(self, restored, env=None):
         return init_params(restored, self._cfg)
 
     def state_fields(self, params) -> dict:

@@ -21,6 +21,7 @@ from ml_collections import config_dict
 
 from common.artifact import read_artifact
 from training import checkpoints, curves, migration, ppo_networks, student_finetune
+from training.imitation import finetune
 from training.configs import build_configs
 from training.export import export_brax_ppo, exported_as_trained, exported_policy, run_provenance
 from training.checkpoints import REPO_ROOT
@@ -117,6 +118,7 @@ class _Run:
     env_cfg: config_dict.ConfigDict
     params: object
     extension: object
+    initial: bool = False    # params are still what the run starts from, before its extension's initial_params
 
 
 def _resume_run(task: str, run_dir: Path, steps, overrides: Sequence[str]) -> _Run:
@@ -131,28 +133,52 @@ def _resume_run(task: str, run_dir: Path, steps, overrides: Sequence[str]) -> _R
     if steps is not None:
         state["target_steps"] = int(steps)  # extending a finished run is allowed
     started = state["env_steps"] > 0
-    source = run_dir if started else state.get("init")
-    restored = checkpoints.load_checkpoint(source) if source else None
-    ext = student_finetune.extension(ppo_cfg, restored)
-    return _Run(run_dir, state, ppo_cfg, env_cfg, restored if started else ext.initial_params(restored), ext)
+    restored = checkpoints.load_checkpoint(run_dir) if started else _load_init(state.get("init"))
+    return _Run(run_dir, state, ppo_cfg, env_cfg, restored, _extension(ppo_cfg, restored), initial=not started)
 
 
 def _new_run(task: str, run_dir: Path, *, steps, overrides, preset, from_checkpoint, name, seed, recipe) -> _Run:
     if (run_dir / checkpoints.RUN_STATE).exists():
         raise FileExistsError(f"{run_dir} already holds a run: pass --resume to continue it or pick another --out")
     ppo_cfg, env_cfg = build_configs(task, preset, overrides)
-    init = str(checkpoints.resolve_checkpoint(from_checkpoint)) if from_checkpoint else None
-    restored = checkpoints.load_checkpoint(init) if init else None
-    ext = student_finetune.extension(ppo_cfg, restored)
-    params = ext.initial_params(restored)
+    init = None
+    if from_checkpoint:
+        init = str(Path(from_checkpoint).resolve() if finetune.is_artifact(from_checkpoint)
+                   else checkpoints.resolve_checkpoint(from_checkpoint))
+    restored = _load_init(init)
     state = {"task": task, "name": name or task, "preset": preset, "seed": seed,
              "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
              "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
-             "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {}),
-             **ext.state_fields(params)}
+             "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {})}
     run_dir.mkdir(parents=True, exist_ok=True)
     checkpoints.save_run_state(run_dir, state)
-    return _Run(run_dir, state, ppo_cfg, env_cfg, params, ext)
+    return _Run(run_dir, state, ppo_cfg, env_cfg, restored, _extension(ppo_cfg, restored), initial=True)
+
+
+def _load_init(init):
+    """What a run starts from: a PPO checkpoint's params, a DAgger learner's artifact, or None."""
+    if not init:
+        return None
+    return finetune.read_learner(init) if finetune.is_artifact(init) else checkpoints.load_checkpoint(init)
+
+
+def _extension(ppo_cfg, restored):
+    """RL from the imitation policy where the config or the start asks for it, else the student's fine-tune
+    where its config or checkpoint does, else plain PPO."""
+    if finetune.uses_imitation(ppo_cfg) or isinstance(restored, dict):
+        return finetune.ImitationFinetune(ppo_cfg)
+    return student_finetune.extension(ppo_cfg, restored)
+
+
+def _start(run: _Run, env) -> None:
+    """A run that has not trained yet: its first params through its extension (which may read the task's
+    observation sizes), and the run-state fields the extension keeps from them."""
+    if not run.initial:
+        return
+    run.params = run.extension.initial_params(run.params, env)
+    run.state.update(run.extension.state_fields(run.params))
+    run.initial = False
+    checkpoints.save_run_state(run.dir, run.state)
 
 
 class _Epochs:
@@ -299,6 +325,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     # the physics engine is this call's choice (a run may move between GPU and CPU sessions)
     run.env_cfg.backend = backend or default_backend()
     env = make_env(task, run.env_cfg)
+    _start(run, env)
     epochs = _Epochs(run, env, None, command, max_minutes, progress, t_start)
     sps = epochs.close(_train_phases(run, env, epochs, seed))
     latest, target = epochs.latest, int(run.state["target_steps"])

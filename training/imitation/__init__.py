@@ -4,7 +4,8 @@ rises drifts off them; here the learner's own states are labelled by short plann
 
 config.py  the settings;  expert.py  the batched takeovers (the labels);  learner.py  the policy network, its
 fit and export;  dataset.py  the aggregated data on disk;  dagger.py  the rounds;  report.py  the campaign's
-table and curve;  __main__  `python -m training.imitation`."""
+table and curve;  finetune.py  RL from the DAgger policy (PPO with a decaying BC term on the same data);
+__main__  `python -m training.imitation`."""
 from __future__ import annotations
 
 
@@ -22,3 +23,11 @@ def build(overrides: list[str]):
     import training.evaluate  # noqa: F401  (imported now: a long run must not pick up code edited meanwhile)
     import training.evaluate_cpu  # noqa: F401
     return cfg, expert.Teacher(planner, cfg.expert), env
+
+
+def run(out, overrides: list[str], demos=None, rounds: int | None = None, max_minutes: float | None = None,
+        eval_dir=None, refit: bool = False) -> dict:
+    """DAgger into the campaign folder `out` (dagger.run) with `key=value` overrides; returns its state."""
+    from training.imitation import dagger
+    cfg, teacher, env = build(overrides)
+    return dagger.run(out, demos or dagger.DEFAULT_DEMOS, cfg, teacher, env, rounds, max_minutes, eval_dir, refit)

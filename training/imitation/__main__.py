@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from training.imitation import build, dagger
+from training.imitation import dagger, run
 
 
 
@@ -31,9 +31,7 @@ def main(argv=None) -> int:
     try:
         if args.rounds is not None and args.rounds < 1:
             raise ValueError(f"--rounds must be at least 1, got {args.rounds}")
-        cfg, teacher, env = build(args.config)
-        state = dagger.run(args.out, args.demos, cfg, teacher, env, args.rounds, args.max_minutes, args.eval_dir,
-                           args.refit)
+        state = run(args.out, args.config, args.demos, args.rounds, args.max_minutes, args.eval_dir, args.refit)
     except ValueError as e:
         print(f"imitation: {e}", file=sys.stderr)
         return 2

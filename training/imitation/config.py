@@ -3,6 +3,12 @@ from __future__ import annotations
 
 from ml_collections import config_dict
 
+# a DAgger campaign's folder (dagger.Campaign): its state, its newest learner and its data
+STATE = "state.json"
+ARTIFACT = "getup_kneel_dagger.safetensors"
+DATA = "data"
+COLLECTED = "collected.json"
+
 
 def default_config() -> config_dict.ConfigDict:
     return config_dict.create(

@@ -15,16 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from training.imitation import dataset, expert
+from training.imitation import config, dataset, expert
 from training.imitation.learner import fit, load_learner, new_learner
 from training.planner import costs
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_DEMOS = REPO_ROOT / "training" / "campaigns" / "getup_keyframe" / "demos"   # the planner's stored rises
-STATE = "state.json"
-ARTIFACT = "getup_kneel_dagger.safetensors"
-DATA = "data"
-COLLECTED = "collected.json"
+STATE, ARTIFACT, DATA, COLLECTED = config.STATE, config.ARTIFACT, config.DATA, config.COLLECTED
 FACING_Z = 0.5        # the evaluation's split of starts: face down below −this, on the back above it
 
 

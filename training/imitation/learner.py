@@ -41,13 +41,17 @@ class Learner:
 
     def label_actions(self, q_des: np.ndarray) -> np.ndarray:
         """The action a policy of this map sends for joint targets q_des [rad] (the regression's labels)."""
-        return np.clip(obsdef.targets_to_action(self.default_pose, self.action_scale, q_des),
-                       -ACTION_LIMIT, ACTION_LIMIT)
+        return targets_to_labels(q_des, self.default_pose, self.action_scale)
 
     def export(self, path: Path, manifest_fields: dict) -> str:
         from training.export import export_brax_ppo
         norm = SimpleNamespace(mean=self.obs_mean, std=self.obs_std)
         return export_brax_ppo((norm, self.params), manifest_fields, path)
+
+
+def targets_to_labels(q_des: np.ndarray, default_pose: np.ndarray, action_scale: np.ndarray) -> np.ndarray:
+    """The actions of joint targets q_des [rad] under the getup action map, inside tanh's range."""
+    return np.clip(obsdef.targets_to_action(default_pose, action_scale, q_des), -ACTION_LIMIT, ACTION_LIMIT)
 
 
 def new_learner(obs: np.ndarray, hidden: list[int], seed: int, env_fields: dict, lo, hi) -> Learner:

@@ -1,0 +1,187 @@
+"""RL from the imitation policy (DAPG, arXiv 1709.10087: behaviour-cloning init, then policy gradient with a demo
+term whose weight decays): PPO on a getup task from the DAgger learner's artifact, plus a behaviour-cloning term on
+the aggregated planner data (the demonstrations and every stored DAgger round), so PPO changes what the planner's
+labels could not teach (holding §4.8's gate) without unlearning the rise they did teach.
+
+Start. The DAgger artifact is brax's tanh-normal policy MLP (learner.py): its layers become the PPO policy as they
+are; the scale half of the last layer, which the fit never trained, is reset to one state-independent sampling std
+(ppo.init_noise_std, pre-tanh). The observation normaliser starts at the artifact's mean and std with the data
+set's size as its count (the critic's extra inputs at 0 and 1), so PPO's first batches move it as little as the
+data would. The critic starts fresh (ppo.value_warmup_steps: train.py).
+BC term, added to brax's PPO loss:
+    w(n) · mean over bc_batch random pairs of Σ_joints (tanh(μ(obs)) − label)²
+    w(n) = imitation.bc_weight · max(0, 1 − n / imitation.bc_decay_steps)
+with label the action of the planner's joint targets under the getup action map (the DAgger fit's own labels)
+and n the env steps of this fine-tune (the normaliser's sample count minus the count it started from)."""
+from __future__ import annotations
+
+import contextlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from training.ppo_extension import PPOExtension
+from training.student_finetune import bc_weight, sample_count
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+# the keys that make a PPO stage this fine-tune: a toy run keeps them (recipe_runner.py)
+LEARNER_KEYS = ("ppo.imitation.",)
+MIN_STD = 1e-3            # brax NormalTanhDistribution's min_std: scale = softplus(raw) + MIN_STD
+
+
+def imitation_config():
+    """The PPO config's `imitation` group: the DAgger campaign whose data the BC term reads (its data/ rounds; ""
+    = the campaign of the artifact the run starts from) and the planner's demonstrations its round 0 is
+    (repository-relative or absolute), and the term's schedule (bc_weight 0 = none)."""
+    from ml_collections import config_dict
+    return config_dict.create(campaign="", demos="", bc_weight=0.0, bc_decay_steps=0, bc_batch=1024)
+
+
+def uses_imitation(ppo_cfg) -> bool:
+    return float(ppo_cfg.imitation.bc_weight) > 0
+
+
+def _path(p: str) -> Path:
+    path = Path(p)
+    return path if path.is_absolute() else REPO_ROOT / path
+
+
+def is_artifact(path) -> bool:
+    return Path(path).suffix == ".safetensors"
+
+
+def read_learner(path) -> dict:
+    """The DAgger learner an artifact holds: {"layers": brax policy params, "mean", "std"} (its normaliser)."""
+    from common.artifact import read_artifact
+    layers, mean, std, manifest = read_artifact(Path(path))
+    if manifest.get("output_rule") not in (None, "tanh_normal"):
+        raise ValueError(f"{path}: a fine-tune from an artifact needs brax's tanh-normal policy, "
+                         f"not output rule {manifest.get('output_rule')!r}")
+    return {"path": str(path), "layers": {"params": {f"hidden_{i}": {"kernel": np.ascontiguousarray(w.T), "bias": b}
+                                  for i, (w, b) in enumerate(layers)}},
+            "mean": np.asarray(mean, np.float32), "std": np.asarray(std, np.float32)}
+
+
+def policy_params(layers: dict, init_std: float) -> dict:
+    """The learner's layers with the last layer's scale half giving the pre-tanh std init_std everywhere."""
+    if not init_std > MIN_STD:
+        raise ValueError(f"ppo.init_noise_std must be > {MIN_STD} (the sampling std), got {init_std}")
+    inner = {k: {n: np.array(v) for n, v in layer.items()} for k, layer in layers["params"].items()}
+    last = inner[f"hidden_{len(inner) - 1}"]
+    half = last["bias"].shape[0] // 2
+    last["kernel"][:, half:] = 0.0
+    last["bias"][half:] = np.log(np.expm1(init_std - MIN_STD))
+    return {"params": inner}
+
+
+def normalizer_state(mean: np.ndarray, std: np.ndarray, count: int, observation_size: dict):
+    """brax's running statistics at the learner's (mean, std) for "state", counted `count` times; the critic's
+    "privileged_state" starts with the same actor observation, its extras at mean 0, std 1."""
+    from brax.training import types
+    from brax.training.acme import running_statistics
+    n = int(observation_size["state"][0])
+    if mean.shape != (n,):
+        raise ValueError(f"the artifact's observation has {mean.shape[0]} entries, the task's {n}")
+    extra = int(observation_size["privileged_state"][0]) - n
+    stats = {"state": (mean, std),
+             "privileged_state": (np.concatenate([mean, np.zeros(extra, np.float32)]),
+                                  np.concatenate([std, np.ones(extra, np.float32)]))}
+    return running_statistics.RunningStatisticsState(
+        count=types.UInt64(hi=np.uint32(count >> 32), lo=np.uint32(count & 0xFFFFFFFF)),
+        mean={k: m for k, (m, _) in stats.items()},
+        summed_variance={k: np.square(s) * count for k, (_, s) in stats.items()},
+        std={k: s for k, (_, s) in stats.items()})
+
+
+def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(observations, label actions) of the DAgger campaign's aggregate: the demonstrations and every round it
+    stored, labels through the getup action map ({"default_pose", "action_scale"} [rad]); `init`: the path the
+    run starts from (its folder is the campaign where ppo.imitation.campaign is "")."""
+    from training.imitation import dagger, dataset
+    from training.imitation.learner import targets_to_labels
+    t = ppo_cfg.imitation
+    if not t.demos:
+        raise ValueError("ppo.imitation.demos must name the planner's demonstrations (the DAgger round 0)")
+    if not t.campaign and not (init and is_artifact(init)):
+        raise ValueError("ppo.imitation.campaign is empty and the run does not start from a DAgger artifact")
+    campaign = _path(t.campaign) if t.campaign else Path(init).parent
+    data = campaign / dagger.DATA
+    collected = data / dagger.COLLECTED
+    if not collected.exists():
+        raise ValueError(f"{campaign}: not a DAgger campaign (no {dagger.DATA}/{dagger.COLLECTED})")
+    rounds = 1 + max((int(k) for k in json.loads(collected.read_text())["rounds"]), default=0)
+    obs, q = dataset.aggregate(data, _path(t.demos), rounds)
+    return obs, targets_to_labels(q, action_map["default_pose"], action_map["action_scale"])
+
+
+class ImitationFinetune(PPOExtension):
+    """The hooks of RL from the imitation policy: the DAgger artifact as the first policy and the decaying BC term
+    on the planner's data (module docstring)."""
+
+    def __init__(self, ppo_cfg):
+        self._cfg = ppo_cfg
+        self._pairs = None
+
+    def _data(self, env, init) -> tuple[np.ndarray, np.ndarray]:
+        if self._pairs is None:
+            fields = env.manifest_fields()
+            self._pairs = planner_pairs(self._cfg, init, {"default_pose": np.asarray(fields["default_pose"]),
+                                                    "action_scale": np.asarray(fields["action_scale"])})
+        return self._pairs
+
+    def initial_params(self, restored, env=None):
+        if not isinstance(restored, dict) or "layers" not in restored:
+            return restored                      # a PPO checkpoint (or none): as it is
+        if env is None:
+            raise ValueError("a fine-tune from a DAgger artifact needs the task's observation sizes")
+        count = len(self._data(env, restored["path"])[0]) if uses_imitation(self._cfg) else 1
+        return [normalizer_state(restored["mean"], restored["std"], count, env.observation_size),
+                policy_params(restored["layers"], float(self._cfg.init_noise_std)), None]
+
+    def state_fields(self, params) -> dict:
+        return {"bc_count_start": float(sample_count(params[0])) if params else 0.0}
+
+    def loss_term(self, env, state: dict):
+        pairs = self._data(env, state.get("init")) if uses_imitation(self._cfg) else None
+        return imitation_term(self._cfg, pairs,
+                              float(state.get("bc_count_start", 0.0)))
+
+
+def bc_loss(ppo_network, policy_params, normalizer_params, obs, labels, sizes: dict, policy_key: str = "state"):
+    """mean over the pairs of Σ_joints (tanh(μ(obs)) − label)²: the DAgger fit's regression (learner.fit, there a
+    mean over the joints) on the PPO policy. sizes: the observation's entries per key (the others are zeros)."""
+    import jax.numpy as jnp
+    x = {k: obs if k == policy_key else jnp.zeros((obs.shape[0], n), jnp.float32) for k, n in sizes.items()}
+    logits = ppo_network.policy_network.apply(normalizer_params, policy_params, x)
+    mean = ppo_network.parametric_action_distribution.mode(logits)
+    return jnp.mean(jnp.sum(jnp.square(mean - labels), axis=-1))
+
+
+@contextlib.contextmanager
+def imitation_term(ppo_cfg, pairs, count_start: float):
+    """While open, brax's PPO loss carries the BC term on `pairs` (module docstring); a no-op without one."""
+    if pairs is None:
+        yield
+        return
+    import jax
+    import jax.numpy as jnp
+    from brax.training.agents.ppo import losses as ppo_losses
+    t = ppo_cfg.imitation
+    weight, decay, batch = float(t.bc_weight), int(t.bc_decay_steps), int(t.bc_batch)
+    obs, labels = jnp.asarray(pairs[0], jnp.float32), jnp.asarray(pairs[1], jnp.float32)
+    ppo_loss = ppo_losses.compute_ppo_loss
+
+    def loss(params, normalizer_params, data, rng, ppo_network, **kwargs):
+        total, metrics = ppo_loss(params, normalizer_params, data, rng, ppo_network, **kwargs)
+        idx = jax.random.randint(jax.random.fold_in(rng, 1), (batch,), 0, obs.shape[0])
+        bc = bc_loss(ppo_network, params.policy, normalizer_params, obs[idx], labels[idx],
+                     {k: v.shape[-1] for k, v in data.observation.items()}, ppo_cfg.policy_obs_key)
+        w = bc_weight(sample_count(normalizer_params, jnp) - count_start, weight, decay)
+        return total + w * bc, {**metrics, "bc_loss": bc, "bc_weight": w}
+
+    ppo_losses.compute_ppo_loss = loss
+    try:
+        yield
+    finally:
+        ppo_losses.compute_ppo_loss = ppo_loss
