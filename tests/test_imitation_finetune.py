@@ -76,7 +76,7 @@ def test_the_bc_term_is_the_dagger_fits_regression_summed_over_joints(learner):
     rounds = json.loads((CAMPAIGN / "data" / "collected.json").read_text())["rounds"]
     assert len(obs) == len(labels) == len(dataset.demonstration_pairs(dagger.DEFAULT_DEMOS)[0]) + \
         sum(r["labels"] for r in rounds.values())             # the demonstrations and every stored round
-    assert float(finetune.sample_count(params[0])) == len(obs)  # the normaliser counts the data set once
+    assert float(finetune.sample_count(params[0])) == finetune.NORMALIZER_COUNT   # held
     pick = np.random.default_rng(0).choice(len(obs), 512, replace=False)
     got = float(finetune.bc_loss(_network(cfg), params[1], params[0], obs[pick], labels[pick],
                                  {k: v[0] for k, v in SIZES.items()}))

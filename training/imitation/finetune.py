@@ -5,9 +5,12 @@ labels could not teach (holding §4.8's gate) without unlearning the rise they d
 
 Start. The DAgger artifact is brax's tanh-normal policy MLP (learner.py): its layers become the PPO policy as they
 are; the scale half of the last layer, which the fit never trained, is reset to one state-independent sampling std
-(ppo.init_noise_std, pre-tanh). The observation normaliser starts at the artifact's mean and std with the data
-set's size as its count (the critic's extra inputs at 0 and 1), so PPO's first batches move it as little as the
-data would. The critic starts fresh (ppo.value_warmup_steps: train.py).
+(ppo.init_noise_std, pre-tanh). The observation normaliser is the artifact's mean and std, held (counted
+NORMALIZER_COUNT times, so a run's samples move it by well under 1 %): the DAgger data are the learner's own
+states already, and a normaliser that moved under the policy would change what it does (from the data set's size
+as its count, the BC loss rose 0.11 → 0.17 within the critic's warm-up, the policy frozen). The critic's extra
+inputs (velocities, heights, torque shares, contacts: all of order 1) are held at mean 0 and std 1. The critic
+starts fresh (ppo.value_warmup_steps: train.py).
 BC term, added to brax's PPO loss:
     w(n) · mean over bc_batch random pairs of Σ_joints (tanh(μ(obs)) − label)²
     w(n) = imitation.bc_weight · max(0, 1 − n / imitation.bc_decay_steps)
@@ -27,6 +30,7 @@ from training.student_finetune import bc_weight, sample_count
 REPO_ROOT = Path(__file__).resolve().parents[2]
 # the keys that make a PPO stage this fine-tune: a toy run keeps them (recipe_runner.py)
 LEARNER_KEYS = ("ppo.imitation.",)
+NORMALIZER_COUNT = 2 ** 32   # samples the held normaliser counts (float32 reads it to 512: the BC decay's step)
 MIN_STD = 1e-3            # brax NormalTanhDistribution's min_std: scale = softplus(raw) + MIN_STD
 
 
@@ -135,8 +139,7 @@ class ImitationFinetune(PPOExtension):
             return restored                      # a PPO checkpoint (or none): as it is
         if env is None:
             raise ValueError("a fine-tune from a DAgger artifact needs the task's observation sizes")
-        count = len(self._data(env, restored["path"])[0]) if uses_imitation(self._cfg) else 1
-        return [normalizer_state(restored["mean"], restored["std"], count, env.observation_size),
+        return [normalizer_state(restored["mean"], restored["std"], NORMALIZER_COUNT, env.observation_size),
                 policy_params(restored["layers"], float(self._cfg.init_noise_std)), None]
 
     def state_fields(self, params) -> dict:
