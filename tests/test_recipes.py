@@ -201,8 +201,8 @@ def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():
 
 
 def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(tmp_path, monkeypatch):
-    """getup_keyframe keeps its `stand` stage (stage 2's newest): on a fresh runs root --resume restores it, so
-    complete stages and the stages they started from are not trained again."""
+    """getup_keyframe keeps its `stand` stage (stage 2's newest) and its stage-1 DAgger campaign: on a fresh runs
+    root --resume restores them, so complete stages and the stages they started from are not trained again."""
     ran = []
     monkeypatch.setattr(recipe_runner, "_run_stage", lambda recipe, s, *a, **k: ran.append(s.name))
     recipe_runner.run("getup_keyframe", root=tmp_path, resume=True, progress=False)
@@ -210,4 +210,5 @@ def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(
     assert "stand_path" not in ran and "stand_swing" not in ran and "stand" not in ran
     recipe = R.load("getup_keyframe")
     first_open = next(s.name for s in recipe.stages if not recipe_runner.stage_complete(tmp_path, recipe, s))
-    assert first_open.startswith("rise_") and ran == [first_open]   # stage 1's first open stage (none completes here)
+    assert (tmp_path / "getup_keyframe" / "dagger" / "data").is_dir() and "dagger" not in ran
+    assert first_open.startswith("rise") and ran == [first_open]   # stage 1's first open stage (none completes here)

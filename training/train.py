@@ -20,8 +20,7 @@ from typing import Sequence
 from ml_collections import config_dict
 
 from common.artifact import read_artifact
-from training import checkpoints, curves, migration, ppo_networks, student_finetune
-from training.imitation import finetune
+from training import checkpoints, curves, extensions, migration, ppo_networks
 from training.configs import build_configs
 from training.export import export_brax_ppo, exported_as_trained, exported_policy, run_provenance
 from training.checkpoints import REPO_ROOT
@@ -133,8 +132,9 @@ def _resume_run(task: str, run_dir: Path, steps, overrides: Sequence[str]) -> _R
     if steps is not None:
         state["target_steps"] = int(steps)  # extending a finished run is allowed
     started = state["env_steps"] > 0
-    restored = checkpoints.load_checkpoint(run_dir) if started else _load_init(state.get("init"))
-    return _Run(run_dir, state, ppo_cfg, env_cfg, restored, _extension(ppo_cfg, restored), initial=not started)
+    restored = checkpoints.load_checkpoint(run_dir) if started else extensions.load_init(state.get("init"))
+    ext = extensions.extension(ppo_cfg, restored)
+    return _Run(run_dir, state, ppo_cfg, env_cfg, restored, ext, initial=not started)
 
 
 def _new_run(task: str, run_dir: Path, *, steps, overrides, preset, from_checkpoint, name, seed, recipe) -> _Run:
@@ -143,31 +143,16 @@ def _new_run(task: str, run_dir: Path, *, steps, overrides, preset, from_checkpo
     ppo_cfg, env_cfg = build_configs(task, preset, overrides)
     init = None
     if from_checkpoint:
-        init = str(Path(from_checkpoint).resolve() if finetune.is_artifact(from_checkpoint)
+        init = str(Path(from_checkpoint).resolve() if extensions.is_artifact(from_checkpoint)
                    else checkpoints.resolve_checkpoint(from_checkpoint))
-    restored = _load_init(init)
+    restored = extensions.load_init(init)
     state = {"task": task, "name": name or task, "preset": preset, "seed": seed,
              "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
              "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
              "env_steps": 0, "minutes": 0.0, "calls": [], **({"recipe": recipe} if recipe else {})}
     run_dir.mkdir(parents=True, exist_ok=True)
     checkpoints.save_run_state(run_dir, state)
-    return _Run(run_dir, state, ppo_cfg, env_cfg, restored, _extension(ppo_cfg, restored), initial=True)
-
-
-def _load_init(init):
-    """What a run starts from: a PPO checkpoint's params, a DAgger learner's artifact, or None."""
-    if not init:
-        return None
-    return finetune.read_learner(init) if finetune.is_artifact(init) else checkpoints.load_checkpoint(init)
-
-
-def _extension(ppo_cfg, restored):
-    """RL from the imitation policy where the config or the start asks for it, else the student's fine-tune
-    where its config or checkpoint does, else plain PPO."""
-    if finetune.uses_imitation(ppo_cfg) or isinstance(restored, dict):
-        return finetune.ImitationFinetune(ppo_cfg)
-    return student_finetune.extension(ppo_cfg, restored)
+    return _Run(run_dir, state, ppo_cfg, env_cfg, restored, extensions.extension(ppo_cfg, restored), initial=True)
 
 
 def _start(run: _Run, env) -> None:
