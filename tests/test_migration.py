@@ -52,7 +52,7 @@ def test_every_campaign_run_state_migrates_and_keeps_its_settings(path):
 
 
 def test_campaigns_are_there_to_migrate():
-    assert len(CAMPAIGN_STATES) >= 3     # the kneel's stage 1 (rise_near, rise_mid) and stage 2 (stand)
+    assert len(CAMPAIGN_STATES) >= 1     # the kneel's stage 2 (stand), a getup run from before the tasks' split
 
 
 def test_a_getup_run_before_the_split_comes_back_as_its_stage_s_task():
