@@ -86,6 +86,27 @@ def test_the_student_fine_tune_starts_from_dagger_and_exports_a_student(toy_root
 
 
 @pytest.mark.slow
+def test_the_kneel_rise_starts_from_the_dagger_learner_with_the_bc_term(toy_root):
+    """getup_keyframe's PPO stage `rise` starts from its imitation stage's artifact, reads the BC term's data from
+    that campaign and exports its kept checkpoints (mid-run: the manifest fields of the artifact it started from)."""
+    from training import train
+    from training.imitation import config as imitation_config, finetune
+    run = toy_root / "getup_keyframe" / "rise"
+    state = json.loads((run / checkpoints.RUN_STATE).read_text())
+    dagger = toy_root / "getup_keyframe" / "dagger"
+    assert Path(state["init"]) == dagger / imitation_config.ARTIFACT
+    assert state["ppo_config"]["imitation"]["bc_weight"] > 0 and state["bc_count_start"] == finetune.NORMALIZER_COUNT
+    (run / "getup_keyframe_rise.safetensors").rename(run / "moved.safetensors")   # as mid-run: no export yet
+    try:
+        kept = read_artifact(train.export_checkpoint(run, checkpoints.checkpoint_steps(run), "kept"))
+    finally:
+        (run / "moved.safetensors").rename(run / "getup_keyframe_rise.safetensors")
+    dagger_layers = read_artifact(dagger / imitation_config.ARTIFACT)[0]
+    assert kept[3]["output_rule"] == "tanh_normal"
+    assert [w.shape for w, _ in kept[0]] == [w.shape for w, _ in dagger_layers]
+
+
+@pytest.mark.slow
 def test_a_fine_tune_starts_from_the_stage_before(toy_root):
     recipe = R.load("joystick")
     state = json.loads((toy_root / "joystick" / "yaw" / checkpoints.RUN_STATE).read_text())

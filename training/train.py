@@ -339,9 +339,12 @@ def export_run(run_dir: Path, env, state: dict, params, preset: str) -> Path:
 
 def _env_fields_artifact(run_dir: Path, state: dict) -> Path:
     """An artifact with the run's env and network fields: its own newest export, or, mid-run (no export
-    yet), the export of the run it was started --from (same model, observation and network)."""
+    yet), the artifact it was started --from or the export of the run it was (same model, observation and
+    network)."""
     own = run_dir / f"{state['name']}.safetensors"
     init = Path(state.get("init") or "")
+    if not own.exists() and extensions.is_artifact(init):
+        return init
     if own.exists() or init.parent.name != checkpoints.CHECKPOINT_DIR:
         return own
     parent = init.parent.parent
