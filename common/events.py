@@ -1,4 +1,4 @@
-"""THE definitions of "fall", "getup attempt", "success" and "time to stand" over a time series.
+"""THE definitions of "fall", "getup attempt", "success", "time to stand" and the kneel over a time series.
 
 One module, numpy only (no jax, no LCM; the kneel gate also takes `xp`, so the getup rewards evaluate the same
 function under jax), so the MJX batch evaluator (training/) and the HIL evaluation (sim_hil/eval) count the same
@@ -36,6 +36,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from messages import contract
+
 
 # Trunk origin below this = lying on the ground [m] (standing: 0.665 m).
 FALLEN_TRUNK_HEIGHT_M = 0.35
@@ -52,6 +54,14 @@ ATTEMPT_RISE_M = 0.15
 KNEEL_GATE_HEIGHT_M = 0.4
 KNEEL_GATE_HEIGHT_TOL_M = 0.005
 KNEEL_GATE_UP_ERROR = 0.01
+# The kneeling posture stage 1 must meet the gate in (ours: the gate alone is also met by a crouch or a half kneel):
+# both knees at least this flexed and neither hip more flexed than this (a half kneel's forward hip is near
+# −1.5 rad) [rad]; the kneel keyframe has knees 1.9, hips −0.2.
+KNEEL_KNEE_MIN_RAD = 1.5
+KNEEL_HIP_MIN_RAD = -0.6
+KNEEL_HOLD_S = 1.0          # stage 1's kneel counts as held once the gate has held this long in the posture
+KNEE_PITCHES = ("Left_Knee_Pitch", "Right_Knee_Pitch")
+HIP_PITCHES = ("Left_Hip_Pitch", "Right_Hip_Pitch")
 
 
 @dataclass(frozen=True)
@@ -153,6 +163,21 @@ def kneel_gate(trunk_height, up_z, xp=np):
 def kneel_gate_mask(trunk_height, up_z) -> np.ndarray:
     """kneel_gate over a float64 series (the evaluations' reading of recorded signals)."""
     return kneel_gate(np.asarray(trunk_height, dtype=np.float64), np.asarray(up_z, dtype=np.float64))
+
+
+def kneeling_posture(q, xp=np, knee_min_rad: float = KNEEL_KNEE_MIN_RAD, hip_min_rad: float = KNEEL_HIP_MIN_RAD):
+    """Per sample: the double kneel, from joint angles q [..., 23] in contract order [rad]. xp: numpy or jax.numpy."""
+    knees = [contract.joint_index(n) for n in KNEE_PITCHES]
+    hips = [contract.joint_index(n) for n in HIP_PITCHES]
+    return xp.all(q[..., knees] >= knee_min_rad, axis=-1) & xp.all(q[..., hips] >= hip_min_rad, axis=-1)
+
+
+def kneel_hold_s(trunk_height, up_z, kneeling, dt: float) -> float:
+    """The longest run of samples dt [s] apart in which §4.8's gate held in the kneeling posture, as a time:
+    k samples in a row hold k·dt [s] (0: never)."""
+    ok = np.concatenate([[0], (kneel_gate_mask(trunk_height, up_z) & np.asarray(kneeling, bool)).astype(np.int8), [0]])
+    edges = np.flatnonzero(np.diff(ok)).reshape(-1, 2)
+    return float((edges[:, 1] - edges[:, 0]).max(initial=0) * dt)
 
 
 def reached_kneel(trunk_height, up_z, th: EventThresholds = EventThresholds()) -> bool:

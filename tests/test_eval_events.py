@@ -197,3 +197,25 @@ def test_reached_kneel_is_stage_ones_aim_whatever_follows():
     assert reached_kneel(h, np.full_like(h, math.cos(math.radians(10.0)))) is False   # tilted: not the gate
     standing = script((STAND_M, STAND_M, 2.0))   # an upright stand meets the gate's numbers but is no kneel
     assert reached_kneel(standing[1], standing[2]) is False
+
+
+def test_the_kneeling_posture_is_both_knees_down_and_no_leg_forward():
+    from common.events import HIP_PITCHES, KNEE_PITCHES, kneeling_posture
+    from messages.contract import joint_index
+    q = np.zeros((3, 23))
+    knees, hips = [joint_index(n) for n in KNEE_PITCHES], [joint_index(n) for n in HIP_PITCHES]
+    q[:, knees], q[:, hips] = 1.9, -0.2                 # the kneel keyframe's
+    q[1, knees[0]] = 1.0                                # one knee up: a half kneel or a crouch
+    q[2, hips[1]] = -1.5                                # one leg forward: a half kneel
+    assert kneeling_posture(q).tolist() == [True, False, False]
+
+
+def test_the_kneel_hold_is_the_longest_unbroken_run_of_the_gate_in_the_posture():
+    from common.events import kneel_hold_s
+    h = np.array([0.2, 0.41, 0.41, 0.41, 0.2, 0.41, 0.41, 0.41, 0.41, 0.41])
+    up = np.ones_like(h)
+    kneeling = np.ones_like(h, bool)
+    assert math.isclose(kneel_hold_s(h, up, kneeling, 0.02), 5 * 0.02)
+    kneeling[6] = False                                  # a crouch breaks the second run
+    assert math.isclose(kneel_hold_s(h, up, kneeling, 0.02), 3 * 0.02)
+    assert kneel_hold_s(h, up * 0.99, kneeling, 0.02) == 0.0          # tilted 8°: never the gate

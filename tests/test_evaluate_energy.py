@@ -55,3 +55,15 @@ def test_attempts_per_fall_counts_a_mid_fall_start_once():
     summary = summarize([mid_fall, fallen])
     assert summary["attempts_per_fall"] == 1.0 and summary["attempts_per_episode"] == 1.0
     assert summary["max_attempts"] == 1
+
+
+def test_the_kneel_figures_come_from_the_posture_column_and_are_nan_without_it():
+    t, readings, series = _episode(stand_at_s=None)
+    readings[100:200, 0], readings[100:200, 1] = 0.41, 1.0          # 2 s at the gate's height, upright
+    kneeling = np.zeros((len(t), 1))
+    kneeling[100:130] = 1.0                                          # of which 0.6 s kneeling
+    row = episode_row(t, np.concatenate([readings, kneeling], axis=1), series)
+    assert row["kneeled"] == 1.0 and math.isclose(row["kneel_hold_s"], 0.6) and row["kneel_held"] == 0.0
+    kneeling[100:160] = 1.0
+    assert episode_row(t, np.concatenate([readings, kneeling], axis=1), series)["kneel_held"] == 1.0
+    assert math.isnan(episode_row(t, readings, series)["kneeled"])

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common import events
 from common import model as t1model
 from common import observation as obsdef
 from training import table_4_3
@@ -62,7 +63,8 @@ def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
 
     def readings(d):
         r = env.body_readings(d)
-        return jnp.stack([r["trunk_height"], r["up_z"], r["waist_height"]])
+        kneeling = events.kneeling_posture(d.qpos[7:], jnp).astype(jnp.float32)
+        return jnp.stack([r["trunk_height"], r["up_z"], r["waist_height"], kneeling])
 
     def control_tick(carry, params):
         d, last_action, target = carry
@@ -110,7 +112,7 @@ def run_policy(env, policy: ArtifactPolicy | CompositePolicy, qpos, qvel, second
         series = cpu_rollout(env, policy, np.asarray(qpos), np.asarray(qvel), ticks)
     else:
         series = jax.tree.map(np.asarray, make_rollout(env, policy, ticks)(policy.params, qpos, qvel))
-    readings = series["readings"]                      # (N, T + 1, 3)
+    readings = series["readings"]                      # (N, T + 1, 4): trunk, up_z, waist, kneeling
     t = np.arange(ticks + 1) * ctrl_dt
     forward_z = t1model.trunk_forward_z(np.asarray(qpos))
     rows = [{**episode_row(t, readings[i], {k: v[i] for k, v in series.items() if k != "readings"}),
@@ -120,10 +122,11 @@ def run_policy(env, policy: ArtifactPolicy | CompositePolicy, qpos, qvel, second
 
 
 def episode_row(t, readings, series) -> dict:
-    """One episode's metrics from its readings (T + 1, 3: trunk height, up_z, waist height) at times t [s]
-    and its per-tick effort series (T,). energy_to_stand_J counts the ticks before the first stand-up only
-    (nan if it never stood): the energy of getting up, which the whole episode's energy_J mixes with the
-    standing that follows it under the upright policy."""
+    """One episode's metrics from its readings (T + 1, 3 or 4: trunk height, up_z, waist height[, kneeling
+    posture]) at times t [s] and its per-tick effort series (T,). energy_to_stand_J counts the ticks before the
+    first stand-up only (nan if it never stood): the energy of getting up, which the whole episode's energy_J
+    mixes with the standing that follows it under the upright policy. Without the posture the kneel's figures
+    are nan."""
     from common.events import getup_events, reached_kneel, through_kneel_gate
     ev = getup_events(t, readings[:, 0], readings[:, 1], waist_height=readings[:, 2],
                       switch_height_m=WAIST_SWITCH_HEIGHT_M)
@@ -137,6 +140,7 @@ def episode_row(t, readings, series) -> dict:
         "failed_after_switch": ev.failed_after_switch,
         "through_kneel_gate": math.nan if gate is None else float(gate),
         "reached_kneel": float(reached_kneel(readings[:, 0], readings[:, 1])),
+        **kneel_row(readings, ctrl_dt),
         "peak_trunk_m": float(readings[:, 0].max()),
         "energy_J": float(series["energy_J"].sum()),
         "energy_to_stand_J": float(series["energy_J"][:stand_tick].sum()) if stood else math.nan,
@@ -148,6 +152,16 @@ def episode_row(t, readings, series) -> dict:
         "max_contact_force_N": float(series["contact_force_N"].max()),
         "mean_contact_force_N": float(series["contact_force_N"].mean()),
         "z_contact_impulse_Ns": float(series["contact_force_z_N"].sum() * ctrl_dt)}
+
+
+def kneel_row(readings, ctrl_dt: float) -> dict:
+    """kneel_hold_s: the longest hold of §4.8's gate in the kneeling posture [s] (common/events.py);
+    kneeled: whether it met it at all; kneel_held: whether it held KNEEL_HOLD_S (nan where it never met it)."""
+    if readings.shape[1] < 4:
+        return {"kneel_hold_s": math.nan, "kneeled": math.nan, "kneel_held": math.nan}
+    hold = events.kneel_hold_s(readings[:, 0], readings[:, 1], readings[:, 3] > 0.5, ctrl_dt)
+    return {"kneel_hold_s": hold, "kneeled": float(hold > 0),
+            "kneel_held": float(hold >= events.KNEEL_HOLD_S - 1e-9) if hold > 0 else math.nan}
 
 
 # a start lies face down / on its back where the trunk's forward axis is within 60° of vertical
@@ -174,6 +188,10 @@ def summarize(rows: list[dict]) -> dict:
             # rows from episode_row alone carry no start state: counted in neither
             "reached_kneel_face_down": mean("reached_kneel", lambda r: r.get("start_forward_z", 0.0) < -FACING_Z),
             "reached_kneel_face_up": mean("reached_kneel", lambda r: r.get("start_forward_z", 0.0) > FACING_Z),
+            "kneeled": mean("kneeled"),
+            "kneeled_face_down": mean("kneeled", lambda r: r.get("start_forward_z", 0.0) < -FACING_Z),
+            "kneeled_face_up": mean("kneeled", lambda r: r.get("start_forward_z", 0.0) > FACING_Z),
+            "kneel_held": mean("kneel_held"),
             **{k: mean(k) for k in EFFORT_KEYS}}
 
 
@@ -193,6 +211,10 @@ ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attem
          "{:.2f}"),
         ("… from starts lying face down (trunk's forward axis pointing down)", "reached_kneel_face_down", "{:.2f}"),
         ("… from starts lying on the back (trunk's forward axis pointing up)", "reached_kneel_face_up", "{:.2f}"),
+        ("the gate met in the kneeling posture (both knees down; share of episodes)", "kneeled", "{:.3f}"),
+        ("… from starts lying face down", "kneeled_face_down", "{:.3f}"),
+        ("… from starts lying on the back", "kneeled_face_up", "{:.3f}"),
+        (f"… held ≥ {events.KNEEL_HOLD_S:g} s (share of those that met it)", "kneel_held", "{:.2f}"),
         ("energy Σ\\|τ·q̇\\|·dt [J]", "energy_J", "{:.1f}"),
         ("energy until the first stand-up [J] (episodes that stood)", "energy_to_stand_J", "{:.1f}"),
         ("max energy in one physics step [J]", "max_energy_J", "{:.2f}"),

@@ -15,11 +15,13 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from common import events
 from common import observation as obsdef
 
 
 def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int, keep_qpos: bool = False) -> dict:
-    """(N,) fallen starts → dict of numpy series: readings (N, T + 1, 3) [trunk, up_z, waist], and per tick
+    """(N,) fallen starts → dict of numpy series: readings (N, T + 1, 4) [trunk, up_z, waist, kneeling posture
+    (common/events.py: 1 or 0)], and per tick
     (N, T): energy_J, max_energy_J, max_torque_Nm, torque_integral, max_qacc, qacc_integral,
     contact_force_N, contact_force_z_N; with keep_qpos also qpos (N, T + 1, nq) at each reading (to look at
     or render the rollout afterwards)."""
@@ -43,7 +45,8 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int,
         obs_state = env.observation_state(data, jnp.zeros(3), last_action, phase0)
         r = env.body_readings(data)
         action, q_des = policy.act(params, obs_state, r["waist_height"])
-        return action, q_des, jnp.stack([r["trunk_height"], r["up_z"], r["waist_height"]])
+        kneeling = events.kneeling_posture(data.qpos[7:], jnp).astype(jnp.float32)
+        return action, q_des, jnp.stack([r["trunk_height"], r["up_z"], r["waist_height"], kneeling])
 
     act = jax.jit(jax.vmap(act_one, in_axes=(None, 0, 0)))
     scratch = mujoco.MjData(m)
@@ -53,7 +56,7 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int,
     def host_data():
         return HostData(*(jnp.asarray(a) for a in physics.read(b, (n,))))
 
-    readings = np.zeros((n, num_ticks + 1, 3), np.float32)
+    readings = np.zeros((n, num_ticks + 1, 4), np.float32)
     series = {k: np.zeros((n, num_ticks), np.float32)
               for k in ("energy_J", "max_energy_J", "max_torque_Nm", "torque_integral", "max_qacc", "qacc_integral",
                         "contact_force_N", "contact_force_z_N")}

@@ -66,7 +66,8 @@ def collect(teacher: expert.Teacher, learner, qpos: np.ndarray, qvel: np.ndarray
 
 def evaluate_batch(artifact: Path, out: Path, seeds: int, seconds: float) -> dict:
     """training/evaluate.py's batch from fallen seeds 0 … seeds − 1: the share that reached the kneel, in all,
-    face down and on the back, and the median of the episodes' highest trunk height [m]."""
+    face down and on the back, the share that met the gate in the kneeling posture and of those the share that
+    held it 1 s, and the median of the episodes' highest trunk height [m]."""
     from training.evaluate import evaluate
     evaluate(artifact, out, seeds=seeds, seconds=seconds, backend="cpu", command="python -m training.imitation")
     with (out / "per_env.csv").open() as f:
@@ -76,8 +77,12 @@ def evaluate_batch(artifact: Path, out: Path, seeds: int, seconds: float) -> dic
     def share(mask):
         return round(float(reached[mask].mean()), 3) if mask.any() else None
     peak = [float(r["peak_trunk_m"]) for r in rows if "peak_trunk_m" in r]
+    kneeled = np.array([float(r["kneeled"]) for r in rows])
+    held = np.array([float(r["kneel_held"]) for r in rows])[kneeled > 0]
     return {"reached_kneel": share(np.ones(len(rows), bool)), "face_down": share(fz < -FACING_Z),
-            "on_back": share(fz > FACING_Z), "median_peak_trunk_m": round(float(np.median(peak)), 3) if peak else None}
+            "on_back": share(fz > FACING_Z), "kneeled": round(float(kneeled.mean()), 3),
+            "kneel_held": round(float(held.mean()), 3) if held.size else None,
+            "median_peak_trunk_m": round(float(np.median(peak)), 3) if peak else None}
 
 
 def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:

@@ -9,6 +9,7 @@ COLUMNS = (("round", "round"), ("beta", "β"), ("labels", "labels"), ("labels_to
            ("rollouts_met_gate", "rollouts that met the gate (β mixture)"),
            ("fit_loss", "fit loss (share of var)"), ("reached_kneel", "reached the kneel (batch)"),
            ("face_down", "… face down"), ("on_back", "… on the back"),
+           ("kneeled", "the gate in the kneeling posture (batch)"), ("kneel_held", "… held ≥ 1 s (of those)"),
            ("median_peak_trunk_m", "median peak trunk height [m]"))
 
 

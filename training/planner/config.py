@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from ml_collections import config_dict
 
+from common import events
+
 
 def default_config() -> config_dict.ConfigDict:
     return config_dict.create(
@@ -37,8 +39,8 @@ def default_config() -> config_dict.ConfigDict:
         advance_up_z=0.15,
         # the kneeling posture the gate must hold in: both knees at least this flexed and both hips no more
         # flexed than this (a forward leg of a half kneel has its hip near −1.5 rad)
-        kneel_knee_min_rad=1.5,
-        kneel_hip_min_rad=-0.6,
+        kneel_knee_min_rad=events.KNEEL_KNEE_MIN_RAD,
+        kneel_hip_min_rad=events.KNEEL_HIP_MIN_RAD,
         weights=config_dict.create(
             trunk_height=400.0,  # (h − the keyframe's h)² [1/m²]: two-sided (one-sided overshot into a crouch)
             waist_height=100.0,  # (h_waist − the keyframe's)² [1/m²]

@@ -36,11 +36,6 @@ def gate(h: np.ndarray, up_z: np.ndarray) -> np.ndarray:
     return events.kneel_gate_mask(h, up_z)
 
 
-def kneeling(q: np.ndarray, knees: np.ndarray, hips: np.ndarray, knee_min_rad: float, hip_min_rad: float):
-    """Both knees down and neither leg forward: the double kneel, not a half kneel or a crouch."""
-    return np.all(q[..., knees] >= knee_min_rad, axis=-1) & np.all(q[..., hips] >= hip_min_rad, axis=-1)
-
-
 def step_cost(r: dict, target: dict, w, near: np.ndarray) -> np.ndarray:
     """One control step's cost of every rollout. r: readings (h, h_waist, up_z, q, dq, tau, root_vel);
     target: the keyframe's (h, h_waist, up_z, q, joint_weight, upright_weight); w: the config's weights;

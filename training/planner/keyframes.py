@@ -10,8 +10,7 @@ from messages.contract import JOINT_NAMES, NUM_JOINTS, joint_index
 from training.envs.starts.kneeling_path import place_on_floor
 
 WAYPOINTS = ("hands_knees", "heel_sit", "kneel")
-HIP_PITCHES = ("Left_Hip_Pitch", "Right_Hip_Pitch")
-KNEE_PITCHES = ("Left_Knee_Pitch", "Right_Knee_Pitch")
+HIP_PITCHES, KNEE_PITCHES = events.HIP_PITCHES, events.KNEE_PITCHES
 SHOULDER_PITCHES = ("Left_Shoulder_Pitch", "Right_Shoulder_Pitch")
 LEGS = slice(joint_index("Left_Hip_Pitch"), NUM_JOINTS)      # contract order: head, arms, waist, then the legs
 assert all(JOINT_NAMES[LEGS][i].startswith(("Left_", "Right_")) for i in range(NUM_JOINTS - LEGS.start))

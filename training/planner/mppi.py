@@ -14,11 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from common import events
 from common import observation as obsdef
 from training.envs import sagittal
 from training.planner import costs, keyframes
 
-KNEES, HIPS = keyframes.indices(keyframes.KNEE_PITCHES), keyframes.indices(keyframes.HIP_PITCHES)
 
 
 @dataclass
@@ -34,7 +34,7 @@ class Demonstration:
     trunk_height: np.ndarray   # (T + 1,) [m]
     up_z: np.ndarray           # (T + 1,)
     gate: np.ndarray           # (T + 1,) bool: §4.8's gate
-    kneeling: np.ndarray       # (T + 1,) bool: the gate's posture (costs.kneeling)
+    kneeling: np.ndarray       # (T + 1,) bool: the gate's posture (common/events.kneeling_posture)
     waypoint: np.ndarray       # (T + 1,) index of the keyframe the cost aimed at (config.waypoints)
     energy_J: float            # Σ |τ·q̇|·dt over the rise and hold
     cpu_s: float               # process CPU time of the plan
@@ -197,7 +197,7 @@ class Planner:
         return self._demonstration(seed, rows, np.array(targets), energy, time.process_time() - cpu0)
 
     def kneeling(self, q) -> np.ndarray:
-        return costs.kneeling(q, KNEES, HIPS, self.cfg.kneel_knee_min_rad, self.cfg.kneel_hip_min_rad)
+        return events.kneeling_posture(q, np, self.cfg.kneel_knee_min_rad, self.cfg.kneel_hip_min_rad)
 
     def _demonstration(self, seed, rows, targets, energy, cpu_s) -> Demonstration:
         a = {k: np.array(v) for k, v in rows.items()}
