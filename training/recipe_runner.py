@@ -22,6 +22,7 @@ RUNS_ROOT = checkpoints.REPO_ROOT / "runs"
 CAMPAIGNS_ROOT = checkpoints.REPO_ROOT / "training" / "campaigns"
 DISTILL_STATE = "distill_state.json"   # = training.distill.STATE_FILE (not imported: it brings JAX along)
 CURVE_FILES = ("metrics.csv", "learning_curve.png")
+REPORT = "report.md"      # a run's own measurements beside its curve (e.g. the batch evaluation of checkpoints)
 TOY_PPO_STEPS = 80        # one toy PPO update: 8 envs × 5 unroll × 2 minibatches
 TOY_BANK_STARTS = 4       # landing banks of a toy stage (their rollouts dominate a toy run otherwise)
 # a toy imitation stage: the demonstrations' fit and one labelled round, of this size
@@ -272,7 +273,7 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
 
 # ---------------------------------------------------------------- campaigns (training/campaigns/<recipe>/)
 def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS_ROOT) -> list[Path]:
-    """Copy each run stage's newest checkpoint, run state and curve into campaigns/NAME/<stage dir>/
+    """Copy each run stage's newest checkpoint, run state, curve and report into campaigns/NAME/<stage dir>/
     (replacing what was there): what a campaign needs to go on on another machine. A superseded stage that
     nothing reads is dropped from the campaign instead. An imitation stage is its campaign folder, kept whole:
     its data are the planner's labels, the costliest thing a campaign holds."""
@@ -291,7 +292,7 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
                 saved.append(dest)
                 continue
             dest.mkdir(parents=True)
-            for f in (checkpoints.RUN_STATE, DISTILL_STATE, *CURVE_FILES):
+            for f in (checkpoints.RUN_STATE, DISTILL_STATE, *CURVE_FILES, REPORT):
                 if (run_dir / f).exists():
                     shutil.copy2(run_dir / f, dest / f)
             kept = checkpoints.list_checkpoints(run_dir)
