@@ -7,10 +7,9 @@ Start. The DAgger artifact is brax's tanh-normal policy MLP (learner.py): its la
 are; the scale half of the last layer, which the fit never trained, is reset to one state-independent sampling std
 (ppo.init_noise_std, pre-tanh). The observation normaliser is the artifact's mean and std, held (counted
 NORMALIZER_COUNT times, so a run's samples move it by well under 1 %): the DAgger data are the learner's own
-states already, and a normaliser that moved under the policy would change what it does (from the data set's size
-as its count, the BC loss rose 0.11 → 0.17 within the critic's warm-up, the policy frozen). The critic's extra
-inputs (velocities, heights, torque shares, contacts: all of order 1) are held at mean 0 and std 1. The critic
-starts fresh (ppo.value_warmup_steps: train.py).
+states already, and a normaliser that moved under the policy would change what it does (training/LESSONS.md).
+The critic's extra inputs (velocities, heights, torque shares, contacts: all of order 1) are held at mean 0 and
+std 1. The critic starts fresh (ppo.value_warmup_steps: train.py).
 BC term, added to brax's PPO loss:
     w(n) · mean over bc_batch random pairs of Σ_joints (tanh(μ(obs)) − label)²
     w(n) = imitation.bc_weight · max(0, 1 − n / imitation.bc_decay_steps)
@@ -56,15 +55,13 @@ def is_artifact(path) -> bool:
 
 
 def read_learner(path) -> dict:
-    """The DAgger learner an artifact holds: {"layers": brax policy params, "mean", "std"} (its normaliser)."""
-    from common.artifact import read_artifact
-    layers, mean, std, manifest = read_artifact(Path(path))
+    """The DAgger learner an artifact holds: {"path", "layers": brax policy params, "mean", "std"}."""
+    from training.imitation.learner import artifact_params
+    layers, mean, std, manifest = artifact_params(path)
     if manifest.get("output_rule") not in (None, "tanh_normal"):
         raise ValueError(f"{path}: a fine-tune from an artifact needs brax's tanh-normal policy, "
                          f"not output rule {manifest.get('output_rule')!r}")
-    return {"path": str(path), "layers": {"params": {f"hidden_{i}": {"kernel": np.ascontiguousarray(w.T), "bias": b}
-                                  for i, (w, b) in enumerate(layers)}},
-            "mean": np.asarray(mean, np.float32), "std": np.asarray(std, np.float32)}
+    return {"path": str(path), "layers": layers, "mean": mean, "std": std}
 
 
 def policy_params(layers: dict, init_std: float) -> dict:

@@ -67,13 +67,19 @@ def new_learner(obs: np.ndarray, hidden: list[int], seed: int, env_fields: dict,
                    lo=np.asarray(lo), hi=np.asarray(hi))
 
 
-def load_learner(artifact: Path, like: Learner) -> Learner:
-    """The learner an artifact of `export` holds (its layers are brax's, the scale half included), with the
-    action map of `like`."""
+def artifact_params(artifact: Path) -> tuple[dict, np.ndarray, np.ndarray, dict]:
+    """(brax policy params, observation mean, std, manifest) of an artifact of `export` (its layers are brax's,
+    the scale half included)."""
     from common.artifact import read_artifact
-    layers, mean, std, _ = read_artifact(artifact)
+    layers, mean, std, manifest = read_artifact(Path(artifact))
     params = {f"hidden_{i}": {"kernel": np.ascontiguousarray(w.T), "bias": b} for i, (w, b) in enumerate(layers)}
-    return Learner(params={"params": params}, obs_mean=mean, obs_std=std, default_pose=like.default_pose,
+    return {"params": params}, np.asarray(mean, np.float32), np.asarray(std, np.float32), manifest
+
+
+def load_learner(artifact: Path, like: Learner) -> Learner:
+    """The learner an artifact of `export` holds, with the action map of `like`."""
+    params, mean, std, _ = artifact_params(artifact)
+    return Learner(params=params, obs_mean=mean, obs_std=std, default_pose=like.default_pose,
                    action_scale=like.action_scale, lo=like.lo, hi=like.hi)
 
 
