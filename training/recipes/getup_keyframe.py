@@ -8,7 +8,8 @@ sampling planner (`python -m training.planner`), whose rise only its replanning 
 a closed-loop teacher on the learner's own states (training/imitation/, all 23 joints), then PPO from that policy
 with a decaying behaviour-cloning term on the same planner data (DAPG; imitation/finetune.py), the seed's stage-1
 reward plus the gate and a slope to its tilt, half of its episodes started along the whole of the planner's gated
-rises (reference state initialisation, envs/starts/demos.py) and ended once a reached kneel sags 3 cm. Stage 2
+rises (reference state initialisation, envs/starts/demos.py); no early end once a reached kneel sags (with
+positive rewards the policy learned not to reach the gate's height, which arms it). Stage 2
 learns along a reverse curriculum of starts from the kneel up the lunge (envs/starts/kneeling_path.py): the whole
 path, its swing, the whole path again. The runtime's target rule R6 is in every stage."""
 from training.recipe import Recipe, Stage
@@ -20,7 +21,7 @@ DEMOS = "training/campaigns/getup_keyframe/demos"
 RISE = {"ppo.imitation.demos": DEMOS, "ppo.imitation.bc_weight": 1.0, "ppo.imitation.bc_decay_steps": 20_000_000,
         "ppo.init_noise_std": 0.1, "ppo.value_warmup_steps": 500_000, "ppo.learning_rate": 1e-4,
         "ppo.entropy_cost": 0.001,
-        "env.reward.scales.gate": 1.0, "env.reward.scales.upright": 1.0, "env.drop_below_gate_m": 0.03,
+        "env.reward.scales.gate": 1.0, "env.reward.scales.upright": 1.0,
         "env.demo_starts.prob": 0.5, "env.demo_starts.folder": DEMOS, "env.demo_starts.window_s": 8.0,
         "env.demo_starts.gated_only": True}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
