@@ -7,7 +7,7 @@ from typing import Sequence
 from ml_collections import config_dict
 
 from training import student_finetune
-from training.imitation import finetune
+from training.imitation import config as imitation
 from training.overrides import apply_overrides
 
 PRESETS = ("gpu", "cpu", "toy")
@@ -43,7 +43,7 @@ def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
         # [action units]: the student's fine-tune (ppo_networks.py)
         policy_distribution="tanh_normal", init_noise_std=0.1,
         teacher=student_finetune.teacher_config(),   # the fine-tune's BC term (its extension's own group)
-        imitation=finetune.imitation_config(),       # RL from the imitation policy: its BC term's data
+        imitation=imitation.finetune_config(),       # RL from the imitation policy: its BC term's data
         # one epoch ≈ 1 min on an H100 (joystick ~100k env-steps/s; the full-body getup 40–76k: half as many)
         checkpoint_every_steps=10_000_000 if task == "joystick" else 5_000_000,
         run_evals=True, num_eval_envs=128, deterministic_eval=True,

@@ -1,4 +1,5 @@
-"""DAgger with the rise planner as the expert: the settings, one config_dict. Times in s, angles in rad."""
+"""Stage 1 by imitation: DAgger's settings (one config_dict), its campaign's files and the PPO fine-tune's config group.
+Times in s, angles in rad."""
 from __future__ import annotations
 
 from ml_collections import config_dict
@@ -46,3 +47,11 @@ def default_config() -> config_dict.ConfigDict:
         eval_seconds=8.0,
         seed=0,
     )
+
+
+def finetune_config() -> config_dict.ConfigDict:
+    """The PPO config's `imitation` group (RL from the imitation policy, finetune.py): the DAgger campaign whose
+    data the BC term reads (its data/ rounds; "" = the campaign of the artifact the run starts from) and the
+    planner's demonstrations its round 0 is (repository-relative or absolute), and the term's schedule
+    (bc_weight 0 = none; decaying linearly to 0 over bc_decay_steps env steps; bc_batch pairs per loss)."""
+    return config_dict.create(campaign="", demos="", bc_weight=0.0, bc_decay_steps=0, bc_batch=1024)

@@ -33,14 +33,6 @@ NORMALIZER_COUNT = 2 ** 32   # samples the held normaliser counts (float32 reads
 MIN_STD = 1e-3            # brax NormalTanhDistribution's min_std: scale = softplus(raw) + MIN_STD
 
 
-def imitation_config():
-    """The PPO config's `imitation` group: the DAgger campaign whose data the BC term reads (its data/ rounds; ""
-    = the campaign of the artifact the run starts from) and the planner's demonstrations its round 0 is
-    (repository-relative or absolute), and the term's schedule (bc_weight 0 = none)."""
-    from ml_collections import config_dict
-    return config_dict.create(campaign="", demos="", bc_weight=0.0, bc_decay_steps=0, bc_batch=1024)
-
-
 def uses_imitation(ppo_cfg) -> bool:
     return float(ppo_cfg.imitation.bc_weight) > 0
 
@@ -99,7 +91,7 @@ def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarr
     """(observations, label actions) of the DAgger campaign's aggregate: the demonstrations and every round it
     stored, labels through the getup action map ({"default_pose", "action_scale"} [rad]); `init`: the path the
     run starts from (its folder is the campaign where ppo.imitation.campaign is "")."""
-    from training.imitation import dagger, dataset
+    from training.imitation import config as campaign_files, dataset
     from training.imitation.learner import targets_to_labels
     t = ppo_cfg.imitation
     if not t.demos:
@@ -107,10 +99,10 @@ def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarr
     if not t.campaign and not (init and is_artifact(init)):
         raise ValueError("ppo.imitation.campaign is empty and the run does not start from a DAgger artifact")
     campaign = _path(t.campaign) if t.campaign else Path(init).parent
-    data = campaign / dagger.DATA
-    collected = data / dagger.COLLECTED
+    data = campaign / campaign_files.DATA
+    collected = data / campaign_files.COLLECTED
     if not collected.exists():
-        raise ValueError(f"{campaign}: not a DAgger campaign (no {dagger.DATA}/{dagger.COLLECTED})")
+        raise ValueError(f"{campaign}: not a DAgger campaign (no {campaign_files.DATA}/{campaign_files.COLLECTED})")
     rounds = 1 + max((int(k) for k in json.loads(collected.read_text())["rounds"]), default=0)
     obs, q = dataset.aggregate(data, _path(t.demos), rounds)
     return obs, targets_to_labels(q, action_map["default_pose"], action_map["action_scale"])
