@@ -104,6 +104,13 @@ def test_the_kneel_rise_starts_from_the_dagger_learner_with_the_bc_term(toy_root
     dagger_layers = read_artifact(dagger / imitation_config.ARTIFACT)[0]
     assert kept[3]["output_rule"] == "tanh_normal"
     assert [w.shape for w, _ in kept[0]] == [w.shape for w, _ in dagger_layers]
+    # its figures per checkpoint: one row each, evaluated once
+    from training import kneel_report
+    rows = kneel_report.report(run, seeds=2, seconds=0.1)
+    assert [r["env_steps"] for r in rows] == [checkpoints.checkpoint_steps(run)] and rows[0]["bc_weight"] > 0
+    assert 0.0 <= rows[0]["kneeled"] <= rows[0]["reached_kneel"] <= 1.0
+    assert kneel_report.report(run, seeds=2, seconds=0.1, log=lambda _: pytest.fail("evaluated again")) == rows
+    assert "| env steps |" in (run / kneel_report.REPORT).read_text()
 
 
 @pytest.mark.slow

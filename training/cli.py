@@ -1,5 +1,5 @@
-"""`python -m training {train,teacher,distill,export-phase,export-checkpoint,evaluate}`: the command line of the
-training side.
+"""`python -m training {train,teacher,distill,export-phase,export-checkpoint,kneel-report,evaluate}`: the command
+line of the training side.
 
 Heavy imports (jax, brax, the MJX envs) happen inside the subcommands, so `--help` is instant.
 """
@@ -61,6 +61,13 @@ def _cmd_export_checkpoint(args, command: str) -> int:
     from training import train
     path = train.export_checkpoint(args.run, args.steps, args.name, like=args.like)
     print(f"{path}: the checkpoint at {args.steps} env steps of {args.run}")
+    return 0
+
+
+def _cmd_kneel_report(args, command: str) -> int:
+    from training import kneel_report
+    rows = kneel_report.report(args.run, seeds=args.seeds, seconds=args.seconds, steps=args.steps)
+    print(f"{args.run}/{kneel_report.REPORT}: {len(rows)} rows")
     return 0
 
 
@@ -201,6 +208,13 @@ def _add_export_checkpoint(sub) -> None:
     p.add_argument("--like", help="an artifact of the same env and network whose manifest fields are reused "
                    "(default: the run's own export, or mid-run its --from run's)")
     p.set_defaults(func=_cmd_export_checkpoint)
+    p = sub.add_parser("kneel-report", help="stage 1's batch figures of each kept checkpoint of a run not yet in "
+                       "its report (RUN/report.md, report.json)")
+    p.add_argument("--run", required=True, help="train run directory (a getup_kneel run)")
+    p.add_argument("--steps", type=int, nargs="+", help="only these checkpoints (env steps; default: every kept one)")
+    p.add_argument("--seeds", type=int, default=200, help="fallen seeds 0 … SEEDS − 1")
+    p.add_argument("--seconds", type=float, default=8.0, help="episode length [s] (§4.8's gate within 8 s)")
+    p.set_defaults(func=_cmd_kneel_report)
 
 
 def _add_evaluate(sub) -> None:

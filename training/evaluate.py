@@ -303,6 +303,29 @@ def plot_heights(results: dict, png: Path) -> None:
     plt.close(fig)
 
 
+def kneel_figures(artifact, out, seeds: int, seconds: float, command: str) -> dict:
+    """Stage 1's figures of an artifact on the batch from fallen seeds 0 … seeds − 1 (its report in `out`): the
+    share that reached the kneel, in all, face down and on the back, the share that met the gate in the kneeling
+    posture and of those the share that held it KNEEL_HOLD_S, and the median of the episodes' highest trunk
+    height [m]."""
+    evaluate(artifact, out, seeds=seeds, seconds=seconds, backend="cpu", command=command)
+    with (Path(out) / "per_env.csv").open() as f:
+        rows = [r for r in csv.DictReader(f) if r["role"] == "policy"]
+    reached = np.array([float(r["reached_kneel"]) for r in rows])
+    fz = np.array([float(r["start_forward_z"]) for r in rows])
+    kneeled = np.array([float(r["kneeled"]) for r in rows])
+    held = np.array([float(r["kneel_held"]) for r in rows])[kneeled > 0]
+
+    def share(x, mask=None):
+        x = x if mask is None else x[mask]
+        return round(float(x.mean()), 3) if x.size else None
+    return {"reached_kneel": share(reached), "face_down": share(reached, fz < -FACING_Z),
+            "on_back": share(reached, fz > FACING_Z), "kneeled": share(kneeled),
+            "kneeled_face_down": share(kneeled, fz < -FACING_Z), "kneeled_on_back": share(kneeled, fz > FACING_Z),
+            "kneel_held": share(held),
+            "median_peak_trunk_m": round(float(np.median([float(r["peak_trunk_m"]) for r in rows])), 3)}
+
+
 def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 32, seconds: float = 10.0,
              first_seed: int = 0, command: str = "", backend: str | None = None, starts: str = "fallen",
              start_joystick: str | None = None) -> Path:

@@ -15,14 +15,14 @@ import shutil
 import time
 from pathlib import Path
 
-from training import checkpoints, recipe as R
+from training import checkpoints, kneel_report, recipe as R
 from training.imitation import config as imitation_config
 
 RUNS_ROOT = checkpoints.REPO_ROOT / "runs"
 CAMPAIGNS_ROOT = checkpoints.REPO_ROOT / "training" / "campaigns"
 DISTILL_STATE = "distill_state.json"   # = training.distill.STATE_FILE (not imported: it brings JAX along)
 CURVE_FILES = ("metrics.csv", "learning_curve.png")
-REPORT = "report.md"      # a run's own measurements beside its curve (e.g. the batch evaluation of checkpoints)
+REPORT_FILES = (kneel_report.REPORT, kneel_report.ROWS)   # a run's figures per checkpoint beside its curve
 TOY_PPO_STEPS = 80        # one toy PPO update: 8 envs × 5 unroll × 2 minibatches
 TOY_BANK_STARTS = 4       # landing banks of a toy stage (their rollouts dominate a toy run otherwise)
 # a toy imitation stage: the demonstrations' fit and one labelled round, of this size
@@ -292,7 +292,7 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
                 saved.append(dest)
                 continue
             dest.mkdir(parents=True)
-            for f in (checkpoints.RUN_STATE, DISTILL_STATE, *CURVE_FILES, REPORT):
+            for f in (checkpoints.RUN_STATE, DISTILL_STATE, *CURVE_FILES, *REPORT_FILES):
                 if (run_dir / f).exists():
                     shutil.copy2(run_dir / f, dest / f)
             kept = checkpoints.list_checkpoints(run_dir)

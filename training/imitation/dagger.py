@@ -8,7 +8,6 @@ learner's own segment did. The labels join the data set, the learner is refitted
 evaluated on the batch from `eval_seeds` fallen seeds (training/evaluate.py's "reached the kneel")."""
 from __future__ import annotations
 
-import csv
 import json
 import time
 from pathlib import Path
@@ -22,7 +21,6 @@ from training.planner import costs
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_DEMOS = REPO_ROOT / "training" / "campaigns" / "getup_keyframe" / "demos"   # the planner's stored rises
 STATE, ARTIFACT, DATA, COLLECTED = config.STATE, config.ARTIFACT, config.DATA, config.COLLECTED
-FACING_Z = 0.5        # the evaluation's split of starts: face down below −this, on the back above it
 
 
 def beta(cfg, k: int) -> float:
@@ -62,27 +60,6 @@ def collect(teacher: expert.Teacher, learner, qpos: np.ndarray, qvel: np.ndarray
         plans = out["plans"]
     return {"obs": np.concatenate(obs), "q_des": np.concatenate(q), "met_gate": int(met.sum()),
             "cpu_s": time.process_time() - cpu0}
-
-
-def evaluate_batch(artifact: Path, out: Path, seeds: int, seconds: float) -> dict:
-    """training/evaluate.py's batch from fallen seeds 0 … seeds − 1: the share that reached the kneel, in all,
-    face down and on the back, the share that met the gate in the kneeling posture and of those the share that
-    held it 1 s, and the median of the episodes' highest trunk height [m]."""
-    from training.evaluate import evaluate
-    evaluate(artifact, out, seeds=seeds, seconds=seconds, backend="cpu", command="python -m training.imitation")
-    with (out / "per_env.csv").open() as f:
-        rows = [r for r in csv.DictReader(f) if r["role"] == "policy"]
-    reached = np.array([float(r["reached_kneel"]) for r in rows])
-    fz = np.array([float(r["start_forward_z"]) for r in rows])
-    def share(mask):
-        return round(float(reached[mask].mean()), 3) if mask.any() else None
-    peak = [float(r["peak_trunk_m"]) for r in rows if "peak_trunk_m" in r]
-    kneeled = np.array([float(r["kneeled"]) for r in rows])
-    held = np.array([float(r["kneel_held"]) for r in rows])[kneeled > 0]
-    return {"reached_kneel": share(np.ones(len(rows), bool)), "face_down": share(fz < -FACING_Z),
-            "on_back": share(fz > FACING_Z), "kneeled": round(float(kneeled.mean()), 3),
-            "kneel_held": round(float(held.mean()), 3) if held.size else None,
-            "median_peak_trunk_m": round(float(np.median(peak)), 3) if peak else None}
 
 
 def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:
@@ -147,6 +124,7 @@ class Campaign:
 
 def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: int | None = None,
         max_minutes: float | None = None, eval_dir: Path | None = None, refit: bool = False, log=print) -> dict:
+    from training.evaluate import kneel_figures
     camp = Campaign(folder, cfg, teacher.p.cfg, refit)
     data = camp.data
     eval_dir = Path(eval_dir or Path("runs") / "imitation_eval")
@@ -180,8 +158,8 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
         row.update(labels_total=len(obs), fit_loss=round(loss[-1], 4))
         artifact = camp.folder / ARTIFACT
         learner.export(artifact, manifest(fields, len(obs), k, started))
-        row.update(evaluate_batch(artifact, eval_dir / f"round_{k:02d}", int(cfg.eval_seeds),
-                                  float(cfg.eval_seconds)))
+        row.update(kneel_figures(artifact, eval_dir / f"round_{k:02d}", int(cfg.eval_seeds),
+                                 float(cfg.eval_seconds), "python -m training.imitation"))
         spent = sum(r.get("label_cpu_s", 0.0) for r in camp.state["rounds"]) + row.get("label_cpu_s", 0.0)
         row.update(cpu_hours_total=round(spent / 3600.0, 3), minutes=round((time.monotonic() - t0) / 60.0, 1))
         camp.finish_round(row)

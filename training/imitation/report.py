@@ -13,9 +13,10 @@ COLUMNS = (("round", "round"), ("beta", "β"), ("labels", "labels"), ("labels_to
            ("median_peak_trunk_m", "median peak trunk height [m]"))
 
 
-def table(rows: list[dict]) -> str:
-    head = "| " + " | ".join(c[1] for c in COLUMNS) + " |\n|" + "---|" * len(COLUMNS) + "\n"
-    return head + "".join("| " + " | ".join(_cell(r.get(k)) for k, _ in COLUMNS) + " |\n" for r in rows)
+def table(rows: list[dict], columns=COLUMNS) -> str:
+    """A markdown table of rows, one column per (key, heading)."""
+    head = "| " + " | ".join(c[1] for c in columns) + " |\n|" + "---|" * len(columns) + "\n"
+    return head + "".join("| " + " | ".join(_cell(r.get(k)) for k, _ in columns) + " |\n" for r in rows)
 
 
 def _cell(v) -> str:

@@ -1,0 +1,64 @@
+"""A stage-1 PPO run's figures per checkpoint (`python -m training kneel-report --run RUN`): each kept checkpoint
+not yet in the report is exported and evaluated on the batch from fallen seeds (evaluate.kneel_figures: reached
+the kneel, in the kneeling posture, face down / on the back, held), one row per checkpoint in RUN/report.json and
+RUN/report.md, which the recipe's campaign keeps beside the curve. A run keeps only its last few checkpoints, so
+a campaign calls it while it runs."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from training import checkpoints
+
+ROWS = "report.json"
+REPORT = "report.md"
+COLUMNS = (("env_steps", "env steps"), ("bc_weight", "BC weight"), ("reached_kneel", "reached the kneel"),
+           ("face_down", "… face down"), ("on_back", "… on the back"),
+           ("kneeled", "the gate in the kneeling posture"), ("kneeled_face_down", "… face down"),
+           ("kneeled_on_back", "… on the back"), ("kneel_held", "… held ≥ 1 s (of those)"),
+           ("median_peak_trunk_m", "median peak trunk height [m]"))
+
+
+def report(run_dir, seeds: int = 200, seconds: float = 8.0, steps: list[int] | None = None, log=print) -> list[dict]:
+    """Evaluate the kept checkpoints of `run_dir` (or those at `steps`) missing from its report; returns the rows."""
+    from training.evaluate import kneel_figures
+    from training.train import export_checkpoint
+    run_dir = Path(run_dir)
+    state = checkpoints.load_run_state(run_dir)
+    path = run_dir / ROWS
+    rows = json.loads(path.read_text()) if path.exists() else []
+    done = {(r["env_steps"], r["seeds"], r["seconds"]) for r in rows}
+    kept = [checkpoints.checkpoint_steps(p) for p in checkpoints.list_checkpoints(run_dir)]
+    for n in sorted(kept if steps is None else steps):
+        if (n, seeds, seconds) in done:
+            continue
+        artifact = export_checkpoint(run_dir, n, f"checkpoint_{n}")
+        figures = kneel_figures(artifact, run_dir / "evaluations" / str(n), seeds, seconds,
+                                f"python -m training kneel-report --run {run_dir}")
+        artifact.unlink()
+        rows.append({"env_steps": n, "seeds": seeds, "seconds": seconds, "bc_weight": _bc_weight(state, n),
+                     **figures})
+        rows.sort(key=lambda r: (r["seeds"], r["seconds"], r["env_steps"]))
+        path.write_text(json.dumps(rows, indent=1))
+        (run_dir / REPORT).write_text(markdown(state, rows))
+        log(f"kneel-report: {run_dir.name} at {n:,} env steps: {json.dumps(figures)}")
+    return rows
+
+
+def _bc_weight(state: dict, env_steps: int) -> float | None:
+    """The BC term's weight at a checkpoint of a fine-tune from the imitation policy (None: no term)."""
+    t = state["ppo_config"].get("imitation", {})
+    if not t.get("bc_weight"):
+        return None
+    decay = int(t.get("bc_decay_steps", 0))
+    return round(float(t["bc_weight"]) * (max(0.0, 1.0 - env_steps / decay) if decay > 0 else 1.0), 3)
+
+
+def markdown(state: dict, rows: list[dict]) -> str:
+    from training.imitation.report import table
+    text = [f"# {state['name']}: stage 1 per checkpoint\n",
+            f"Started from `{state.get('init')}`; batch evaluation from fallen seeds (training/evaluate.py)."]
+    for seeds, seconds in sorted({(r["seeds"], r["seconds"]) for r in rows}):
+        text += [f"\n## {seeds} fallen seeds × {seconds:g} s\n",
+                 table([r for r in rows if (r["seeds"], r["seconds"]) == (seeds, seconds)], COLUMNS)]
+    return "\n".join(text)
