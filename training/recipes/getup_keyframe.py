@@ -16,9 +16,9 @@ from training.recipe import Recipe, Stage
 
 DEMOS = "training/campaigns/getup_keyframe/demos"
 # pre-tanh sampling std 0.1 (≈ 0.2 rad of target noise at the getup action scale): the gate asks for the trunk
-# within 0.57° of vertical; the BC term decays over the stage's steps; a critic-only warm-up first (a new critic
-# under a trained policy)
-RISE = {"ppo.imitation.demos": DEMOS, "ppo.imitation.bc_weight": 1.0, "ppo.imitation.bc_decay_steps": 20_000_000,
+# within 0.57° of vertical; the BC term (10: at 1 PPO left the rise for the pose term's optimum on the floor)
+# decays over the stage's steps; a critic-only warm-up first (a new critic under a trained policy)
+RISE = {"ppo.imitation.demos": DEMOS, "ppo.imitation.bc_weight": 10.0, "ppo.imitation.bc_decay_steps": 20_000_000,
         "ppo.init_noise_std": 0.1, "ppo.value_warmup_steps": 500_000, "ppo.learning_rate": 1e-4,
         "ppo.entropy_cost": 0.001,
         "env.reward.scales.gate": 1.0, "env.reward.scales.upright": 1.0,
