@@ -3,6 +3,8 @@
 fine-tune (student_finetune.py) where its config or checkpoint does, else plain PPO."""
 from __future__ import annotations
 
+from pathlib import Path
+
 from training import checkpoints, student_finetune
 from training.imitation import finetune
 from training.ppo_extension import PPOExtension
@@ -10,11 +12,25 @@ from training.ppo_extension import PPOExtension
 is_artifact = finetune.is_artifact
 
 
+def init_path(path: Path) -> str:
+    """How a run state names what it starts from: repository-relative inside the repository (a campaign's run
+    state then resumes on any clone; the imitation fine-tune reads its planner data beside it), else absolute."""
+    path = Path(path).resolve()
+    return str(path.relative_to(checkpoints.REPO_ROOT) if path.is_relative_to(checkpoints.REPO_ROOT) else path)
+
+
+def resolved(init: str) -> Path:
+    """A run state's init as a path (repository-relative ones against this clone)."""
+    path = Path(init)
+    return path if path.is_absolute() else checkpoints.REPO_ROOT / path
+
+
 def load_init(init):
     """What a run starts from: a PPO checkpoint's params, a DAgger learner's artifact (a dict), or None."""
     if not init:
         return None
-    return finetune.read_learner(init) if is_artifact(init) else checkpoints.load_checkpoint(init)
+    path = resolved(init)
+    return finetune.read_learner(path) if is_artifact(path) else checkpoints.load_checkpoint(path)
 
 
 def extension(ppo_cfg, restored) -> PPOExtension:

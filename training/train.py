@@ -143,8 +143,8 @@ def _new_run(task: str, run_dir: Path, *, steps, overrides, preset, from_checkpo
     ppo_cfg, env_cfg = build_configs(task, preset, overrides)
     init = None
     if from_checkpoint:
-        init = str(Path(from_checkpoint).resolve() if extensions.is_artifact(from_checkpoint)
-                   else checkpoints.resolve_checkpoint(from_checkpoint))
+        init = extensions.init_path(Path(from_checkpoint) if extensions.is_artifact(from_checkpoint)
+                                    else checkpoints.resolve_checkpoint(from_checkpoint))
     restored = extensions.load_init(init)
     state = {"task": task, "name": name or task, "preset": preset, "seed": seed,
              "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
@@ -342,7 +342,7 @@ def _env_fields_artifact(run_dir: Path, state: dict) -> Path:
     yet), the artifact it was started --from or the export of the run it was (same model, observation and
     network)."""
     own = run_dir / f"{state['name']}.safetensors"
-    init = Path(state.get("init") or "")
+    init = extensions.resolved(state["init"]) if state.get("init") else Path("")
     if not own.exists() and extensions.is_artifact(init):
         return init
     if own.exists() or init.parent.name != checkpoints.CHECKPOINT_DIR:

@@ -98,7 +98,7 @@ def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarr
         raise ValueError("ppo.imitation.demos must name the planner's demonstrations (the DAgger round 0)")
     if not t.campaign and not (init and is_artifact(init)):
         raise ValueError("ppo.imitation.campaign is empty and the run does not start from a DAgger artifact")
-    campaign = _path(t.campaign) if t.campaign else Path(init).parent
+    campaign = _path(t.campaign if t.campaign else str(Path(init).parent))
     data = campaign / campaign_files.DATA
     collected = data / campaign_files.COLLECTED
     if not collected.exists():
