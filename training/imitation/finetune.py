@@ -119,8 +119,8 @@ class ImitationFinetune(PPOExtension):
     def _data(self, env, init) -> tuple[np.ndarray, np.ndarray]:
         if self._pairs is None:
             fields = env.manifest_fields()
-            self._pairs = planner_pairs(self._cfg, init, {"default_pose": np.asarray(fields["default_pose"]),
-                                                    "action_scale": np.asarray(fields["action_scale"])})
+            action_map = {k: np.asarray(fields[k]) for k in ("default_pose", "action_scale")}
+            self._pairs = planner_pairs(self._cfg, init, action_map)
         return self._pairs
 
     def initial_params(self, restored, env=None):
@@ -136,8 +136,7 @@ class ImitationFinetune(PPOExtension):
 
     def loss_term(self, env, state: dict):
         pairs = self._data(env, state.get("init")) if uses_imitation(self._cfg) else None
-        return imitation_term(self._cfg, pairs,
-                              float(state.get("bc_count_start", 0.0)))
+        return imitation_term(self._cfg, pairs, float(state.get("bc_count_start", 0.0)))
 
 
 def bc_loss(ppo_network, policy_params, normalizer_params, obs, labels, sizes: dict, policy_key: str = "state"):
