@@ -246,7 +246,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
                  minutes=provenance["minutes"], stopped_by_max_minutes=stopped, finished=True)
     rule = export_student(params, env, artifact, name, cfg.tanh_squash, trained, provenance)
     if ship and not stopped:
-        from training.train import ship_artifact
+        from training.export import ship_artifact
         ship_artifact(artifact, {"task": f"distill ({task} env)"})
     return DistillResult(run_dir, artifact, phases, rule, minutes)
 

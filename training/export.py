@@ -2,11 +2,13 @@
 defaults and the golden vectors: common/golden.py)."""
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
-from common.artifact import write_artifact
+from common.artifact import read_artifact, write_artifact
 from common.golden import base_manifest
 from training import checkpoints
 from training.envs import sagittal
@@ -80,3 +82,30 @@ def run_provenance(state: dict, steps: int, preset: str) -> dict:
 def exported_as_trained(steps: int, preset: str) -> bool:
     """Whether a run's export may say `trained: true`: real steps and a real preset."""
     return steps > 0 and preset != "toy"
+
+
+def ship_artifact(artifact: Path, state: dict, policies_root=checkpoints.POLICIES_ROOT) -> Path:
+    """Copy the artifact to policies/<name>/<name>.safetensors and append its provenance row to that folder's
+    CARD.md (created from the card template for a new policy)."""
+    manifest = read_artifact(artifact)[3]
+    prov = manifest["provenance"]
+    folder = checkpoints.policy_dir(manifest["name"], policies_root)
+    folder.mkdir(parents=True, exist_ok=True)
+    shipped = folder / f"{manifest['name']}.safetensors"
+    if shipped.resolve() != Path(artifact).resolve():
+        shutil.copyfile(artifact, shipped)
+    task = state["task"] + ("" if manifest["trained"] else " (SMOKE TEST, NOT TRAINED)")
+    try:
+        shown = shipped.resolve().relative_to(checkpoints.REPO_ROOT)
+    except ValueError:
+        shown = shipped
+    recipe = prov.get("recipe")
+    checkpoints.append_provenance_row({
+        "date": prov["date"], "artifact": f"`{shown}`", "name": manifest["name"], "task": task,
+        "trained": "yes" if manifest["trained"] else "no", "env steps": prov["steps"],
+        "minutes": prov.get("minutes", ""), "env-steps/s": prov.get("env_steps_per_s", ""),
+        "device": prov.get("device", ""), "git commit": prov["git_commit"],
+        "content hash": manifest["content_hash"][:12],
+        "command": f"`{prov['command']}`" + (f" (recipe {recipe['name']} {recipe['sha256'][:12]})" if recipe else ""),
+        "evaluation": ""}, folder / checkpoints.CARD)
+    return shipped

@@ -203,7 +203,7 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
     final = recipe.stages[-1]
     complete = stage_complete(root, recipe, final)
     if complete and ship:
-        from training.train import ship_artifact
+        from training.export import ship_artifact
         artifact = stage_dirs(root, recipe, final)[-1] / f"{recipe.policy}.safetensors"
         print(f"recipe {name}: shipped {ship_artifact(artifact, {'task': f'recipe {name}'})}")
     return complete

@@ -11,7 +11,6 @@ between two jitted epochs, so stopping there is clean). Every call exports the n
 from __future__ import annotations
 
 import math
-import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,8 +21,8 @@ from ml_collections import config_dict
 from common.artifact import read_artifact
 from training import checkpoints, curves, extensions, migration, ppo_networks
 from training.configs import build_configs
+from training import export
 from training.export import export_brax_ppo, exported_as_trained, exported_policy, run_provenance
-from training.checkpoints import REPO_ROOT
 from training.overrides import apply_overrides
 from training.ppo_networks import ACTIVATION
 
@@ -319,7 +318,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     artifact = export_run(run_dir, env, run.state, latest["params"], preset)
     complete = latest["steps"] >= target or "advanced" in run.state
     if ship and complete:
-        ship_artifact(artifact, run.state)
+        export.ship_artifact(artifact, run.state)
     return TrainResult(run_dir, artifact, latest["steps"], target, run.state["minutes"], sps, complete=complete)
 
 
@@ -378,30 +377,3 @@ def export_checkpoint(run_dir, env_steps: int, name: str, like=None) -> Path:
     export_brax_ppo((params[0], policy), manifest, path,
                     observations_normalized=bool(ppo_cfg.normalize_observations))
     return path
-
-
-def ship_artifact(artifact: Path, state: dict, policies_root=checkpoints.POLICIES_ROOT) -> Path:
-    """Copy the artifact to policies/<name>/<name>.safetensors and append its provenance row to that folder's
-    CARD.md (created from the card template for a new policy)."""
-    manifest = read_artifact(artifact)[3]
-    prov = manifest["provenance"]
-    folder = checkpoints.policy_dir(manifest["name"], policies_root)
-    folder.mkdir(parents=True, exist_ok=True)
-    shipped = folder / f"{manifest['name']}.safetensors"
-    if shipped.resolve() != Path(artifact).resolve():
-        shutil.copyfile(artifact, shipped)
-    task = state["task"] + ("" if manifest["trained"] else " (SMOKE TEST, NOT TRAINED)")
-    try:
-        shown = shipped.resolve().relative_to(REPO_ROOT)
-    except ValueError:
-        shown = shipped
-    recipe = prov.get("recipe")
-    checkpoints.append_provenance_row({
-        "date": prov["date"], "artifact": f"`{shown}`", "name": manifest["name"], "task": task,
-        "trained": "yes" if manifest["trained"] else "no", "env steps": prov["steps"],
-        "minutes": prov.get("minutes", ""), "env-steps/s": prov.get("env_steps_per_s", ""),
-        "device": prov.get("device", ""), "git commit": prov["git_commit"],
-        "content hash": manifest["content_hash"][:12],
-        "command": f"`{prov['command']}`" + (f" (recipe {recipe['name']} {recipe['sha256'][:12]})" if recipe else ""),
-        "evaluation": ""}, folder / checkpoints.CARD)
-    return shipped
