@@ -47,11 +47,11 @@ def report(run_dir, seeds: int = 200, seconds: float = 8.0, steps: list[int] | N
 
 def _bc_weight(state: dict, env_steps: int) -> float | None:
     """The BC term's weight at a checkpoint of a fine-tune from the imitation policy (None: no term)."""
+    from training.student_finetune import bc_weight
     t = state["ppo_config"].get("imitation", {})
     if not t.get("bc_weight"):
         return None
-    decay = int(t.get("bc_decay_steps", 0))
-    return round(float(t["bc_weight"]) * (max(0.0, 1.0 - env_steps / decay) if decay > 0 else 1.0), 3)
+    return round(float(bc_weight(float(env_steps), float(t["bc_weight"]), int(t.get("bc_decay_steps", 0)))), 3)
 
 
 def markdown(state: dict, rows: list[dict]) -> str:
