@@ -134,12 +134,12 @@ void Controller::reload_worker() {
     }
     lock.lock();
     reload_message_ = message.substr(0, kStringReserve - 1);
+    if (!engine) message_changed_.store(true);  // a loaded policy's "reload ok" shows once the loop adopts it
     if (engine) {
       current_path_ = engine->artifact().path;  // the resolved file
       ready_ = std::move(engine);
       ready_flag_.store(true);
     }
-    message_changed_.store(true);
   }
 }
 
@@ -151,6 +151,7 @@ void Controller::adopt_ready_policy() {
   active_ = engine_.get();  // single-policy mode only (composite mode never has a ready policy)
   retired_ = std::move(ready_);
   ready_flag_.store(false);
+  message_changed_.store(true);
   engine_->reset();
   lock.unlock();
   reload_cv_.notify_all();

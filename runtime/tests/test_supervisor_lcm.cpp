@@ -330,7 +330,12 @@ TEST_F(SupervisorLcm, HotReloadRejectsBadFileAndSwapsGoodOne) {
   ArtifactSpec good = clamp_spec();
   good.meta["name"] = "reloaded";
   load_policy("reload_good", good);
-  step_until([&] { return ctrl_->policy().artifact().name == "reloaded"; });
+  step_until([&] {  // the status says "reload ok" only beside the new policy's name
+    peer_.drain();
+    const bool ok = peer_.last_status.info.find("reload ok") != std::string::npos;
+    if (ok) EXPECT_EQ(peer_.last_status.policy_name, "reloaded") << peer_.last_status.info;
+    return ok;
+  });
   EXPECT_EQ(ctrl_->policy().artifact().name, "reloaded");
   EXPECT_EQ(mode(), Mode::kPolicy);
 }
