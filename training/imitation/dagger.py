@@ -71,6 +71,12 @@ def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:
                            "minutes": round((time.monotonic() - started) / 60.0, 2)}}
 
 
+def _shown(path: Path) -> str:
+    """A path as a report names it: repository-relative when inside the repository."""
+    path = Path(path).resolve()
+    return str(path.relative_to(REPO_ROOT)) if path.is_relative_to(REPO_ROOT) else str(path)
+
+
 FIT_ONLY = ("fit", "rounds", "eval_seeds", "eval_seconds")   # settings that do not shape the data
 
 
@@ -106,11 +112,14 @@ class Campaign:
     def collected_round(self, k: int) -> dict | None:
         return self.collected["rounds"].get(str(k))
 
-    def store_round(self, k: int, got: dict, starts: int) -> dict:
+    def store_round(self, k: int, got: dict, starts: int, policy: Path | None = None) -> dict:
+        """Save round k's labels and its figures; `policy`: the artifact rolled out, when not the learner."""
         dataset.save_round(self.data, k, got["obs"], got["q_des"])
         stats = {"rollouts": starts, "rollouts_met_gate": got["met_gate"], "labels": len(got["obs"]),
                  "label_cpu_s": round(got["cpu_s"], 1),
                  "cpu_s_per_label": round(got["cpu_s"] / max(len(got["obs"]), 1), 4)}
+        if policy is not None:
+            stats["policy"] = _shown(policy)
         self.collected["rounds"][str(k)] = stats
         (self.data / COLLECTED).write_text(json.dumps(self.collected, indent=1))
         return stats
@@ -123,9 +132,15 @@ class Campaign:
 
 
 def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: int | None = None,
-        max_minutes: float | None = None, eval_dir: Path | None = None, refit: bool = False, log=print) -> dict:
+        max_minutes: float | None = None, eval_dir: Path | None = None, refit: bool = False,
+        policy: Path | None = None, log=print) -> dict:
+    """The rounds from the campaign's next on. `policy`: an artifact of the learner's network and action map (a
+    PPO fine-tune of it) that the next round rolls out and its fit starts from, in place of the campaign's
+    learner: DAgger on the states that policy visits."""
     from training.evaluate import kneel_figures
     camp = Campaign(folder, cfg, teacher.p.cfg, refit)
+    if policy is not None and (refit or camp.next_round == 0):
+        raise ValueError("--policy takes over a round's rollouts: not for round 0 or a --refit")
     data = camp.data
     eval_dir = Path(eval_dir or Path("runs") / "imitation_eval")
     fields = env.manifest_fields()
@@ -135,7 +150,8 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
     obs0, _ = dataset.demonstration_pairs(demos)
     learner = new_learner(obs0, list(cfg.fit.hidden_layer_sizes), int(cfg.fit.seed), fields, p.lo, p.hi)
     if camp.next_round > 0:
-        learner = load_learner(camp.folder / ARTIFACT, learner)
+        learner = load_learner(camp.folder / ARTIFACT if policy is None else policy, learner)
+    first = camp.next_round
     while camp.next_round < last:
         if max_minutes is not None and time.monotonic() - started > 60.0 * max_minutes:
             log(f"imitation: --max-minutes {max_minutes:g} reached before round {camp.next_round}")
@@ -151,7 +167,7 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
                 qpos, qvel = (a.astype(np.float64) for a in env.fallen_starts(n, int(cfg.first_seed) + (k - 1) * n))
                 got = collect(teacher, learner, qpos, qvel, b, float(cfg.rollout_s),
                               np.random.default_rng([int(cfg.seed), k]))
-                stats = camp.store_round(k, got, n)
+                stats = camp.store_round(k, got, n, policy if k == first else None)
             row.update(stats)
         obs, q = dataset.aggregate(data, demos, k + 1)
         learner, loss = fit(learner, obs, learner.label_actions(q), cfg.fit, int(cfg.fit.seed) + k)

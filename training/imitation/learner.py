@@ -77,8 +77,17 @@ def artifact_params(artifact: Path) -> tuple[dict, np.ndarray, np.ndarray, dict]
 
 
 def load_learner(artifact: Path, like: Learner) -> Learner:
-    """The learner an artifact of `export` holds, with the action map of `like`."""
-    params, mean, std, _ = artifact_params(artifact)
+    """The learner an artifact of `export` holds (this fit's or a PPO fine-tune's of it), with the action map of
+    `like`; ValueError when its network or action map is not `like`'s."""
+    params, mean, std, manifest = artifact_params(artifact)
+    shapes = {k: v["kernel"].shape for k, v in params["params"].items()}
+    want = {k: v["kernel"].shape for k, v in like.params["params"].items()}
+    if shapes != want:
+        raise ValueError(f"{artifact}: its layers {sorted(shapes.values())} are not the learner's {sorted(want.values())}")
+    for key, ours in (("default_pose", like.default_pose), ("action_scale", like.action_scale)):
+        theirs = np.broadcast_to(np.asarray(manifest.get(key, np.nan), np.float64), np.shape(ours))
+        if not np.allclose(theirs, ours, atol=1e-6):
+            raise ValueError(f"{artifact}: its {key} is not the getup action map's")
     return Learner(params=params, obs_mean=mean, obs_std=std, default_pose=like.default_pose,
                    action_scale=like.action_scale, lo=like.lo, hi=like.hi)
 
