@@ -88,6 +88,19 @@ def test_the_fitted_learner_exports_as_the_artifact_the_runtime_runs(tiny, tmp_p
     np.testing.assert_allclose(ours, fitted.actions(obs[:8]), atol=1e-5)
 
 
+def test_a_policy_of_another_network_or_action_map_is_refused_as_the_learner(tiny, tmp_path):
+    cfg, teacher, env, learner, (obs, _) = tiny
+    p = teacher.p
+    fields = env.manifest_fields()
+    small = new_learner(obs, [32, 16], 0, fields, p.lo, p.hi)
+    small.export(tmp_path / "small.safetensors", dagger.manifest(fields, 0, 0, 0.0))
+    with pytest.raises(ValueError, match="layers"):
+        load_learner(tmp_path / "small.safetensors", learner)
+    learner.export(tmp_path / "scaled.safetensors", dagger.manifest({**fields, "action_scale": 1.0}, 0, 0, 0.0))
+    with pytest.raises(ValueError, match="action_scale"):
+        load_learner(tmp_path / "scaled.safetensors", learner)
+
+
 def test_bad_input_is_refused_naming_the_problem(tmp_path, capsys):
     assert cli.main(["--out", str(tmp_path), "--rounds", "0"]) == 2
     assert "--rounds" in capsys.readouterr().err
@@ -96,3 +109,6 @@ def test_bad_input_is_refused_naming_the_problem(tmp_path, capsys):
     assert cli.main(["--out", str(tmp_path), "--demos", str(tmp_path / "none"), *sum(
         (["--config", o] for o in TINY), [])]) == 2
     assert "no planner demonstrations" in capsys.readouterr().err
+    assert cli.main(["--out", str(tmp_path / "fresh"), "--policy", str(tmp_path / "any.safetensors"), *sum(
+        (["--config", o] for o in TINY), [])]) == 2
+    assert "--policy" in capsys.readouterr().err           # round 0 fits the demonstrations: nothing rolls out
