@@ -210,7 +210,9 @@ def test_the_stages_rewards(kneel_env, stand_env):
     assert float(t2["height"]) == pytest.approx(2.0 * 0.25 * (r_height + 1.0) / 3.0, rel=1e-5)
     assert float(t2["pose"]) == pytest.approx(float(G.pose_reward(_state(stand_env).qpos[7:],
                                                                   stand_env._default_pose)), rel=1e-5)
-    assert set(t1) == {"height", "pose", "gate", "upright", "energy"} and set(t2) == {"height", "pose", "energy"}
+    assert set(t1) == {"height", "pose", "gate", "upright", "energy", "track"}
+    assert set(t2) == {"height", "pose", "energy"}
+    assert float(t1["track"]) == 0.0                     # no demonstration to follow: the term is off
 
 
 def test_the_kneel_s_gate_term_pays_only_while_the_gate_holds_this_step(kneel_env):

@@ -32,13 +32,13 @@ class _Env:
 
 @pytest.fixture(scope="module")
 def learner():
-    obs, _ = dataset.demonstration_pairs(dagger.DEFAULT_DEMOS)
-    like = new_learner(obs[:64], [8], 0, {"default_pose": np.zeros(23), "action_scale": 2.0},
-                       -np.ones(23) * 3, np.ones(23) * 3)
-    fitted = load_learner(ARTIFACT, like)
     from common.artifact import read_artifact
     fields = read_artifact(ARTIFACT)[3]
-    return fitted, {"default_pose": fields["default_pose"], "action_scale": fields["action_scale"]}
+    fields = {"default_pose": fields["default_pose"], "action_scale": fields["action_scale"]}
+    obs, _ = dataset.demonstration_pairs(dagger.DEFAULT_DEMOS)
+    like = new_learner(obs[:64], list(imitation_config.default_config().fit.hidden_layer_sizes), 0, fields,
+                       -np.ones(23) * 3, np.ones(23) * 3)
+    return load_learner(ARTIFACT, like), fields
 
 
 def _ppo_cfg(**imitation):

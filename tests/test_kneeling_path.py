@@ -104,7 +104,7 @@ def test_the_stand_task_draws_starts_up_to_max_progress_and_at_the_kneel():
     cfg.backend = "cpu"
     cfg.reverse_curriculum.max_progress = 1.0
     env = envs.make("getup_stand", config=cfg)
-    qpos, _, kind = jax.vmap(env._start_state)(jax.random.split(jax.random.PRNGKey(0), 2000))
+    qpos, _, kind, _ = jax.vmap(env._start_state)(jax.random.split(jax.random.PRNGKey(0), 2000))
     qpos, kind = np.asarray(qpos), np.asarray(kind)
     at_kneel = kind == 1
     assert abs(at_kneel.mean() - cfg.reverse_curriculum.kneel_prob) < 0.04
@@ -120,7 +120,7 @@ def test_the_stand_task_draws_starts_up_to_max_progress_and_at_the_kneel():
     cfg.reverse_curriculum.min_progress = 0.0
     cfg.reverse_curriculum.max_progress = 0.0      # off: the seed's start, every episode at the kneel
     env = envs.make("getup_stand", config=cfg)
-    _, _, kind = jax.vmap(env._start_state)(jax.random.split(jax.random.PRNGKey(0), 64))
+    _, _, kind, _ = jax.vmap(env._start_state)(jax.random.split(jax.random.PRNGKey(0), 64))
     assert np.all(np.asarray(kind) == 1)
 
 

@@ -145,6 +145,15 @@ class GetupTask(GetupStarts):
         """Episode ends besides non-finite physics (none by default: the seed's getup never ends early)."""
         return jnp.zeros((), dtype=bool)
 
+    def _task_info(self, info, data) -> dict:
+        """The task's own per-episode state: its entries at the reset (info holds `bank_row`) and after each
+        step (data after it; the entries the task added before it). None by default."""
+        return {}
+
+    def _critic_extras(self, info) -> list[jax.Array]:
+        """The critic's inputs beyond the gate state and ‖u − e_z‖ (scalars). None by default."""
+        return []
+
     # ------------------------------------------------------------------ shared
     def metric_names(self) -> tuple[str, ...]:
         return (*(f"reward/{k}" for k in self._scales), "failed_rises", "gate", "gate_reached", "success",
@@ -155,41 +164,44 @@ class GetupTask(GetupStarts):
         return success * (info["start_kind"] == START_KINDS.index(kind))
 
     def _start_state(self, rng):
-        """The task's start; with start banks (starts/), a share of the fallen ones from those banks."""
+        """(qpos, qvel, kind, bank row) of the task's start; with start banks (starts/), a share of the fallen ones
+        from those banks, `bank row` its row in the banks' rows in order (−1: not from a bank)."""
+        none = jnp.asarray(-1, jnp.int32)
         if not self._fallen_banks:
-            return super()._start_state(rng)
+            return *super()._start_state(rng), none
         k_start, k_use, k_idx = jax.random.split(rng, 3)
         qpos, qvel, kind = super()._start_state(k_start)
-        u, lo = jax.random.uniform(k_use), 0.0
+        u, lo, row, offset = jax.random.uniform(k_use), 0.0, none, 0
         for prob, (bank_qpos, bank_qvel) in self._fallen_banks:   # each bank its slice of [0, 1)
             use = (kind == 0) & (u >= lo) & (u < lo + prob)
             idx = jax.random.randint(k_idx, (), 0, bank_qpos.shape[0])
             qpos, qvel = jnp.where(use, bank_qpos[idx], qpos), jnp.where(use, bank_qvel[idx], qvel)
-            lo += prob
-        return qpos, qvel, kind
+            row = jnp.where(use, offset + idx, row)
+            lo, offset = lo + prob, offset + bank_qpos.shape[0]
+        return qpos, qvel, kind, row
 
-    def _start_info(self, rng, data, kind) -> dict:
+    def _start_info(self, rng, data, kind, bank_row) -> dict:
         info = {"rng": rng, "last_act": jnp.zeros(base.NUM_JOINTS), "start_kind": kind.astype(jnp.int32),
                 "runtime_target": self.start_target(data.qpos), "up": self.up_vector(data),
-                **self.body_readings(data)}
+                "bank_row": bank_row, **self.body_readings(data)}
         off = jnp.zeros((), dtype=bool)
         info["gate"] = self._gate_state(G.gate(info["trunk_height"], info["up_z"]), off, info)
         info["gate_met"] = off              # §4.8's gate has held at a step since the reset
         info["gate_height_met"] = off       # the trunk has been at the gate's height since the reset
         info["rise_track"] = G.rise_track_start(info["trunk_height"])
-        return info
+        return {**info, **self._task_info(info, data)}
 
     def _observe(self, data, info, rng) -> dict[str, jax.Array]:
         s = self.observation_state(data, jnp.zeros(3), info["last_act"], obsdef.initial_gait_phase(jnp))
         noisy, clean = self.actor_observation(s, rng, self._config.obs_noise_scale)
-        extra = jnp.stack([info["gate"].astype(jnp.float32), G.up_error(info["up"])])
+        extra = jnp.stack([info["gate"].astype(jnp.float32), G.up_error(info["up"]), *self._critic_extras(info)])
         return {"state": noisy, "privileged_state": jnp.concatenate([self.privileged_base(data, clean), extra])}
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
         rng, k_start, k_obs = jax.random.split(rng, 3)
-        qpos, qvel, kind = self._start_state(k_start)
+        qpos, qvel, kind, bank_row = self._start_state(k_start)
         data = self.make_data(qpos, qvel)
-        info = self._start_info(rng, data, kind)
+        info = self._start_info(rng, data, kind, bank_row)
         obs = self._observe(data, info, k_obs)
         metrics = {k: jnp.zeros(()) for k in self.metric_names()}
         return mjx_env.State(data, obs, jnp.zeros(()), jnp.zeros(()), metrics, info)
@@ -206,6 +218,7 @@ class GetupTask(GetupStarts):
         info["gate"] = self._gate_state(gate_now, state.info["gate"], info)
         info["gate_met"] = state.info["gate_met"] | gate_now
         info["gate_height_met"] = state.info["gate_height_met"] | G.at_gate_height(info["trunk_height"])
+        info.update(self._task_info(info, data))
         scaled = {k: v * self._scales[k] for k, v in self._reward_terms(data, info).items()}
         reward = sum(scaled.values()) * self.dt
         info["rise_track"], failed = G.rise_track_step(state.info["rise_track"], info["trunk_height"],

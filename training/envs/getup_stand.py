@@ -64,4 +64,5 @@ class GetupStand(getup_base.GetupTask):
         idx = jax.random.randint(k_idx, (), 0, self._path_bank.shape[0])
         qpos = jnp.where(at_kneel, self._kneel_qpos, self._path_bank[idx])
         # start_kind: the kneel is "kneeling"; a path start is counted with "standing" (it is on the way up)
-        return qpos, jnp.zeros(self._mj_model.nv), jnp.where(at_kneel, 1, 2).astype(jnp.int32)
+        kind = jnp.where(at_kneel, 1, 2).astype(jnp.int32)
+        return qpos, jnp.zeros(self._mj_model.nv), kind, jnp.asarray(-1, jnp.int32)

@@ -61,18 +61,19 @@ def window_end(trunk_height: np.ndarray, kneeling: np.ndarray, gate: np.ndarray)
 
 
 @functools.lru_cache(maxsize=4)
-def demo_bank(folder: str, window_s: float, num_starts: int, seed: int,
-              gated_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """(qpos, qvel) of `num_starts` states drawn uniformly from the last window_s before each window's end (all
-    used demonstrations' states pooled; gated_only: of those that met the gate). Cached (read-only arrays)."""
-    if window_s <= 0 or num_starts < 1:
-        raise ValueError(f"demo_starts: window_s must be > 0 and bank_starts ≥ 1, got {window_s}, {num_starts}")
+def demo_pool(folder: str, window_s: float, gated_only: bool = False) -> dict[str, np.ndarray]:
+    """The used demonstrations' states, whole, and the rows a start may be drawn from. Keys: `qpos`, `qvel`
+    (R, ·) every step of every used demonstration, concatenated; `window` (W,) the rows of the last window_s before
+    each window's end; `last` (R,) each row's demonstration's last row (a reference holds there after it);
+    `ctrl_dt` () their control step [s]. Cached (read-only arrays)."""
+    if window_s <= 0:
+        raise ValueError(f"demo_starts: window_s must be > 0, got {window_s}")
     path = Path(folder) if Path(folder).is_absolute() else REPO_ROOT / folder
     files = sorted(path.glob(DEMO_GLOB))
     if not files:
         raise ValueError(f"demo_starts.folder {folder!r}: no {DEMO_GLOB} there "
                          "(python -m training.planner writes them)")
-    qpos, qvel = [], []
+    qpos, qvel, window, last, rows, dts = [], [], [], [], 0, set()
     for f in files:
         try:
             with np.load(f) as z:
@@ -82,12 +83,40 @@ def demo_bank(folder: str, window_s: float, num_starts: int, seed: int,
         end = window_end(demo["trunk_height"], demo["kneeling"], demo["gate"])
         if gated_only and not met_gate(demo["gate"], demo["kneeling"]):
             end = None
+        if end is None:
+            continue
+        dts.add(float(demo["ctrl_dt"]))
         back = int(round(window_s / float(demo["ctrl_dt"])))
-        if end is not None:
-            qpos.append(demo["qpos"][max(0, end - back):end + 1])
-            qvel.append(demo["qvel"][max(0, end - back):end + 1])
+        n = len(demo["qpos"])
+        qpos.append(demo["qpos"])
+        qvel.append(demo["qvel"])
+        window.append(rows + np.arange(max(0, end - back), end + 1))
+        last.append(np.full(n, rows + n - 1))
+        rows += n
     if not qpos:
         raise ValueError(f"demo_starts.folder {folder!r}: none of its {len(files)} demonstrations "
                          f"{'met the gate' if gated_only else 'reached the kneel'}")
-    qpos, qvel = np.concatenate(qpos), np.concatenate(qvel)
-    return frozen_bank(np.random.default_rng(seed).integers(0, len(qpos), num_starts), qpos, qvel)
+    if len(dts) > 1:
+        raise ValueError(f"demo_starts.folder {folder!r}: its demonstrations mix control steps {sorted(dts)} s")
+    pool = {"qpos": np.concatenate(qpos).astype(np.float32), "qvel": np.concatenate(qvel).astype(np.float32),
+            "window": np.concatenate(window), "last": np.concatenate(last), "ctrl_dt": np.asarray(dts.pop())}
+    for array in pool.values():
+        array.flags.writeable = False
+    return pool
+
+
+def bank_rows(folder: str, window_s: float, num_starts: int, seed: int, gated_only: bool = False) -> np.ndarray:
+    """The pool rows (demo_pool) of the bank's `num_starts` starts, drawn uniformly from the windows."""
+    if num_starts < 1:
+        raise ValueError(f"demo_starts: bank_starts must be ≥ 1, got {num_starts}")
+    window = demo_pool(folder, window_s, gated_only)["window"]
+    return window[np.random.default_rng(seed).integers(0, len(window), num_starts)]
+
+
+@functools.lru_cache(maxsize=4)
+def demo_bank(folder: str, window_s: float, num_starts: int, seed: int,
+              gated_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos, qvel) of `num_starts` states drawn uniformly from the last window_s before each window's end (all
+    used demonstrations' states pooled; gated_only: of those that met the gate). Cached (read-only arrays)."""
+    pool = demo_pool(folder, window_s, gated_only)
+    return frozen_bank(bank_rows(folder, window_s, num_starts, seed, gated_only), pool["qpos"], pool["qvel"])
