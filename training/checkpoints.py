@@ -29,6 +29,19 @@ KEEP_CHECKPOINTS = 3  # older ones are deleted: each T1 PPO checkpoint is a few 
 STEP_DIGITS = 12      # brax names checkpoint folders f"{step:012d}"
 
 
+def repo_relative(path) -> str:
+    """How run states and reports name a file: repository-relative inside the repository (it then reads the
+    same on any clone), else absolute."""
+    path = Path(path).resolve()
+    return str(path.relative_to(REPO_ROOT) if path.is_relative_to(REPO_ROOT) else path)
+
+
+def repo_path(name) -> Path:
+    """A name of repo_relative's (or a repository-relative setting) as a path on this clone."""
+    path = Path(name)
+    return path if path.is_absolute() else REPO_ROOT / path
+
+
 # ---------------------------------------------------------------- jax
 def jax_setup() -> None:
     """(1) A persistent compilation cache (T1_JAX_CACHE, default build/jax_cache): every ppo.train /

@@ -15,14 +15,12 @@ is_artifact = finetune.is_artifact
 def init_path(path: Path) -> str:
     """How a run state names what it starts from: repository-relative inside the repository (a campaign's run
     state then resumes on any clone; the imitation fine-tune reads its planner data beside it), else absolute."""
-    path = Path(path).resolve()
-    return str(path.relative_to(checkpoints.REPO_ROOT) if path.is_relative_to(checkpoints.REPO_ROOT) else path)
+    return checkpoints.repo_relative(path)
 
 
 def resolved(init: str) -> Path:
     """A run state's init as a path (repository-relative ones against this clone)."""
-    path = Path(init)
-    return path if path.is_absolute() else checkpoints.REPO_ROOT / path
+    return checkpoints.repo_path(init)
 
 
 def load_init(init):

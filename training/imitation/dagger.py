@@ -71,12 +71,6 @@ def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:
                            "minutes": round((time.monotonic() - started) / 60.0, 2)}}
 
 
-def _shown(path: Path) -> str:
-    """A path as a report names it: repository-relative when inside the repository."""
-    path = Path(path).resolve()
-    return str(path.relative_to(REPO_ROOT)) if path.is_relative_to(REPO_ROOT) else str(path)
-
-
 FIT_ONLY = ("fit", "rounds", "eval_seeds", "eval_seconds")   # settings that do not shape the data
 
 
@@ -119,7 +113,8 @@ class Campaign:
                  "label_cpu_s": round(got["cpu_s"], 1),
                  "cpu_s_per_label": round(got["cpu_s"] / max(len(got["obs"]), 1), 4)}
         if policy is not None:
-            stats["policy"] = _shown(policy)
+            from training.checkpoints import repo_relative
+            stats["policy"] = repo_relative(policy)
         self.collected["rounds"][str(k)] = stats
         (self.data / COLLECTED).write_text(json.dumps(self.collected, indent=1))
         return stats

@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
+from training.checkpoints import repo_path
 from training.ppo_extension import PPOExtension
 from training.student_finetune import bc_weight, sample_count
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
 # the keys that make a PPO stage this fine-tune: a toy run keeps them (recipe_runner.py)
 LEARNER_KEYS = ("ppo.imitation.",)
 NORMALIZER_COUNT = 2 ** 32   # samples the held normaliser counts (float32 reads it to 512: the BC decay's step)
@@ -35,11 +35,6 @@ MIN_STD = 1e-3            # brax NormalTanhDistribution's min_std: scale = softp
 
 def uses_imitation(ppo_cfg) -> bool:
     return float(ppo_cfg.imitation.bc_weight) > 0
-
-
-def _path(p: str) -> Path:
-    path = Path(p)
-    return path if path.is_absolute() else REPO_ROOT / path
 
 
 def is_artifact(path) -> bool:
@@ -98,13 +93,13 @@ def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarr
         raise ValueError("ppo.imitation.demos must name the planner's demonstrations (the DAgger round 0)")
     if not t.campaign and not (init and is_artifact(init)):
         raise ValueError("ppo.imitation.campaign is empty and the run does not start from a DAgger artifact")
-    campaign = _path(t.campaign if t.campaign else str(Path(init).parent))
+    campaign = repo_path(t.campaign if t.campaign else str(Path(init).parent))
     data = campaign / campaign_files.DATA
     collected = data / campaign_files.COLLECTED
     if not collected.exists():
         raise ValueError(f"{campaign}: not a DAgger campaign (no {campaign_files.DATA}/{campaign_files.COLLECTED})")
     rounds = 1 + max((int(k) for k in json.loads(collected.read_text())["rounds"]), default=0)
-    obs, q = dataset.aggregate(data, _path(t.demos), rounds)
+    obs, q = dataset.aggregate(data, repo_path(t.demos), rounds)
     return obs, targets_to_labels(q, action_map["default_pose"], action_map["action_scale"])
 
 
