@@ -121,7 +121,8 @@ def test_the_tracking_term_follows_the_demonstration_an_episode_started_on(tmp_p
     for k in range(1, 4):
         state = step(state, jnp.zeros((16, env.action_size)))
         info = jax.tree.map(np.asarray, state.info)
-        want = np.minimum(start[np.maximum(info["bank_row"], 0)] + k, pool["last"][start[np.maximum(info["bank_row"], 0)]])
+        first = start[np.maximum(info["bank_row"], 0)]
+        want = np.minimum(first + k, pool["last"][first])
         np.testing.assert_array_equal(info["ref_row"], np.where(on, want, -1))   # one row per step, held at the end
     track = np.asarray(state.metrics["reward/track"])
     assert np.all(track[~on] == 0) and np.all(track[on] > 0)

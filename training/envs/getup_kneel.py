@@ -79,7 +79,8 @@ class GetupKneel(getup_base.GetupTask):
             return {}
         ref = self._reference
         if "ref_row" in info:
-            row = jnp.where(info["ref_row"] >= 0, jnp.minimum(info["ref_row"] + 1, ref["last"][info["ref_row"]]), -1)
+            now = jnp.maximum(info["ref_row"], 0)
+            row = jnp.where(info["ref_row"] >= 0, jnp.minimum(now + 1, ref["last"][now]), -1)
         else:
             row = jnp.where(info["bank_row"] >= 0, ref["start"][jnp.maximum(info["bank_row"], 0)], -1)
         q_ref = ref["qpos"][jnp.maximum(row, 0)]

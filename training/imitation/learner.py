@@ -83,7 +83,8 @@ def load_learner(artifact: Path, like: Learner) -> Learner:
     shapes = {k: v["kernel"].shape for k, v in params["params"].items()}
     want = {k: v["kernel"].shape for k, v in like.params["params"].items()}
     if shapes != want:
-        raise ValueError(f"{artifact}: its layers {sorted(shapes.values())} are not the learner's {sorted(want.values())}")
+        raise ValueError(f"{artifact}: its layers {sorted(shapes.values())} are not the learner's "
+                         f"{sorted(want.values())}")
     for key, ours in (("default_pose", like.default_pose), ("action_scale", like.action_scale)):
         theirs = np.broadcast_to(np.asarray(manifest.get(key, np.nan), np.float64), np.shape(ours))
         if not np.allclose(theirs, ours, atol=1e-6):
