@@ -170,6 +170,26 @@ def test_getup_evaluation_rollout_matches_mjx_on_the_first_tick():
     np.testing.assert_allclose(on_cpu["contact_force_z_N"], on_cpu["contact_force_N"], rtol=1e-5)
 
 
+def test_target_noise_moves_the_rollout_reproducibly_and_is_refused_on_mjx():
+    from training.artifact_policy import ArtifactPolicy
+    from training.evaluate import run_policy
+    from training.evaluate_cpu import cpu_rollout
+    from sim_hil.launch import ROOT
+    policy = ArtifactPolicy.load(ROOT / "tests" / "golden" / "random_policy.safetensors")
+    qpos, qvel = (np.asarray(a) for a in envs.fallen_states(2, 0))
+    env = envs.make("getup", config_overrides={"fallen.bank_starts": 2, "backend": "cpu"})
+    plain, still = cpu_rollout(env, policy, qpos, qvel, 5), cpu_rollout(env, policy, qpos, qvel, 5, noise_seed=9)
+    noisy, again = (cpu_rollout(env, policy, qpos, qvel, 5, target_noise_rad=0.05, noise_seed=3) for _ in range(2))
+    np.testing.assert_array_equal(plain["readings"], still["readings"])
+    np.testing.assert_array_equal(noisy["readings"], again["readings"])        # seeded
+    assert not np.allclose(noisy["readings"][:, 1:], plain["readings"][:, 1:])   # the targets moved the robot
+    with pytest.raises(ValueError, match="CPU backend"):
+        run_policy(envs.make("getup", config_overrides={"fallen.bank_starts": 2}), policy, qpos, qvel, 0.1,
+                   target_noise_rad=0.05)
+    with pytest.raises(ValueError, match=">= 0"):
+        run_policy(env, policy, qpos, qvel, 0.1, target_noise_rad=-1.0)
+
+
 def test_the_host_profile_counts_physics_and_copies():
     """make bench-train's profile: every host step adds its env steps, C physics and copy seconds."""
     from tests.bench import train_bench

@@ -112,6 +112,8 @@ def _cmd_evaluate(args, command: str) -> int:
             raise ValueError("--baseline: the joystick evaluation takes one policy")
         if args.starts != "fallen":
             raise ValueError("--starts: the joystick evaluation starts standing")
+        if args.target_noise:
+            raise ValueError("--target-noise: the getup evaluation only")
         from training import evaluate_joystick
         report = evaluate_joystick.evaluate(args.policy, out, episodes=args.seeds, seconds=seconds,
                                             first_seed=args.first_seed, command=command, backend=args.backend)
@@ -120,7 +122,7 @@ def _cmd_evaluate(args, command: str) -> int:
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
                                    command=command, backend=args.backend, starts=args.starts,
-                                   start_joystick=args.start_joystick)
+                                   start_joystick=args.start_joystick, target_noise_rad=args.target_noise)
     print(report.read_text())
     return 0
 
@@ -239,6 +241,9 @@ def _add_evaluate(sub) -> None:
                    help="with --starts knockdown, wall or push: the joystick expert that walks and is pushed over or "
                    f"trips (default {START_JOYSTICK})")
     p.add_argument("--seconds", type=float, help="episode length [s] (default: getup 10, joystick 20)")
+    p.add_argument("--target-noise", type=float, default=0.0, metavar="RAD",
+                   help="getup, CPU backend: N(0, RAD²) on every joint target each tick (seeded by --first-seed), "
+                   "as PPO's sampled actions: does the behaviour survive the training rollouts' noise")
     p.add_argument("--out", help="folder for the report (default: out/eval_<task>)")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     p.set_defaults(func=_cmd_evaluate)

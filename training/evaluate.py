@@ -100,16 +100,23 @@ def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
     return jax.jit(jax.vmap(rollout_one, in_axes=(None, 0, 0)))
 
 
-def run_policy(env, policy: ArtifactPolicy | CompositePolicy, qpos, qvel, seconds: float) -> dict:
-    """Roll out and reduce to per-env metrics (numpy) plus the height series for plots."""
+def run_policy(env, policy: ArtifactPolicy | CompositePolicy, qpos, qvel, seconds: float,
+               target_noise_rad: float = 0.0, noise_seed: int = 0) -> dict:
+    """Roll out and reduce to per-env metrics (numpy) plus the height series for plots (target noise:
+    evaluate_cpu.cpu_rollout's, CPU backend only)."""
     import jax
     ctrl_dt = float(policy.manifest["control_dt"])
     ticks = int(round(seconds / ctrl_dt))
     if ticks < 1:
         raise ValueError(f"--seconds {seconds}: shorter than one control tick ({ctrl_dt} s)")
+    if not target_noise_rad >= 0:
+        raise ValueError(f"--target-noise {target_noise_rad}: a standard deviation [rad], >= 0")
+    if target_noise_rad > 0 and env.backend != "cpu":
+        raise ValueError("--target-noise: the CPU backend's rollouts only (--backend cpu)")
     if env.backend == "cpu":
         from training.evaluate_cpu import cpu_rollout
-        series = cpu_rollout(env, policy, np.asarray(qpos), np.asarray(qvel), ticks)
+        series = cpu_rollout(env, policy, np.asarray(qpos), np.asarray(qvel), ticks,
+                             target_noise_rad=target_noise_rad, noise_seed=noise_seed)
     else:
         series = jax.tree.map(np.asarray, make_rollout(env, policy, ticks)(policy.params, qpos, qvel))
     readings = series["readings"]                      # (N, T + 1, 4): trunk, up_z, waist, kneeling
@@ -246,7 +253,9 @@ def markdown_report(results: dict, meta: dict) -> str:
                  f"{meta['first_seed']}, walked into it by `{meta['start_joystick']}`)")
     else:
         title = f"{meta['seeds']} seeded fallen starts from seed {meta['first_seed']}"
-    lines = [f"# Getup evaluation ({title}, {meta['seconds']} s each, {meta.get('backend', 'mjx')} physics)", ""]
+    noise = f", joint targets + N(0, {meta['target_noise_rad']:g} rad)" if meta.get("target_noise_rad") else ""
+    lines = [f"# Getup evaluation ({title}, {meta['seconds']} s each, {meta.get('backend', 'mjx')} physics{noise})",
+             ""]
     for role, res in results.items():
         lines.append(f"- {role}: {res['policy'].describe()}")
     lines += ["", "Means over episodes (time to stand and energy until the first stand-up: over episodes that "
@@ -328,7 +337,7 @@ def kneel_figures(artifact, out, seeds: int, seconds: float, command: str) -> di
 
 def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 32, seconds: float = 10.0,
              first_seed: int = 0, command: str = "", backend: str | None = None, starts: str = "fallen",
-             start_joystick: str | None = None) -> Path:
+             start_joystick: str | None = None, target_noise_rad: float = 0.0) -> Path:
     """Run the evaluation; returns the path of report.md. starts="knockdown": instead of fallen starts, the
     states where `start_joystick`, knocked over from `seeds` standing starts (bank seed `first_seed`),
     hands over to the getup policy mid-fall (training/envs/starts/); the ones it caught are left out.
@@ -359,10 +368,11 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     results = {}
     for role, policy in policies.items():
         print(f"{role}: {policy.path} (trained: {policy.trained})")
-        run = run_policy(env, policy, qpos, qvel, seconds)
+        run = run_policy(env, policy, qpos, qvel, seconds, target_noise_rad, first_seed)
         results[role] = {"policy": policy, "run": run, "summary": summarize(run["rows"])}
     meta = {"seeds": seeds, "first_seed": first_seed, "seconds": seconds, "command": command or "evaluate()",
-            "backend": env.backend, "starts": starts, "episodes": len(qpos), "start_joystick": start_joystick}
+            "backend": env.backend, "starts": starts, "episodes": len(qpos), "start_joystick": start_joystick,
+            "target_noise_rad": target_noise_rad}
     report = out / "report.md"
     report.write_text(markdown_report(results, meta))
     with (out / "per_env.csv").open("w", newline="") as f:

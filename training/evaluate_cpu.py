@@ -19,12 +19,15 @@ from common import events
 from common import observation as obsdef
 
 
-def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int, keep_qpos: bool = False) -> dict:
+def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int, keep_qpos: bool = False,
+                target_noise_rad: float = 0.0, noise_seed: int = 0) -> dict:
     """(N,) fallen starts → dict of numpy series: readings (N, T + 1, 4) [trunk, up_z, waist, kneeling posture
     (common/events.py: 1 or 0)], and per tick
     (N, T): energy_J, max_energy_J, max_torque_Nm, torque_integral, max_qacc, qacc_integral,
     contact_force_N, contact_force_z_N; with keep_qpos also qpos (N, T + 1, nq) at each reading (to look at
-    or render the rollout afterwards)."""
+    or render the rollout afterwards). target_noise_rad > 0: every joint target of every tick gets N(0, σ²) [rad]
+    (seeded by noise_seed) before the supervisor's rules, as a PPO policy's sampled actions move them: whether a
+    behaviour survives the training rollouts' noise."""
     import jax
     import jax.numpy as jnp
     from training.envs.cpu_backend import HostData
@@ -56,6 +59,7 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int,
     def host_data():
         return HostData(*(jnp.asarray(a) for a in physics.read(b, (n,))))
 
+    noise = np.random.default_rng(noise_seed)
     readings = np.zeros((n, num_ticks + 1, 4), np.float32)
     series = {k: np.zeros((n, num_ticks), np.float32)
               for k in ("energy_J", "max_energy_J", "max_torque_Nm", "torque_integral", "max_qacc", "qacc_integral",
@@ -68,7 +72,10 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int,
         readings[:, tick] = np.asarray(r)
         if keep_qpos:
             kept_qpos[:, tick] = b.qpos
-        physics.write_targets(b, np.asarray(q_des))
+        q_des = np.asarray(q_des)
+        if target_noise_rad > 0:
+            q_des = q_des + noise.normal(0.0, target_noise_rad, q_des.shape)
+        physics.write_targets(b, q_des)
         for _ in range(env.n_substeps):
             dq0 = b.qvel[:, 6:].copy()
             b.step(nstep=1)
