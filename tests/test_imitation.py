@@ -101,6 +101,19 @@ def test_a_policy_of_another_network_or_action_map_is_refused_as_the_learner(tin
         load_learner(tmp_path / "scaled.safetensors", learner)
 
 
+def test_a_round_rolled_out_by_another_policy_keeps_it_beside_its_data(tiny, tmp_path):
+    cfg, teacher, _, _, _ = tiny
+    policy = tmp_path / "ppo.safetensors"
+    policy.write_bytes(b"an artifact's bytes")
+    camp = dagger.Campaign(tmp_path / "camp", cfg, teacher.p.cfg)
+    got = {"obs": np.zeros((3, 52)), "q_des": np.zeros((3, 23)), "met_gate": 1, "cpu_s": 0.3}
+    stats = camp.store_round(1, got, 2, policy)
+    kept = dataset.policy_path(camp.data, 1)
+    assert kept.read_bytes() == policy.read_bytes() and stats["policy"].endswith(kept.name)
+    assert stats["policy_from"] == str(policy) and stats["labels"] == 3
+    assert "policy" not in camp.store_round(2, got, 2)
+
+
 def test_bad_input_is_refused_naming_the_problem(tmp_path, capsys):
     assert cli.main(["--out", str(tmp_path), "--rounds", "0"]) == 2
     assert "--rounds" in capsys.readouterr().err

@@ -9,6 +9,7 @@ evaluated on the batch from `eval_seeds` fallen seeds (training/evaluate.py's "r
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from pathlib import Path
 
@@ -107,14 +108,17 @@ class Campaign:
         return self.collected["rounds"].get(str(k))
 
     def store_round(self, k: int, got: dict, starts: int, policy: Path | None = None) -> dict:
-        """Save round k's labels and its figures; `policy`: the artifact rolled out, when not the learner."""
+        """Save round k's labels and its figures; `policy`: the artifact rolled out, when not the learner, kept
+        beside the round's data (the labels' provenance, and what a fine-tune from it starts from, on any clone)."""
         dataset.save_round(self.data, k, got["obs"], got["q_des"])
         stats = {"rollouts": starts, "rollouts_met_gate": got["met_gate"], "labels": len(got["obs"]),
                  "label_cpu_s": round(got["cpu_s"], 1),
                  "cpu_s_per_label": round(got["cpu_s"] / max(len(got["obs"]), 1), 4)}
         if policy is not None:
             from training.checkpoints import repo_relative
-            stats["policy"] = repo_relative(policy)
+            kept = dataset.policy_path(self.data, k)
+            shutil.copy2(policy, kept)
+            stats.update(policy=repo_relative(kept), policy_from=repo_relative(policy))
         self.collected["rounds"][str(k)] = stats
         (self.data / COLLECTED).write_text(json.dumps(self.collected, indent=1))
         return stats

@@ -18,6 +18,11 @@ def round_path(folder: Path, k: int) -> Path:
     return Path(folder) / f"round_{k:02d}.npz"
 
 
+def policy_path(folder: Path, k: int) -> Path:
+    """Where a round rolled out by another policy than the learner keeps that policy's artifact."""
+    return Path(folder) / f"policy_{k:02d}.safetensors"
+
+
 def demonstration_pairs(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     """(obs (N, 52), q_des (N, 23) [rad]) of every step of the planner's demonstrations in `folder`."""
     paths = sorted(Path(folder).glob("demo_*.npz"), key=lambda p: int(p.stem.split("_")[1]))
