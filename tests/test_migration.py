@@ -67,7 +67,8 @@ def test_a_getup_run_before_the_split_comes_back_as_its_stage_s_task():
     assert migration.run_task(state) == "getup_kneel"
     env = migration.run_configs(state)[1]
     assert list(env.start_probs) == [0.7, 0.3, 0.0] and env.drop_below_gate_m == 0.03
-    assert env.reward.scales.to_dict() == {"height": 1.0, "pose": 1.0, "gate": 1.0, "upright": 0.5, "energy": -0.01}
+    assert env.reward.scales.to_dict() == {"height": 1.0, "pose": 1.0, "gate": 1.0, "upright": 0.5, "energy": -0.01,
+                                           "track": 0.0}
     stand = {**state, "env_config": {"stage": "stage2", "stage2_fall_up_z": 0.6, "stage1_gate_reward": 1.0}}
     assert migration.run_task(stand) == "getup_stand" and migration.run_configs(stand)[1].fall_up_z == 0.6
     full = {**state, "env_config": {"gate_latches": False, "stage2_fall_up_z": 0.6, "energy_weight": 0.0}}

@@ -94,7 +94,7 @@ sys.exit(proc.returncode)
     assert "did not open" not in proc.stderr, proc.stderr
     img = np.load(tmp_path / "shot.npy")
     assert _shows_robot(img), (f"no frame showed the robot within {FIRST_FRAME_TIMEOUT_S:g} s (last: std "
-                               f"{img.std():.1f})")
+                               f"{img.std():.1f}); the sim said: {proc.stderr[-2000:]}")
 
 
 @NEEDS_XVFB
