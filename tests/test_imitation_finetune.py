@@ -84,6 +84,18 @@ def test_the_bc_term_is_the_dagger_fits_regression_summed_over_joints(learner):
     assert got == pytest.approx(want, rel=1e-4)
 
 
+def test_a_fine_tune_going_on_from_another_reads_that_runs_campaign(tmp_path, learner):
+    _, fields = learner
+    first, second = tmp_path / "rise", tmp_path / "rise_fine"
+    for run, init in ((first, str(ARTIFACT)), (second, str(first))):
+        (run / "checkpoints").mkdir(parents=True)
+        (run / "run_state.json").write_text(json.dumps({"init": init, "ppo_config": {"imitation": {"campaign": ""}}}))
+    cfg = _ppo_cfg(bc_weight=1.0, demos=str(dagger.DEFAULT_DEMOS))
+    want = finetune.planner_pairs(cfg, str(ARTIFACT), fields)[0]
+    for init in (str(second), str(second / "checkpoints" / "000000000080")):   # a run, or one of its checkpoints
+        assert len(finetune.planner_pairs(cfg, init, fields)[0]) == len(want)
+
+
 def test_labels_are_the_fits_own(learner):
     fitted, fields = learner
     q = np.random.default_rng(1).uniform(-2, 2, (16, 23))
@@ -99,7 +111,7 @@ def test_bad_settings_are_refused_by_name(tmp_path, learner):
         finetune.planner_pairs(_ppo_cfg(bc_weight=1.0), str(ARTIFACT), fields)
     with pytest.raises(ValueError, match="not a DAgger campaign"):
         finetune.planner_pairs(_ppo_cfg(bc_weight=1.0, demos="x", campaign=str(tmp_path)), None, fields)
-    with pytest.raises(ValueError, match="does not start from a DAgger artifact"):
+    with pytest.raises(ValueError, match="does not start from a DAgger artifact or a fine-tune of one"):
         finetune.planner_pairs(_ppo_cfg(bc_weight=1.0, demos="x"), str(tmp_path), fields)
     cfg = _ppo_cfg()
     cfg.init_noise_std = 0.0

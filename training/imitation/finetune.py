@@ -82,6 +82,23 @@ def normalizer_state(mean: np.ndarray, std: np.ndarray, count: int, observation_
         std={k: s for k, (_, s) in stats.items()})
 
 
+def _campaign_of(init) -> Path:
+    """The DAgger campaign of what a run starts from: a DAgger artifact's folder, or, for a PPO run (a fine-tune
+    going on from another), that run's own campaign."""
+    from training import checkpoints
+    path = repo_path(init) if init else None
+    if path is not None and is_artifact(path):
+        return path.parent
+    run = path.parent.parent if path is not None and path.parent.name == checkpoints.CHECKPOINT_DIR else path
+    try:
+        state = checkpoints.load_run_state(run)
+    except (OSError, ValueError, TypeError) as e:
+        raise ValueError(f"ppo.imitation.campaign is empty and the run does not start from a DAgger artifact or a "
+                         f"fine-tune of one ({init!r}: {e})") from e
+    named = state["ppo_config"].get("imitation", {}).get("campaign", "")
+    return repo_path(named) if named else _campaign_of(state.get("init"))
+
+
 def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarray]:
     """(observations, label actions) of the DAgger campaign's aggregate: the demonstrations and every round it
     stored, labels through the getup action map ({"default_pose", "action_scale"} [rad]); `init`: the path the
@@ -91,9 +108,7 @@ def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarr
     t = ppo_cfg.imitation
     if not t.demos:
         raise ValueError("ppo.imitation.demos must name the planner's demonstrations (the DAgger round 0)")
-    if not t.campaign and not (init and is_artifact(init)):
-        raise ValueError("ppo.imitation.campaign is empty and the run does not start from a DAgger artifact")
-    campaign = repo_path(t.campaign if t.campaign else str(Path(init).parent))
+    campaign = repo_path(t.campaign) if t.campaign else _campaign_of(init)
     data = campaign / campaign_files.DATA
     collected = data / campaign_files.COLLECTED
     if not collected.exists():
