@@ -96,21 +96,24 @@ def test_the_kneel_rise_starts_from_the_dagger_learner_with_the_bc_term(toy_root
     dagger = toy_root / "getup_keyframe" / "dagger"
     assert Path(state["init"]) == dagger / imitation_config.ARTIFACT
     assert state["ppo_config"]["imitation"]["bc_weight"] > 0 and state["bc_count_start"] == finetune.NORMALIZER_COUNT
+    from training import kneel_report
     (run / "getup_keyframe_rise.safetensors").rename(run / "moved.safetensors")   # as mid-run: no export yet
     try:
         kept = read_artifact(train.export_checkpoint(run, checkpoints.checkpoint_steps(run), "kept"))
+        # its figures per checkpoint (exports with another artifact's fields): one row each, evaluated once
+        rows = kneel_report.report(run, seeds=2, seconds=0.1, like=dagger / imitation_config.ARTIFACT)
     finally:
         (run / "moved.safetensors").rename(run / "getup_keyframe_rise.safetensors")
     dagger_layers = read_artifact(dagger / imitation_config.ARTIFACT)[0]
     assert kept[3]["output_rule"] == "tanh_normal"
     assert [w.shape for w, _ in kept[0]] == [w.shape for w, _ in dagger_layers]
-    # its figures per checkpoint: one row each, evaluated once
-    from training import kneel_report
-    rows = kneel_report.report(run, seeds=2, seconds=0.1)
     assert [r["env_steps"] for r in rows] == [checkpoints.checkpoint_steps(run)] and rows[0]["bc_weight"] > 0
     assert 0.0 <= rows[0]["kneeled"] <= rows[0]["reached_kneel"] <= 1.0
     assert kneel_report.report(run, seeds=2, seconds=0.1, log=lambda _: pytest.fail("evaluated again")) == rows
     assert "| env steps |" in (run / kneel_report.REPORT).read_text()
+    fine = json.loads((toy_root / "getup_keyframe" / "rise_fine" / checkpoints.RUN_STATE).read_text())
+    assert Path(fine["init"]) == run and fine["ppo_config"]["imitation"]["campaign"] == ""   # its data: rise's campaign
+    assert fine["ppo_config"]["learning_rate"] < state["ppo_config"]["learning_rate"]
 
 
 @pytest.mark.slow

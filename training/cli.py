@@ -66,7 +66,7 @@ def _cmd_export_checkpoint(args, command: str) -> int:
 
 def _cmd_kneel_report(args, command: str) -> int:
     from training import kneel_report
-    rows = kneel_report.report(args.run, seeds=args.seeds, seconds=args.seconds, steps=args.steps)
+    rows = kneel_report.report(args.run, seeds=args.seeds, seconds=args.seconds, steps=args.steps, like=args.like)
     print(f"{args.run}/{kneel_report.REPORT}: {len(rows)} rows")
     return 0
 
@@ -216,6 +216,8 @@ def _add_export_checkpoint(sub) -> None:
     p.add_argument("--steps", type=int, nargs="+", help="only these checkpoints (env steps; default: every kept one)")
     p.add_argument("--seeds", type=int, default=200, help="fallen seeds 0 … SEEDS − 1")
     p.add_argument("--seconds", type=float, default=8.0, help="episode length [s] (§4.8's gate within 8 s)")
+    p.add_argument("--like", help="an artifact of the same env and network whose manifest fields the exports reuse "
+                   "(default: as export-checkpoint's)")
     p.set_defaults(func=_cmd_kneel_report)
 
 

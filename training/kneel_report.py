@@ -19,7 +19,8 @@ COLUMNS = (("env_steps", "env steps"), ("bc_weight", "BC weight"), ("reached_kne
            ("median_peak_trunk_m", "median peak trunk height [m]"))
 
 
-def report(run_dir, seeds: int = 200, seconds: float = 8.0, steps: list[int] | None = None, log=print) -> list[dict]:
+def report(run_dir, seeds: int = 200, seconds: float = 8.0, steps: list[int] | None = None, like=None,
+           log=print) -> list[dict]:
     """Evaluate the kept checkpoints of `run_dir` (or those at `steps`) missing from its report; returns the rows."""
     from training.evaluate import kneel_figures
     from training.train import export_checkpoint
@@ -32,7 +33,7 @@ def report(run_dir, seeds: int = 200, seconds: float = 8.0, steps: list[int] | N
     for n in sorted(kept if steps is None else steps):
         if (n, seeds, seconds) in done:
             continue
-        artifact = export_checkpoint(run_dir, n, f"checkpoint_{n}")
+        artifact = export_checkpoint(run_dir, n, f"checkpoint_{n}", like=like)
         figures = kneel_figures(artifact, run_dir / "evaluations" / str(n), seeds, seconds,
                                 f"python -m training kneel-report --run {run_dir}")
         artifact.unlink()
