@@ -114,7 +114,6 @@ def test_the_kneel_rise_starts_from_the_dagger_learner_with_the_bc_term(toy_root
     fine = json.loads((toy_root / "getup_keyframe" / "rise_fine" / checkpoints.RUN_STATE).read_text())
     assert Path(fine["init"]).is_relative_to(run)                       # rise's newest checkpoint
     assert fine["ppo_config"]["imitation"]["campaign"] == ""              # its data: rise's campaign
-    assert fine["ppo_config"]["learning_rate"] < state["ppo_config"]["learning_rate"]
 
 
 @pytest.mark.slow
