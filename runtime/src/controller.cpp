@@ -134,12 +134,10 @@ void Controller::reload_worker() {
     }
     lock.lock();
     reload_message_ = message.substr(0, kStringReserve - 1);
-    if (!engine) message_changed_.store(true);  // a loaded policy's "reload ok" shows once the loop adopts it
-    if (engine) {
-      current_path_ = engine->artifact().path;  // the resolved file
-      ready_ = std::move(engine);
-      ready_flag_.store(true);
-    }
+    if (!engine) { message_changed_.store(true); continue; }  // "reload ok" shows once the loop adopts it
+    current_path_ = engine->artifact().path;  // the resolved file
+    ready_ = std::move(engine);
+    ready_flag_.store(true);
   }
 }
 
