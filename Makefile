@@ -108,7 +108,7 @@ EVAL_POLICY   ?= $(firstword $(wildcard policies/student/student.safetensors) po
 EVAL_BASELINE ?=
 EVAL_ARGS     ?=
 EVAL_FLAGS     = --policy $(EVAL_POLICY) $(if $(EVAL_BASELINE),--baseline $(EVAL_BASELINE)) $(EVAL_ARGS)
-.PHONY: eval-getup eval-push eval-wall eval-puddle eval-walk eval-fig51 eval-ch6 screen-student
+.PHONY: eval-getup eval-kneel eval-push eval-wall eval-puddle eval-walk eval-fig51 eval-ch6 screen-student
 # The joystick expert's walking targets (standing starts: forward, stand, turn, forward in realtime). One
 # job: the realtime trial must not share the two cores with a lockstep one.
 WALK_POLICY ?= policies/joystick/joystick.safetensors
@@ -122,6 +122,11 @@ eval-wall: build
 	$(NETNS) $(PY) -m sim_hil.eval wall $(EVAL_FLAGS)
 eval-puddle: build
 	$(NETNS) $(PY) -m sim_hil.eval puddle $(EVAL_FLAGS)
+# Stage 1 of the keyframe getup in the loop: KNEEL_POLICY (fallen → kneel) from the loop's fallen seeds, §4.8's
+# gate in the kneeling posture and its hold (20 trials of 10 s: 2 s PREPARE, 8 s to kneel).
+KNEEL_POLICY ?= policies/getup_kneel/getup_kneel.safetensors
+eval-kneel: build
+	$(NETNS) $(PY) -m sim_hil.eval kneel --policy $(KNEEL_POLICY) --label getup_kneel $(EVAL_ARGS)
 # The seed's whole chapter 6 for EVAL_POLICY beside EVAL_BASELINE, every report under EVAL_OUT: getup over
 # 1000 fallen seeds in the batch (physics only, no LCM: ~15 min on 2 cores) and 20 in the loop, pushes,
 # walls, puddles (their default trials), and Fig. 5.1.

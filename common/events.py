@@ -60,6 +60,10 @@ KNEEL_GATE_UP_ERROR = 0.01
 KNEEL_KNEE_MIN_RAD = 1.5
 KNEEL_HIP_MIN_RAD = -0.6
 KNEEL_HOLD_S = 1.0          # stage 1's kneel counts as held once the gate has held this long in the posture
+# How a fallen start lies, from the world z of the trunk's forward (x) axis (common.model.trunk_forward_z): below
+# −FACING_Z face down, above +FACING_Z on the back, else on its side.
+FACING_Z = 0.5
+LYING_SIDES = ("face_down", "on_back", "side")
 KNEE_PITCHES = ("Left_Knee_Pitch", "Right_Knee_Pitch")
 HIP_PITCHES = ("Left_Hip_Pitch", "Right_Hip_Pitch")
 
@@ -170,6 +174,11 @@ def kneeling_posture(q, xp=np, knee_min_rad: float = KNEEL_KNEE_MIN_RAD, hip_min
     knees = [contract.joint_index(n) for n in KNEE_PITCHES]
     hips = [contract.joint_index(n) for n in HIP_PITCHES]
     return xp.all(q[..., knees] >= knee_min_rad, axis=-1) & xp.all(q[..., hips] >= hip_min_rad, axis=-1)
+
+
+def lying_side(forward_z: float) -> str:
+    """face_down | on_back | side, from the world z of the trunk's forward axis."""
+    return "face_down" if forward_z < -FACING_Z else "on_back" if forward_z > FACING_Z else "side"
 
 
 def kneel_hold_s(trunk_height, up_z, kneeling, dt: float) -> float:

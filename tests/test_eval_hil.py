@@ -114,6 +114,25 @@ def test_fig51_forward_velocity_counts_only_once_standing():
     assert row["forward velocity once standing [m/s]"] == "0.40"
 
 
+def test_kneel_counts_the_gate_in_the_kneeling_posture_by_how_the_robot_lay():
+    """Stage 1's loop figures from scripted logs: a face-down start that kneels at the gate 1.8 s into POLICY
+    for 1.2 s, one on the back that reaches the gate's height and tilt but not on both knees (a crouch)."""
+    from sim_hil.eval.trial import summarise
+    spec = plans.getup_specs(1, 6.0, 0)[0]
+    kneels = _lying_then_standing_log(up_from=3000)
+    kneels.forward_z[:] = -0.9
+    kneels.trunk[1000:1600], kneels.up_z[1000:1600], kneels.kneeling[1000:1600] = 0.4, 1.0, 1.0
+    crouches = _lying_then_standing_log(up_from=3000)
+    crouches.forward_z[:] = 0.9
+    crouches.trunk[1000:1600], crouches.up_z[1000:1600] = 0.4, 1.0
+    trials = [summarise(spec, "student", log, None) for log in (kneels, crouches)]
+    assert [(t.lying, round(t.kneel_hold_s, 3)) for t in trials] == [("face_down", 1.2), ("on_back", 0.0)]
+    assert trials[0].kneel_time_s == pytest.approx(1.8)
+    row = plans.kneel_rows(trials)
+    assert row["the gate in the kneeling posture"] == "1/2" and row["… face down"] == "1/1"
+    assert row["… on the back"] == "0/1" and row["… held ≥ 1 s (of those)"] == "1/1"
+
+
 @pytest.mark.parametrize("name", sorted(plans.PLANS))
 def test_every_seed_figure_names_a_row_of_its_report(name):
     """The seed's figures are keyed by our row labels: a renamed row must not silently lose its seed value."""

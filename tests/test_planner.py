@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from common import observation as obsdef
+from common.events import LYING_SIDES
 from training.envs import sagittal
 from training.planner import __main__ as cli
 from training.planner import batch, demos
@@ -80,7 +81,7 @@ def test_the_cli_writes_demos_and_a_report_split_by_side_and_goes_on(tiny, tmp_p
     report = json.loads((out / demos.REPORT).read_text())
     assert [r["seed"] for r in report["demos"]] == [3, 62]
     assert report["summary"]["all"]["demos"] == 2 and report["summary"]["all"]["met_gate"] == 0
-    assert {r["side"] for r in report["demos"]} <= set(demos.SIDES)
+    assert {r["side"] for r in report["demos"]} <= set(LYING_SIDES)
     assert all((out / f"strip_{r['side']}.png").exists() for r in report["demos"] if r["side"] != "side")
     before = (out / "demo_62.npz").stat().st_mtime_ns
     assert cli.main([*args[:1], "62", *args[2:]]) == 0                    # kept, not planned again

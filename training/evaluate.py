@@ -171,10 +171,13 @@ def kneel_row(readings, ctrl_dt: float) -> dict:
             "kneel_held": float(hold >= events.KNEEL_HOLD_S - 1e-9) if hold > 0 else math.nan}
 
 
-# a start lies face down / on its back where the trunk's forward axis is within 60° of vertical
-FACING_Z = 0.5   # |world z of the forward axis|
 EFFORT_KEYS = ("energy_J", "energy_to_stand_J", "max_energy_J", "max_torque_Nm", "total_torque_Nms",
                "max_joint_acc_radps2", "total_joint_acc_radps", "max_contact_force_N", "mean_contact_force_N", "z_contact_impulse_Ns")
+
+
+def _lies(side: str):
+    """Rows whose start lay that way (rows from episode_row alone carry no start state: on neither side)."""
+    return lambda r: events.lying_side(r.get("start_forward_z", 0.0)) == side
 
 
 def summarize(rows: list[dict]) -> dict:
@@ -192,12 +195,11 @@ def summarize(rows: list[dict]) -> dict:
             "never_rose": float(np.mean([r["attempts"] == 0 and not r["success"] for r in rows])),
             "time_to_stand_s": mean("time_to_stand_s"), "through_kneel_gate": mean("through_kneel_gate"),
             "reached_kneel": mean("reached_kneel"),
-            # rows from episode_row alone carry no start state: counted in neither
-            "reached_kneel_face_down": mean("reached_kneel", lambda r: r.get("start_forward_z", 0.0) < -FACING_Z),
-            "reached_kneel_face_up": mean("reached_kneel", lambda r: r.get("start_forward_z", 0.0) > FACING_Z),
+            "reached_kneel_face_down": mean("reached_kneel", _lies("face_down")),
+            "reached_kneel_face_up": mean("reached_kneel", _lies("on_back")),
             "kneeled": mean("kneeled"),
-            "kneeled_face_down": mean("kneeled", lambda r: r.get("start_forward_z", 0.0) < -FACING_Z),
-            "kneeled_face_up": mean("kneeled", lambda r: r.get("start_forward_z", 0.0) > FACING_Z),
+            "kneeled_face_down": mean("kneeled", _lies("face_down")),
+            "kneeled_face_up": mean("kneeled", _lies("on_back")),
             "kneel_held": mean("kneel_held"),
             **{k: mean(k) for k in EFFORT_KEYS}}
 
@@ -321,16 +323,17 @@ def kneel_figures(artifact, out, seeds: int, seconds: float, command: str) -> di
     with (Path(out) / "per_env.csv").open() as f:
         rows = [r for r in csv.DictReader(f) if r["role"] == "policy"]
     reached = np.array([float(r["reached_kneel"]) for r in rows])
-    fz = np.array([float(r["start_forward_z"]) for r in rows])
+    side = np.array([events.lying_side(float(r["start_forward_z"])) for r in rows])
     kneeled = np.array([float(r["kneeled"]) for r in rows])
     held = np.array([float(r["kneel_held"]) for r in rows])[kneeled > 0]
 
     def share(x, mask=None):
         x = x if mask is None else x[mask]
         return round(float(x.mean()), 3) if x.size else None
-    return {"reached_kneel": share(reached), "face_down": share(reached, fz < -FACING_Z),
-            "on_back": share(reached, fz > FACING_Z), "kneeled": share(kneeled),
-            "kneeled_face_down": share(kneeled, fz < -FACING_Z), "kneeled_on_back": share(kneeled, fz > FACING_Z),
+    return {"reached_kneel": share(reached), "face_down": share(reached, side == "face_down"),
+            "on_back": share(reached, side == "on_back"), "kneeled": share(kneeled),
+            "kneeled_face_down": share(kneeled, side == "face_down"),
+            "kneeled_on_back": share(kneeled, side == "on_back"),
             "kneel_held": share(held),
             "median_peak_trunk_m": round(float(np.median([float(r["peak_trunk_m"]) for r in rows])), 3)}
 

@@ -10,9 +10,9 @@ import math
 import mujoco
 import numpy as np
 
-from common.events import FALLEN_TRUNK_HEIGHT_M
+from common.events import FALLEN_TRUNK_HEIGHT_M, heading_from_quat, kneeling_posture, up_z_from_quat
+from common.model import ROOT_QPOS, trunk_forward_z
 from sim_hil import config
-from common.events import heading_from_quat, up_z_from_quat
 
 FOOT_BODIES = ("left_foot_link", "right_foot_link")
 # Slip: a loaded foot sliding. 50 N is a sixth of the robot's weight (31.6 kg · 9.81 = 310 N): a foot that
@@ -31,8 +31,8 @@ RUN_MIN_S = 1.0
 class TickLog:
     """What physics knew at the end of each control tick k (after the step that answered state k)."""
 
-    FIELDS = ("t", "trunk", "waist", "up_z", "base_x", "base_y", "yaw", "fwd_vel", "speed_xy", "power", "tau_max", "tau_sum",
-              "qacc_max", "qacc_sum", "contact_n")
+    FIELDS = ("t", "trunk", "waist", "up_z", "forward_z", "kneeling", "base_x", "base_y", "yaw", "fwd_vel", "speed_xy",
+              "power", "tau_max", "tau_sum", "qacc_max", "qacc_sum", "contact_n")
 
     def __init__(self, model: mujoco.MjModel, n_ticks: int):
         self.n = n_ticks
@@ -58,6 +58,8 @@ class TickLog:
         self.trunk[k] = data.xpos[self._trunk, 2]
         self.waist[k] = data.xpos[self._waist, 2]
         self.up_z[k] = up_z_from_quat(data.xquat[self._trunk])
+        self.forward_z[k] = trunk_forward_z(data.qpos)           # how it lies: common.events.lying_side
+        self.kneeling[k] = kneeling_posture(data.qpos[ROOT_QPOS:])   # 1: both knees down (stage 1's posture)
         self.base_x[k], self.base_y[k] = data.qpos[0], data.qpos[1]
         yaw = heading_from_quat(data.qpos[3:7])   # [rad], wrapped
         self.yaw[k] = yaw

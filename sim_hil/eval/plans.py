@@ -10,6 +10,7 @@ from typing import Callable
 import numpy as np
 
 from common import scenarios as sim_scenarios
+from common.events import KNEEL_HIP_MIN_RAD, KNEEL_HOLD_S, KNEEL_KNEE_MIN_RAD
 from common.push_test import (PUSH_ANGLE_SPREAD_RAD, PUSH_AT_S, PUSH_IMPULSE_NS, PUSH_IMPULSE_SPREAD,
                               PUSH_TIME_SPREAD_S, push_draw)
 from sim_hil.eval.trial import STEER_GAIN_PER_S, STEER_MAX_RPS, TrialResult, TrialSpec
@@ -21,6 +22,10 @@ STANDING_PREPARE_S = 0.1
 # getup: seeded fallen starts (common.model.fallen_state drops the robot from a random pose)
 GETUP_TRIALS = 1000
 GETUP_SECONDS = 12.0            # 2 s PREPARE ramp + 10 s to get up
+# kneel: the same fallen starts for stage 1 (fallen → kneel, policies/getup_kneel): §4.8's gate in the kneeling
+# posture within the batch evaluation's 8 s (training/kneel_report.py), held KNEEL_HOLD_S
+KNEEL_TRIALS = 20
+KNEEL_SECONDS = 10.0            # 2 s PREPARE ramp + 8 s to kneel
 # push: 20 forward and 10 backward torso impulses (the draw: common/push_test.py)
 PUSH_FORWARD, PUSH_BACKWARD = 20, 10
 PUSH_SECONDS = 16.0
@@ -125,6 +130,26 @@ def getup_rows(trials: list[TrialResult]) -> dict[str, str]:
                        ("contact_force_mean_N", "contact force mean [N]"), ("contact_force_max_N", "contact force max [N]")):
         row[label] = _fmt([r.effort.get(key) for r in trials if r.effort], 1)
     return {**row, **_common(trials)}
+
+
+# ---- kneel -----------------------------------------------------------------------------------------------
+def kneel_rows(trials: list[TrialResult]) -> dict[str, str]:
+    """Stage 1's figures: the share that met the gate in the kneeling posture, in all and by how it lay, and of
+    those the share that held it KNEEL_HOLD_S."""
+    def met(sub):
+        return f"{sum(r.kneel_hold_s > 0 for r in sub)}/{len(sub)}"
+    kneeled = [r for r in trials if r.kneel_hold_s > 0]
+    return {"the gate in the kneeling posture": met(trials),
+            "… face down": met([r for r in trials if r.lying == "face_down"]),
+            "… on the back": met([r for r in trials if r.lying == "on_back"]),
+            f"… held ≥ {KNEEL_HOLD_S:g} s (of those)": f"{sum(r.kneel_hold_s >= KNEEL_HOLD_S for r in kneeled)}/"
+                                                    f"{len(kneeled)}",
+            "time to the gate [s]": _fmt([r.kneel_time_s for r in kneeled]), **_common(trials)}
+
+
+def _kneel_cells(r: TrialResult) -> dict[str, str]:
+    return {"lying": r.lying or "—", "met the gate at [s]": _n(r.kneel_time_s),
+            "longest hold [s]": _n(r.kneel_hold_s)}
 
 
 # ---- push ------------------------------------------------------------------------------------------------
@@ -304,6 +329,10 @@ def _fig51_cells(r: TrialResult) -> dict[str, str]:
 PLANS = {
     "getup": Plan("getup", "flat", GETUP_TRIALS, GETUP_SECONDS, getup_specs, getup_rows, _getup_cells,
                   description="seeded fallen starts on flat ground, no command (Table 4.3 metrics)"),
+    "kneel": Plan("kneel", "flat", KNEEL_TRIALS, KNEEL_SECONDS, getup_specs, kneel_rows, _kneel_cells,
+                  description="stage 1: seeded fallen starts on flat ground, no command; §4.8's gate in the kneeling "
+                              f"posture (both knees ≥ {KNEEL_KNEE_MIN_RAD:g} rad, hips ≥ {KNEEL_HIP_MIN_RAD:g} rad) and "
+                              f"its hold ≥ {KNEEL_HOLD_S:g} s"),
     "push": Plan("push", "flat", PUSH_FORWARD + PUSH_BACKWARD, PUSH_SECONDS, push_specs, push_rows, _push_cells,
                  description=f"standing, no command, one torso impulse of ±{PUSH_IMPULSE_NS:g} N·s "
                              f"(seeded: ±{PUSH_IMPULSE_SPREAD:.0%}, ±{math.degrees(PUSH_ANGLE_SPREAD_RAD):.0f}° off x) at "

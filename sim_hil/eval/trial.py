@@ -22,7 +22,8 @@ from t1 import joint_command_t, joystick_t
 
 from messages import contract
 from sim_hil import config
-from common.events import FALLEN_TRUNK_HEIGHT_M, GetupEvents, getup_events, heading_from_quat, through_kneel_gate, up_z_from_quat
+from common.events import (FALLEN_TRUNK_HEIGHT_M, GetupEvents, getup_events, heading_from_quat, kneel_gate_mask,
+                           kneel_hold_s, lying_side, through_kneel_gate, up_z_from_quat)
 from sim_hil.eval.metrics import TickLog, effort_metrics, ran_to_stabilise, slip_events
 from sim_hil.launch import start_runtime, stop, wait_until_listening
 
@@ -89,6 +90,9 @@ class TrialResult:
     segment_falls: list[int] = field(default_factory=list)
     plot: dict[str, list[float]] = field(default_factory=dict)
     through_kneel_gate: bool | None = None  # met the kneel gate before its first stand-up (None: never stood up)
+    lying: str = ""                         # how it lay at POLICY start: face_down | on_back | side ("": never)
+    kneel_time_s: float = float("nan")      # first time §4.8's gate held in the kneeling posture, from POLICY start
+    kneel_hold_s: float = 0.0               # its longest hold in the POLICY part [s] (0: never met)
 
 
 def trial_log_name(spec: TrialSpec, label: str) -> str:
@@ -184,11 +188,12 @@ def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | Non
     """Events and metrics of one logged trial (split out so scripted logs can be checked without a sim)."""
     in_policy = np.flatnonzero(log.mode == joint_command_t.MODE_POLICY)
     start = int(in_policy[0]) if in_policy.size else None
-    events, effort, fall_x, gate = None, {}, [], None
+    events, effort, fall_x, gate, kneel = None, {}, [], None, {}
     if start is not None:
         sl = slice(start, None)
         events = getup_events(log.t[sl], log.trunk[sl], log.up_z[sl])
         gate = through_kneel_gate(log.t[sl], log.trunk[sl], log.up_z[sl], events)
+        kneel = _kneel(log, start)
         starts_down = bool(log.trunk[start] < FALLEN_TRUNK_HEIGHT_M)
         fall_ticks = [int(np.searchsorted(log.t, ft)) for ft in events.fall_times_s]
         fall_x = [float(log.base_x[i]) for i in ([start] if starts_down else []) + fall_ticks]
@@ -232,8 +237,18 @@ def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | Non
         final_x_m=float(log.base_x[-1]) if log.n else np.nan, finish_time_s=finish, fall_x_m=fall_x,
         drift_m=drift, yaw_turned_rad=turned, after_stop_m=after_stop,
         runtime_faults=runtime_faults, segment_attempts=seg_attempts, segment_falls=seg_falls,
-        through_kneel_gate=gate, plot={"t": log.t[every].tolist(), "trunk": log.trunk[every].tolist(), "waist": log.waist[every].tolist(),
+        through_kneel_gate=gate, **kneel, plot={"t": log.t[every].tolist(), "trunk": log.trunk[every].tolist(), "waist": log.waist[every].tolist(),
               "vx": log.fwd_vel[every].tolist()})
+
+
+def _kneel(log: TickLog, start: int) -> dict:
+    """Stage 1's figures over the POLICY part: how it lay, when §4.8's gate first held in the kneeling posture
+    and its longest hold (common/events.py)."""
+    sl = slice(start, None)
+    met = np.flatnonzero(kneel_gate_mask(log.trunk[sl], log.up_z[sl]) & (log.kneeling[sl] > 0))
+    return {"lying": lying_side(float(log.forward_z[start])),
+            "kneel_time_s": float(log.t[start + met[0]] - log.t[start]) if met.size else float("nan"),
+            "kneel_hold_s": kneel_hold_s(log.trunk[sl], log.up_z[sl], log.kneeling[sl], config.CONTROL_DT_S)}
 
 
 # ---- pool workers (module level: a spawned worker imports them by name) --------------------------------

@@ -69,7 +69,7 @@ def run(seeds: list[int], out: Path, overrides: list[str], max_minutes: float | 
 
     def add(seed: int) -> None:
         qpos = env.fallen_starts(1, seed)[0][0].astype(np.float64)
-        rows.append(demos.row(demos.load(out / f"demo_{seed}.npz"), demos.start_side(planner.model, qpos)))
+        rows.append(demos.row(demos.load(out / f"demo_{seed}.npz"), demos.start_side(qpos)))
         demos.write_report(out, cfg, rows)
         r = rows[-1]
         log(f"seed {seed:4d} {r['side']:9s} gate {r['gate_time_s'] if r['gate_time_s'] is not None else '–':>5} s  "

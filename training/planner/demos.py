@@ -11,24 +11,19 @@ from pathlib import Path
 import numpy as np
 
 from common.render import render_frames, tracking_camera   # first: it picks the offscreen GL before mujoco loads
+from common.events import LYING_SIDES, lying_side
+from common.model import trunk_forward_z
 from training.envs.starts import demos as demo_starts
 from training.planner.mppi import Demonstration
 
-SIDES = ("face_down", "on_back", "side")
-FACING_Z = 0.5          # |z of the trunk's forward axis| above this: face down (< 0) or on the back (> 0)
 ARRAYS = ("qpos", "qvel", "obs", "targets", "trunk_height", "up_z", "gate", "kneeling", "waypoint")
 REPORT = "report.json"
 STRIP_CAMERA_DISTANCE_M = 1.6   # the frame strips' tracking camera, closer than the videos' (a lying robot is small)
 
 
-def start_side(model, qpos: np.ndarray) -> str:
-    """How a fallen start lies, from the z of the trunk's forward (x) axis in the world."""
-    import mujoco
-    d = mujoco.MjData(model)
-    d.qpos[:] = qpos
-    mujoco.mj_kinematics(model, d)
-    forward_z = float(d.xmat[model.body("Trunk").id].reshape(3, 3)[2, 0])
-    return "face_down" if forward_z < -FACING_Z else "on_back" if forward_z > FACING_Z else "side"
+def start_side(qpos: np.ndarray) -> str:
+    """How a fallen start lies (common/events.py's rule on the trunk's forward axis)."""
+    return lying_side(float(trunk_forward_z(qpos)))
 
 
 def save(demo: Demonstration, folder: Path) -> Path:
@@ -84,7 +79,7 @@ def summarise(rows: list[dict], within_s: float = 6.0) -> dict:
     within_s (and by the demo's end: the later ones are demonstrations too), the median gate time, CPU seconds
     per demo and energy [J]."""
     out = {}
-    for side in (*SIDES, "all"):
+    for side in (*LYING_SIDES, "all"):
         rs = [r for r in rows if side in ("all", r["side"])]
         if not rs:
             continue
