@@ -114,6 +114,17 @@ def test_a_round_rolled_out_by_another_policy_keeps_it_beside_its_data(tiny, tmp
     assert "policy" not in camp.store_round(2, got, 2)
 
 
+def test_a_campaign_is_given_more_rounds_but_refuses_other_fit_settings(tiny, tmp_path):
+    cfg, teacher, *_ = tiny
+    dagger.Campaign(tmp_path, cfg, teacher.p.cfg).finish_round(
+        {"round": 0, "labels_total": 0, "reached_kneel": 0.0, "face_down": 0.0, "on_back": 0.0})
+    more = build([*TINY, f"rounds={int(cfg.rounds) + 1}"])[0]
+    assert dagger.Campaign(tmp_path, more, teacher.p.cfg).next_round == 1
+    other = build([*TINY, f"rounds={int(cfg.rounds) + 1}", "fit.steps=17"])[0]
+    with pytest.raises(ValueError, match="other settings"):
+        dagger.Campaign(tmp_path, other, teacher.p.cfg)
+
+
 def test_bad_input_is_refused_naming_the_problem(tmp_path, capsys):
     assert cli.main(["--out", str(tmp_path), "--rounds", "0"]) == 2
     assert "--rounds" in capsys.readouterr().err

@@ -75,6 +75,11 @@ def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:
 FIT_ONLY = ("fit", "rounds", "eval_seeds", "eval_seconds")   # settings that do not shape the data
 
 
+def _fitted_with(config: dict) -> dict:
+    """The settings a finished round's row depends on: all but how many rounds the campaign runs."""
+    return {**config, "dagger": {k: v for k, v in config["dagger"].items() if k != "rounds"}}
+
+
 class Campaign:
     """A DAgger run's folder: data/ (round_XX.npz from round 1 on, and collected.json: the settings that made the
     data and each round's rollout figures), the newest learner as its artifact, state.json (the whole config and
@@ -96,9 +101,10 @@ class Campaign:
         path = self.folder / STATE
         self.state = json.loads(path.read_text()) if path.exists() and not refit else \
             {"config": self.config, "rounds": []}
-        if self.state["config"] != self.config:
+        if _fitted_with(self.state["config"]) != _fitted_with(self.config):
             raise ValueError(f"{folder}: its rounds were fitted with other settings (fit, eval): --refit redoes "
                              "them with these, or use a new folder")
+        self.state["config"] = self.config      # a campaign may be given more rounds
 
     @property
     def next_round(self) -> int:
