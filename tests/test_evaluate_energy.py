@@ -67,3 +67,13 @@ def test_the_kneel_figures_come_from_the_posture_column_and_are_nan_without_it()
     kneeling[100:160] = 1.0
     assert episode_row(t, np.concatenate([readings, kneeling], axis=1), series)["kneel_held"] == 1.0
     assert math.isnan(episode_row(t, readings, series)["kneeled"])
+
+
+def test_a_kneel_runs_seen_seeds_are_its_fallen_bank_and_its_demonstrations_starts(tmp_path):
+    from training.kneel_report import seen_seeds
+    for seed in (3, 40):
+        (tmp_path / f"demo_{seed}.npz").write_bytes(b"")
+    env = {"fallen": {"seed": 1000, "bank_starts": 3}, "demo_starts": {"prob": 0.0, "folder": str(tmp_path)}}
+    assert seen_seeds({"env_config": env}) == {1000, 1001, 1002}
+    env["demo_starts"]["prob"] = 0.5
+    assert seen_seeds({"env_config": env}) == {3, 40, 1000, 1001, 1002}

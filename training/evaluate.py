@@ -314,16 +314,17 @@ def plot_heights(results: dict, png: Path) -> None:
     plt.close(fig)
 
 
-def kneel_figures(artifact, out, seeds: int, seconds: float, command: str) -> dict:
+def kneel_figures(artifact, out, seeds: int, seconds: float, command: str, seen_seeds=frozenset()) -> dict:
     """Stage 1's figures of an artifact on the batch from fallen seeds 0 … seeds − 1 (its report in `out`): the
     share that reached the kneel, in all, face down and on the back, the share that met the gate in the kneeling
-    posture and of those the share that held it KNEEL_HOLD_S, and the median of the episodes' highest trunk
-    height [m]."""
+    posture (also from the seeds not in `seen_seeds`, the starts its training never began from) and of those the
+    share that held it KNEEL_HOLD_S, and the median of the episodes' highest trunk height [m]."""
     evaluate(artifact, out, seeds=seeds, seconds=seconds, backend="cpu", command=command)
     with (Path(out) / "per_env.csv").open() as f:
         rows = [r for r in csv.DictReader(f) if r["role"] == "policy"]
     reached = np.array([float(r["reached_kneel"]) for r in rows])
     side = np.array([events.lying_side(float(r["start_forward_z"])) for r in rows])
+    unseen = np.array([int(r["seed"]) not in seen_seeds for r in rows])
     kneeled = np.array([float(r["kneeled"]) for r in rows])
     held = np.array([float(r["kneel_held"]) for r in rows])[kneeled > 0]
 
@@ -333,7 +334,8 @@ def kneel_figures(artifact, out, seeds: int, seconds: float, command: str) -> di
     return {"reached_kneel": share(reached), "face_down": share(reached, side == "face_down"),
             "on_back": share(reached, side == "on_back"), "kneeled": share(kneeled),
             "kneeled_face_down": share(kneeled, side == "face_down"),
-            "kneeled_on_back": share(kneeled, side == "on_back"),
+            "kneeled_on_back": share(kneeled, side == "on_back"), "kneeled_unseen": share(kneeled, unseen),
+            "unseen_seeds": int(unseen.sum()),
             "kneel_held": share(held),
             "median_peak_trunk_m": round(float(np.median([float(r["peak_trunk_m"]) for r in rows])), 3)}
 

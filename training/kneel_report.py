@@ -15,7 +15,8 @@ REPORT = "report.md"
 COLUMNS = (("env_steps", "env steps"), ("bc_weight", "BC weight"), ("reached_kneel", "reached the kneel"),
            ("face_down", "… face down"), ("on_back", "… on the back"),
            ("kneeled", "the gate in the kneeling posture"), ("kneeled_face_down", "… face down"),
-           ("kneeled_on_back", "… on the back"), ("kneel_held", "… held ≥ 1 s (of those)"),
+           ("kneeled_on_back", "… on the back"), ("kneeled_unseen", "… from seeds it never started from"),
+           ("unseen_seeds", "(of seeds)"), ("kneel_held", "… held ≥ 1 s (of those)"),
            ("median_peak_trunk_m", "median peak trunk height [m]"))
 
 
@@ -35,7 +36,7 @@ def report(run_dir, seeds: int = 200, seconds: float = 8.0, steps: list[int] | N
             continue
         artifact = export_checkpoint(run_dir, n, f"checkpoint_{n}", like=like)
         figures = kneel_figures(artifact, run_dir / "evaluations" / str(n), seeds, seconds,
-                                f"python -m training kneel-report --run {run_dir}")
+                                f"python -m training kneel-report --run {run_dir}", seen_seeds(state))
         artifact.unlink()
         rows.append({"env_steps": n, "seeds": seeds, "seconds": seconds, "bc_weight": _bc_weight(state, n),
                      **figures})
@@ -44,6 +45,19 @@ def report(run_dir, seeds: int = 200, seconds: float = 8.0, steps: list[int] | N
         (run_dir / REPORT).write_text(markdown(state, rows))
         log(f"kneel-report: {run_dir.name} at {n:,} env steps: {json.dumps(figures)}")
     return rows
+
+
+def seen_seeds(state: dict) -> frozenset[int]:
+    """The fallen seeds a getup_kneel run's episodes may have started from: its bank of fallen starts, and with
+    demonstration starts every demonstration's seed (its start is the demonstration's first state)."""
+    env = state["env_config"]
+    fallen = env["fallen"]
+    seen = set(range(int(fallen["seed"]), int(fallen["seed"]) + int(fallen["bank_starts"])))
+    demo = env.get("demo_starts", {})
+    if float(demo.get("prob", 0.0)) > 0:
+        from training.envs.starts.demos import demo_seeds
+        seen |= set(demo_seeds(checkpoints.repo_path(demo["folder"])))
+    return frozenset(seen)
 
 
 def _bc_weight(state: dict, env_steps: int) -> float | None:

@@ -60,6 +60,11 @@ def window_end(trunk_height: np.ndarray, kneeling: np.ndarray, gate: np.ndarray)
     return len(trunk_height) - 1 if met_gate(gate, kneeling) else arrival_step(trunk_height, kneeling)
 
 
+def demo_seeds(folder) -> list[int]:
+    """The fallen seeds of a folder's demonstrations (demo_<seed>.npz: each starts at that seed's fallen state)."""
+    return sorted(int(f.stem.split("_", 1)[1]) for f in Path(folder).glob(DEMO_GLOB))
+
+
 @functools.lru_cache(maxsize=4)
 def demo_pool(folder: str, window_s: float, gated_only: bool = False) -> dict[str, np.ndarray]:
     """The used demonstrations' states, whole, and the rows a start may be drawn from. Keys: `qpos`, `qvel`
