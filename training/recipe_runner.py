@@ -164,7 +164,7 @@ def _overrides(config: dict, toy: bool) -> list[str]:
     from training.imitation.finetune import LEARNER_KEYS as IMITATION_KEYS
     from training.student_finetune import LEARNER_KEYS
     banked = tuple(f"env.{s.group}" for s in starts.SOURCES if {"prob", "bank_starts"} <= set(s.functions()[0]()))
-    out = [f"{k}={v!r}" for k, v in config.items()
+    out = [f"{k}={TOY_BANK_STARTS if k.endswith('.bank_starts') else v!r}" for k, v in config.items()
            if k.startswith(LEARNER_KEYS + IMITATION_KEYS) or not k.startswith(("ppo.", "bc."))]
     for k, v in config.items():
         if k.endswith(".prob") and isinstance(v, float) and v > 0 and k[:-len(".prob")] in banked:

@@ -13,7 +13,7 @@ COLLECTED = "collected.json"
 
 def default_config() -> config_dict.ConfigDict:
     return config_dict.create(
-        rounds=8,
+        rounds=9,      # the last two rolled out by PPO fine-tunes of the learner (--policy)
         # each round rolls the current policy out from this many fallen starts (seeds first_seed + round ·
         # starts_per_round …), disjoint from the evaluation's seeds 0 … eval_seeds − 1
         starts_per_round=32,
