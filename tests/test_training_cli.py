@@ -270,6 +270,13 @@ def test_export_checkpoint_writes_an_earlier_epoch(toy_runs, capsys):
     assert not all(np.array_equal(w, v) for (w, _), (v, _) in zip(layers, final_layers))
     assert cli.main(["export-checkpoint", "--run", str(run), "--steps", "7", "--name", "x"]) == 2
     assert "no checkpoint at 7 env steps" in capsys.readouterr().err
+    # several: the mean of their policies' parameters (the export maps parameters linearly to layers)
+    path = export_checkpoint(run, [first, final["provenance"]["steps"]], "joystick_mean")
+    mean_layers, _, _, mean = read_artifact(path)
+    path.unlink()
+    assert mean["provenance"]["steps"] == final["provenance"]["steps"] and "mean" in mean["provenance"]["exported_from"]
+    for (m, _), (a, _), (b, _) in zip(mean_layers, layers, final_layers):
+        np.testing.assert_allclose(m, (a + b) / 2, rtol=1e-5, atol=1e-6)
 
 
 @pytest.mark.slow

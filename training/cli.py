@@ -60,13 +60,15 @@ def _cmd_export_phase(args, command: str) -> int:
 def _cmd_export_checkpoint(args, command: str) -> int:
     from training import train
     path = train.export_checkpoint(args.run, args.steps, args.name, like=args.like)
-    print(f"{path}: the checkpoint at {args.steps} env steps of {args.run}")
+    what = "the checkpoint" if len(args.steps) == 1 else "the mean of the checkpoints"
+    print(f"{path}: {what} at {', '.join(map(str, args.steps))} env steps of {args.run}")
     return 0
 
 
 def _cmd_kneel_report(args, command: str) -> int:
     from training import kneel_report
-    rows = kneel_report.report(args.run, seeds=args.seeds, seconds=args.seconds, steps=args.steps, like=args.like)
+    rows = kneel_report.report(args.run, seeds=args.seeds, seconds=args.seconds, steps=args.steps, like=args.like,
+                               mean=args.mean)
     print(f"{args.run}/{kneel_report.REPORT}: {len(rows)} rows")
     return 0
 
@@ -205,7 +207,8 @@ def _add_export_checkpoint(sub) -> None:
     p = sub.add_parser("export-checkpoint", help="export a PPO run's kept checkpoint at an earlier epoch "
                        "(the run keeps its last few)")
     p.add_argument("--run", required=True, help="train run directory")
-    p.add_argument("--steps", type=int, required=True, help="env steps of a checkpoint in RUN/checkpoints")
+    p.add_argument("--steps", type=int, nargs="+", required=True,
+                   help="env steps of a checkpoint in RUN/checkpoints (several: the mean of their policies)")
     p.add_argument("--name", required=True, help="policy name: RUN/NAME.safetensors")
     p.add_argument("--like", help="an artifact of the same env and network whose manifest fields are reused "
                    "(default: the run's own export, or mid-run its --from run's)")
@@ -214,6 +217,7 @@ def _add_export_checkpoint(sub) -> None:
                        "its report (RUN/report.md, report.json)")
     p.add_argument("--run", required=True, help="train run directory (a getup_kneel run)")
     p.add_argument("--steps", type=int, nargs="+", help="only these checkpoints (env steps; default: every kept one)")
+    p.add_argument("--mean", action="store_true", help="also the mean of those checkpoints' policies (one row)")
     p.add_argument("--seeds", type=int, default=200, help="fallen seeds 0 … SEEDS − 1")
     p.add_argument("--seconds", type=float, default=8.0, help="episode length [s] (§4.8's gate within 8 s)")
     p.add_argument("--like", help="an artifact of the same env and network whose manifest fields the exports reuse "

@@ -12,7 +12,7 @@ from training import checkpoints
 
 ROWS = "report.json"
 REPORT = "report.md"
-COLUMNS = (("env_steps", "env steps"), ("bc_weight", "BC weight"), ("reached_kneel", "reached the kneel"),
+COLUMNS = (("env_steps", "env steps"), ("mean_of", "mean of the policies at"), ("bc_weight", "BC weight"), ("reached_kneel", "reached the kneel"),
            ("face_down", "… face down"), ("on_back", "… on the back"),
            ("kneeled", "the gate in the kneeling posture"), ("kneeled_face_down", "… face down"),
            ("kneeled_on_back", "… on the back"), ("kneeled_unseen", "… from seeds it never started from"),
@@ -21,30 +21,38 @@ COLUMNS = (("env_steps", "env steps"), ("bc_weight", "BC weight"), ("reached_kne
 
 
 def report(run_dir, seeds: int = 200, seconds: float = 8.0, steps: list[int] | None = None, like=None,
-           log=print) -> list[dict]:
-    """Evaluate the kept checkpoints of `run_dir` (or those at `steps`) missing from its report; returns the rows."""
+           mean: bool = False, log=print) -> list[dict]:
+    """Evaluate the kept checkpoints of `run_dir` (or those at `steps`) missing from its report, and with `mean`
+    the mean of their policies (export_checkpoint); returns the rows."""
     from training.evaluate import kneel_figures
     from training.train import export_checkpoint
     run_dir = Path(run_dir)
     state = checkpoints.load_run_state(run_dir)
     path = run_dir / ROWS
     rows = json.loads(path.read_text()) if path.exists() else []
-    done = {(r["env_steps"], r["seeds"], r["seconds"]) for r in rows}
-    kept = [checkpoints.checkpoint_steps(p) for p in checkpoints.list_checkpoints(run_dir)]
-    for n in sorted(kept if steps is None else steps):
-        if (n, seeds, seconds) in done:
+    done = {_key(r) for r in rows}
+    chosen = sorted([checkpoints.checkpoint_steps(p) for p in checkpoints.list_checkpoints(run_dir)]
+                    if steps is None else steps)
+    for group in [[n] for n in chosen] + ([chosen] if mean and len(chosen) > 1 else []):
+        row = {"env_steps": group[-1], "seeds": seeds, "seconds": seconds, "bc_weight": _bc_weight(state, group[-1]),
+               **({"mean_of": group} if len(group) > 1 else {})}
+        if _key(row) in done:
             continue
-        artifact = export_checkpoint(run_dir, n, f"checkpoint_{n}", like=like)
-        figures = kneel_figures(artifact, run_dir / "evaluations" / str(n), seeds, seconds,
-                                f"python -m training kneel-report --run {run_dir}", seen_seeds(state))
+        name = f"checkpoint_{'_'.join(map(str, group))}"
+        artifact = export_checkpoint(run_dir, group, name, like=like)
+        figures = kneel_figures(artifact, run_dir / "evaluations" / name.removeprefix("checkpoint_"), seeds,
+                                seconds, f"python -m training kneel-report --run {run_dir}", seen_seeds(state))
         artifact.unlink()
-        rows.append({"env_steps": n, "seeds": seeds, "seconds": seconds, "bc_weight": _bc_weight(state, n),
-                     **figures})
-        rows.sort(key=lambda r: (r["seeds"], r["seconds"], r["env_steps"]))
+        rows.append({**row, **figures})
+        rows.sort(key=lambda r: (r["seeds"], r["seconds"], r["env_steps"], len(r.get("mean_of", ()))))
         path.write_text(json.dumps(rows, indent=1))
         (run_dir / REPORT).write_text(markdown(state, rows))
-        log(f"kneel-report: {run_dir.name} at {n:,} env steps: {json.dumps(figures)}")
+        log(f"kneel-report: {run_dir.name} at {name.removeprefix('checkpoint_')} env steps: {json.dumps(figures)}")
     return rows
+
+
+def _key(row: dict) -> tuple:
+    return row["env_steps"], row["seeds"], row["seconds"], tuple(row.get("mean_of", ()))
 
 
 def seen_seeds(state: dict) -> frozenset[int]:

@@ -353,27 +353,34 @@ def _env_fields_artifact(run_dir: Path, state: dict) -> Path:
         return own     # named in the error below
 
 
-def export_checkpoint(run_dir, env_steps: int, name: str, like=None) -> Path:
+def export_checkpoint(run_dir, env_steps, name: str, like=None) -> Path:
     """A run's kept checkpoint at `env_steps` → run_dir/<name>.safetensors: the env and network fields of
     `like` (default: the run's export, mid-run its --from run's), this run's provenance at that checkpoint's
-    steps. A campaign screens its checkpoints and keeps the best one (e.g. the cheapest getup that still stands)."""
+    steps. A campaign screens its checkpoints and keeps the best one (e.g. the cheapest getup that still stands).
+    Several env_steps: the mean of their policies' parameters (weight averaging along the run, which smooths the
+    update-to-update noise of a policy whose success flips on small changes), the newest's normaliser."""
+    import jax
+    import numpy as np
     run_dir = Path(run_dir)
+    steps = sorted(int(n) for n in np.atleast_1d(env_steps))
     state = checkpoints.load_run_state(run_dir)
     ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
     state = {**state, "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict()}
-    ckpt = checkpoints.kept_checkpoint(run_dir, env_steps, f"{env_steps} env steps")
+    ckpts = [checkpoints.kept_checkpoint(run_dir, n, f"{n} env steps") for n in steps]
     like = Path(like) if like else _env_fields_artifact(run_dir, state)
     if not like.exists():
         raise FileNotFoundError(f"{like}: no export of the run (nor of a --from run) to take the manifest's "
                                 "env fields from (name one with --like)")
     manifest = {k: v for k, v in read_artifact(like)[3].items() if k not in ("content_hash", "provenance")}
-    manifest["provenance"] = {**run_provenance(state, env_steps, state["preset"]),
-                              "exported_from": f"{ckpt} (env fields from {like})"}
-    params = checkpoints.load_checkpoint(ckpt)
-    policy, rule = exported_policy(params[1], ppo_cfg, env_cfg)
+    sources = " + ".join(map(str, ckpts)) + (" (the mean of their policies)" if len(ckpts) > 1 else "")
+    manifest["provenance"] = {**run_provenance(state, steps[-1], state["preset"]),
+                              "exported_from": f"{sources} (env fields from {like})"}
+    params = [checkpoints.load_checkpoint(c) for c in ckpts]
+    mean = jax.tree.map(lambda *leaves: np.mean([np.asarray(x) for x in leaves], axis=0), *[p[1] for p in params])
+    policy, rule = exported_policy(mean, ppo_cfg, env_cfg)
     manifest.update(name=name, output_rule=rule,
-                    trained=exported_as_trained(int(env_steps), state["preset"]))
+                    trained=exported_as_trained(steps[-1], state["preset"]))
     path = run_dir / f"{name}.safetensors"
-    export_brax_ppo((params[0], policy), manifest, path,
+    export_brax_ppo((params[-1][0], policy), manifest, path,
                     observations_normalized=bool(ppo_cfg.normalize_observations))
     return path

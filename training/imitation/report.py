@@ -21,6 +21,8 @@ def table(rows: list[dict], columns=COLUMNS) -> str:
 
 
 def _cell(v) -> str:
+    if isinstance(v, list):
+        return ", ".join(map(_cell, v))
     return "–" if v is None else f"{v:g}" if isinstance(v, float) else str(v)
 
 
