@@ -114,6 +114,16 @@ def test_a_round_rolled_out_by_another_policy_keeps_it_beside_its_data(tiny, tmp
     assert "policy" not in camp.store_round(2, got, 2)
 
 
+def test_a_round_from_one_lying_side_starts_only_from_starts_lying_that_way(tiny):
+    _, _, env, _, _ = tiny
+    from training.planner.demos import start_side
+    qpos, qvel = dagger.round_starts(env, 3, 100, "on_back")
+    assert qpos.shape[0] == qvel.shape[0] == 3 and {start_side(q) for q in qpos} == {"on_back"}
+    both, _ = env.fallen_starts(dagger.LYING_DRAWS * 3, 100)      # the first of the round's seeds that lie so
+    on_back = [q for q in both if start_side(q) == "on_back"][:3]
+    np.testing.assert_array_equal(qpos, np.asarray(on_back))
+
+
 def test_a_campaign_is_given_more_rounds_but_refuses_other_fit_settings(tiny, tmp_path):
     cfg, teacher, *_ = tiny
     dagger.Campaign(tmp_path, cfg, teacher.p.cfg).finish_round(
@@ -136,3 +146,6 @@ def test_bad_input_is_refused_naming_the_problem(tmp_path, capsys):
     assert cli.main(["--out", str(tmp_path / "fresh"), "--policy", str(tmp_path / "any.safetensors"), *sum(
         (["--config", o] for o in TINY), [])]) == 2
     assert "--policy" in capsys.readouterr().err           # round 0 fits the demonstrations: nothing rolls out
+    for bad in (["--lying", "upside_down"], ["--lying", "on_back"]):    # not a side; round 0 rolls nothing out
+        assert cli.main(["--out", str(tmp_path / "fresh"), *bad, *sum((["--config", o] for o in TINY), [])]) == 2
+        assert "--lying" in capsys.readouterr().err

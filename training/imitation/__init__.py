@@ -26,9 +26,9 @@ def build(overrides: list[str]):
 
 
 def run(out, overrides: list[str], demos=None, rounds: int | None = None, max_minutes: float | None = None,
-        eval_dir=None, refit: bool = False, policy=None) -> dict:
+        eval_dir=None, refit: bool = False, policy=None, lying: str = "") -> dict:
     """DAgger into the campaign folder `out` (dagger.run) with `key=value` overrides; returns its state."""
     from training.imitation import dagger
     cfg, teacher, env = build(overrides)
     return dagger.run(out, demos or dagger.DEFAULT_DEMOS, cfg, teacher, env, rounds, max_minutes, eval_dir, refit,
-                      policy)
+                      policy, lying)

@@ -1,7 +1,7 @@
 """`python -m training.imitation`: DAgger with the rise planner as the expert, into one campaign folder.
 
     python -m training.imitation --out DIR [--demos DIR] [--rounds R] [--config key=value ...] [--max-minutes M]
-                                 [--policy ARTIFACT]
+                                 [--policy ARTIFACT] [--lying face_down|on_back|side]
 
 `--config` sets training/imitation/config.py's fields (e.g. starts_per_round=8) or, prefixed `planner.`, the
 planner's (training/planner/config.py). A folder with finished rounds resumes at its next round (its config must
@@ -30,13 +30,15 @@ def main(argv=None) -> int:
     p.add_argument("--policy", type=Path, default=None,
                    help="an artifact of the learner's network (e.g. a PPO fine-tune's checkpoint) that the next "
                         "round rolls out and refits from, in place of the campaign's learner")
+    p.add_argument("--lying", default="", help="the next round starts only from fallen starts lying this way "
+                                                "(face_down, on_back, side): labels where that side's rises fail")
     p.add_argument("--eval-dir", type=Path, default=None, help="where each round's batch evaluation goes")
     args = p.parse_args(argv)
     try:
         if args.rounds is not None and args.rounds < 1:
             raise ValueError(f"--rounds must be at least 1, got {args.rounds}")
         state = run(args.out, args.config, args.demos, args.rounds, args.max_minutes, args.eval_dir, args.refit,
-                    args.policy)
+                    args.policy, args.lying)
     except ValueError as e:
         print(f"imitation: {e}", file=sys.stderr)
         return 2

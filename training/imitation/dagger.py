@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common.events import LYING_SIDES
 from training.imitation import config, dataset, expert
 from training.imitation.learner import fit, load_learner, new_learner
 from training.planner import costs
@@ -22,6 +23,7 @@ from training.planner import costs
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_DEMOS = REPO_ROOT / "training" / "campaigns" / "getup_keyframe" / "demos"   # the planner's stored rises
 STATE, ARTIFACT, DATA, COLLECTED = config.STATE, config.ARTIFACT, config.DATA, config.COLLECTED
+LYING_DRAWS = 4    # a round from one lying side draws its starts from this many times as many seeds (each side ~0.4)
 
 
 def beta(cfg, k: int) -> float:
@@ -113,13 +115,16 @@ class Campaign:
     def collected_round(self, k: int) -> dict | None:
         return self.collected["rounds"].get(str(k))
 
-    def store_round(self, k: int, got: dict, starts: int, policy: Path | None = None) -> dict:
+    def store_round(self, k: int, got: dict, starts: int, policy: Path | None = None, lying: str = "") -> dict:
         """Save round k's labels and its figures; `policy`: the artifact rolled out, when not the learner, kept
-        beside the round's data (the labels' provenance, and what a fine-tune from it starts from, on any clone)."""
+        beside the round's data (the labels' provenance, and what a fine-tune from it starts from, on any clone);
+        `lying`: the one way its starts lay, when the round was rolled out from those alone."""
         dataset.save_round(self.data, k, got["obs"], got["q_des"])
         stats = {"rollouts": starts, "rollouts_met_gate": got["met_gate"], "labels": len(got["obs"]),
                  "label_cpu_s": round(got["cpu_s"], 1),
                  "cpu_s_per_label": round(got["cpu_s"] / max(len(got["obs"]), 1), 4)}
+        if lying:
+            stats["lying"] = lying
         if policy is not None:
             from training.checkpoints import repo_relative
             kept = dataset.policy_path(self.data, k)
@@ -136,16 +141,32 @@ class Campaign:
         report.write(self.folder, self.state)
 
 
+def round_starts(env, n: int, first_seed: int, lying: str = "") -> tuple[np.ndarray, np.ndarray]:
+    """(qpos, qvel) of a round's n fallen starts, seeds first_seed …; with `lying` (common/events.py's sides) the
+    first n of those seeds that lie that way."""
+    if not lying:
+        return env.fallen_starts(n, first_seed)
+    from training.planner.demos import start_side
+    qpos, qvel = env.fallen_starts(LYING_DRAWS * n, first_seed)
+    keep = np.flatnonzero([start_side(q) == lying for q in qpos])[:n]
+    if len(keep) < n:
+        raise ValueError(f"only {len(keep)} of {LYING_DRAWS * n} fallen starts from seed {first_seed} lie {lying}")
+    return qpos[keep], qvel[keep]
+
+
 def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: int | None = None,
         max_minutes: float | None = None, eval_dir: Path | None = None, refit: bool = False,
-        policy: Path | None = None, log=print) -> dict:
+        policy: Path | None = None, lying: str = "", log=print) -> dict:
     """The rounds from the campaign's next on. `policy`: an artifact of the learner's network and action map (a
     PPO fine-tune of it) that the next round rolls out and its fit starts from, in place of the campaign's
-    learner: DAgger on the states that policy visits."""
+    learner: DAgger on the states that policy visits; `lying`: the next round starts only from fallen starts
+    lying that way (labels where that side's rises fail)."""
     from training.evaluate import kneel_figures
     camp = Campaign(folder, cfg, teacher.p.cfg, refit)
-    if policy is not None and (refit or camp.next_round == 0):
-        raise ValueError("--policy takes over a round's rollouts: not for round 0 or a --refit")
+    if lying and lying not in LYING_SIDES:
+        raise ValueError(f"--lying must be one of {', '.join(LYING_SIDES)}, got {lying!r}")
+    if (policy is not None or lying) and (refit or camp.next_round == 0):
+        raise ValueError("--policy and --lying take over a round's rollouts: not for round 0 or a --refit")
     data = camp.data
     eval_dir = Path(eval_dir or Path("runs") / "imitation_eval")
     fields = env.manifest_fields()
@@ -169,10 +190,12 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
             stats = camp.collected_round(k)
             if stats is None or not dataset.round_path(data, k).exists():
                 n = int(cfg.starts_per_round)
-                qpos, qvel = (a.astype(np.float64) for a in env.fallen_starts(n, int(cfg.first_seed) + (k - 1) * n))
+                side = lying if k == first else ""
+                qpos, qvel = (a.astype(np.float64) for a in round_starts(env, n, int(cfg.first_seed) + (k - 1) * n,
+                                                                        side))
                 got = collect(teacher, learner, qpos, qvel, b, float(cfg.rollout_s),
                               np.random.default_rng([int(cfg.seed), k]))
-                stats = camp.store_round(k, got, n, policy if k == first else None)
+                stats = camp.store_round(k, got, n, policy if k == first else None, side)
             row.update(stats)
         obs, q = dataset.aggregate(data, demos, k + 1)
         learner, loss = fit(learner, obs, learner.label_actions(q), cfg.fit, int(cfg.fit.seed) + k)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-COLUMNS = (("round", "round"), ("beta", "β"), ("policy", "rolled out (– : the learner)"), ("labels", "labels"),
+COLUMNS = (("round", "round"), ("beta", "β"), ("policy", "rolled out (– : the learner)"),
+           ("lying", "from starts lying (– : any)"), ("labels", "labels"),
            ("labels_total", "labels in total"),
            ("cpu_s_per_label", "CPU s per label"), ("cpu_hours_total", "labelling CPU h in total"),
            ("rollouts_met_gate", "rollouts that met the gate (β mixture)"),
