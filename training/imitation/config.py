@@ -13,7 +13,8 @@ COLLECTED = "collected.json"
 
 def default_config() -> config_dict.ConfigDict:
     return config_dict.create(
-        rounds=9,      # the last two rolled out by PPO fine-tunes of the learner (--policy)
+        rounds=12,     # rounds 7 … 11 rolled out by PPO fine-tunes of the learner (--policy), 9 … 11 from on-back
+                       # starts only (--lying)
         # each round rolls the current policy out from this many fallen starts (seeds first_seed + round ·
         # starts_per_round …), disjoint from the evaluation's seeds 0 … eval_seeds − 1
         starts_per_round=32,

@@ -13,7 +13,8 @@ the gate; no early end once a reached kneel sags (with positive rewards the poli
 height, which arms it); the learning rate falls stage by stage as the rise holds (rise → rise_fine → rise_slow),
 then the fallen starts widen to a bank far from the evaluation's seeds (rise_wide). The campaign's rise went on
 from the policy DAgger's round 7 rolled out (a first PPO run at 0.1 std, 1.5 M steps from round 6; kept in
-dagger/data/), not from the refitted learner a fresh run starts from; round 8 was rolled out by rise_fine.
+dagger/data/), not from the refitted learner a fresh run starts from; round 8 was rolled out by rise_fine, rounds
+9–11 by rise_slow from on-back starts only (where its rises failed).
 Stage 2 learns along a reverse curriculum of starts from the kneel up the lunge (envs/starts/kneeling_path.py): the whole
 path, its swing, the whole path again. The runtime's target rule R6 is in every stage."""
 from training.recipe import Recipe, Stage
@@ -48,7 +49,7 @@ RECIPE = Recipe(
     name="getup_keyframe", policy="getup_keyframe",
     summary="the seed's keyframe getup through the kneel (not shipped until it kneels)",
     stages=(
-        Stage("dagger", kind="imitation", steps=9),
+        Stage("dagger", kind="imitation", steps=12),
         Stage("rise", task="getup_kneel", steps=1_495_040, init="dagger", config=RISE),
         Stage("rise_fine", task="getup_kneel", steps=4_014_080, init="rise", config=RISE_FINE),
         Stage("rise_slow", task="getup_kneel", steps=3_010_560, init="rise_fine", config=RISE_SLOW),
