@@ -112,6 +112,8 @@ def test_a_round_rolled_out_by_another_policy_keeps_it_beside_its_data(tiny, tmp
     assert kept.read_bytes() == policy.read_bytes() and stats["policy"].endswith(kept.name)
     assert stats["policy_from"] == str(policy) and stats["labels"] == 3
     assert "policy" not in camp.store_round(2, got, 2)
+    again = camp.store_round(3, got, 2, policy)           # a later round by the same policy keeps it once
+    assert again["policy"] == stats["policy"] and not dataset.policy_path(camp.data, 3).exists()
 
 
 def test_a_round_from_one_lying_side_starts_only_from_starts_lying_that_way(tiny):

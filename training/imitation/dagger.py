@@ -127,12 +127,19 @@ class Campaign:
             stats["lying"] = lying
         if policy is not None:
             from training.checkpoints import repo_relative
-            kept = dataset.policy_path(self.data, k)
-            shutil.copy2(policy, kept)
+            kept = self._kept_copy(Path(policy)) or dataset.policy_path(self.data, k)
+            if not kept.exists():
+                shutil.copy2(policy, kept)
             stats.update(policy=repo_relative(kept), policy_from=repo_relative(policy))
         self.collected["rounds"][str(k)] = stats
         (self.data / COLLECTED).write_text(json.dumps(self.collected, indent=1))
         return stats
+
+    def _kept_copy(self, policy: Path) -> Path | None:
+        """An earlier round's kept copy of the same artifact (several rounds rolled out by one policy keep it once)."""
+        data = policy.read_bytes()
+        return next((q for q in dataset.kept_policies(self.data)
+                     if q.stat().st_size == len(data) and q.read_bytes() == data), None)
 
     def finish_round(self, row: dict) -> None:
         self.state["rounds"].append(row)

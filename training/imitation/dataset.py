@@ -23,6 +23,11 @@ def policy_path(folder: Path, k: int) -> Path:
     return Path(folder) / f"policy_{k:02d}.safetensors"
 
 
+def kept_policies(folder: Path) -> list[Path]:
+    """The policies rounds in `folder` were rolled out by (policy_path), in round order."""
+    return sorted(Path(folder).glob("policy_*.safetensors"))
+
+
 def demonstration_pairs(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     """(obs (N, 52), q_des (N, 23) [rad]) of every step of the planner's demonstrations in `folder`."""
     paths = sorted(Path(folder).glob("demo_*.npz"), key=lambda p: int(p.stem.split("_")[1]))
