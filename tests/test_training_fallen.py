@@ -63,6 +63,21 @@ def test_bad_arguments_name_the_problem():
         fallen.fallen_states(2, -3)
 
 
+def test_the_bank_draws_each_side_in_proportion_to_its_weight():
+    from common.events import LYING_SIDES, lying_side
+    qpos, qvel = fallen.fallen_states(16, 0)
+    sides = np.array([lying_side(float(z)) for z in t1model.trunk_forward_z(qpos)])
+    same = fallen.weight_sides(qpos, qvel, [1, 1, 1])
+    np.testing.assert_array_equal(same[0], qpos)
+    more, vel = fallen.weight_sides(qpos, qvel, [1, 3, 2])
+    counts = {s: int((sides == s).sum()) for s in LYING_SIDES}
+    assert len(more) == len(vel) == counts["face_down"] + 3 * counts["on_back"] + 2 * counts["side"]
+    assert counts["on_back"] > 0 and all(any((r == q).all() for r in more) for q in qpos)   # none left out
+    for bad in ([1, 0, 1], [1, 1.5, 1], [1, 1], [True, 1, 1]):
+        with pytest.raises(ValueError, match="side_weights"):
+            fallen.weight_sides(qpos, qvel, bad)
+
+
 def test_the_first_policy_tick_of_the_loop_starts_where_training_does(netns):
     from sim_hil.launch import start_runtime, stop, wait_until_listening
     from sim_hil.sim import SimConfig, Simulator

@@ -25,7 +25,7 @@ from common import observation as obsdef
 from common.events import STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
 from training.envs import base, starts
 from training.envs import getup_rewards as G
-from training.envs.starts.fallen import fallen_states
+from training.envs.starts.fallen import fallen_states, weight_sides
 
 GETUP_ACTION_SCALE_RAD = 2.0    # rad per unit action (base_config says why)
 START_KINDS = ("fallen", "kneeling", "standing")
@@ -59,7 +59,8 @@ class GetupStarts(base.T1Env):
                              f"(fallen, kneeling, standing), got {list(cfg.start_probs)}")
         self._start_logits = jnp.log(probs)
         if float(probs[0]) > 0:
-            qpos, qvel = self.fallen_starts(int(cfg.fallen.bank_starts), int(cfg.fallen.seed))
+            qpos, qvel = weight_sides(*self.fallen_starts(int(cfg.fallen.bank_starts), int(cfg.fallen.seed)),
+                                      cfg.fallen.side_weights)
         else:  # no fallen starts: skip the host precomputation
             qpos, qvel = self._home_qpos[None], jnp.zeros((1, self._mj_model.nv))
         self._fallen_qpos, self._fallen_qvel = jnp.asarray(qpos), jnp.asarray(qvel)

@@ -25,6 +25,7 @@ from ml_collections import config_dict
 
 from common.artifact import RUNTIME_LOOP_DT_S
 from common import model as t1model
+from common.events import LYING_SIDES, lying_side
 
 # runtime/include/t1rt/prepare_gains.hpp kPrepareKp [N·m/rad] / kPrepareKd [N·m·s/rad], joint order of the
 # contract (tests/test_training_fallen.py reads them back from that header).
@@ -38,8 +39,22 @@ PREPARE_S = 2.0
 
 def fallen_config() -> config_dict.ConfigDict:
     """The getup tasks' fallen starts: `bank_starts` distinct seeded states (seeds `seed` …), each the state after
-    the runtime's PREPARE ramp of `prepare_s` [s] (0 = the settled fall itself)."""
-    return config_dict.create(bank_starts=128, seed=0, prepare_s=PREPARE_S)
+    the runtime's PREPARE ramp of `prepare_s` [s] (0 = the settled fall itself), drawn in proportion to the
+    `side_weights` of the way each lies (face down, on the back, on its side: common/events.py's rule; whole
+    numbers, 1 1 1 = as they fall)."""
+    return config_dict.create(bank_starts=128, seed=0, prepare_s=PREPARE_S, side_weights=[1, 1, 1])
+
+
+def weight_sides(qpos: np.ndarray, qvel: np.ndarray, weights) -> tuple[np.ndarray, np.ndarray]:
+    """The bank (qpos [N, nq], qvel [N, nv]) with each start repeated by the weight of the way it lies
+    (events.LYING_SIDES order): a uniform draw from it picks a start in proportion to its side's weight."""
+    w = list(weights)
+    if len(w) != len(LYING_SIDES) or any(isinstance(x, bool) or int(x) != x or x < 1 for x in w):
+        raise ValueError(f"fallen.side_weights must be {len(LYING_SIDES)} whole numbers ≥ 1 "
+                         f"({', '.join(LYING_SIDES)}), got {w}")
+    sides = [LYING_SIDES.index(lying_side(float(z))) for z in t1model.trunk_forward_z(qpos)]
+    rows = np.repeat(np.arange(len(qpos)), [int(w[k]) for k in sides])
+    return qpos[rows], qvel[rows]
 
 
 @functools.lru_cache(maxsize=1)
