@@ -225,7 +225,7 @@ def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():
     toy = recipe_runner._overrides(dict(finetune.config), toy=True)
     assert "ppo.policy_distribution='normal'" in toy and any(o.startswith("ppo.teacher.bc_weight=") for o in toy)
     assert not any(o.startswith(("ppo.learning_rate", "ppo.value_warmup_steps")) for o in toy)
-    wide = recipe_runner._overrides(dict(R.load("getup_keyframe").stage("rise_horizon").config), toy=True)
+    wide = recipe_runner._overrides(dict(R.load("getup_keyframe").stage("rise_wide").config), toy=True)
     assert f"env.fallen.bank_starts={recipe_runner.TOY_BANK_STARTS}" in wide     # a wide fallen bank too
     assert recipe_runner.resolve_ref("@joystick/sharp", Path("/nowhere"), shipped=True).endswith(
         "policies/joystick/joystick.safetensors")
