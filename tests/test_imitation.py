@@ -2,13 +2,16 @@
 reproducibility, the data set on disk, the learner's export and the CLI's errors."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 from common import observation as obsdef
 from training.artifact_policy import ArtifactPolicy
 from training.imitation import __main__ as cli
-from training.imitation import build, dagger, dataset, expert
+from training.imitation import config
+from training.imitation import build, coverage, dagger, dataset, expert
 from training.imitation.learner import fit, load_learner, new_learner
 
 TINY = ["expert.policy_samples=2", "expert.plan_samples=2", "expert.horizon_s=0.2", "fit.steps=16",
@@ -56,6 +59,40 @@ def test_the_takeover_warm_starts_from_the_policy_and_moves_the_robots(tiny):
     assert proposal.shape == (2, teacher.p.K, 23)
     np.testing.assert_allclose(proposal[:, 0], learner.targets(teacher.observe(robots)), atol=1e-6)
     np.testing.assert_allclose(robots.b.qpos, qpos)          # the proposal ran on a copy
+
+
+def test_a_robot_that_fell_back_to_the_floor_starts_its_rise_over(tiny):
+    cfg, teacher, env, _, _ = tiny
+    qpos, qvel = _starts(env, 2, 9)
+    robots, _, waypoint = teacher.start(qpos, qvel)
+    assert np.all(teacher.p.readings(robots.b)["h"] < cfg.expert.restart_below_m)     # lying
+    past = np.array([teacher.last_wp, 0])
+    np.testing.assert_array_equal(teacher.advance_waypoints(robots, past), [0, 0])
+    never = build([*TINY, "expert.restart_below_m=0"])[1]
+    assert never.advance_waypoints(robots, past)[0] == teacher.last_wp
+
+
+def test_the_teachers_own_rises_report_when_the_gate_held_reproducibly(tiny):
+    cfg, teacher, env, learner, _ = tiny
+    qpos, qvel = _starts(env, 2, 5)
+    a, b = (coverage.rises(teacher, learner.targets, qpos, qvel, 0.4, np.random.default_rng(1)) for _ in range(2))
+    assert a["gate_time_s"].shape == a["held_s"].shape == (2,)
+    np.testing.assert_array_equal(a["held_s"], b["held_s"])
+    assert np.all(np.isnan(a["gate_time_s"])) and np.all(a["held_s"] == 0)    # an untrained learner, 0.4 s
+    gate_s, held_s = np.array([1.0, np.nan, 2.0, 3.0]), np.array([1.2, 0.0, 0.5, 1.0])
+    out = coverage.summarise(gate_s, held_s, np.array(["face_down", "on_back", "on_back", "face_down"]))
+    assert out["all"] == {"rises": 4, "met_gate": 3, "share": 0.75, "held": 0.667}
+    assert out["on_back"] == {"rises": 2, "met_gate": 1, "share": 0.5, "held": 0.0} and "side" not in out
+    assert coverage._longest_run(np.array([1, 1, 0, 1, 1, 1, 0], bool)) == 3
+
+
+def test_the_coverage_cli_refuses_bad_input_naming_it(tmp_path, capsys):
+    for bad, name in ((["--policy", str(tmp_path / "none.safetensors")], "--policy"),
+                      (["--lying", "upside_down"], "--lying"), (["--seeds", "0"], "--seeds")):
+        args = ["--policy", str(tmp_path / "none.safetensors"), "--out", str(tmp_path / "c.json"), *bad]
+        assert coverage.main(args) == 2
+        assert name in capsys.readouterr().err
+    assert not (tmp_path / "c.json").exists()
 
 
 def test_the_data_set_round_trips_compactly_and_refuses_corrupt_files(tmp_path):
@@ -135,6 +172,22 @@ def test_a_campaign_is_given_more_rounds_but_refuses_other_fit_settings(tiny, tm
     other = build([*TINY, f"rounds={int(cfg.rounds) + 1}", "fit.steps=17"])[0]
     with pytest.raises(ValueError, match="other settings"):
         dagger.Campaign(tmp_path, other, teacher.p.cfg)
+
+
+def test_each_round_records_its_expert_and_a_later_round_may_change_it(tiny, tmp_path):
+    cfg, teacher, *_ = tiny
+    got = {"obs": np.zeros((3, 52)), "q_des": np.zeros((3, 23)), "met_gate": 0, "cpu_s": 0.3}
+    camp = dagger.Campaign(tmp_path, cfg, teacher.p.cfg)
+    assert camp.store_round(1, got, 2)["expert"] == cfg.expert.to_dict()
+    older = json.loads((camp.data / config.COLLECTED).read_text())     # a folder from before rounds kept theirs
+    older["config"]["dagger"]["expert"] = older["rounds"]["1"].pop("expert")
+    (camp.data / config.COLLECTED).write_text(json.dumps(older))
+    later = build([*TINY, "expert.restart_below_m=0.3"])[0]
+    camp = dagger.Campaign(tmp_path, later, teacher.p.cfg)
+    assert camp.collected_round(1)["expert"] == cfg.expert.to_dict()
+    assert camp.store_round(2, got, 2)["expert"]["restart_below_m"] == 0.3
+    with pytest.raises(ValueError, match="collected with other settings"):
+        dagger.Campaign(tmp_path, build([*TINY, "starts_per_round=5"])[0], teacher.p.cfg)
 
 
 def test_bad_input_is_refused_naming_the_problem(tmp_path, capsys):

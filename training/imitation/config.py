@@ -33,6 +33,11 @@ def default_config() -> config_dict.ConfigDict:
             policy_samples=12,       # noisy copies of the policy's proposal
             plan_samples=12,         # noisy copies of the expert's previous plan
             horizon_s=0.5,
+            # a robot past the first waypoint whose trunk falls below this [m] has fallen back to the floor:
+            # its rise starts over at the first waypoint (a new attempt from where it lies, as a robot would),
+            # not toward the kneel from the floor; 0 = never (the rule of rounds 1 … 11); kneeling ≈ 0.41 m,
+            # lying 0.03–0.22 m
+            restart_below_m=0.25,
         ),
         # the fit: brax's tanh-normal policy MLP (the getup experts' network), MSE of tanh(loc) to the labels'
         # actions, warm-started from the previous round; Adam, the rate cosine-decayed to final_lr_share of it

@@ -18,7 +18,6 @@ import numpy as np
 from common.events import LYING_SIDES
 from training.imitation import config, dataset, expert
 from training.imitation.learner import fit, load_learner, new_learner
-from training.planner import costs
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_DEMOS = REPO_ROOT / "training" / "campaigns" / "getup_keyframe" / "demos"   # the planner's stored rises
@@ -37,12 +36,8 @@ def collect(teacher: expert.Teacher, learner, qpos: np.ndarray, qvel: np.ndarray
     p = teacher.p
     cpu0 = time.process_time()
     n = len(qpos)
-    main, branch = expert.Robots(p.physics, n), expert.Robots(p.physics, n)
-    main.b.qpos[:], main.b.qvel[:], main.b.time[:], main.b.qacc_warmstart[:] = qpos, qvel, 0.0, 0.0
-    p.physics.write_targets(main.b, p.default_pose[None], p.default_pose[None])   # R6 after PREPARE
-    main.b.forward()
-    plans = np.repeat(np.clip(qpos[:, None, 7:7 + p.nu], p.lo, p.hi), p.K, axis=1)   # hold, as a rise starts
-    waypoint = np.zeros(n, int)
+    main, plans, waypoint = teacher.start(qpos, qvel)
+    branch = expert.Robots(p.physics, n)
     seg = int(teacher.cfg.takeover_replans) * p.replan_knots * p.spk
     steps = int(round(rollout_s / p.ctrl_dt))
     met = np.zeros(n, bool)
@@ -55,8 +50,7 @@ def collect(teacher: expert.Teacher, learner, qpos: np.ndarray, qvel: np.ndarray
         for _ in range(seg):
             main.step(learner.targets(teacher.observe(main)))
             waypoint = teacher.advance_waypoints(main, waypoint)
-            r = p.readings(main.b)
-            met |= costs.gate(r["h"], r["up_z"]) & p.kneeling(r["q"])
+            met |= teacher.at_gate(main)
         acted = rng.random(n) < beta_k
         main.take_rows(branch, acted)
         waypoint = np.where(acted, out["waypoint"], waypoint)
@@ -75,11 +69,13 @@ def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:
 
 
 FIT_ONLY = ("fit", "rounds", "eval_seeds", "eval_seconds")   # settings that do not shape the data
+# the expert may change between rounds (DAgger aggregates any expert's labels): each round records its own
+PER_ROUND = ("expert",)
 
 
 def _fitted_with(config: dict) -> dict:
-    """The settings a finished round's row depends on: all but how many rounds the campaign runs."""
-    return {**config, "dagger": {k: v for k, v in config["dagger"].items() if k != "rounds"}}
+    """The settings a finished round's row depends on: all but how many rounds the campaign runs and the expert."""
+    return {**config, "dagger": {k: v for k, v in config["dagger"].items() if k not in ("rounds", *PER_ROUND)}}
 
 
 class Campaign:
@@ -92,12 +88,16 @@ class Campaign:
         self.folder, self.cfg = Path(folder), cfg
         whole = cfg.to_dict()
         self.config = {"dagger": whole, "planner": planner_cfg.to_dict()}
-        data_config = {"dagger": {k: v for k, v in whole.items() if k not in FIT_ONLY},
+        self.expert = whole["expert"]
+        data_config = {"dagger": {k: v for k, v in whole.items() if k not in FIT_ONLY + PER_ROUND},
                        "planner": planner_cfg.to_dict()}
         self.data = self.folder / DATA
         self.data.mkdir(parents=True, exist_ok=True)
         path = self.data / COLLECTED
         self.collected = json.loads(path.read_text()) if path.exists() else {"config": data_config, "rounds": {}}
+        older = self.collected["config"]["dagger"].pop("expert", None)    # a folder from before PER_ROUND
+        for stats in self.collected["rounds"].values():
+            stats.setdefault("expert", older)
         if self.collected["config"] != data_config:
             raise ValueError(f"{self.data}: its rounds were collected with other settings; use a new folder")
         path = self.folder / STATE
@@ -122,7 +122,7 @@ class Campaign:
         dataset.save_round(self.data, k, got["obs"], got["q_des"])
         stats = {"rollouts": starts, "rollouts_met_gate": got["met_gate"], "labels": len(got["obs"]),
                  "label_cpu_s": round(got["cpu_s"], 1),
-                 "cpu_s_per_label": round(got["cpu_s"] / max(len(got["obs"]), 1), 4)}
+                 "cpu_s_per_label": round(got["cpu_s"] / max(len(got["obs"]), 1), 4), "expert": self.expert}
         if lying:
             stats["lying"] = lying
         if policy is not None:

@@ -85,6 +85,18 @@ class Teacher:
         self.last_wp = len(kf) - 1
         self._pools: dict[int, Robots] = {}
 
+    def start(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[Robots, np.ndarray, np.ndarray]:
+        """Robots at fallen starts (R6 as the runtime's PREPARE leaves it), each plan holding the start's pose (as
+        a rise starts) and the first waypoint: (robots, plans (n, K, 23), waypoints)."""
+        p = self.p
+        robots = Robots(p.physics, len(qpos))
+        b = robots.b
+        b.qpos[:], b.qvel[:], b.time[:], b.qacc_warmstart[:] = qpos, qvel, 0.0, 0.0
+        p.physics.write_targets(b, p.default_pose[None], p.default_pose[None])
+        b.forward()
+        plans = np.repeat(np.clip(qpos[:, None, 7:7 + p.nu], p.lo, p.hi), p.K, axis=1)
+        return robots, plans, np.zeros(len(qpos), int)
+
     # ------------------------------------------------------------------ readings
     def observe(self, robots: Robots) -> np.ndarray:
         """The getup actor's observation (TERMS_GETUP, unnormalised) of every robot, (n, 52) float32."""
@@ -98,8 +110,11 @@ class Teacher:
         return obsdef.build_observation(obsdef.TERMS_GETUP, state, np).astype(np.float32)
 
     def advance_waypoints(self, robots: Robots, waypoint: np.ndarray) -> np.ndarray:
-        """The planner's rule per robot: on to the waypoint after the furthest one reached."""
+        """The planner's rule per robot: on to the waypoint after the furthest one reached; a robot that fell
+        back to the floor (trunk below restart_below_m past the first waypoint) starts over at the first."""
         r = self.p.readings(robots.b)
+        fell = (waypoint > 0) & (r["h"] < float(self.cfg.restart_below_m))
+        waypoint = np.where(fell, 0, waypoint)
         reached = (np.abs(r["h"][:, None] - self.kf["h"][None]) < self.p.cfg.advance_height_m) & \
                   (np.abs(r["up_z"][:, None] - self.kf["up_z"][None]) < self.p.cfg.advance_up_z)
         reached &= np.arange(len(self.kf["h"]))[None] >= waypoint[:, None]
@@ -175,9 +190,10 @@ class Teacher:
                  rng: np.random.Generator) -> dict:
         """From the robots' states, takeover_replans replans of the planner, executed on `robots` (moved in
         place). Returns the labels {obs (n·L, 52), q_des (n·L, 23)}, the plans after it (shifted, the chain's
-        next warm start) and the waypoints."""
+        next warm start), the waypoints and, per robot, whether §4.8's gate held in the kneeling posture after
+        each step ("gate", (L, n))."""
         p = self.p
-        obs, q = [], []
+        obs, q, gate = [], [], []
         for _ in range(int(self.cfg.takeover_replans)):
             plans = self.improve(robots, plans, self.proposal(robots, policy), waypoint, rng)
             for q_des in np.einsum("hk,nkj->hnj", p.interp[:p.replan_knots * p.spk], plans):
@@ -185,6 +201,13 @@ class Teacher:
                 q.append(q_des.astype(np.float32))
                 robots.step(q_des)
                 waypoint = self.advance_waypoints(robots, waypoint)
+                gate.append(self.at_gate(robots))
             plans = np.concatenate([plans[:, p.replan_knots:],
                                     np.repeat(plans[:, -1:], p.replan_knots, axis=1)], axis=1)
-        return {"obs": np.concatenate(obs), "q_des": np.concatenate(q), "plans": plans, "waypoint": waypoint}
+        return {"obs": np.concatenate(obs), "q_des": np.concatenate(q), "plans": plans, "waypoint": waypoint,
+                "gate": np.array(gate)}
+
+    def at_gate(self, robots: Robots) -> np.ndarray:
+        """Per robot: §4.8's gate holds in the kneeling posture."""
+        r = self.p.readings(robots.b)
+        return costs.gate(r["h"], r["up_z"]) & self.p.kneeling(r["q"])
