@@ -11,7 +11,7 @@ from common import observation as obsdef
 from training.artifact_policy import ArtifactPolicy
 from training.imitation import __main__ as cli
 from training.imitation import config
-from training.imitation import build, coverage, dagger, dataset, expert
+from training.imitation import best_of_k, build, coverage, dagger, dataset, expert
 from training.imitation.learner import fit, load_learner, new_learner
 
 TINY = ["expert.policy_samples=2", "expert.plan_samples=2", "expert.horizon_s=0.2", "fit.steps=16",
@@ -86,6 +86,28 @@ def test_the_teachers_own_rises_report_when_the_gate_held_reproducibly(tiny):
     assert coverage._longest_run(np.array([1, 1, 0, 1, 1, 1, 0], bool)) == 3
 
 
+def test_best_of_k_labels_the_first_rise_that_meets_the_gate_up_to_it_and_the_hold(tiny):
+    cfg, teacher, env, learner, _ = tiny
+    from training.planner import demos as planner_demos
+    demo = planner_demos.load(dagger.DEFAULT_DEMOS / "demo_1.npz")
+    t = int(np.flatnonzero(demo.gate & demo.kneeling)[0])
+    assert demo.gate_time_s is not None
+    at_gate = (demo.qpos[t:t + 1].astype(np.float64), demo.qvel[t:t + 1].astype(np.float64))
+    fallen = tuple(_starts(env, 1, 5))
+    bok = cfg.expert.best_of_k.copy_and_resolve_references()
+    bok.k = 3
+    hold = lambda obs: np.repeat(demo.targets[t][None], len(obs), axis=0)      # noqa: E731  (keeps the kneel)
+    got = best_of_k.collect(teacher, hold, *(np.concatenate(x) for x in zip(at_gate, fallen)), bok, 0.2,
+                            np.random.default_rng(0))
+    steps = round(0.2 / teacher.p.ctrl_dt)
+    assert got["met_gate"] == got["policy_met_gate"] == 1          # from the kneel, by the policy itself
+    assert got["obs"].shape == (steps, 52)                          # the hold outlasts the rollout: every step
+    np.testing.assert_allclose(got["q_des"], np.clip(hold(got["obs"]), teacher.p.lo, teacher.p.hi), atol=1e-6)
+    dq = best_of_k.noise(np.random.default_rng(1), 4, 25, 23, 0.05, 5)
+    assert dq.shape == (25, 4, 23) and 0.02 < dq.std() < 0.08
+    np.testing.assert_allclose(dq[5], dq[4] + (dq[6] - dq[4]) / 2, atol=0.05)   # linear between knots
+
+
 def test_the_coverage_cli_refuses_bad_input_naming_it(tmp_path, capsys):
     for bad, name in ((["--policy", str(tmp_path / "none.safetensors")], "--policy"),
                       (["--lying", "upside_down"], "--lying"), (["--seeds", "0"], "--seeds")):
@@ -103,6 +125,10 @@ def test_the_data_set_round_trips_compactly_and_refuses_corrupt_files(tmp_path):
     np.testing.assert_allclose(back_obs, obs, atol=5e-3)
     np.testing.assert_allclose(back_q, q, atol=1e-3)
     assert np.load(path)["obs"].dtype == np.float16
+    dataset.save_round(tmp_path, 2, obs[:4], q[:4])
+    assert len(dataset.aggregate(tmp_path, dagger.DEFAULT_DEMOS, 3, first=2)[0]) == 4    # one expert's rounds only
+    with pytest.raises(ValueError, match="no rounds from 3 on"):
+        dataset.aggregate(tmp_path, dagger.DEFAULT_DEMOS, 3, first=3)
     path.write_bytes(b"not a zip")
     with pytest.raises(ValueError, match="round_01.npz"):
         dataset.load_round(tmp_path, 1)

@@ -76,6 +76,10 @@ def test_the_bc_term_is_the_dagger_fits_regression_summed_over_joints(learner):
     rounds = json.loads((CAMPAIGN / "data" / "collected.json").read_text())["rounds"]
     assert len(obs) == len(labels) == len(dataset.demonstration_pairs(dagger.DEFAULT_DEMOS)[0]) + \
         sum(r["labels"] for r in rounds.values())             # the demonstrations and every stored round
+    last = max(rounds, key=int)
+    one = _ppo_cfg(bc_weight=1.0, demos=str(dagger.DEFAULT_DEMOS), first_round=int(last))
+    assert len(finetune.planner_pairs(one, str(ARTIFACT), {k: np.asarray(v) for k, v in fields.items()})[0]) == \
+        rounds[last]["labels"]                                # one round's expert only
     assert float(finetune.sample_count(params[0])) == finetune.NORMALIZER_COUNT   # held
     pick = np.random.default_rng(0).choice(len(obs), 512, replace=False)
     got = float(finetune.bc_loss(_network(cfg), params[1], params[0], obs[pick], labels[pick],

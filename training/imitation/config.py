@@ -13,8 +13,8 @@ COLLECTED = "collected.json"
 
 def default_config() -> config_dict.ConfigDict:
     return config_dict.create(
-        rounds=12,     # rounds 7 … 11 rolled out by PPO fine-tunes of the learner (--policy), 9 … 11 from on-back
-                       # starts only (--lying)
+        rounds=15,     # rounds 7 … 14 rolled out by PPO fine-tunes of the learner (--policy), 9 … 14 from on-back
+                       # starts only (--lying), 12 … 14 labelled by best-of-K (expert.best_of_k.k 32, sigma 0.05)
         # each round rolls the current policy out from this many fallen starts (seeds first_seed + round ·
         # starts_per_round …), disjoint from the evaluation's seeds 0 … eval_seeds − 1
         starts_per_round=32,
@@ -38,6 +38,10 @@ def default_config() -> config_dict.ConfigDict:
             # not toward the kneel from the floor; 0 = never (the rule of rounds 1 … 11); kneeling ≈ 0.41 m,
             # lying 0.03–0.22 m
             restart_below_m=0.25,
+            # best-of-K in place of the takeovers (best_of_k.py; k 0 = the planner): from each start k rises of
+            # the policy, all but the first with Gaussian target noise sigma_rad at knots knot_s apart; the first
+            # that meets the gate labels every step of it up to the gate plus the hold
+            best_of_k=config_dict.create(k=0, sigma_rad=0.1, knot_s=0.1),
         ),
         # the fit: brax's tanh-normal policy MLP (the getup experts' network), MSE of tanh(loc) to the labels'
         # actions, warm-started from the previous round; Adam, the rate cosine-decayed to final_lr_share of it
@@ -58,6 +62,7 @@ def default_config() -> config_dict.ConfigDict:
 def finetune_config() -> config_dict.ConfigDict:
     """The PPO config's `imitation` group (RL from the imitation policy, finetune.py): the DAgger campaign whose
     data the BC term reads (its data/ rounds; "" = the campaign of the artifact the run starts from) and the
-    planner's demonstrations its round 0 is (repository-relative or absolute), and the term's schedule
-    (bc_weight 0 = none; decaying linearly to 0 over bc_decay_steps env steps; bc_batch pairs per loss)."""
-    return config_dict.create(campaign="", demos="", bc_weight=0.0, bc_decay_steps=0, bc_batch=1024)
+    planner's demonstrations its round 0 is (repository-relative or absolute), the first round it reads (0: the
+    demonstrations and every round; k: rounds k … only, e.g. one expert's), and the term's schedule (bc_weight
+    0 = none; decaying linearly to 0 over bc_decay_steps env steps; bc_batch pairs per loss)."""
+    return config_dict.create(campaign="", demos="", first_round=0, bc_weight=0.0, bc_decay_steps=0, bc_batch=1024)

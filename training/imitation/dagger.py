@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from common.events import LYING_SIDES
-from training.imitation import config, dataset, expert
+from training.imitation import best_of_k, config, dataset, expert
 from training.imitation.learner import fit, load_learner, new_learner
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -121,6 +121,7 @@ class Campaign:
         `lying`: the one way its starts lay, when the round was rolled out from those alone."""
         dataset.save_round(self.data, k, got["obs"], got["q_des"])
         stats = {"rollouts": starts, "rollouts_met_gate": got["met_gate"], "labels": len(got["obs"]),
+                 **({"policy_met_gate": got["policy_met_gate"]} if "policy_met_gate" in got else {}),
                  "label_cpu_s": round(got["cpu_s"], 1),
                  "cpu_s_per_label": round(got["cpu_s"] / max(len(got["obs"]), 1), 4), "expert": self.expert}
         if lying:
@@ -200,8 +201,12 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
                 side = lying if k == first else ""
                 qpos, qvel = (a.astype(np.float64) for a in round_starts(env, n, int(cfg.first_seed) + (k - 1) * n,
                                                                         side))
-                got = collect(teacher, learner, qpos, qvel, b, float(cfg.rollout_s),
-                              np.random.default_rng([int(cfg.seed), k]))
+                rng = np.random.default_rng([int(cfg.seed), k])
+                if int(cfg.expert.best_of_k.k) > 0:
+                    got = best_of_k.collect(teacher, learner.targets, qpos, qvel, cfg.expert.best_of_k,
+                                            float(cfg.rollout_s), rng)
+                else:
+                    got = collect(teacher, learner, qpos, qvel, b, float(cfg.rollout_s), rng)
                 stats = camp.store_round(k, got, n, policy if k == first else None, side)
             row.update(stats)
         obs, q = dataset.aggregate(data, demos, k + 1)

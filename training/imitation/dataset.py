@@ -67,7 +67,10 @@ def load_round(folder: Path, k: int) -> tuple[np.ndarray, np.ndarray]:
     return obs, q
 
 
-def aggregate(folder: Path, demos: Path, rounds: int) -> tuple[np.ndarray, np.ndarray]:
-    """Rounds 0 (the demonstrations in `demos`) … rounds − 1 together."""
-    parts = [demonstration_pairs(demos)] + [load_round(folder, k) for k in range(1, rounds)]
+def aggregate(folder: Path, demos: Path, rounds: int, first: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Rounds first … rounds − 1 together, round 0 the demonstrations in `demos`."""
+    if not 0 <= first < rounds:
+        raise ValueError(f"{folder}: no rounds from {first} on (it holds rounds 0 … {rounds - 1})")
+    parts = [demonstration_pairs(demos)] if first == 0 else []
+    parts += [load_round(folder, k) for k in range(max(first, 1), rounds)]
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])

@@ -114,7 +114,7 @@ def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarr
     if not collected.exists():
         raise ValueError(f"{campaign}: not a DAgger campaign (no {campaign_files.DATA}/{campaign_files.COLLECTED})")
     rounds = 1 + max((int(k) for k in json.loads(collected.read_text())["rounds"]), default=0)
-    obs, q = dataset.aggregate(data, repo_path(t.demos), rounds)
+    obs, q = dataset.aggregate(data, repo_path(t.demos), rounds, int(t.first_round))
     return obs, targets_to_labels(q, action_map["default_pose"], action_map["action_scale"])
 
 

@@ -8,7 +8,8 @@ COLUMNS = (("round", "round"), ("beta", "β"), ("policy", "rolled out (– : the
            ("lying", "from starts lying (– : any)"), ("labels", "labels"),
            ("labels_total", "labels in total"),
            ("cpu_s_per_label", "CPU s per label"), ("cpu_hours_total", "labelling CPU h in total"),
-           ("rollouts_met_gate", "rollouts that met the gate (β mixture)"),
+           ("expert_kind", "expert"), ("rollouts_met_gate", "rollouts that met the gate (β mixture; best of K)"),
+           ("policy_met_gate", "… by the policy alone"),
            ("fit_loss", "fit loss (share of var)"), ("reached_kneel", "reached the kneel (batch)"),
            ("face_down", "… face down"), ("on_back", "… on the back"),
            ("kneeled", "the gate in the kneeling posture (batch)"), ("kneel_held", "… held ≥ 1 s (of those)"),
@@ -27,15 +28,22 @@ def _cell(v) -> str:
     return "–" if v is None else f"{v:g}" if isinstance(v, float) else str(v)
 
 
+def expert_kind(row: dict) -> str:
+    """A round's expert in words: the planner's takeovers, or best-of-K rises of the policy."""
+    bok = (row.get("expert") or {}).get("best_of_k", {})
+    return f"best of {bok['k']} (σ {bok['sigma_rad']:g} rad)" if bok.get("k") else "planner"
+
+
 def write(folder: Path, state: dict) -> None:
-    rows = state["rounds"]
+    rows = [{**r, "expert_kind": expert_kind(r)} if r["round"] > 0 else r for r in state["rounds"]]
     cfg = state["config"]["dagger"]
     text = ("# DAgger with the planner as the expert\n\n"
-            f"Rollouts per round: {cfg['starts_per_round']} fallen starts × {cfg['rollout_s']} s; the expert's "
+            f"Rollouts per round: {cfg['starts_per_round']} fallen starts × {cfg['rollout_s']} s; the planner's "
             f"takeover {cfg['expert']['takeover_replans']} replans from each segment's start "
             f"({cfg['expert']['policy_samples']} policy + {cfg['expert']['plan_samples']} plan samples, horizon "
-            f"{state['config']['planner']['horizon_s']} s); batch evaluation from {cfg['eval_seeds']} fallen seeds "
-            f"× {cfg['eval_seconds']} s (training/evaluate.py, \"reached the kneel\").\n\n" + table(rows))
+            f"{state['config']['planner']['horizon_s']} s), or best-of-K rises of the policy (best_of_k.py); batch "
+            f"evaluation from {cfg['eval_seeds']} fallen seeds × {cfg['eval_seconds']} s (training/evaluate.py, "
+            f"\"reached the kneel\").\n\n" + table(rows))
     (Path(folder) / "report.md").write_text(text)
     _curve(rows, Path(folder) / "curve.png")
 

@@ -1,0 +1,58 @@
+"""Best-of-K as the expert: from each fallen start, K rises of the current policy at once on the C physics, rise 0
+as the policy acts and the others with smooth noise on its joint targets; the first that meets §4.8's gate in the
+kneeling posture is the demonstration, its steps up to the gate plus the hold are labels (observation → the targets
+it sent). The planner's takeovers label toward its own keyframe chain, which from the learner's states meets the
+gate less often than the learner does (`python -m training.imitation.coverage`); a rise judged by the gate itself
+is better than the learner wherever it labels (a success the policy nearly makes: self-imitation of its best
+rises, from the starts where they fail)."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from common import events
+
+
+def noise(rng: np.random.Generator, rises: int, steps: int, nu: int, sigma_rad: float, knot_steps: int) -> np.ndarray:
+    """(steps, rises, nu) target noise [rad]: Gaussian knots knot_steps apart, linear in between."""
+    knots = rng.standard_normal((steps // knot_steps + 2, rises, nu)) * sigma_rad
+    f = np.arange(steps) / knot_steps
+    lo = np.floor(f).astype(int)
+    w = (f - lo)[:, None, None]
+    return (1.0 - w) * knots[lo] + w * knots[lo + 1]
+
+
+def collect(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, cfg, rollout_s: float,
+            rng: np.random.Generator) -> dict:
+    """One round's labels from the starts (qpos, qvel) by best-of-K (cfg: the expert's best_of_k group; `policy`:
+    (n, 52) observations → (n, 23) joint targets [rad]). met_gate counts the starts whose best-of-K met the gate,
+    policy_met_gate those where rise 0 (the policy itself) did."""
+    p = teacher.p
+    cpu0 = time.process_time()
+    n, k = len(qpos), int(cfg.k)
+    robots, _, _ = teacher.start(np.repeat(qpos, k, axis=0), np.repeat(qvel, k, axis=0))
+    steps = int(round(rollout_s / p.ctrl_dt))
+    hold = int(round(events.KNEEL_HOLD_S / p.ctrl_dt))
+    dq = noise(rng, n * k, steps, p.nu, float(cfg.sigma_rad), max(1, int(round(float(cfg.knot_s) / p.ctrl_dt))))
+    dq[:, ::k] = 0.0                                       # rise 0 of every start: the policy as it acts
+    obs, q, gate = [], [], np.zeros((steps, n * k), bool)
+    for j in range(steps):
+        o = teacher.observe(robots)
+        q_des = np.clip(policy(o) + dq[j], p.lo, p.hi)
+        obs.append(o)
+        q.append(q_des.astype(np.float32))
+        robots.step(q_des)
+        gate[j] = teacher.at_gate(robots)
+    met = gate.reshape(steps, n, k).any(axis=0)            # (n, k)
+    first = np.argmax(gate, axis=0)                        # per rise: the step whose result met the gate
+    labels_o, labels_q = [], []
+    for i in np.flatnonzero(met.any(axis=1)):
+        row = i * k + int(np.argmax(met[i]))
+        end = min(int(first[row]) + 1 + hold, steps)
+        labels_o.append(np.stack([obs[j][row] for j in range(end)]))
+        labels_q.append(np.stack([q[j][row] for j in range(end)]))
+    return {"obs": np.concatenate(labels_o) if labels_o else np.zeros((0, obs[0].shape[1]), np.float32),
+            "q_des": np.concatenate(labels_q) if labels_q else np.zeros((0, p.nu), np.float32),
+            "met_gate": int(met.any(axis=1).sum()), "policy_met_gate": int(met[:, 0].sum()),
+            "cpu_s": time.process_time() - cpu0}
