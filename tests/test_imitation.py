@@ -83,7 +83,7 @@ def test_the_teachers_own_rises_report_when_the_gate_held_reproducibly(tiny):
     out = coverage.summarise(gate_s, held_s, np.array(["face_down", "on_back", "on_back", "face_down"]))
     assert out["all"] == {"rises": 4, "met_gate": 3, "share": 0.75, "held": 0.667}
     assert out["on_back"] == {"rises": 2, "met_gate": 1, "share": 0.5, "held": 0.0} and "side" not in out
-    assert coverage._longest_run(np.array([1, 1, 0, 1, 1, 1, 0], bool)) == 3
+    assert best_of_k.longest_run(np.array([1, 1, 0, 1, 1, 1, 0], bool)) == 3
 
 
 def test_best_of_k_labels_the_first_rise_that_meets_the_gate_up_to_it_and_the_hold(tiny):
@@ -101,6 +101,8 @@ def test_best_of_k_labels_the_first_rise_that_meets_the_gate_up_to_it_and_the_ho
                             np.random.default_rng(0))
     steps = round(0.2 / teacher.p.ctrl_dt)
     assert got["met_gate"] == got["policy_met_gate"] == 1          # from the kneel, by the policy itself
+    assert 0 < got["gate_time_s"][0] <= 0.2 and np.isnan(got["gate_time_s"][1])    # the chosen rise's, per start
+    assert 0 < got["held_s"][0] <= 0.2 and got["held_s"][1] == 0
     assert got["obs"].shape == (steps, 52)                          # the hold outlasts the rollout: every step
     np.testing.assert_allclose(got["q_des"], np.clip(hold(got["obs"]), teacher.p.lo, teacher.p.hi), atol=1e-6)
     dq = best_of_k.noise(np.random.default_rng(1), 4, 25, 23, 0.05, 5)

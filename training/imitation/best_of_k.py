@@ -27,7 +27,8 @@ def collect(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, cfg, rollout_s:
             rng: np.random.Generator) -> dict:
     """One round's labels from the starts (qpos, qvel) by best-of-K (cfg: the expert's best_of_k group; `policy`:
     (n, 52) observations → (n, 23) joint targets [rad]). met_gate counts the starts whose best-of-K met the gate,
-    policy_met_gate those where rise 0 (the policy itself) did."""
+    policy_met_gate those where rise 0 (the policy itself) did; per start, the chosen rise's first time at the gate
+    [s] (nan: none met it) and the longest it held there [s] (gate_time_s, held_s)."""
     p = teacher.p
     cpu0 = time.process_time()
     n, k = len(qpos), int(cfg.k)
@@ -47,12 +48,21 @@ def collect(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, cfg, rollout_s:
     met = gate.reshape(steps, n, k).any(axis=0)            # (n, k)
     first = np.argmax(gate, axis=0)                        # per rise: the step whose result met the gate
     labels_o, labels_q = [], []
+    gate_time_s, held_s = np.full(n, np.nan), np.zeros(n)
     for i in np.flatnonzero(met.any(axis=1)):
         row = i * k + int(np.argmax(met[i]))
         end = min(int(first[row]) + 1 + hold, steps)
         labels_o.append(np.stack([obs[j][row] for j in range(end)]))
         labels_q.append(np.stack([q[j][row] for j in range(end)]))
+        gate_time_s[i], held_s[i] = (first[row] + 1) * p.ctrl_dt, longest_run(gate[:, row]) * p.ctrl_dt
     return {"obs": np.concatenate(labels_o) if labels_o else np.zeros((0, obs[0].shape[1]), np.float32),
             "q_des": np.concatenate(labels_q) if labels_q else np.zeros((0, p.nu), np.float32),
             "met_gate": int(met.any(axis=1).sum()), "policy_met_gate": int(met[:, 0].sum()),
+            "gate_time_s": gate_time_s, "held_s": held_s,
             "cpu_s": time.process_time() - cpu0}
+
+
+def longest_run(flags: np.ndarray) -> int:
+    """The most samples in a row that hold."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(np.int8), [0]]))).reshape(-1, 2)
+    return int((edges[:, 1] - edges[:, 0]).max(initial=0))

@@ -1,5 +1,6 @@
 """The teacher's own rises: DAgger's expert (the planner, its candidates the policy's proposals beside its own warm
-start, expert.Teacher) acting from fallen starts for the whole rollout. How often it meets §4.8's gate in the
+start, expert.Teacher; or with expert.best_of_k.k > 0 best-of-K rises of the policy) acting from fallen starts for
+the whole rollout. How often it meets §4.8's gate in the
 kneeling posture is how far the labels can lift the learner (the planner's coverage); every step costs what one
 label does, so 200 seeds are affordable where the planner's own rises (training/planner/) are not.
 
@@ -22,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from common import events
+from training.imitation import best_of_k
 
 CHUNK = 25       # robots planned in one batch
 
@@ -40,13 +42,8 @@ def rises(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, seconds: float, r
         plans, waypoint = out["plans"], out["waypoint"]
     gate = np.concatenate(gate)[:steps].T                     # (n, steps): after each step
     first = np.where(gate.any(axis=1), (np.argmax(gate, axis=1) + 1) * p.ctrl_dt, np.nan)
-    held = np.array([_longest_run(g) * p.ctrl_dt for g in gate])
+    held = np.array([best_of_k.longest_run(g) * p.ctrl_dt for g in gate])
     return {"gate_time_s": first, "held_s": held}
-
-
-def _longest_run(flags: np.ndarray) -> int:
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(np.int8), [0]]))).reshape(-1, 2)
-    return int((edges[:, 1] - edges[:, 0]).max(initial=0))
 
 
 _worker = None      # a worker process's (teacher, env, policy)
@@ -73,7 +70,11 @@ def _init_worker(overrides: list[str], policy_path: str) -> None:
 def _chunk(qpos: np.ndarray, qvel: np.ndarray, first_seed: int, seconds: float) -> tuple[dict, float]:
     cfg, teacher, _, learner = _worker
     cpu0 = time.process_time()
-    got = rises(teacher, learner.targets, qpos, qvel, seconds, np.random.default_rng([int(cfg.seed), first_seed]))
+    rng = np.random.default_rng([int(cfg.seed), first_seed])
+    if int(cfg.expert.best_of_k.k) > 0:
+        got = best_of_k.collect(teacher, learner.targets, qpos, qvel, cfg.expert.best_of_k, seconds, rng)
+    else:
+        got = rises(teacher, learner.targets, qpos, qvel, seconds, rng)
     return got, time.process_time() - cpu0
 
 
@@ -105,12 +106,14 @@ def run(policy: Path, seeds: int, first_seed: int, seconds: float, overrides: li
         with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init_worker,
                                  initargs=(overrides, str(policy))) as pool:
             done = list(pool.map(_chunk, *zip(*args)))
-    gate_s = np.concatenate([d[0]["gate_time_s"] for d in done])
+    gate_s = np.concatenate([d[0]["gate_time_s"] for d in done])       # best-of-K: the chosen rise's
     held_s = np.concatenate([d[0]["held_s"] for d in done])
     report = {"policy": str(policy), "seeds": [int(first_seed), int(first_seed + seeds)], "seconds": seconds,
               "lying": lying or None, "expert": cfg.expert.to_dict(), "planner": teacher.p.cfg.to_dict(),
               "cpu_s": round(sum(d[1] for d in done), 1), "minutes": round((time.monotonic() - started) / 60, 1),
               "summary": summarise(gate_s, held_s, sides),
+              **({"policy_met_gate": sum(d[0]["policy_met_gate"] for d in done)}
+                 if int(cfg.expert.best_of_k.k) > 0 else {}),
               "rises": [{"seed": int(i), "side": str(s), "gate_time_s": None if np.isnan(g) else round(float(g), 2),
                          "held_s": round(float(h), 2)} for i, s, g, h in zip(ids, sides, gate_s, held_s)]}
     log(json.dumps(report["summary"]))
