@@ -159,3 +159,10 @@ def test_an_imitation_stage_is_complete_at_its_rounds_and_kept_whole_in_the_camp
     shutil.rmtree(run)
     recipe_runner.restore_campaign(recipe, dagger_stage, root, tmp_path / "campaigns")
     assert json.loads((run / imitation_config.STATE).read_text()) == state
+    # rounds run into the campaign folder itself are not overwritten by the run's older copy
+    more = {**state, "rounds": [*state["rounds"], {"round": 3}]}
+    (kept / imitation_config.STATE).write_text(json.dumps(more))
+    (kept / "data" / "round_03.npz").write_bytes(b"newer labels")
+    assert kept in recipe_runner.save_campaign("getup_keyframe", root, tmp_path / "campaigns")
+    assert (kept / "data" / "round_03.npz").read_bytes() == b"newer labels"
+    assert json.loads((kept / imitation_config.STATE).read_text()) == more

@@ -148,7 +148,7 @@ def test_a_killed_batch_leaves_no_worker_planning_on():
     from pathlib import Path
     script = ("import multiprocessing as mp, time\nfrom concurrent.futures import ProcessPoolExecutor\n"
               "from training.planner import batch\n"
-              "pool = ProcessPoolExecutor(1, mp_context=mp.get_context('spawn'), initializer=batch._end_with_parent)\n"
+              "pool = ProcessPoolExecutor(1, mp_context=mp.get_context('spawn'), initializer=batch.end_with_parent)\n"
               "pool.submit(time.sleep, 0.1).result()\npool.submit(time.sleep, 600)\n"
               "print(*pool._processes, flush=True)\ntime.sleep(600)\n")
     root = Path(__file__).resolve().parents[1]

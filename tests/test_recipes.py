@@ -245,5 +245,5 @@ def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(
     first_open = next(s.name for s in recipe.stages if not recipe_runner.stage_complete(tmp_path, recipe, s)
                       and not recipe_runner.superseded(tmp_path, recipe, s))
     assert (tmp_path / "getup_keyframe" / "dagger" / "data").is_dir() and "dagger" not in ran
-    assert ran == [first_open] and (tmp_path / "getup_keyframe" / "rise_wide").is_dir()
+    assert ran == [first_open] and (tmp_path / "getup_keyframe" / "rise_best").is_dir()
     assert not first_open.startswith("rise")          # stage 1's last stage is complete in the campaign

@@ -105,6 +105,11 @@ def referenced(recipe: R.Recipe, stage: R.Stage) -> bool:
     return False
 
 
+def _rounds(folder: Path) -> int:
+    """The finished rounds of an imitation campaign folder (0: none, or no folder)."""
+    return len(_json(folder / imitation_config.STATE).get("rounds", []))
+
+
 def _json(path: Path) -> dict:
     return json.loads(path.read_text()) if path.exists() else {}
 
@@ -283,6 +288,11 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
         drop = superseded(root, recipe, s) and not referenced(recipe, s) and s.kind != "imitation"
         for run_dir in stage_dirs(root, recipe, s):
             dest = campaigns / name / run_dir.name
+            if s.kind == "imitation" and _rounds(dest) > _rounds(run_dir):
+                print(f"recipe {name}: {dest} holds more rounds than {run_dir} (rounds run into the campaign "
+                      "itself): kept")
+                saved.append(dest)
+                continue
             if dest.exists():
                 shutil.rmtree(dest)
             if drop:

@@ -62,8 +62,8 @@ def _setup(overrides: list[str], policy_path: str):
 
 def _init_worker(overrides: list[str], policy_path: str) -> None:
     global _worker
-    from training.planner.batch import _end_with_parent
-    _end_with_parent()
+    from training.planner.batch import end_with_parent
+    end_with_parent()
     _worker = _setup(overrides, policy_path)
 
 

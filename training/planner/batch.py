@@ -35,11 +35,11 @@ PR_SET_PDEATHSIG = 1    # <sys/prctl.h>
 
 def _init_worker(overrides: list[str]) -> None:
     global _worker
-    _end_with_parent()
+    end_with_parent()
     _worker = build(overrides)
 
 
-def _end_with_parent() -> None:
+def end_with_parent() -> None:
     """Linux's PR_SET_PDEATHSIG: a worker gets SIGTERM when the batch that spawned it dies, instead of planning
     on as an orphan (a worker notices a dead pool only when it asks for its next seed)."""
     try:
