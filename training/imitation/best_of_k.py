@@ -45,6 +45,7 @@ def collect(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, cfg, rollout_s:
         q.append(q_des.astype(np.float32))
         robots.step(q_des)
         gate[j] = teacher.at_gate(robots)
+    obs, q = np.stack(obs), np.stack(q)                    # (steps, n·k, ·)
     met = gate.reshape(steps, n, k).any(axis=0)            # (n, k)
     first = np.argmax(gate, axis=0)                        # per rise: the step whose result met the gate
     labels_o, labels_q = [], []
@@ -52,10 +53,10 @@ def collect(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, cfg, rollout_s:
     for i in np.flatnonzero(met.any(axis=1)):
         row = i * k + int(np.argmax(met[i]))
         end = min(int(first[row]) + 1 + hold, steps)
-        labels_o.append(np.stack([obs[j][row] for j in range(end)]))
-        labels_q.append(np.stack([q[j][row] for j in range(end)]))
+        labels_o.append(obs[:end, row])
+        labels_q.append(q[:end, row])
         gate_time_s[i], held_s[i] = (first[row] + 1) * p.ctrl_dt, longest_run(gate[:, row]) * p.ctrl_dt
-    return {"obs": np.concatenate(labels_o) if labels_o else np.zeros((0, obs[0].shape[1]), np.float32),
+    return {"obs": np.concatenate(labels_o) if labels_o else np.zeros((0, obs.shape[-1]), np.float32),
             "q_des": np.concatenate(labels_q) if labels_q else np.zeros((0, p.nu), np.float32),
             "met_gate": int(met.any(axis=1).sum()), "policy_met_gate": int(met[:, 0].sum()),
             "gate_time_s": gate_time_s, "held_s": held_s,
