@@ -181,12 +181,17 @@ def lying_side(forward_z: float) -> str:
     return "face_down" if forward_z < -FACING_Z else "on_back" if forward_z > FACING_Z else "side"
 
 
+def longest_run(flags) -> int:
+    """The most samples in a row that hold (0: none)."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(flags, bool).astype(np.int8), [0]])))
+    edges = edges.reshape(-1, 2)
+    return int((edges[:, 1] - edges[:, 0]).max(initial=0))
+
+
 def kneel_hold_s(trunk_height, up_z, kneeling, dt: float) -> float:
     """The longest run of samples dt [s] apart in which §4.8's gate held in the kneeling posture, as a time:
     k samples in a row hold k·dt [s] (0: never)."""
-    ok = np.concatenate([[0], (kneel_gate_mask(trunk_height, up_z) & np.asarray(kneeling, bool)).astype(np.int8), [0]])
-    edges = np.flatnonzero(np.diff(ok)).reshape(-1, 2)
-    return float((edges[:, 1] - edges[:, 0]).max(initial=0) * dt)
+    return float(longest_run(kneel_gate_mask(trunk_height, up_z) & np.asarray(kneeling, bool)) * dt)
 
 
 def reached_kneel(trunk_height, up_z, th: EventThresholds = EventThresholds()) -> bool:

@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from common import events
 from common import observation as obsdef
 from training.artifact_policy import ArtifactPolicy
 from training.imitation import __main__ as cli
@@ -83,7 +84,7 @@ def test_the_teachers_own_rises_report_when_the_gate_held_reproducibly(tiny):
     out = coverage.summarise(gate_s, held_s, np.array(["face_down", "on_back", "on_back", "face_down"]))
     assert out["all"] == {"rises": 4, "met_gate": 3, "share": 0.75, "held": 0.667}
     assert out["on_back"] == {"rises": 2, "met_gate": 1, "share": 0.5, "held": 0.0} and "side" not in out
-    assert best_of_k.longest_run(np.array([1, 1, 0, 1, 1, 1, 0], bool)) == 3
+    assert events.longest_run(np.array([1, 1, 0, 1, 1, 1, 0], bool)) == 3
 
 
 def test_best_of_k_labels_the_first_rise_that_meets_the_gate_up_to_it_and_the_hold(tiny):

@@ -55,15 +55,9 @@ def collect(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, cfg, rollout_s:
         end = min(int(first[row]) + 1 + hold, steps)
         labels_o.append(obs[:end, row])
         labels_q.append(q[:end, row])
-        gate_time_s[i], held_s[i] = (first[row] + 1) * p.ctrl_dt, longest_run(gate[:, row]) * p.ctrl_dt
+        gate_time_s[i], held_s[i] = (first[row] + 1) * p.ctrl_dt, events.longest_run(gate[:, row]) * p.ctrl_dt
     return {"obs": np.concatenate(labels_o) if labels_o else np.zeros((0, obs.shape[-1]), np.float32),
             "q_des": np.concatenate(labels_q) if labels_q else np.zeros((0, p.nu), np.float32),
             "met_gate": int(met.any(axis=1).sum()), "policy_met_gate": int(met[:, 0].sum()),
             "gate_time_s": gate_time_s, "held_s": held_s,
             "cpu_s": time.process_time() - cpu0}
-
-
-def longest_run(flags: np.ndarray) -> int:
-    """The most samples in a row that hold."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(np.int8), [0]]))).reshape(-1, 2)
-    return int((edges[:, 1] - edges[:, 0]).max(initial=0))

@@ -42,7 +42,7 @@ def rises(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, seconds: float, r
         plans, waypoint = out["plans"], out["waypoint"]
     gate = np.concatenate(gate)[:steps].T                     # (n, steps): after each step
     first = np.where(gate.any(axis=1), (np.argmax(gate, axis=1) + 1) * p.ctrl_dt, np.nan)
-    held = np.array([best_of_k.longest_run(g) * p.ctrl_dt for g in gate])
+    held = np.array([events.longest_run(g) * p.ctrl_dt for g in gate])
     return {"gate_time_s": first, "held_s": held}
 
 
