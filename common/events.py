@@ -64,6 +64,11 @@ KNEEL_HOLD_S = 1.0          # stage 1's kneel counts as held once the gate has h
 # −FACING_Z face down, above +FACING_Z on the back, else on its side.
 FACING_Z = 0.5
 LYING_SIDES = ("face_down", "on_back", "side")
+# The roll's hand-over to the face-down rise (the keyframe getup's chain roll → rise → stand): lying (trunk below
+# the fallen height), turned face down well past the lying-side rule's edge (forward z below −ROLLED_FORWARD_Z)
+# and no longer tumbling (trunk angular speed below ROLLED_MAX_ANG_SPEED_RAD_S), as the rise's face-down starts lie.
+ROLLED_FORWARD_Z = 0.8
+ROLLED_MAX_ANG_SPEED_RAD_S = 1.0
 KNEE_PITCHES = ("Left_Knee_Pitch", "Right_Knee_Pitch")
 HIP_PITCHES = ("Left_Hip_Pitch", "Right_Hip_Pitch")
 
@@ -179,6 +184,13 @@ def kneeling_posture(q, xp=np, knee_min_rad: float = KNEEL_KNEE_MIN_RAD, hip_min
 def lying_side(forward_z: float) -> str:
     """face_down | on_back | side, from the world z of the trunk's forward axis."""
     return "face_down" if forward_z < -FACING_Z else "on_back" if forward_z > FACING_Z else "side"
+
+
+def rolled_face_down(forward_z, trunk_height, ang_speed_rad_s, xp=np):
+    """Per sample: the roll has handed over to the face-down rise (the constants above say when). xp: numpy or
+    jax.numpy, so training, the chain's switch and the evaluations read one rule."""
+    return ((xp.asarray(forward_z) < -ROLLED_FORWARD_Z) & (xp.asarray(trunk_height) < FALLEN_TRUNK_HEIGHT_M)
+            & (xp.asarray(ang_speed_rad_s) < ROLLED_MAX_ANG_SPEED_RAD_S))
 
 
 def longest_run(flags) -> int:

@@ -20,6 +20,7 @@ OBS_SIZES = {  # actor size from the terms; critic = actor + base extras + task 
     "joystick": (82, 82 + 37 + 2 + 6),
     "getup": (52, 52 + 37 + 2),
     "getup_kneel": (52, 52 + 37 + 2),
+    "getup_roll": (52, 52 + 37 + 2),
     "getup_stand": (52, 52 + 37 + 2),
     "getup_baseline": (52, 52 + 37 + 2),
     "unified": (82, 82 + 37 + 6),
@@ -42,7 +43,7 @@ def env_by_task():
 
 # ------------------------------------------------------------------ API / config
 def test_tasks_and_configs():
-    assert envs.TASKS == ("joystick", "getup", "getup_kneel", "getup_stand", "getup_baseline", "unified")
+    assert envs.TASKS == ("joystick", "getup", "getup_kneel", "getup_roll", "getup_stand", "getup_baseline", "unified")
     for task in envs.TASKS:
         cfg = envs.default_config(task)
         assert cfg.ctrl_dt == pytest.approx(0.02) and cfg.sim_dt == pytest.approx(0.002)

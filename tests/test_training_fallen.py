@@ -73,7 +73,10 @@ def test_the_bank_draws_each_side_in_proportion_to_its_weight():
     counts = {s: int((sides == s).sum()) for s in LYING_SIDES}
     assert len(more) == len(vel) == counts["face_down"] + 3 * counts["on_back"] + 2 * counts["side"]
     assert counts["on_back"] > 0 and all(any((r == q).all() for r in more) for q in qpos)   # none left out
-    for bad in ([1, 0, 1], [1, 1.5, 1], [1, 1], [True, 1, 1]):
+    no_face_down, _ = fallen.weight_sides(qpos, qvel, [0, 1, 1])    # the roll's starts: the face-down ones left out
+    assert len(no_face_down) == counts["on_back"] + counts["side"]
+    assert all(lying_side(float(z)) != "face_down" for z in t1model.trunk_forward_z(no_face_down))
+    for bad in ([0, 0, 0], [1, -1, 1], [1, 1.5, 1], [1, 1], [True, 1, 1]):
         with pytest.raises(ValueError, match="side_weights"):
             fallen.weight_sides(qpos, qvel, bad)
 

@@ -11,7 +11,7 @@ import sys
 from typing import Sequence
 
 # = training.envs.TASKS (checked when the envs load)
-TASKS = ("joystick", "getup", "getup_kneel", "getup_stand", "getup_baseline", "unified")
+TASKS = ("joystick", "getup", "getup_kneel", "getup_roll", "getup_stand", "getup_baseline", "unified")
 RUNS_DIR = "runs"   # experiments' default home (ignored by git): = training.recipe_runner.RUNS_ROOT
 
 

@@ -1,7 +1,7 @@
 """MJX training envs for the T1 (JAX backend over mujoco_playground's MjxEnv).
 
     from training import envs
-    envs.TASKS                      # ("joystick", "getup", "getup_kneel", "getup_stand", "getup_baseline", "unified")
+    envs.TASKS                      # ("joystick", "getup", "getup_kneel", "getup_roll", "getup_stand", "getup_baseline", "unified")
     cfg = envs.default_config("getup_kneel"); cfg.reward.scales.gate = 1.0
     env = envs.make("getup_kneel", cfg, config_overrides={"episode_length": 20})
     env.observation_size            # {"state": (n_actor,), "privileged_state": (n_critic,)}
@@ -23,10 +23,12 @@ from ml_collections import config_dict
 from training.envs.starts.fallen import fallen_states
 from training.envs.randomize import domain_randomize
 
-# task → (module under training/envs, env class). getup_kneel and getup_stand are the keyframe curriculum's
+# task → (module under training/envs, env class). getup_roll turns a robot on its back face down (the chain's
+# first stage), getup_kneel and getup_stand are the keyframe curriculum's
 # stages 1 and 2, getup its gated full task; unified: the distillation env (walk, get pushed, fall, get up).
 _REGISTRY: dict[str, tuple[str, str]] = {
     "joystick": ("joystick", "Joystick"), "getup": ("getup", "Getup"), "getup_kneel": ("getup_kneel", "GetupKneel"),
+    "getup_roll": ("getup_roll", "GetupRoll"),
     "getup_stand": ("getup_stand", "GetupStand"), "getup_baseline": ("getup_baseline", "GetupBaseline"),
     "unified": ("unified", "Unified")}
 TASKS: tuple[str, ...] = tuple(_REGISTRY)

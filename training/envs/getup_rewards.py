@@ -7,6 +7,7 @@ Height & orientation (§4.7), per body part p ∈ {torso, waist} with desired he
     r_ori    = (0.25·u_z + 0.5)²                (u_z: z of the torso's up vector, 1 upright, −1 inverted)
     reward   = 2·r_ori·(r_height + 1) / 3
 Pose (§4.7): exp(−0.5·‖q − q_ref‖²) over the 23 joint angles [rad].
+Turn (ours, the roll onto the front): (1 − f_z) / 2, f_z the world z of the torso's forward axis.
 Energy cost (§4.7): Σ_i |v_i · τ_i / τmax_i| [rad/s], used only in the energy fine-tune.
 Gate (§4.8): common/events.kneel_gate, the evaluations' own definition (trunk above 0.395 m, tilt below 0.573°).
 Gated terms (§4.8):
@@ -51,6 +52,11 @@ def height_orientation_reward(h_torso, h_waist, up_z, torso_des, waist_des):
 
 def pose_reward(q, q_ref):
     return jnp.exp(-0.5 * jnp.sum(jnp.square(q - q_ref), axis=-1))
+
+
+def turn_reward(forward_z):
+    """(1 − f_z) / 2 of the trunk's forward axis' world z: 0 on the back, 0.5 on its side, 1 face down (the roll)."""
+    return 0.5 * (1.0 - forward_z)
 
 
 def rise_track_start(h_torso):

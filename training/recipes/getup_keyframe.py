@@ -51,6 +51,9 @@ RISE_WIDE = {**RISE_SLOW, "ppo.imitation.bc_weight": 6.0, "ppo.imitation.bc_deca
 RISE_BEST = {**RISE_WIDE, "ppo.imitation.campaign": "training/campaigns/getup_keyframe/dagger",
              "ppo.imitation.first_round": 12, "ppo.imitation.bc_weight": 3.0,
              "ppo.imitation.bc_decay_steps": 12_000_000}
+# the roll (stage 0) from scratch on the back and side starts of a bank far from the evaluation's seeds; half of
+# brax's sampling std (its full std throws the 2 rad-scale targets from limit to limit)
+ROLL = {"ppo.policy_std_scale": 0.5, "env.fallen.bank_starts": 512, "env.fallen.seed": 2_000_000}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
 FULL = {"ppo.policy_std_scale": 0.25, "ppo.entropy_cost": 0.001, "ppo.learning_rate": 1e-4}
 ENERGY = {**FULL, "env.reward.scales.energy": -0.01}
@@ -65,6 +68,7 @@ RECIPE = Recipe(
         Stage("rise_slow", task="getup_kneel", steps=3_010_560, init="rise_fine", config=RISE_SLOW),
         Stage("rise_wide", task="getup_kneel", steps=6_021_120, init="rise_slow", config=RISE_WIDE),
         Stage("rise_best", task="getup_kneel", steps=1_515_520, init="rise_wide", config=RISE_BEST),
+        Stage("roll", task="getup_roll", steps=10_000_000, config=ROLL),
         Stage("stand_path", task="getup_stand", steps=27_095_040, config=STAND),
         Stage("stand_swing", task="getup_stand", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),

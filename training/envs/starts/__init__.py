@@ -37,7 +37,7 @@ class StartSource:
         return getattr(mod, self.config), getattr(mod, self.bank) if self.bank else None
 
 
-GETUP_TASKS = ("getup", "getup_kneel", "getup_stand", "getup_baseline")
+GETUP_TASKS = ("getup", "getup_kneel", "getup_roll", "getup_stand", "getup_baseline")
 SOURCES: tuple[StartSource, ...] = (
     StartSource((*GETUP_TASKS, "unified"), "fallen", "training.envs.starts.fallen", "fallen_config"),
     StartSource(("getup_stand",), "reverse_curriculum", "training.envs.starts.kneeling_path", "path_config"),

@@ -41,7 +41,7 @@ def fallen_config() -> config_dict.ConfigDict:
     """The getup tasks' fallen starts: `bank_starts` distinct seeded states (seeds `seed` …), each the state after
     the runtime's PREPARE ramp of `prepare_s` [s] (0 = the settled fall itself), drawn in proportion to the
     `side_weights` of the way each lies (face down, on the back, on its side: common/events.py's rule; whole
-    numbers, 1 1 1 = as they fall)."""
+    numbers, 1 1 1 = as they fall, 0 = never)."""
     return config_dict.create(bank_starts=128, seed=0, prepare_s=PREPARE_S, side_weights=[1, 1, 1])
 
 
@@ -49,11 +49,13 @@ def weight_sides(qpos: np.ndarray, qvel: np.ndarray, weights) -> tuple[np.ndarra
     """The bank (qpos [N, nq], qvel [N, nv]) with each start repeated by the weight of the way it lies
     (events.LYING_SIDES order): a uniform draw from it picks a start in proportion to its side's weight."""
     w = list(weights)
-    if len(w) != len(LYING_SIDES) or any(isinstance(x, bool) or int(x) != x or x < 1 for x in w):
-        raise ValueError(f"fallen.side_weights must be {len(LYING_SIDES)} whole numbers ≥ 1 "
+    if len(w) != len(LYING_SIDES) or any(isinstance(x, bool) or int(x) != x or x < 0 for x in w) or not any(w):
+        raise ValueError(f"fallen.side_weights must be {len(LYING_SIDES)} whole numbers ≥ 0, not all 0 "
                          f"({', '.join(LYING_SIDES)}), got {w}")
     sides = [LYING_SIDES.index(lying_side(float(z))) for z in t1model.trunk_forward_z(qpos)]
     rows = np.repeat(np.arange(len(qpos)), [int(w[k]) for k in sides])
+    if rows.size == 0:
+        raise ValueError(f"fallen.side_weights {w}: no start of the bank lies on a side with a weight above 0")
     return qpos[rows], qvel[rows]
 
 
