@@ -186,10 +186,24 @@ def lying_side(forward_z: float) -> str:
     return "face_down" if forward_z < -FACING_Z else "on_back" if forward_z > FACING_Z else "side"
 
 
+def forward_z_from_quat(quat_wxyz, xp=np):
+    """World z of the body's forward (x) axis from (..., 4) quaternions (w x y z): 2(xz − wy); near −1 lying face
+    down, near +1 on the back. xp: numpy or jax.numpy."""
+    q = xp.asarray(quat_wxyz)
+    return 2.0 * (q[..., 1] * q[..., 3] - q[..., 0] * q[..., 2])
+
+
 def rolled_face_down(forward_z, trunk_height, ang_speed_rad_s, xp=np):
     """Per sample: the roll has handed over to the face-down rise (the constants above say when). xp: numpy or
     jax.numpy, so training, the chain's switch and the evaluations read one rule."""
     return ((xp.asarray(forward_z) < -ROLLED_FORWARD_Z) & (xp.asarray(trunk_height) < FALLEN_TRUNK_HEIGHT_M)
+            & (xp.asarray(ang_speed_rad_s) < ROLLED_MAX_ANG_SPEED_RAD_S))
+
+
+def lying_on_back(forward_z, trunk_height, ang_speed_rad_s, xp=np):
+    """Per sample: lying still on the back (the lying-side rule's on_back, trunk below the fallen height): a rise
+    that tipped over backwards hands the robot back to the roll."""
+    return ((xp.asarray(forward_z) > FACING_Z) & (xp.asarray(trunk_height) < FALLEN_TRUNK_HEIGHT_M)
             & (xp.asarray(ang_speed_rad_s) < ROLLED_MAX_ANG_SPEED_RAD_S))
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from common.events import forward_z_from_quat
 from messages import contract
 
 MODEL_PATH: Path = Path(__file__).resolve().parent / "models" / "t1.xml"
@@ -140,8 +141,7 @@ def trunk_heights(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
 def trunk_forward_z(qpos: np.ndarray) -> np.ndarray:
     """World z of the trunk's forward (x) axis for states qpos [..., nq], from the free joint's quaternion:
     near -1 lying face down, near +1 on the back."""
-    w, x, y, z = np.moveaxis(np.asarray(qpos)[..., 3:ROOT_QPOS], -1, 0)
-    return 2.0 * (x * z - w * y)
+    return forward_z_from_quat(np.asarray(qpos)[..., 3:ROOT_QPOS])
 
 
 def waist_height(data: mujoco.MjData) -> float:

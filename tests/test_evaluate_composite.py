@@ -34,6 +34,11 @@ def test_load_policy_reads_a_composite_and_names_a_bad_spec():
         load_policy(f"{GETUP},{UPRIGHT},{UPRIGHT}")
 
 
+def _body(waist_m):
+    """The env's body readings the policies switch on (only the waist height matters to a composite)."""
+    return {"trunk_height": np.float32(0.3), "waist_height": np.float32(waist_m), "up_z": np.float32(1.0)}
+
+
 def _pair_state(obs_state, own_getup, own_upright):
     return obs_state._replace(last_action=np.stack([own_getup, own_upright]))
 
@@ -45,12 +50,12 @@ def test_composite_acts_with_the_member_the_waist_height_selects():
     below, above = WAIST_SWITCH_HEIGHT_M - 0.05, WAIST_SWITCH_HEIGHT_M + 0.05
     for waist, member, params, own in ((below, composite.getup, composite.params[0], own_g),
                                        (above, composite.upright, composite.params[1], own_u)):
-        _, q_des = composite.act(composite.params, _pair_state(obs_state, own_g, own_u), np.float32(waist))
-        _, want_q = member.act(params, obs_state._replace(last_action=own), np.float32(waist))
+        _, q_des = composite.act(composite.params, _pair_state(obs_state, own_g, own_u), _body(waist))
+        _, want_q = member.act(params, obs_state._replace(last_action=own), _body(waist))
         np.testing.assert_allclose(np.asarray(q_des), np.asarray(want_q), rtol=1e-6, atol=1e-6)
     # each member through its own action map: the same action would give different targets
-    a_g, q_g = composite.getup.act(composite.params[0], obs_state, 0.0)
-    a_u, q_u = composite.upright.act(composite.params[1], obs_state, 0.0)
+    a_g, q_g = composite.getup.act(composite.params[0], obs_state, _body(0.0))
+    a_u, q_u = composite.upright.act(composite.params[1], obs_state, _body(0.0))
     assert not np.allclose(np.asarray(q_g), np.asarray(q_u))
 
 
@@ -63,10 +68,10 @@ def test_each_member_reads_its_own_last_action_and_the_idle_one_the_applied_targ
     state = _pair_state(obs_state, obs_state.last_action, obs_state.last_action)
     for waist, acting, idle in ((0.3, 0, 1), (0.7, 1, 0)):
         members = (composite.getup, composite.upright)
-        next_own, q_target = composite.act(composite.params, state, np.float32(waist))
+        next_own, q_target = composite.act(composite.params, state, _body(waist))
         next_own, q_target = np.asarray(next_own), np.asarray(q_target)
         a, _ = members[acting].act(composite.params[acting], obs_state._replace(last_action=obs_state.last_action),
-                                   np.float32(waist))
+                                   _body(waist))
         np.testing.assert_allclose(next_own[acting], np.asarray(a), rtol=1e-6, atol=1e-6)
         m = members[idle].manifest
         own = np.clip((q_target - np.asarray(m["default_pose"])) / np.asarray(m["action_scale"]), -1.0, 1.0)

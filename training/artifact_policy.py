@@ -1,6 +1,7 @@
 """The policy artifacts as the batch evaluations run them, in jax: one artifact (ArtifactPolicy, the file the
 runtime runs, through common/observation.py) or the runtime's composite of two (CompositePolicy,
-`--policy GETUP,UPRIGHT`, the seed's chapter-6 baseline). Used by training/evaluate.py (getup) and
+`--policy GETUP,UPRIGHT`, the seed's chapter-6 baseline) or the keyframe getup's latched chain of three
+(ChainPolicy, `chain:ROLL,RISE,STAND`). Used by training/evaluate.py (getup) and
 training/evaluate_joystick.py (walking)."""
 from __future__ import annotations
 
@@ -68,11 +69,11 @@ class ArtifactPolicy:
         pose, scale = (jnp.asarray(self.manifest[k], jnp.float32) for k in ("default_pose", "action_scale"))
         return obsdef.targets_to_action(pose, scale, q_target, jnp)
 
-    def act(self, params, obs_state: obsdef.ObservationState, waist_height_m):
-        """One env's tick in jax: (action = the next tick's last action, joint targets [rad]); one policy, so
-        the waist height is unused."""
+    def act(self, params, obs_state: obsdef.ObservationState, body: dict):
+        """One env's tick in jax: (action = the next tick's last action, joint targets [rad]); `body`, the env's
+        body_readings (trunk and waist height [m], up_z), is for the policies that switch on them."""
         import jax.numpy as jnp
-        del waist_height_m
+        del body
         action = policy_action(self.manifest, params, obs_state)
         return action, obsdef.action_to_targets(jnp.asarray(self.manifest["default_pose"], jnp.float32),
                                                 jnp.asarray(self.manifest["action_scale"], jnp.float32), action)
@@ -125,20 +126,95 @@ class CompositePolicy:
     def initial_last_action(self) -> np.ndarray:
         return np.zeros((2, obsdef.NUM_JOINTS), np.float32)     # [getup member's, upright member's]
 
-    def act(self, params, obs_state: obsdef.ObservationState, waist_height_m):
+    def act(self, params, obs_state: obsdef.ObservationState, body: dict):
         import jax.numpy as jnp
         own = obs_state.last_action
-        a_g, q_g = self.getup.act(params[0], obs_state._replace(last_action=own[..., 0, :]), waist_height_m)
-        a_u, q_u = self.upright.act(params[1], obs_state._replace(last_action=own[..., 1, :]), waist_height_m)
-        use_getup = waist_height_m < WAIST_SWITCH_HEIGHT_M
+        a_g, q_g = self.getup.act(params[0], obs_state._replace(last_action=own[..., 0, :]), body)
+        a_u, q_u = self.upright.act(params[1], obs_state._replace(last_action=own[..., 1, :]), body)
+        use_getup = body["waist_height"] < WAIST_SWITCH_HEIGHT_M
         q_target = jnp.where(use_getup, q_g, q_u)
         next_own = jnp.stack([jnp.where(use_getup, a_g, self.getup.in_own_map(q_target)),
                               jnp.where(use_getup, self.upright.in_own_map(q_target), a_u)], axis=-2)
         return next_own, q_target
 
 
-def load_policy(spec) -> ArtifactPolicy | CompositePolicy:
-    """An artifact path, or GETUP,UPRIGHT for the runtime's composite of two."""
+@dataclass(frozen=True)
+class ChainPolicy:
+    """The keyframe getup's stages as one latched chain (`chain:ROLL,RISE,STAND`): roll acts until the robot lies
+    face down (common/events.rolled_face_down), rise until §4.8's gate (events.kneel_gate), stand until the trunk
+    is down (below the fallen height), then roll again; a rise that tipped the robot onto its back
+    (events.lying_on_back) hands it back to the roll. Training's teacher and the batch evaluations' reference
+    (it switches on the trunk's height, which only the simulation knows). Each member reads its own last action,
+    the idle ones the applied targets in their map (as CompositePolicy); the carry is (own actions (3, 23), stage)."""
+    members: tuple[ArtifactPolicy, ArtifactPolicy, ArtifactPolicy]
+
+    PREFIX = "chain:"
+    ROLL, RISE, STAND = range(3)
+
+    @classmethod
+    def load(cls, spec: str) -> "ChainPolicy":
+        parts = [p.strip() for p in str(spec)[len(cls.PREFIX):].split(",")]
+        if len(parts) != 3 or not all(parts):
+            raise ValueError(f"{spec!r}: a chain is {cls.PREFIX}ROLL.safetensors,RISE.safetensors,STAND.safetensors")
+        return cls(tuple(ArtifactPolicy.load(p) for p in parts))
+
+    @property
+    def path(self) -> str:
+        return self.PREFIX + ",".join(str(m.path) for m in self.members)
+
+    @property
+    def manifest(self) -> dict:
+        return self.members[self.RISE].manifest
+
+    @property
+    def trained(self) -> bool:
+        return all(m.trained for m in self.members)
+
+    def check_env(self, env) -> None:
+        for m in self.members:
+            m.check_env(env)
+
+    @property
+    def params(self):
+        return tuple(m.params for m in self.members)
+
+    def describe(self) -> str:
+        return "chain roll → rise → stand: " + "; ".join(m.describe() for m in self.members)
+
+    def initial_last_action(self):
+        return (np.zeros((3, obsdef.NUM_JOINTS), np.float32), np.int32(self.ROLL))
+
+    def next_stage(self, stage, obs_state: obsdef.ObservationState, body: dict):
+        """The stage that acts this tick, from the one that acted the last (the latches above)."""
+        import jax.numpy as jnp
+        from common import events
+        h, spin = body["trunk_height"], jnp.linalg.norm(obs_state.gyro, axis=-1)
+        forward_z = events.forward_z_from_quat(obs_state.imu_quat, jnp)
+        rolled = events.rolled_face_down(forward_z, h, spin, jnp)
+        on_back = events.lying_on_back(forward_z, h, spin, jnp)
+        gate = events.kneel_gate(h, body["up_z"], jnp)
+        down = h < events.FALLEN_TRUNK_HEIGHT_M
+        roll = jnp.where(rolled, self.RISE, self.ROLL)
+        rise = jnp.where(gate, self.STAND, jnp.where(on_back, self.ROLL, self.RISE))
+        stand = jnp.where(down, self.ROLL, self.STAND)
+        return jnp.select([stage == self.ROLL, stage == self.RISE], [roll, rise], stand).astype(jnp.int32)
+
+    def act(self, params, obs_state: obsdef.ObservationState, body: dict):
+        import jax.numpy as jnp
+        own, stage = obs_state.last_action
+        stage = self.next_stage(stage, obs_state, body)
+        out = [m.act(p, obs_state._replace(last_action=own[..., i, :]), body)
+               for i, (m, p) in enumerate(zip(self.members, params))]
+        q_target = jnp.stack([q for _, q in out])[stage]
+        next_own = jnp.stack([jnp.where(stage == i, a, m.in_own_map(q_target))
+                              for i, (m, (a, _)) in enumerate(zip(self.members, out))], axis=-2)
+        return (next_own, stage), q_target
+
+
+def load_policy(spec) -> ArtifactPolicy | CompositePolicy | ChainPolicy:
+    """An artifact path, GETUP,UPRIGHT for the runtime's composite of two, or chain:ROLL,RISE,STAND."""
+    if str(spec).startswith(ChainPolicy.PREFIX):
+        return ChainPolicy.load(spec)
     return CompositePolicy.load(spec) if "," in str(spec) else ArtifactPolicy.load(spec)
 
 

@@ -31,11 +31,11 @@ from common import events
 from common import model as t1model
 from common import observation as obsdef
 from training import table_4_3
-from training.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
+from training.artifact_policy import ArtifactPolicy, ChainPolicy, CompositePolicy, load_policy
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 
-def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
+def make_rollout(env, policy: ArtifactPolicy | CompositePolicy | ChainPolicy, num_ticks: int):
     """jitted (params, qpos [N, nq], qvel [N, nv]) → dict of (N, T + 1) / (N, T) series."""
     import jax
     import jax.numpy as jnp
@@ -69,7 +69,7 @@ def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
     def control_tick(carry, params):
         d, last_action, target = carry
         obs_state = env.observation_state(d, jnp.zeros(3), last_action, phase0)
-        action, q_des = policy.act(params, obs_state, env.body_readings(d)["waist_height"])
+        action, q_des = policy.act(params, obs_state, env.body_readings(d))
 
         def substep(c, _):
             d, agg, target = c
@@ -92,7 +92,8 @@ def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
     def rollout_one(params, qpos, qvel):
         d0 = env.make_data(qpos, qvel)
         tick = lambda carry, _: control_tick(carry, params)  # noqa: E731
-        _, series = jax.lax.scan(tick, (d0, jnp.asarray(policy.initial_last_action()), env.start_target(qpos)),
+        first = jax.tree.map(jnp.asarray, policy.initial_last_action())
+        _, series = jax.lax.scan(tick, (d0, first, env.start_target(qpos)),
                                  (), num_ticks)
         series["readings"] = jnp.concatenate([readings(d0)[None], series["readings"]], axis=0)
         return series
@@ -100,7 +101,7 @@ def make_rollout(env, policy: ArtifactPolicy | CompositePolicy, num_ticks: int):
     return jax.jit(jax.vmap(rollout_one, in_axes=(None, 0, 0)))
 
 
-def run_policy(env, policy: ArtifactPolicy | CompositePolicy, qpos, qvel, seconds: float,
+def run_policy(env, policy: ArtifactPolicy | CompositePolicy | ChainPolicy, qpos, qvel, seconds: float,
                target_noise_rad: float = 0.0, noise_seed: int = 0) -> dict:
     """Roll out and reduce to per-env metrics (numpy) plus the height series for plots (target noise:
     evaluate_cpu.cpu_rollout's, CPU backend only)."""

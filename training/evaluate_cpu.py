@@ -47,7 +47,7 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int,
     def act_one(params, data, last_action):
         obs_state = env.observation_state(data, jnp.zeros(3), last_action, phase0)
         r = env.body_readings(data)
-        action, q_des = policy.act(params, obs_state, r["waist_height"])
+        action, q_des = policy.act(params, obs_state, r)
         kneeling = events.kneeling_posture(data.qpos[7:], jnp).astype(jnp.float32)
         return action, q_des, jnp.stack([r["trunk_height"], r["up_z"], r["waist_height"], kneeling])
 
@@ -65,8 +65,9 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int,
               for k in ("energy_J", "max_energy_J", "max_torque_Nm", "torque_integral", "max_qacc", "qacc_integral",
                         "contact_force_N", "contact_force_z_N")}
     kept_qpos = np.zeros((n, num_ticks + 1, m.nq), np.float32) if keep_qpos else None
-    first = jnp.asarray(policy.initial_last_action())     # (23,), or (2, 23) for a composite
-    last_action = jnp.broadcast_to(first, (n,) + first.shape)
+    # (23,); (2, 23) for a composite; ((3, 23), stage) for a chain
+    last_action = jax.tree.map(lambda x: jnp.broadcast_to(jnp.asarray(x), (n,) + np.shape(x)),
+                               policy.initial_last_action())
     for tick in range(num_ticks):
         last_action, q_des, r = act(policy.params, host_data(), last_action)
         readings[:, tick] = np.asarray(r)

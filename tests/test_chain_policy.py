@@ -1,0 +1,89 @@
+"""The keyframe getup's latched chain (training/artifact_policy.py ChainPolicy): roll → rise → stand, switched by
+common/events' hand-over rules, and those rules themselves."""
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from common import events
+from common import observation as obsdef
+from training.artifact_policy import ChainPolicy, load_policy
+
+ROOT = Path(__file__).resolve().parents[1]
+MEMBER = ROOT / "policies" / "getup_baseline" / "getup_baseline.safetensors"
+SPEC = f"chain:{MEMBER},{MEMBER},{MEMBER}"
+
+
+def _pitched(angle_rad):
+    """(w x y z) of a rotation about the world y axis: +90° points the trunk's forward axis down (face down)."""
+    return np.array([math.cos(angle_rad / 2), 0.0, math.sin(angle_rad / 2), 0.0], np.float32)
+
+
+FACE_DOWN, ON_BACK, UPRIGHT = _pitched(math.pi / 2), _pitched(-math.pi / 2), _pitched(0.0)
+
+
+def _state(quat, spin_rad_s=0.0):
+    z = np.zeros(obsdef.NUM_JOINTS, np.float32)
+    return obsdef.ObservationState(imu_quat=quat, gyro=np.array([spin_rad_s, 0.0, 0.0], np.float32),
+                                   command=np.zeros(3, np.float32), q=z, dq=z, default_pose=z, last_action=z,
+                                   gait_phase=obsdef.initial_gait_phase(np).astype(np.float32))
+
+
+def _body(trunk_m, up_z):
+    return {"trunk_height": np.float32(trunk_m), "waist_height": np.float32(trunk_m - 0.1), "up_z": np.float32(up_z)}
+
+
+def test_the_hand_over_rules():
+    assert events.forward_z_from_quat(FACE_DOWN) == pytest.approx(-1.0, abs=1e-6)
+    assert events.forward_z_from_quat(ON_BACK) == pytest.approx(1.0, abs=1e-6)
+    assert events.forward_z_from_quat(UPRIGHT) == pytest.approx(0.0, abs=1e-6)
+    low = events.FALLEN_TRUNK_HEIGHT_M - 0.1
+    assert events.rolled_face_down(-1.0, low, 0.0)
+    assert not events.rolled_face_down(-events.ROLLED_FORWARD_Z + 0.01, low, 0.0)        # not turned far enough
+    assert not events.rolled_face_down(-1.0, low, events.ROLLED_MAX_ANG_SPEED_RAD_S)      # still tumbling
+    assert not events.rolled_face_down(-1.0, events.FALLEN_TRUNK_HEIGHT_M, 0.0)           # not lying
+    assert events.lying_on_back(1.0, low, 0.0) and not events.lying_on_back(0.0, low, 0.0)
+    np.testing.assert_array_equal(events.rolled_face_down(np.array([-1.0, 1.0]), low, 0.0), [True, False])
+
+
+@pytest.mark.parametrize("stage, quat, spin, trunk_m, up_z, want", [
+    (ChainPolicy.ROLL, ON_BACK, 0.0, 0.2, 0.0, ChainPolicy.ROLL),       # on the back: roll on
+    (ChainPolicy.ROLL, FACE_DOWN, 2.0, 0.2, 0.0, ChainPolicy.ROLL),     # face down but still tumbling
+    (ChainPolicy.ROLL, FACE_DOWN, 0.0, 0.2, 0.0, ChainPolicy.RISE),     # rolled: the rise takes over
+    (ChainPolicy.RISE, FACE_DOWN, 0.0, 0.2, 0.0, ChainPolicy.RISE),
+    (ChainPolicy.RISE, ON_BACK, 0.0, 0.2, 0.0, ChainPolicy.ROLL),       # the rise tipped it onto its back
+    (ChainPolicy.RISE, UPRIGHT, 0.0, 0.4, 1.0, ChainPolicy.STAND),      # §4.8's gate
+    (ChainPolicy.RISE, UPRIGHT, 0.0, 0.4, 0.9, ChainPolicy.RISE),       # tilted: no gate
+    (ChainPolicy.STAND, UPRIGHT, 0.0, 0.6, 0.8, ChainPolicy.STAND),     # latched until down
+    (ChainPolicy.STAND, FACE_DOWN, 0.0, 0.2, 0.0, ChainPolicy.ROLL),    # down: start over
+])
+def test_the_chain_switches_by_the_hand_over_rules(stage, quat, spin, trunk_m, up_z, want):
+    chain = load_policy(SPEC)
+    assert int(chain.next_stage(np.int32(stage), _state(quat, spin), _body(trunk_m, up_z))) == want
+
+
+def test_the_acting_member_commands_and_the_idle_ones_read_the_applied_targets():
+    chain = load_policy(SPEC)
+    assert isinstance(chain, ChainPolicy) and chain.trained and "chain" in chain.describe()
+    own, stage = chain.initial_last_action()
+    assert own.shape == (3, obsdef.NUM_JOINTS) and stage == ChainPolicy.ROLL
+    rng = np.random.default_rng(0)
+    own = (0.2 * rng.standard_normal(own.shape)).astype(np.float32)
+    state = _state(FACE_DOWN)._replace(last_action=(own, np.int32(ChainPolicy.ROLL)))
+    (next_own, next_stage), q_target = chain.act(chain.params, state, _body(0.2, 0.0))
+    assert int(next_stage) == ChainPolicy.RISE
+    member = chain.members[ChainPolicy.RISE]
+    a, q = member.act(chain.params[ChainPolicy.RISE], state._replace(last_action=own[ChainPolicy.RISE]), {})
+    np.testing.assert_allclose(np.asarray(q_target), np.asarray(q), atol=1e-6)
+    np.testing.assert_allclose(np.asarray(next_own)[ChainPolicy.RISE], np.asarray(a), atol=1e-6)
+    m = chain.members[ChainPolicy.ROLL].manifest
+    idle = np.clip((np.asarray(q_target) - np.asarray(m["default_pose"])) / np.asarray(m["action_scale"]), -1, 1)
+    np.testing.assert_allclose(np.asarray(next_own)[ChainPolicy.ROLL], idle, atol=1e-5)
+
+
+def test_a_bad_chain_spec_is_named():
+    with pytest.raises(ValueError, match="ROLL.safetensors,RISE.safetensors,STAND.safetensors"):
+        load_policy(f"chain:{MEMBER},{MEMBER}")
+    with pytest.raises(ValueError, match="ROLL.safetensors"):
+        load_policy(f"chain:{MEMBER},,{MEMBER}")
