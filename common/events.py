@@ -207,6 +207,23 @@ def lying_on_back(forward_z, trunk_height, ang_speed_rad_s, xp=np):
             & (xp.asarray(ang_speed_rad_s) < ROLLED_MAX_ANG_SPEED_RAD_S))
 
 
+KEYFRAME_STAGES = ("roll", "rise", "stand")   # the keyframe getup's chain, in order (keyframe_stage's indices)
+
+
+def keyframe_stage(stage, forward_z, trunk_height, up_z, ang_speed_rad_s, xp=np):
+    """The chain stage (KEYFRAME_STAGES index) that acts at this sample, from the one that acted at the last: roll
+    until rolled_face_down, rise until §4.8's gate (back to roll if it tipped the robot onto its back), stand
+    until the trunk is down (then roll again). A fallen start begins at roll. xp: numpy or jax.numpy."""
+    roll_, rise_, stand_ = range(len(KEYFRAME_STAGES))
+    h = xp.asarray(trunk_height)
+    roll = xp.where(rolled_face_down(forward_z, h, ang_speed_rad_s, xp), rise_, roll_)
+    rise = xp.where(kneel_gate(h, up_z, xp), stand_,
+                    xp.where(lying_on_back(forward_z, h, ang_speed_rad_s, xp), roll_, rise_))
+    stand = xp.where(h < FALLEN_TRUNK_HEIGHT_M, roll_, stand_)
+    stage = xp.asarray(stage)
+    return xp.where(stage == roll_, roll, xp.where(stage == rise_, rise, stand)).astype(xp.int32)
+
+
 def longest_run(flags) -> int:
     """The most samples in a row that hold (0: none)."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(flags, bool).astype(np.int8), [0]])))

@@ -87,3 +87,12 @@ def test_a_bad_chain_spec_is_named():
         load_policy(f"chain:{MEMBER},{MEMBER}")
     with pytest.raises(ValueError, match="ROLL.safetensors"):
         load_policy(f"chain:{MEMBER},,{MEMBER}")
+
+
+def test_keyframe_stage_reads_the_same_under_numpy():
+    """The one rule for numpy (evaluations) and jax (the chain, the distillation's teacher)."""
+    roll, rise, stand = range(len(events.KEYFRAME_STAGES))
+    got = events.keyframe_stage(np.array([roll, roll, rise, rise, stand]), np.array([-1.0, 1.0, 1.0, 0.0, 0.0]),
+                                np.array([0.2, 0.2, 0.2, 0.4, 0.3]), np.array([0.0, 0.0, 0.0, 1.0, 0.9]),
+                                np.zeros(5))
+    np.testing.assert_array_equal(got, [rise, roll, roll, stand, roll])

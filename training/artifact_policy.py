@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common import events
 from common import observation as obsdef
 from common.artifact import read_artifact
 from messages.contract import WAIST_SWITCH_HEIGHT_M
@@ -140,16 +141,15 @@ class CompositePolicy:
 
 @dataclass(frozen=True)
 class ChainPolicy:
-    """The keyframe getup's stages as one latched chain (`chain:ROLL,RISE,STAND`): roll acts until the robot lies
-    face down (common/events.rolled_face_down), rise until §4.8's gate (events.kneel_gate), stand until the trunk
-    is down (below the fallen height), then roll again; a rise that tipped the robot onto its back
-    (events.lying_on_back) hands it back to the roll. Training's teacher and the batch evaluations' reference
+    """The keyframe getup's stages as one latched chain (`chain:ROLL,RISE,STAND`), switched by
+    common/events.keyframe_stage: roll until the robot lies face down, rise until §4.8's gate, stand until the
+    trunk is down, then roll again; a rise that tipped the robot onto its back goes back to the roll. Training's teacher and the batch evaluations' reference
     (it switches on the trunk's height, which only the simulation knows). Each member reads its own last action,
     the idle ones the applied targets in their map (as CompositePolicy); the carry is (own actions (3, 23), stage)."""
     members: tuple[ArtifactPolicy, ArtifactPolicy, ArtifactPolicy]
 
     PREFIX = "chain:"
-    ROLL, RISE, STAND = range(3)
+    ROLL, RISE, STAND = range(len(events.KEYFRAME_STAGES))
 
     @classmethod
     def load(cls, spec: str) -> "ChainPolicy":
@@ -185,19 +185,10 @@ class ChainPolicy:
         return (np.zeros((3, obsdef.NUM_JOINTS), np.float32), np.int32(self.ROLL))
 
     def next_stage(self, stage, obs_state: obsdef.ObservationState, body: dict):
-        """The stage that acts this tick, from the one that acted the last (the latches above)."""
+        """The stage that acts this tick, from the one that acted the last (common/events.keyframe_stage)."""
         import jax.numpy as jnp
-        from common import events
-        h, spin = body["trunk_height"], jnp.linalg.norm(obs_state.gyro, axis=-1)
-        forward_z = events.forward_z_from_quat(obs_state.imu_quat, jnp)
-        rolled = events.rolled_face_down(forward_z, h, spin, jnp)
-        on_back = events.lying_on_back(forward_z, h, spin, jnp)
-        gate = events.kneel_gate(h, body["up_z"], jnp)
-        down = h < events.FALLEN_TRUNK_HEIGHT_M
-        roll = jnp.where(rolled, self.RISE, self.ROLL)
-        rise = jnp.where(gate, self.STAND, jnp.where(on_back, self.ROLL, self.RISE))
-        stand = jnp.where(down, self.ROLL, self.STAND)
-        return jnp.select([stage == self.ROLL, stage == self.RISE], [roll, rise], stand).astype(jnp.int32)
+        return events.keyframe_stage(stage, events.forward_z_from_quat(obs_state.imu_quat, jnp), body["trunk_height"],
+                                     body["up_z"], jnp.linalg.norm(obs_state.gyro, axis=-1), jnp)
 
     def act(self, params, obs_state: obsdef.ObservationState, body: dict):
         import jax.numpy as jnp
