@@ -81,3 +81,18 @@ def test_each_expert_reads_its_own_previous_action():
     np.testing.assert_allclose(read, (0.4, 1.0), rtol=1e-4)
     np.testing.assert_allclose(action[0], np.tanh(0.3), rtol=1e-6)
     assert obsdef.term_slice(obsdef.TERMS_GETUP, "last_action") is None
+
+
+def test_the_chain_teacher_acts_with_the_stage_s_member():
+    """The keyframe chain (roll, rise, stand): the member the stage in the observation names acts."""
+    from training.teacher import STAGE_OBS_KEY, make_chain_teacher
+    members = [_expert(name, obsdef.TERMS_GETUP, 2.0, bias) for name, bias in (("roll", 0.1), ("rise", 0.2),
+                                                                                ("stand", 0.3))]
+    teacher = make_chain_teacher(members, obsdef.TERMS_GETUP, 2.0, student_tanh_squash=False)
+    obs = {STUDENT_OBS_KEY: jnp.zeros((3, obsdef.observation_size(obsdef.TERMS_GETUP))),
+           STAGE_OBS_KEY: jnp.array([[2.0], [0.0], [1.0]])}
+    action, extra = teacher(obs)
+    np.testing.assert_allclose(np.asarray(action)[:, 0], np.tanh([0.3, 0.1, 0.2]), rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(extra["loc"]), np.asarray(action), rtol=1e-6)
+    with pytest.raises(ValueError, match="a chain teacher has 3 members"):
+        make_chain_teacher(members[:2], obsdef.TERMS_GETUP, 2.0, student_tanh_squash=False)

@@ -159,7 +159,12 @@ def toy_runs(tmp_path_factory):
                   "--out", str(dirs["boxed"]), *toy],
         "distill": ["distill", "--getup", str(dirs["getup_stand"] / "getup_stand.safetensors"), "--joystick",
                     str(dirs["joystick"]), "--out", str(dirs["student"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)",
-                    "--name", "student_toy", *toy]})  # default --task: the unified env (no fallen starts: their precompute is slow)
+                    "--name", "student_toy", *toy],  # default --task: the unified env (no fallen starts: their precompute is slow)
+        # the keyframe chain as the teacher (each member the toy stand policy: a getup-layout artifact)
+        "distill_chain": ["distill", "--chain", ",".join([str(dirs["getup_stand"] / "getup_stand.safetensors")] * 3),
+                          "--task", "getup", "--out", str(root / "chain_student"), "--config",
+                          "env.start_probs=(0.0, 0.5, 0.5)", "--name", "chain_toy", *toy]})
+    dirs["chain_student"] = root / "chain_student"
     dirs["eval_joystick"] = root / "eval_joystick"
     _run_parallel({"evaluate": ["evaluate", "--policy", str(dirs["getup_stand"] / "getup_stand.safetensors"),
                                 "--baseline", str(dirs["getup_baseline"] / "getup_baseline.safetensors"),
@@ -240,6 +245,23 @@ def test_toy_distill_exports_student(toy_runs):
     assert [tuple(t) for t in manifest["obs_terms"]] == list(obsdef.TERMS_UNION)
     assert layers[-1][0].shape[0] == obsdef.NUM_JOINTS and manifest["provenance"]["steps"] > 0
     assert manifest["provenance"]["env_steps_per_s"] > 0     # the provenance table's env-steps/s column
+
+
+@pytest.mark.slow
+def test_toy_distill_from_the_keyframe_chain_exports_a_getup_policy(toy_runs):
+    from common import observation as obsdef
+    _, _, _, manifest = read_artifact(toy_runs["chain_student"] / "chain_toy.safetensors")
+    assert [tuple(t) for t in manifest["obs_terms"]] == list(obsdef.TERMS_GETUP)    # the task's own terms
+    assert set(manifest["provenance"]["teacher"]) == {"roll", "rise", "stand"} and manifest["trained"] is False
+
+
+def test_distill_names_a_bad_teacher(capsys):
+    assert cli.main(["distill", "--getup", "g", "--out", "o"]) == 2
+    assert "needs both --getup and --joystick" in capsys.readouterr().err
+    assert cli.main(["distill", "--chain", "a,b", "--out", "o"]) == 2
+    assert "--chain takes 3 artifacts" in capsys.readouterr().err
+    assert cli.main(["distill", "--chain", "a,b,c", "--getup", "g", "--out", "o"]) == 2
+    assert "either --getup and --joystick" in capsys.readouterr().err
 
 
 @pytest.mark.slow

@@ -40,8 +40,19 @@ def _cmd_teacher(args, command: str) -> int:
 
 def _cmd_distill(args, command: str) -> int:
     from training import distill
+    if bool(args.chain) == bool(args.getup or args.joystick):
+        raise ValueError("distill: give either --getup and --joystick (the stitched teacher) or --chain ROLL,RISE,STAND")
+    if args.chain:
+        parts = [p.strip() for p in args.chain.split(",")]
+        if len(parts) != len(distill.CHAIN) or not all(parts):
+            raise ValueError(f"distill: --chain takes {len(distill.CHAIN)} artifacts, ROLL,RISE,STAND; got {args.chain!r}")
+        teacher = dict(zip(distill.CHAIN, parts))
+    elif not (args.getup and args.joystick):
+        raise ValueError("distill: the stitched teacher needs both --getup and --joystick")
+    else:
+        teacher = {"getup": args.getup, "joystick": args.joystick}
     result = distill.distill(
-        args.getup, args.joystick, args.out or f"{RUNS_DIR}/{args.name}", task=args.task, overrides=args.config,
+        teacher, args.out or f"{RUNS_DIR}/{args.name}", task=args.task, overrides=args.config,
         preset="toy" if args.toy else "gpu", seed=args.seed, num_envs=args.envs, ship=args.ship,
         command=command, progress=not args.no_progress, max_minutes=args.max_minutes, backend=args.backend,
         name=args.name, from_checkpoint=args.from_)
@@ -169,9 +180,11 @@ def _add_teacher(sub) -> None:
 
 
 def _add_distill(sub) -> None:
-    p = sub.add_parser("distill", help="DAgger (brax bc) student from the stitched teacher")
-    p.add_argument("--getup", required=True)
-    p.add_argument("--joystick", required=True)
+    p = sub.add_parser("distill", help="DAgger (brax bc) student from the stitched teacher or the keyframe chain")
+    p.add_argument("--getup", help="the stitched teacher's getup expert (with --joystick)")
+    p.add_argument("--joystick", help="the stitched teacher's joystick expert (with --getup)")
+    p.add_argument("--chain", metavar="ROLL,RISE,STAND",
+                   help="the keyframe getup's latched chain as the teacher (the student: a getup policy; --task getup)")
     p.add_argument("--out", help="run directory; default runs/<name>")
     p.add_argument("--task", choices=TASKS, default="unified",
                    help="env the student is rolled out in (default unified: fallen/kneeling/standing starts, "

@@ -29,9 +29,20 @@ from ml_collections import config_dict
 
 from training import checkpoints, curves
 from common import observation as obsdef
-from training.teacher import STUDENT_OBS_KEY, WaistObservation, load_expert, make_teacher
+from training.teacher import (STUDENT_OBS_KEY, KeyframeStageObservation, WaistObservation, load_expert,
+                              make_chain_teacher, make_teacher)
 
 DEFAULT_TASK = "unified"  # the whole walk–fall–getup task (training/envs/unified.py); cli.py repeats it
+STITCHED, CHAIN = ("getup", "joystick"), ("roll", "rise", "stand")   # a teacher's roles (training/teacher.py)
+
+
+def teacher_kind(teacher) -> tuple[str, ...]:
+    """STITCHED or CHAIN, from a teacher's roles {role: policy}; a ValueError names any other set."""
+    for kind in (STITCHED, CHAIN):
+        if set(teacher) == set(kind):
+            return kind
+    raise ValueError(f"a teacher is {' + '.join(STITCHED)} (the stitched teacher) or {' + '.join(CHAIN)} (the keyframe "
+                     f"getup's chain), got {sorted(teacher)}")
 
 
 def bc_config(preset: str = "gpu") -> config_dict.ConfigDict:
@@ -128,13 +139,15 @@ def export_student(params, env, path, name: str, tanh_squash: bool, trained: boo
     return output_rule
 
 
-def dagger_configs(task: str, preset: str, overrides: Sequence[str], num_envs: int | None):
-    """(bc config, env config) of a DAgger run: the env with the student's full term layout, the toy preset's
-    env sizes, --config applied; the batch shape checked."""
+def dagger_configs(task: str, preset: str, overrides: Sequence[str], num_envs: int | None, union_terms: bool = True):
+    """(bc config, env config) of a DAgger run: the env with the student's full term layout (union_terms; else
+    the task's own: the chain's student is a getup policy), the toy preset's env sizes, --config applied; the
+    batch shape checked."""
     from training import envs
     from training.overrides import apply_overrides
     cfg, env_cfg = bc_config(preset), envs.default_config(task)
-    env_cfg.obs_terms = [list(t) for t in obsdef.TERMS_UNION]
+    if union_terms:
+        env_cfg.obs_terms = [list(t) for t in obsdef.TERMS_UNION]
     if preset == "toy":
         from training.configs import TOY_ENV_OVERRIDES
         env_cfg.update({k: v for k, v in TOY_ENV_OVERRIDES.items() if k in env_cfg})
@@ -161,13 +174,23 @@ def _newest_params(run_dir: Path, params):
     return jax.tree.map(np.asarray, tuple(params)), int(done[-1].name) if done else 0
 
 
-def _dagger_env(task: str, env_cfg):
-    """(env, the env brax bc trains in: Playground's wrapper with the teacher's waist height in the observation)."""
+def _dagger_env(task: str, env_cfg, kind):
+    """(env, the env brax bc trains in: Playground's wrapper with what the teacher switches on in the observation:
+    the waist height, or the chain's stage)."""
     from mujoco_playground import wrapper
     from training import envs
     env = envs.make(task, config=env_cfg)
     wrapped = wrapper.wrap_for_brax_training(env, episode_length=int(env_cfg.episode_length), full_reset=True)
-    return env, WaistObservation(wrapped, env)
+    return env, (WaistObservation if kind == STITCHED else KeyframeStageObservation)(wrapped, env)
+
+
+def _teacher(teacher, kind, env, tanh_squash: bool):
+    scale = env.manifest_fields()["action_scale"]
+    if kind == STITCHED:
+        return make_teacher(load_expert(teacher["getup"], "getup"), load_expert(teacher["joystick"], "joystick"),
+                            env.obs_terms, scale, student_tanh_squash=tanh_squash)
+    return make_chain_teacher([load_expert(teacher[role], role) for role in CHAIN], env.obs_terms, scale,
+                              student_tanh_squash=tanh_squash)
 
 
 def _provenance(before: dict, phases: int, phase_env_steps: int, minutes: float, command: str) -> dict:
@@ -181,12 +204,13 @@ def _provenance(before: dict, phases: int, phase_env_steps: int, minutes: float,
             "dagger_phases_before": before["phases"], "from": before["checkpoint"]}
 
 
-def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides: Sequence[str] = (),
+def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[str] = (),
             preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
             command: str = "", progress: bool = True, max_minutes: float | None = None,
             name: str = "student", backend: str | None = None, from_checkpoint=None,
             recipe: dict | None = None) -> DistillResult:
-    """One DAgger run; with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
+    """One DAgger run from `teacher` ({role: artifact}: getup + joystick, the stitched teacher; roll + rise +
+    stand, the keyframe getup's chain); with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
     student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
     and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
     continue from that run's (STATE_FILE), so a campaign goes on across sessions."""
@@ -201,13 +225,13 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
                               f"(continue a run with --from {run_dir})")
     before = prior_progress(from_checkpoint)
     run_dir.mkdir(parents=True, exist_ok=True)
-    cfg, env_cfg = dagger_configs(task, preset, overrides, num_envs)
+    kind = teacher_kind(teacher)
+    cfg, env_cfg = dagger_configs(task, preset, overrides, num_envs, union_terms=kind == STITCHED)
 
     from training.train import default_backend
     env_cfg.backend = backend or default_backend()
-    env, wrapped = _dagger_env(task, env_cfg)
-    teacher = make_teacher(load_expert(getup_path, "getup"), load_expert(joystick_path, "joystick"), env.obs_terms,
-                           env.manifest_fields()["action_scale"], student_tanh_squash=cfg.tanh_squash)
+    env, wrapped = _dagger_env(task, env_cfg, kind)
+    teacher_fn = _teacher(teacher, kind, env, cfg.tanh_squash)
     episode_length = int(env_cfg.episode_length)
     factory = functools.partial(bc_networks.make_bc_networks,
                                 policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),
@@ -229,7 +253,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     # written now, so that a run killed mid-call (a session cut off) can still be continued with --from
     _write_state(run_dir, before, phase_env_steps, before["phases"], before["steps"], artifact=f"{name}.safetensors",
                  command=command or "unknown", date=checkpoints.utc_now(), finished=False)
-    params, stopped = _train_bc(cfg, wrapped, teacher, factory, progress_fn, seed, episode_length,
+    params, stopped = _train_bc(cfg, wrapped, teacher_fn, factory, progress_fn, seed, episode_length,
                                 (run_dir / checkpoints.CHECKPOINT_DIR).resolve(), before["checkpoint"])
     bar.close()
     log.close()
@@ -237,7 +261,7 @@ def distill(getup_path, joystick_path, out, task: str = DEFAULT_TASK, overrides:
     params, phases = _newest_params(run_dir, params)
     minutes = (time.monotonic() - t_start) / 60.0
     provenance = {**_provenance(before, phases, phase_env_steps, minutes, command), "preset": preset,
-                  "backend": env_cfg.backend, "teacher": {"getup": str(getup_path), "joystick": str(joystick_path)},
+                  "backend": env_cfg.backend, "teacher": {k: str(v) for k, v in teacher.items()},
                   "stopped_by_max_minutes": stopped, **({"recipe": recipe} if recipe else {})}
     artifact = run_dir / f"{name}.safetensors"
     trained = provenance["dagger_phases"] > 0 and preset != "toy"

@@ -270,7 +270,7 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         start, out = init, root / recipe.name / s.name
     if phases:
         overrides = [o for o in overrides if not o.startswith("bc.dagger_steps=")] + [f"bc.dagger_steps={phases}"]
-    distill.distill(teacher["getup"], teacher["joystick"], out, task=s.task or distill.DEFAULT_TASK,
+    distill.distill(teacher, out, task=s.task or distill.DEFAULT_TASK,
                     overrides=overrides, preset="toy" if toy else "gpu", num_envs=None if toy else s.envs,
                     command=command, progress=progress, max_minutes=max_minutes, name=name, backend=backend,
                     from_checkpoint=start, recipe=provenance)

@@ -1,4 +1,5 @@
-"""The stitched teacher of the distillation, from two experts (training/envs/experts.py).
+"""The teachers of the distillation (training/envs/experts.py's experts): the stitched teacher of two and the
+keyframe getup's latched chain of three, both a switched_teacher.
 
 Stitched teacher (ARCHITECTURE.md, Training): the getup expert while the waist is below
 WAIST_SWITCH_HEIGHT_M, else the joystick expert. Waist height is privileged (state.info["waist_height"]);
@@ -11,9 +12,12 @@ from typing import Sequence
 
 import numpy as np
 
+from common import events
 from common import observation as obsdef
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 from training.envs.experts import STUDENT_OBS_KEY, WAIST_OBS_KEY, Expert, TermAdapter, load_expert, per_joint
+
+STAGE_OBS_KEY = "keyframe_stage"   # the chain teacher's stage in the observation dict (the student never reads it)
 
 CHECK_FALLEN_STARTS = 16  # host-precomputed fallen starts for the `teacher` check rollout (seconds each)
 
@@ -42,19 +46,57 @@ class WaistObservation:
         return self._add(self._env.step(state.replace(obs=inner_obs), action))
 
 
-def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, student_action_scale,
-                 student_tanh_squash: bool, switch_height_m: float = WAIST_SWITCH_HEIGHT_M):
-    """brax-bc teacher: obs dict {"state": student-layout obs, "waist_height": (..., 1)} →
-    (action, {"loc": label}) in the STUDENT's action map; the getup expert where waist height <
-    switch_height_m. The experts' maps differ (joystick ±0.5 rad around home, getup up to 2 rad): each
-    expert's action is turned into the same joint targets in the student's map, a_s = a_e · s_e / s_s
-    (the student's scale is at least each expert's, so |a_s| ≤ 1).
+class KeyframeStageObservation:
+    """Wraps a brax-training-wrapped (batched) getup env: adds obs[STAGE_OBS_KEY] = the keyframe chain's stage
+    (B, 1) (common/events.keyframe_stage: roll → rise → stand, latched), advanced from the last step's stage by
+    the physics data after each step; an episode (re)starts at roll, so an auto-reset starts the chain over."""
+
+    def __init__(self, wrapped, base_env):
+        import jax
+        import jax.numpy as jnp
+        self._env = wrapped
+
+        def stage_after(stage, data):
+            r = base_env.body_readings(data)
+            spin = jnp.linalg.norm(base_env.sensor(data, "gyro"))
+            return events.keyframe_stage(stage, base_env.forward_z(data), r["trunk_height"], r["up_z"], spin, jnp)
+
+        self._stage_after = jax.vmap(stage_after)
+
+    def __getattr__(self, name):
+        return getattr(self._env, name)
+
+    def _add(self, state, stage):
+        obs = dict(state.obs)
+        obs[STAGE_OBS_KEY] = self._stage_after(stage, state.data)[..., None].astype(state.obs[STUDENT_OBS_KEY].dtype)
+        return state.replace(obs=obs)
+
+    def reset(self, rng):
+        import jax.numpy as jnp
+        state = self._env.reset(rng)
+        return self._add(state, jnp.zeros(state.done.shape, jnp.int32))
+
+    def step(self, state, action):
+        import jax.numpy as jnp
+        stage = state.obs[STAGE_OBS_KEY][..., 0].astype(jnp.int32)
+        inner_obs = {k: v for k, v in state.obs.items() if k != STAGE_OBS_KEY}
+        nxt = self._env.step(state.replace(obs=inner_obs), action)
+        return self._add(nxt, jnp.where(nxt.done > 0, 0, stage))   # an auto-reset starts the chain at roll
+
+
+def switched_teacher(experts: Sequence[Expert], pick, student_terms: Sequence, student_action_scale,
+                     student_tanh_squash: bool):
+    """brax-bc teacher: obs dict {"state": student-layout obs, plus what `pick` reads} → (action, {"loc": label})
+    in the STUDENT's action map, from experts[pick(obs)] (pick: the acting expert's index, (..., 1)). The experts'
+    maps differ (joystick ±0.5 rad around home, getup up to 2 rad): each expert's action is turned into the same
+    joint targets in the student's map, a_s = a_e · s_e / s_s (the student's scale is at least each expert's, so
+    |a_s| ≤ 1).
 
     The observation's last action is mapped back the same way: an expert that reads `last_action` gets
     clip(a_s · s_s / s_e, −1, 1), the previous joint targets in ITS map, so while it drives it reads its own
     previous action, as when it was trained and in the runtime. (Read in the student's map, the joystick
     expert saw a quarter of its own action and fell several times as often: training/LESSONS.md.) The clip
-    matters only on the first tick after the getup expert or the student acted with targets outside the expert's range.
+    matters only on the first tick after another expert or the student acted with targets outside the expert's range.
 
     The label is what the student must output to execute a_s. brax bc's loss is
     ‖tanh(loc_student) − tanh(label)‖² whatever the student's output rule, so it is minimised at
@@ -62,27 +104,25 @@ def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, stude
     squash (the seed's Table 5.2) acts with loc itself: label = a_s. (With atanh(a_s) it would execute
     atanh(a_s), e.g. 1.47 for a teacher's 0.9, overshooting every large getup target.)"""
     import jax.numpy as jnp
-    to_getup = TermAdapter(student_terms, getup.obs_terms)
-    to_joystick = TermAdapter(student_terms, joystick.obs_terms)
+    adapters = [TermAdapter(student_terms, e.obs_terms) for e in experts]
     s_student = per_joint(student_action_scale)
-    ratios = {e.name: e.action_scale / s_student for e in (getup, joystick)}
-    for e in (getup, joystick):
-        if np.any(ratios[e.name] > 1.0 + 1e-6):
+    ratios = [e.action_scale / s_student for e in experts]
+    for e, ratio in zip(experts, ratios):
+        if np.any(ratio > 1.0 + 1e-6):
             raise ValueError(f"{e.name} expert's action scale exceeds the student's on some joint: the student "
                              "could not reach its targets (give the student env the larger scale)")
-    last_action_at = {e.name: obsdef.term_slice(e.obs_terms, "last_action") for e in (getup, joystick)}
+    last_action_at = [obsdef.term_slice(e.obs_terms, "last_action") for e in experts]
 
-    def expert_obs(expert, adapter, state):
-        """The student-layout observation in the expert's layout, with its last action in the expert's map."""
-        obs = adapter(state)
-        where = last_action_at[expert.name]
-        if where is None:
+    def expert_obs(i, state):
+        """The student-layout observation in expert i's layout, with its last action in the expert's map."""
+        obs = adapters[i](state)
+        if last_action_at[i] is None:
             return obs
-        own = jnp.clip(obs[..., where] / jnp.asarray(ratios[expert.name]), -1.0, 1.0)
-        return obs.at[..., where].set(own)
+        own = jnp.clip(obs[..., last_action_at[i]] / jnp.asarray(ratios[i]), -1.0, 1.0)
+        return obs.at[..., last_action_at[i]].set(own)
 
-    def in_student_map(expert, loc):
-        ratio = jnp.asarray(ratios[expert.name])
+    def in_student_map(i, loc):
+        ratio = jnp.asarray(ratios[i])
         action = jnp.tanh(loc) * ratio
         if not student_tanh_squash:
             return action, action
@@ -92,12 +132,32 @@ def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, stude
     def teacher(obs, key=None):
         del key  # deterministic experts
         state = obs[STUDENT_OBS_KEY]
-        use_getup = obs[WAIST_OBS_KEY] < switch_height_m
-        a_g, label_g = in_student_map(getup, getup.loc(expert_obs(getup, to_getup, state)))
-        a_j, label_j = in_student_map(joystick, joystick.loc(expert_obs(joystick, to_joystick, state)))
-        return jnp.where(use_getup, a_g, a_j), {"loc": jnp.where(use_getup, label_g, label_j)}
+        acting = pick(obs)
+        out = [in_student_map(i, e.loc(expert_obs(i, state))) for i, e in enumerate(experts)]
+        action, label = (jnp.select([acting == i for i in range(len(experts))], [o[k] for o in out])
+                         for k in (0, 1))
+        return action, {"loc": label}
 
     return teacher
+
+
+def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, student_action_scale,
+                 student_tanh_squash: bool, switch_height_m: float = WAIST_SWITCH_HEIGHT_M):
+    """The stitched teacher (switched_teacher): the getup expert where obs[WAIST_OBS_KEY] < switch_height_m, else
+    the joystick expert."""
+    return switched_teacher((getup, joystick), lambda obs: (obs[WAIST_OBS_KEY] >= switch_height_m).astype(int),
+                            student_terms, student_action_scale, student_tanh_squash)
+
+
+def make_chain_teacher(members: Sequence[Expert], student_terms: Sequence, student_action_scale,
+                       student_tanh_squash: bool):
+    """The keyframe getup's latched chain as the teacher (switched_teacher): roll, rise, stand by
+    obs[STAGE_OBS_KEY], the stage KeyframeStageObservation carries (common/events.keyframe_stage)."""
+    if len(members) != len(events.KEYFRAME_STAGES):
+        raise ValueError(f"a chain teacher has {len(events.KEYFRAME_STAGES)} members "
+                         f"({', '.join(events.KEYFRAME_STAGES)}), got {len(members)}")
+    return switched_teacher(tuple(members), lambda obs: obs[STAGE_OBS_KEY].astype(int), student_terms,
+                            student_action_scale, student_tanh_squash)
 
 
 def check_teacher(getup_path, joystick_path, num_envs: int = 16, seed: int = 0, steps: int = 50,

@@ -303,6 +303,10 @@ class T1Env(mjx_env.MjxEnv):
         """The Trunk (IMU) z axis in world coordinates; (0, 0, 1) when upright."""
         return data.site_xmat[self._imu_site][:, 2]
 
+    def forward_z(self, data: mjx.Data) -> jax.Array:
+        """World z of the Trunk (IMU) x axis: −1 lying face down, +1 on the back (common/events.forward_z_from_quat)."""
+        return data.site_xmat[self._imu_site][2, 0]
+
     def foot_contacts(self, data: mjx.Data) -> jax.Array:
         """(left, right) foot box touching the floor."""
         if self._cpu is not None:

@@ -35,7 +35,7 @@ class GetupRoll(getup_base.GetupTask):
     """Turn from the back or side onto the front, and lie there."""
 
     def _task_info(self, info, data) -> dict:
-        forward_z = data.site_xmat[self._imu_site][2, 0]     # world z of the trunk's forward (x) axis
+        forward_z = self.forward_z(data)
         ang_speed = jnp.linalg.norm(self.sensor(data, "gyro"))  # [rad/s]
         return {"forward_z": forward_z,
                 "rolled": events.rolled_face_down(forward_z, info["trunk_height"], ang_speed, jnp)}
