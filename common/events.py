@@ -208,19 +208,22 @@ def lying_on_back(forward_z, trunk_height, ang_speed_rad_s, xp=np):
 
 
 KEYFRAME_STAGES = ("roll", "rise", "stand")   # the keyframe getup's chain, in order (keyframe_stage's indices)
+KEYFRAME_START = -1                            # keyframe_stage's `stage` at an episode's first sample
 
 
 def keyframe_stage(stage, forward_z, trunk_height, up_z, ang_speed_rad_s, xp=np):
     """The chain stage (KEYFRAME_STAGES index) that acts at this sample, from the one that acted at the last: roll
     until rolled_face_down, rise until §4.8's gate (back to roll if it tipped the robot onto its back), stand
-    until the trunk is down (then roll again). A fallen start begins at roll. xp: numpy or jax.numpy."""
+    until the trunk is down (then roll again). At KEYFRAME_START the trunk's height picks the first: lying, roll
+    (the rise if already face down); above the fallen height, the rise; standing, stand. xp: numpy or jax.numpy."""
     roll_, rise_, stand_ = range(len(KEYFRAME_STAGES))
     h = xp.asarray(trunk_height)
+    first = xp.where(h < FALLEN_TRUNK_HEIGHT_M, roll_, xp.where(h < STANDING_TRUNK_HEIGHT_M, rise_, stand_))
+    stage = xp.where(xp.asarray(stage) == KEYFRAME_START, first, stage)
     roll = xp.where(rolled_face_down(forward_z, h, ang_speed_rad_s, xp), rise_, roll_)
     rise = xp.where(kneel_gate(h, up_z, xp), stand_,
                     xp.where(lying_on_back(forward_z, h, ang_speed_rad_s, xp), roll_, rise_))
     stand = xp.where(h < FALLEN_TRUNK_HEIGHT_M, roll_, stand_)
-    stage = xp.asarray(stage)
     return xp.where(stage == roll_, roll, xp.where(stage == rise_, rise, stand)).astype(xp.int32)
 
 

@@ -57,6 +57,10 @@ def test_the_hand_over_rules():
     (ChainPolicy.RISE, UPRIGHT, 0.0, 0.4, 0.9, ChainPolicy.RISE),       # tilted: no gate
     (ChainPolicy.STAND, UPRIGHT, 0.0, 0.6, 0.8, ChainPolicy.STAND),     # latched until down
     (ChainPolicy.STAND, FACE_DOWN, 0.0, 0.2, 0.0, ChainPolicy.ROLL),    # down: start over
+    (events.KEYFRAME_START, ON_BACK, 0.0, 0.2, 0.0, ChainPolicy.ROLL),  # a fallen start
+    (events.KEYFRAME_START, FACE_DOWN, 0.0, 0.2, 0.0, ChainPolicy.RISE),  # ... already face down
+    (events.KEYFRAME_START, UPRIGHT, 0.0, 0.45, 0.9, ChainPolicy.RISE),  # a kneeling start
+    (events.KEYFRAME_START, UPRIGHT, 0.0, 0.66, 1.0, ChainPolicy.STAND),  # a standing start
 ])
 def test_the_chain_switches_by_the_hand_over_rules(stage, quat, spin, trunk_m, up_z, want):
     chain = load_policy(SPEC)
@@ -67,7 +71,7 @@ def test_the_acting_member_commands_and_the_idle_ones_read_the_applied_targets()
     chain = load_policy(SPEC)
     assert isinstance(chain, ChainPolicy) and chain.trained and "chain" in chain.describe()
     own, stage = chain.initial_last_action()
-    assert own.shape == (3, obsdef.NUM_JOINTS) and stage == ChainPolicy.ROLL
+    assert own.shape == (3, obsdef.NUM_JOINTS) and stage == events.KEYFRAME_START
     rng = np.random.default_rng(0)
     own = (0.2 * rng.standard_normal(own.shape)).astype(np.float32)
     state = _state(FACE_DOWN)._replace(last_action=(own, np.int32(ChainPolicy.ROLL)))

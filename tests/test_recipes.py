@@ -172,7 +172,7 @@ def test_recipe_errors_name_the_problem(capsys, tmp_path):
     with pytest.raises(ValueError, match="or roll, rise and stand"):
         R.Recipe("x", "x", "", (R.Stage("a", kind="distill", teacher={"roll": "r", "rise": "s"}),))
     R.Recipe("x", "x", "", (R.Stage("a", kind="distill", teacher={"roll": "r", "rise": "s", "stand": "t"}),))
-    with pytest.raises(ValueError, match="a teacher is getup and joystick"):
+    with pytest.raises(ValueError, match="a teacher is getup and joystick or roll, rise and stand"):
         R.Recipe("x", "x", "", (R.Stage("a", teacher={"getup": "g"}),))
     with pytest.raises(ValueError, match="advance_at is a PPO stage's"):
         R.Recipe("x", "x", "", (R.Stage("a", kind="distill", teacher={"getup": "g", "joystick": "j"},

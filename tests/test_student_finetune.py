@@ -116,6 +116,16 @@ def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
         assert ppo_losses.compute_ppo_loss is original
 
 
+def test_the_teacher_is_the_stitched_one_or_the_keyframe_chain():
+    from training.teacher import KeyframeStageObservation, WaistObservation, teacher_observation
+    chain = _ppo_cfg(getup="", joystick="", roll="r", rise="s", stand="t")
+    assert F.teacher_roles(chain) == {"roll": "r", "rise": "s", "stand": "t"}
+    assert teacher_observation(F.teacher_roles(chain)) is KeyframeStageObservation
+    assert teacher_observation(F.teacher_roles(_ppo_cfg())) is WaistObservation
+    with pytest.raises(ValueError, match="a teacher is getup"):        # roles of both kinds at once
+        teacher_observation(F.teacher_roles(_ppo_cfg(roll="r")))
+
+
 @pytest.fixture(scope="module")
 def skills_env():
     from training import envs

@@ -182,7 +182,7 @@ class ChainPolicy:
         return "chain roll → rise → stand: " + "; ".join(m.describe() for m in self.members)
 
     def initial_last_action(self):
-        return (np.zeros((3, obsdef.NUM_JOINTS), np.float32), np.int32(self.ROLL))
+        return (np.zeros((3, obsdef.NUM_JOINTS), np.float32), np.int32(events.KEYFRAME_START))
 
     def next_stage(self, stage, obs_state: obsdef.ObservationState, body: dict):
         """The stage that acts this tick, from the one that acted the last (common/events.keyframe_stage)."""

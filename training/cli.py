@@ -39,14 +39,14 @@ def _cmd_teacher(args, command: str) -> int:
 
 
 def _cmd_distill(args, command: str) -> int:
-    from training import distill
+    from training import distill, teacher as T
     if bool(args.chain) == bool(args.getup or args.joystick):
         raise ValueError("distill: give either --getup and --joystick (the stitched teacher) or --chain ROLL,RISE,STAND")
     if args.chain:
         parts = [p.strip() for p in args.chain.split(",")]
-        if len(parts) != len(distill.CHAIN) or not all(parts):
-            raise ValueError(f"distill: --chain takes {len(distill.CHAIN)} artifacts, ROLL,RISE,STAND; got {args.chain!r}")
-        teacher = dict(zip(distill.CHAIN, parts))
+        if len(parts) != len(T.CHAIN) or not all(parts):
+            raise ValueError(f"distill: --chain takes {len(T.CHAIN)} artifacts, ROLL,RISE,STAND; got {args.chain!r}")
+        teacher = dict(zip(T.CHAIN, parts))
     elif not (args.getup and args.joystick):
         raise ValueError("distill: the stitched teacher needs both --getup and --joystick")
     else:

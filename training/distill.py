@@ -29,20 +29,9 @@ from ml_collections import config_dict
 
 from training import checkpoints, curves
 from common import observation as obsdef
-from training.teacher import (STUDENT_OBS_KEY, KeyframeStageObservation, WaistObservation, load_expert,
-                              make_chain_teacher, make_teacher)
+from training.teacher import STITCHED, STUDENT_OBS_KEY, load_teacher, teacher_kind, teacher_observation
 
 DEFAULT_TASK = "unified"  # the whole walk–fall–getup task (training/envs/unified.py); cli.py repeats it
-STITCHED, CHAIN = ("getup", "joystick"), ("roll", "rise", "stand")   # a teacher's roles (training/teacher.py)
-
-
-def teacher_kind(teacher) -> tuple[str, ...]:
-    """STITCHED or CHAIN, from a teacher's roles {role: policy}; a ValueError names any other set."""
-    for kind in (STITCHED, CHAIN):
-        if set(teacher) == set(kind):
-            return kind
-    raise ValueError(f"a teacher is {' + '.join(STITCHED)} (the stitched teacher) or {' + '.join(CHAIN)} (the keyframe "
-                     f"getup's chain), got {sorted(teacher)}")
 
 
 def bc_config(preset: str = "gpu") -> config_dict.ConfigDict:
@@ -174,23 +163,14 @@ def _newest_params(run_dir: Path, params):
     return jax.tree.map(np.asarray, tuple(params)), int(done[-1].name) if done else 0
 
 
-def _dagger_env(task: str, env_cfg, kind):
+def _dagger_env(task: str, env_cfg, teacher: dict):
     """(env, the env brax bc trains in: Playground's wrapper with what the teacher switches on in the observation:
     the waist height, or the chain's stage)."""
     from mujoco_playground import wrapper
     from training import envs
     env = envs.make(task, config=env_cfg)
     wrapped = wrapper.wrap_for_brax_training(env, episode_length=int(env_cfg.episode_length), full_reset=True)
-    return env, (WaistObservation if kind == STITCHED else KeyframeStageObservation)(wrapped, env)
-
-
-def _teacher(teacher, kind, env, tanh_squash: bool):
-    scale = env.manifest_fields()["action_scale"]
-    if kind == STITCHED:
-        return make_teacher(load_expert(teacher["getup"], "getup"), load_expert(teacher["joystick"], "joystick"),
-                            env.obs_terms, scale, student_tanh_squash=tanh_squash)
-    return make_chain_teacher([load_expert(teacher[role], role) for role in CHAIN], env.obs_terms, scale,
-                              student_tanh_squash=tanh_squash)
+    return env, teacher_observation(teacher)(wrapped, env)
 
 
 def _provenance(before: dict, phases: int, phase_env_steps: int, minutes: float, command: str) -> dict:
@@ -225,13 +205,12 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
                               f"(continue a run with --from {run_dir})")
     before = prior_progress(from_checkpoint)
     run_dir.mkdir(parents=True, exist_ok=True)
-    kind = teacher_kind(teacher)
-    cfg, env_cfg = dagger_configs(task, preset, overrides, num_envs, union_terms=kind == STITCHED)
+    cfg, env_cfg = dagger_configs(task, preset, overrides, num_envs, union_terms=teacher_kind(teacher) == STITCHED)
 
     from training.train import default_backend
     env_cfg.backend = backend or default_backend()
-    env, wrapped = _dagger_env(task, env_cfg, kind)
-    teacher_fn = _teacher(teacher, kind, env, cfg.tanh_squash)
+    env, wrapped = _dagger_env(task, env_cfg, teacher)
+    teacher_fn = load_teacher(teacher, env.obs_terms, env.manifest_fields()["action_scale"], cfg.tanh_squash)
     episode_length = int(env_cfg.episode_length)
     factory = functools.partial(bc_networks.make_bc_networks,
                                 policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),

@@ -32,8 +32,8 @@ class Stage:
     init: str | None = None        # the stage to fine-tune from (this recipe's, or @RECIPE/STAGE); None = scratch
     # the diff: {"env.x": v, "ppo.y": v, "bc.z": v}; imitation: {"dagger.x": v, "planner.y": v}
     config: Mapping[str, Any] = field(default_factory=dict)
-    # distill: {"getup": ref, "joystick": ref} or {"roll": ref, "rise": ref, "stand": ref}; ppo: getup and joystick
-    # for a behaviour-cloning term (ppo.teacher.*)
+    # distill: {"getup": ref, "joystick": ref} or {"roll": ref, "rise": ref, "stand": ref}; ppo: the same for a
+    # behaviour-cloning term (ppo.teacher.*)
     teacher: Mapping[str, str] = field(default_factory=dict)
     envs: int | None = None        # parallel envs where the stage needs other than its preset's
     # ppo: (metric, value): the stage is complete at its first evaluation with the metric at or above the value
@@ -68,8 +68,9 @@ class Recipe:
             if s.kind == "distill" and set(s.teacher) not in (stitched, chain):
                 raise ValueError(f"recipe {self.name}, stage {s.name}: a distill stage's teacher is getup and "
                                  "joystick (the stitched teacher) or roll, rise and stand (the keyframe chain)")
-            if s.kind != "distill" and s.teacher and set(s.teacher) != stitched:
-                raise ValueError(f"recipe {self.name}, stage {s.name}: a teacher is getup and joystick")
+            if s.kind != "distill" and s.teacher and set(s.teacher) not in (stitched, chain):
+                raise ValueError(f"recipe {self.name}, stage {s.name}: a teacher is getup and joystick or roll, rise "
+                                 "and stand")
 
     def stage(self, name: str) -> Stage:
         for s in self.stages:

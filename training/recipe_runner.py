@@ -222,10 +222,10 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
                f"{' --toy' if toy else ''} (recipe sha256 {provenance['sha256'][:12]})")
     # a toy stage's landing banks roll the policies its config names, which must be trained experts (a toy
     # one never rises or falls as a bank needs): there a reference stands for that recipe's shipped policy
-    config = dict(s.config)
+    config = {k: resolve_ref(v, root, shipped=toy) for k, v in s.config.items()}
     if s.kind == "ppo":   # a PPO stage's teacher is its behaviour-cloning term's (training/student_finetune.py)
-        config.update({f"ppo.teacher.{k}": v for k, v in s.teacher.items()})
-    overrides = _overrides({k: resolve_ref(v, root, shipped=toy) for k, v in config.items()}, toy)
+        config.update({f"ppo.teacher.{k}": resolve_ref(v, root) for k, v in s.teacher.items()})
+    overrides = _overrides(config, toy)
     name = artifact_name(recipe, s)
     if s.kind == "random_init":
         from training import untrained

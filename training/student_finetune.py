@@ -16,7 +16,8 @@ env step; the only step counter brax hands its loss) minus the count it started 
 (no decay): there the teacher trips across the wall and gets up beyond, the one way on for a blind policy,
 while PPO alone learned to balance in front of it (training/LESSONS.md). They are told apart by the unified
 env's "wall_course" metric, which brax hands the loss summed over the episode so far.
-The teacher reads the privileged waist height: the env is wrapped in WaistObservation.
+The teacher reads what it switches on (the privileged waist height, or the keyframe chain's stage): the env is
+wrapped in training/teacher.py's teacher_observation.
 The trainer reaches all this through one PPOExtension (ppo_extension.py): `extension(ppo_cfg, restored)`.
 """
 from __future__ import annotations
@@ -35,10 +36,18 @@ LEARNER_KEYS = ("ppo.teacher.", "ppo.policy_distribution", "ppo.init_noise_std")
 
 
 def teacher_config():
-    """The PPO config's `teacher` group: the stitched teacher's experts and the decaying BC term toward its labels
-    (bc_weight 0 = none; bc_hold_in_course: no decay in wall-course episodes)."""
+    """The PPO config's `teacher` group: the teacher's experts (getup + joystick: the stitched teacher; roll + rise +
+    stand: the keyframe getup's chain; training/teacher.py) and the decaying BC term toward its labels (bc_weight
+    0 = none; bc_hold_in_course: no decay in wall-course episodes)."""
     from ml_collections import config_dict
-    return config_dict.create(getup="", joystick="", bc_weight=0.0, bc_decay_steps=0, bc_hold_in_course=False)
+    return config_dict.create(getup="", joystick="", roll="", rise="", stand="", bc_weight=0.0, bc_decay_steps=0,
+                              bc_hold_in_course=False)
+
+
+def teacher_roles(ppo_cfg) -> dict:
+    """{role: expert path} of the config's teacher (the roles with a path)."""
+    t = ppo_cfg.teacher
+    return {role: str(t.get(role, "")) for role in ("getup", "joystick", "roll", "rise", "stand") if t.get(role, "")}
 
 
 def is_student_checkpoint(params) -> bool:
@@ -74,8 +83,9 @@ def init_params(restored, ppo_cfg):
     if not float(ppo_cfg.init_noise_std) > 0:
         raise ValueError(f"ppo.init_noise_std must be > 0 (the sampling std), got {ppo_cfg.init_noise_std}")
     if not uses_teacher(ppo_cfg):
-        raise ValueError("a DAgger student checkpoint fine-tunes only with a teacher (ppo.teacher.getup, "
-                         ".joystick, .bc_weight > 0): its observation normaliser also reads the waist height")
+        raise ValueError("a DAgger student checkpoint fine-tunes only with its teacher (ppo.teacher.getup and "
+                         ".joystick, or .roll, .rise and .stand; .bc_weight > 0): its observation normaliser also "
+                         "reads what the teacher switches on")
     return [restored[0], policy_from_student(restored[1], float(ppo_cfg.init_noise_std)), None]
 
 
@@ -131,8 +141,9 @@ class StudentFinetune(PPOExtension):
         wrap = super().wrap_env_fn(env, full_reset)
         if not uses_teacher(self._cfg):
             return wrap
-        from training.teacher import WaistObservation
-        return lambda inner, **kw: WaistObservation(wrap(inner, **kw), env)
+        from training.teacher import teacher_observation
+        observe = teacher_observation(teacher_roles(self._cfg))
+        return lambda inner, **kw: observe(wrap(inner, **kw), env)
 
     def loss_term(self, env, state: dict):
         return teacher_term(self._cfg, env, float(state.get("bc_count_start", 0.0)))
@@ -154,10 +165,10 @@ def teacher_term(ppo_cfg, env, count_start: float):
         return
     import jax.numpy as jnp
     from brax.training.agents.ppo import losses as ppo_losses
-    from training.teacher import load_expert, make_teacher
+    from training.teacher import load_teacher
     t = ppo_cfg.teacher
-    teacher = make_teacher(load_expert(t.getup, "getup"), load_expert(t.joystick, "joystick"), env.obs_terms,
-                           env.manifest_fields()["action_scale"], student_tanh_squash=False)
+    teacher = load_teacher(teacher_roles(ppo_cfg), env.obs_terms, env.manifest_fields()["action_scale"],
+                           student_tanh_squash=False)
     weight, decay = float(t.bc_weight), int(t.bc_decay_steps)
     hold = bool(t.bc_hold_in_course)
     ppo_loss = ppo_losses.compute_ppo_loss

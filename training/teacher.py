@@ -49,7 +49,7 @@ class WaistObservation:
 class KeyframeStageObservation:
     """Wraps a brax-training-wrapped (batched) getup env: adds obs[STAGE_OBS_KEY] = the keyframe chain's stage
     (B, 1) (common/events.keyframe_stage: roll → rise → stand, latched), advanced from the last step's stage by
-    the physics data after each step; an episode (re)starts at roll, so an auto-reset starts the chain over."""
+    the physics data after each step; an episode's first stage is the start rule's, also after an auto-reset."""
 
     def __init__(self, wrapped, base_env):
         import jax
@@ -74,14 +74,14 @@ class KeyframeStageObservation:
     def reset(self, rng):
         import jax.numpy as jnp
         state = self._env.reset(rng)
-        return self._add(state, jnp.zeros(state.done.shape, jnp.int32))
+        return self._add(state, jnp.full(state.done.shape, events.KEYFRAME_START, jnp.int32))
 
     def step(self, state, action):
         import jax.numpy as jnp
         stage = state.obs[STAGE_OBS_KEY][..., 0].astype(jnp.int32)
         inner_obs = {k: v for k, v in state.obs.items() if k != STAGE_OBS_KEY}
         nxt = self._env.step(state.replace(obs=inner_obs), action)
-        return self._add(nxt, jnp.where(nxt.done > 0, 0, stage))   # an auto-reset starts the chain at roll
+        return self._add(nxt, jnp.where(nxt.done > 0, events.KEYFRAME_START, stage))   # an auto-reset: over
 
 
 def switched_teacher(experts: Sequence[Expert], pick, student_terms: Sequence, student_action_scale,
@@ -158,6 +158,33 @@ def make_chain_teacher(members: Sequence[Expert], student_terms: Sequence, stude
                          f"({', '.join(events.KEYFRAME_STAGES)}), got {len(members)}")
     return switched_teacher(tuple(members), lambda obs: obs[STAGE_OBS_KEY].astype(int), student_terms,
                             student_action_scale, student_tanh_squash)
+
+
+STITCHED, CHAIN = ("getup", "joystick"), tuple(events.KEYFRAME_STAGES)   # a teacher's roles
+
+
+def teacher_kind(roles) -> tuple[str, ...]:
+    """STITCHED or CHAIN, from a teacher's roles (the keys of {role: policy} with a policy); a ValueError names
+    any other set."""
+    for kind in (STITCHED, CHAIN):
+        if set(roles) == set(kind):
+            return kind
+    raise ValueError(f"a teacher is {' + '.join(STITCHED)} (the stitched teacher) or {' + '.join(CHAIN)} (the "
+                     f"keyframe getup's chain), got {sorted(roles)}")
+
+
+def load_teacher(roles: dict, student_terms: Sequence, student_action_scale, student_tanh_squash: bool):
+    """The teacher of {role: expert path} (teacher_kind's roles): make_teacher or make_chain_teacher."""
+    kind = teacher_kind(roles)
+    experts = [load_expert(roles[role], role) for role in kind]
+    if kind == STITCHED:
+        return make_teacher(*experts, student_terms, student_action_scale, student_tanh_squash=student_tanh_squash)
+    return make_chain_teacher(experts, student_terms, student_action_scale, student_tanh_squash=student_tanh_squash)
+
+
+def teacher_observation(roles: dict):
+    """The wrapper that puts what the teacher of these roles switches on into the observation."""
+    return WaistObservation if teacher_kind(roles) == STITCHED else KeyframeStageObservation
 
 
 def check_teacher(getup_path, joystick_path, num_envs: int = 16, seed: int = 0, steps: int = 50,

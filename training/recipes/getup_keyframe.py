@@ -1,53 +1,40 @@
-"""The seed's keyframe getup (§4.5–4.8): stage 1 rises from fallen to the kneel keyframe (task getup_kneel), stage
-2 stands from the kneel (getup_stand), the gated full task goes on from stage 2 with fallen / kneeling / standing
-starts (getup), then the energy (§4.7) and observation-noise (§4.6) fine-tunes. Not shipped: stage 1 does not
-kneel yet, and the full task starts from stage 2 until it does.
+"""The seed's keyframe getup (§4.5–4.9) as one network: fallen → (roll →) kneel → stand.
 
-Ours (why each, from the runs: training/LESSONS.md, the getup_keyframe rows): stage 1 learns by imitation of the
-sampling planner (`python -m training.planner`), whose rise only its replanning holds: DAgger with the planner as
-a closed-loop teacher on the learner's own states (training/imitation/, all 23 joints), then PPO from that policy
-with a decaying behaviour-cloning term on the same planner data (DAPG; imitation/finetune.py), the seed's stage-1
-reward plus the gate and a slope to its tilt, half of its episodes started along the whole of the planner's gated
-rises (reference state initialisation, envs/starts/demos.py), sampling noise small enough for the rollouts to meet
-the gate; no early end once a reached kneel sags (with positive rewards the policy learned not to reach the gate's
-height, which arms it); the learning rate falls stage by stage as the rise holds (rise → rise_fine → rise_slow),
-then the fallen starts widen to a bank far from the evaluation's seeds (rise_wide), then the BC term reads only
-best-of-K rises of the policy itself (rise_best: the planner's labels meet the gate less often than the learner).
-The campaign's rise went on from the policy DAgger's round 7 rolled out (a first PPO run at 0.1 std, 1.5 M steps
-from round 6; kept in dagger/data/), not from the refitted learner a fresh run starts from; round 8 was rolled out
-by rise_fine, rounds 9–11 by rise_slow from on-back starts only (where its rises failed), rounds 12–14 (best of 32)
-by rise_wide from on-back starts.
-Stage 2 learns along a reverse curriculum of starts from the kneel up the lunge (envs/starts/kneeling_path.py): the whole
-path, its swing, the whole path again. The runtime's target rule R6 is in every stage."""
+Stages (each one line of why below; the runs behind each: training/LESSONS.md, the getup_keyframe rows):
+- stage 1, the rise to the kneel (task getup_kneel): DAgger with the sampling planner as the expert
+  (training/imitation/), then PPO from that policy with a decaying behaviour-cloning term on the planner's data
+  (DAPG), the seed's stage-1 reward plus §4.8's gate and a slope to its tilt, starts along the planner's gated
+  rises (backplay), sampling noise small enough for the rollouts to meet the gate; the rate falls stage by
+  stage (rise → rise_fine → rise_slow), the fallen starts widen (rise_wide), then the BC term reads best-of-K
+  rises of the policy itself (rise_best).
+- stage 0, the roll (task getup_roll, ours): from the back or side onto the front, where the rise is reliable.
+- stage 2, the stand from the kneel (task getup_stand) along a reverse curriculum of starts up the lunge.
+- the chain roll → rise → stand, latched at common/events.keyframe_stage's hand-overs, distilled into one
+  network by DAgger (`chain`), then the seed's gated full task (fallen / kneeling / standing starts 0.4 / 0.4 /
+  0.2) from it with a decaying BC term toward the chain, then the energy (§4.7) and observation-noise (§4.6)
+  fine-tunes.
+The runtime's target rule R6 is in every stage.
+"""
 from training.recipe import Recipe, Stage
 
 DEMOS = "training/campaigns/getup_keyframe/demos"
-# pre-tanh sampling std 0.015 (≈ 0.03 rad of target noise at the getup action scale) and no entropy bonus: the gate
-# asks for the trunk within 0.57° of vertical, which the rollouts meet under 0.03 rad of noise and never under 0.1
-# (at std 0.1 PPO never saw the gate's reward); the BC term (10: at 1 PPO left the rise for the pose term's optimum
-# on the floor) decays over the stage's steps; a critic-only warm-up first (a new critic under a trained policy)
+# sampling std 0.015 pre-tanh (≈ 0.03 rad of target noise): the gate asks for the trunk within 0.57° of vertical,
+# which rollouts meet only under that little noise; the BC term keeps the rise while PPO finds the gate; a
+# critic-only warm-up first (a new critic under a trained policy)
 RISE = {"ppo.imitation.demos": DEMOS, "ppo.imitation.bc_weight": 10.0, "ppo.imitation.bc_decay_steps": 20_000_000,
         "ppo.init_noise_std": 0.015, "ppo.value_warmup_steps": 500_000, "ppo.learning_rate": 1e-4,
         "ppo.entropy_cost": 0.0,
         "env.reward.scales.gate": 1.0, "env.reward.scales.upright": 1.0,
         "env.demo_starts.prob": 0.5, "env.demo_starts.folder": DEMOS, "env.demo_starts.window_s": 8.0,
         "env.demo_starts.gated_only": True}
-# at that noise a step of 1e-4 moved the policy by 0.2–0.3 nats a PPO update, and the share the first 1.5 M steps
-# raised fell back within the next 1 M: the rise stops there and goes on at a third of the rate, its critic kept
+# at that noise the step must shrink with the std (LESSONS: period 3)
 RISE_FINE = {**RISE, "ppo.learning_rate": 3e-5, "ppo.value_warmup_steps": 0}
-# at 3e-5 the share still fell back after its first 1 M steps; at 1e-5 it rose and held (the BC term's line goes on)
 RISE_SLOW = {**RISE_FINE, "ppo.learning_rate": 1e-5, "ppo.imitation.bc_weight": 8.0,
              "ppo.imitation.bc_decay_steps": 16_000_000}
-# the default bank (128 fallen starts, seeds 0 …) is learnt start by start: on the back the share from its own seeds
-# rose while that from seeds it never started from did not; 2048 starts from seeds far from the evaluation's
-# (fallen seeds 0 … 999) generalise, and keep the evaluation held out; the stage ends at 6.0 M, its best checkpoint
-# (half-way along the BC line)
+# 2048 fallen starts from seeds far from the evaluation's generalise where 128 are learnt start by start (period 4)
 RISE_WIDE = {**RISE_SLOW, "ppo.imitation.bc_weight": 6.0, "ppo.imitation.bc_decay_steps": 12_000_000,
              "env.fallen.bank_starts": 2048, "env.fallen.seed": 1_000_000}
-# the planner's labels meet the gate less often than the learner from its own states (the teacher's own rises, 0.62
-# of 200 fallen seeds against its 0.79): the BC term reads only the best-of-K rounds (12 …: its own rises that met
-# the gate, from the on-back starts where its rises fail), the fallen starts and the rest as `rise_wide`; the stage
-# ends at 1.5 M, its best checkpoint (0.80 of 200 seeds; 0.72–0.73 at 2.3 and 3.0 M)
+# the BC term reads only the best-of-K rounds (12 …): the policy's own rises that met the gate (period 8)
 RISE_BEST = {**RISE_WIDE, "ppo.imitation.campaign": "training/campaigns/getup_keyframe/dagger",
              "ppo.imitation.first_round": 12, "ppo.imitation.bc_weight": 3.0,
              "ppo.imitation.bc_decay_steps": 12_000_000}
@@ -55,12 +42,19 @@ RISE_BEST = {**RISE_WIDE, "ppo.imitation.campaign": "training/campaigns/getup_ke
 # brax's sampling std (its full std throws the 2 rad-scale targets from limit to limit)
 ROLL = {"ppo.policy_std_scale": 0.5, "env.fallen.bank_starts": 512, "env.fallen.seed": 2_000_000}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
-FULL = {"ppo.policy_std_scale": 0.25, "ppo.entropy_cost": 0.001, "ppo.learning_rate": 1e-4}
+# the chain the one network learns from: each stage's newest artifact
+CHAIN = {"roll": "@getup_keyframe/roll", "rise": "@getup_keyframe/rise_best", "stand": "@getup_keyframe/stand"}
+# the full task's starts (getup's default 0.4 / 0.4 / 0.2), fallen ones from a bank far from the evaluation's seeds
+STARTS = {"env.fallen.bank_starts": 1024, "env.fallen.seed": 3_000_000}
+# PPO around the distilled mean (no tanh) at the rise's small noise, with a BC term toward the chain that decays:
+# full-task fine-tunes without one unlearned the stand-up within 1–4 M steps (LESSONS)
+FULL = {**STARTS, "ppo.policy_distribution": "normal", "ppo.init_noise_std": 0.015, "ppo.entropy_cost": 0.0,
+        "ppo.learning_rate": 1e-4, "ppo.teacher.bc_weight": 1.0, "ppo.teacher.bc_decay_steps": 30_000_000}
 ENERGY = {**FULL, "env.reward.scales.energy": -0.01}
 
 RECIPE = Recipe(
     name="getup_keyframe", policy="getup_keyframe",
-    summary="the seed's keyframe getup through the kneel (not shipped until it kneels)",
+    summary="the seed's keyframe getup through the kneel as one network (not shipped until it meets its targets)",
     stages=(
         Stage("dagger", kind="imitation", steps=15),
         Stage("rise", task="getup_kneel", steps=1_495_040, init="dagger", config=RISE),
@@ -73,9 +67,11 @@ RECIPE = Recipe(
         Stage("stand_swing", task="getup_stand", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
         Stage("stand", task="getup_stand", steps=7_024_640, init="stand_swing", config=STAND),
-        Stage("full", task="getup", steps=30_000_000, init="stand",
+        Stage("chain", kind="distill", task="getup", steps=1000, envs=1024, teacher=CHAIN, config=STARTS),
+        Stage("full", task="getup", steps=30_000_000, init="chain", teacher=CHAIN,
               config={**FULL, "ppo.value_warmup_steps": 1_500_000}),
-        Stage("energy", task="getup", steps=10_000_000, init="full",
+        Stage("energy", task="getup", steps=10_000_000, init="full", teacher=CHAIN,
               config={**ENERGY, "ppo.value_warmup_steps": 500_000}),
-        Stage("noise", task="getup", steps=10_000_000, init="energy", config={**ENERGY, "env.obs_noise_scale": 1.0}),
+        Stage("noise", task="getup", steps=10_000_000, init="energy", teacher=CHAIN,
+              config={**ENERGY, "env.obs_noise_scale": 1.0}),
     ))
