@@ -7,7 +7,8 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
   rises (backplay), sampling noise small enough for the rollouts to meet the gate; the rate falls stage by
   stage (rise → rise_fine → rise_slow), the fallen starts widen (rise_wide), then the BC term reads best-of-K
   rises of the policy itself (rise_best).
-- stage 0, the roll (task getup_roll, ours): from the back or side onto the front, where the rise is reliable.
+- stage 0, the roll (task getup_roll, ours): from the back or side onto the front, where the rise is reliable;
+  then with the side starts weighted up (roll_side).
 - stage 2, the stand from the kneel (task getup_stand) along a reverse curriculum of starts up the lunge.
 - the chain roll → rise → stand, latched at common/events.keyframe_stage's hand-overs, distilled into one
   network by DAgger (`chain`), then the seed's gated full task (fallen / kneeling / standing starts 0.4 / 0.4 /
@@ -41,9 +42,11 @@ RISE_BEST = {**RISE_WIDE, "ppo.imitation.campaign": "training/campaigns/getup_ke
 # the roll (stage 0) from scratch on the back and side starts of a bank far from the evaluation's seeds; half of
 # brax's sampling std (its full std throws the 2 rad-scale targets from limit to limit)
 ROLL = {"ppo.policy_std_scale": 0.5, "env.fallen.bank_starts": 512, "env.fallen.seed": 2_000_000}
+# the side starts (a twentieth of the bank) are where the chain's roll fails: weighted four times
+ROLL_SIDE = {**ROLL, "env.fallen.side_weights": [0, 1, 4]}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
 # the chain the one network learns from: each stage's newest artifact
-CHAIN = {"roll": "@getup_keyframe/roll", "rise": "@getup_keyframe/rise_best", "stand": "@getup_keyframe/stand"}
+CHAIN = {"roll": "@getup_keyframe/roll_side", "rise": "@getup_keyframe/rise_best", "stand": "@getup_keyframe/stand"}
 # the full task's starts (getup's default 0.4 / 0.4 / 0.2), fallen ones from a bank far from the evaluation's seeds
 STARTS = {"env.fallen.bank_starts": 1024, "env.fallen.seed": 3_000_000}
 # PPO around the distilled mean (no tanh) at the rise's small noise, with a BC term toward the chain that decays:
@@ -62,7 +65,8 @@ RECIPE = Recipe(
         Stage("rise_slow", task="getup_kneel", steps=3_010_560, init="rise_fine", config=RISE_SLOW),
         Stage("rise_wide", task="getup_kneel", steps=6_021_120, init="rise_slow", config=RISE_WIDE),
         Stage("rise_best", task="getup_kneel", steps=1_515_520, init="rise_wide", config=RISE_BEST),
-        Stage("roll", task="getup_roll", steps=10_000_000, config=ROLL),
+        Stage("roll", task="getup_roll", steps=2_007_040, config=ROLL),
+        Stage("roll_side", task="getup_roll", steps=1_505_280, init="roll", config=ROLL_SIDE),
         Stage("stand_path", task="getup_stand", steps=27_095_040, config=STAND),
         Stage("stand_swing", task="getup_stand", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
