@@ -66,7 +66,7 @@ RECIPE = Recipe(
         Stage("rise_wide", task="getup_kneel", steps=6_021_120, init="rise_slow", config=RISE_WIDE),
         Stage("rise_best", task="getup_kneel", steps=1_515_520, init="rise_wide", config=RISE_BEST),
         Stage("roll", task="getup_roll", steps=2_007_040, config=ROLL),
-        Stage("roll_side", task="getup_roll", steps=1_505_280, init="roll", config=ROLL_SIDE),
+        Stage("roll_side", task="getup_roll", steps=1_515_520, init="roll", config=ROLL_SIDE),
         Stage("stand_path", task="getup_stand", steps=27_095_040, config=STAND),
         Stage("stand_swing", task="getup_stand", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
