@@ -154,6 +154,9 @@ def resolve_ref(value, root: Path, shipped: bool = False):
     stage = recipe.stage(stage_name)
     dirs = stage_dirs(root, recipe, stage)
     path = stage_artifact(dirs[-1], recipe, stage) if dirs else None
+    if path is not None and not path.exists() and stage.kind == "ppo" and stage_complete(root, recipe, stage):
+        from training import train      # a campaign restored without its export: export its newest checkpoint
+        path = train.export_newest(dirs[-1])
     if path is None or not path.exists():
         raise FileNotFoundError(f"{value}: no artifact under {root / name}; run `python -m training recipe {name} "
                                 f"--stage {stage_name}` first (with the same --out)")
