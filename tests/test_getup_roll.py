@@ -8,16 +8,18 @@ from common import events
 from training import envs
 from training.envs import getup_rewards as G
 
-SMALL = {"episode_length": 20, "fallen.bank_starts": 12}
+SMALL = {"episode_length": 20, "fallen.bank_starts": 12, "fallen.side_weights": [0, 1, 1]}
 
 
 def test_turn_reward_runs_from_the_back_to_face_down():
     np.testing.assert_allclose(np.asarray(G.turn_reward(jnp.array([1.0, 0.0, -1.0]))), [0.0, 0.5, 1.0])
 
 
-def test_default_config_starts_on_the_back_or_side_only():
+def test_the_recipe_starts_the_roll_on_the_back_or_side_only():
+    from training import recipe as R
+    assert R.load("getup_keyframe").stage("roll").config["env.fallen.side_weights"] == [0, 1, 1]
     cfg = envs.default_config("getup_roll")
-    assert list(cfg.fallen.side_weights) == [0, 1, 1] and list(cfg.start_probs) == [1.0, 0.0, 0.0]
+    assert list(cfg.start_probs) == [1.0, 0.0, 0.0]
     assert set(cfg.reward.scales) == {"turn", "rolled", "pose", "energy"} and cfg.reward.scales.energy == 0.0
 
 

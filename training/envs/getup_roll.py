@@ -2,7 +2,7 @@
 → stand, because the face-down rise meets §4.8's gate reliably and the rise from the back does not. A person on
 their back turns onto hands and knees first; HumanUP trains rolling over as a task of its own.
 
-Rewards (getup_rewards.py), from fallen starts lying on the back or side (`fallen.side_weights`):
+Rewards (getup_rewards.py), from fallen starts (the recipe weights out the face-down ones: `fallen.side_weights`):
   turn   (1 − f_z) / 2 of the trunk's forward axis' world z f_z: 0 on the back, 1 face down (dense along the turn);
   rolled per step while common/events.rolled_face_down holds (the chain's hand-over to the rise);
   pose   the seed's pose term toward the default pose while face down: the rise's face-down starts lie in it
@@ -26,8 +26,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg.episode_length = 250               # 5 s at 50 Hz: a roll takes 1–3 s
     cfg.start_probs = [1.0, 0.0, 0.0]      # (fallen, kneeling, standing)
     cfg.reward = config_dict.create(scales=config_dict.create(turn=1.0, rolled=2.0, pose=1.0, energy=0.0))
-    starts.add_config_groups(cfg, "getup_roll")
-    cfg.fallen.side_weights = [0, 1, 1]    # (face down, on the back, on its side): face down needs no roll
+    starts.add_config_groups(cfg, "getup_roll")   # the recipe draws no face-down starts (fallen.side_weights)
     return cfg
 
 

@@ -41,7 +41,9 @@ RISE_BEST = {**RISE_WIDE, "ppo.imitation.campaign": "training/campaigns/getup_ke
              "ppo.imitation.bc_decay_steps": 12_000_000}
 # the roll (stage 0) from scratch on the back and side starts of a bank far from the evaluation's seeds; half of
 # brax's sampling std (its full std throws the 2 rad-scale targets from limit to limit)
-ROLL = {"ppo.policy_std_scale": 0.5, "env.fallen.bank_starts": 512, "env.fallen.seed": 2_000_000}
+# (face down needs no roll: its starts are left out)
+ROLL = {"ppo.policy_std_scale": 0.5, "env.fallen.bank_starts": 512, "env.fallen.seed": 2_000_000,
+        "env.fallen.side_weights": [0, 1, 1]}
 # the side starts (a twentieth of the bank) are where the chain's roll fails: weighted four times
 ROLL_SIDE = {**ROLL, "env.fallen.side_weights": [0, 1, 4]}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
