@@ -20,9 +20,9 @@ from messages import contract
 from common import observation
 
 SCHEMA_VERSION = 1
-RUNTIME_LOOP_DT_S = 0.002      # runtime tick [s] (500 Hz)
-POLICY_DECIMATION = 10         # policy runs every 10th tick
-CONTROL_DT_S = RUNTIME_LOOP_DT_S * POLICY_DECIMATION  # 0.02 s
+# The loop and policy rates are the contract's (messages/contract.json): a manifest's control_dt must be the
+# policy period, contract.POLICY_PERIOD_S = LOOP_PERIOD_S × POLICY_DECIMATION.
+RUNTIME_LOOP_DT_S = contract.LOOP_PERIOD_S   # the same value under the name training/envs/starts reads
 CONTROL_DT_TOLERANCE_S = 1e-9
 
 # Motor classes and their gain ceilings [N·m/rad], [N·m·s/rad]: the kp/kd ranges of the CAN command
@@ -263,8 +263,9 @@ def _check_manifest(manifest: dict) -> None:
                 _fail(key, f"{joint} = {gain} is outside [0, {ceiling}] (motor class "
                            f"{MOTOR_CLASS_OF_JOINT[joint]})")
     dt = _finite_number(manifest, "control_dt")
-    if abs(dt - CONTROL_DT_S) > CONTROL_DT_TOLERANCE_S:
-        _fail("control_dt", f"is {dt} s, the runtime needs {RUNTIME_LOOP_DT_S} s × {POLICY_DECIMATION} = {CONTROL_DT_S} s")
+    if abs(dt - contract.POLICY_PERIOD_S) > CONTROL_DT_TOLERANCE_S:
+        _fail("control_dt", f"is {dt} s, the runtime needs {contract.LOOP_PERIOD_S} s × {contract.POLICY_DECIMATION} "
+                            f"= {contract.POLICY_PERIOD_S} s")
     if not 0.0 < _finite_number(manifest, "gait_frequency") <= MAX_GAIT_FREQUENCY_HZ:
         _fail("gait_frequency", f"must be in (0, {MAX_GAIT_FREQUENCY_HZ}] Hz")
     if not 0.0 <= _finite_number(manifest, "phase_freeze_command_norm") <= MAX_COMMAND_MAGNITUDE:

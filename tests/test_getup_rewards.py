@@ -287,10 +287,10 @@ def test_the_kneel_ends_when_a_reached_kneel_sags_if_asked():
 # ------------------------------------------------------------------ the failed-rise tracker
 def _failed_rises(h, up_z, hold_ticks):
     """Failed attempts the tracker counts over a trunk height series (standing as events.py's)."""
-    from common.events import STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
+    from common.events import STANDING_TRUNK_THRESHOLD_M, UPRIGHT_UP_Z
 
     def tick(track, x):
-        return G.rise_track_step(track, x[0], (x[0] >= STANDING_TRUNK_HEIGHT_M) & (x[1] >= UPRIGHT_UP_Z),
+        return G.rise_track_step(track, x[0], (x[0] >= STANDING_TRUNK_THRESHOLD_M) & (x[1] >= UPRIGHT_UP_Z),
                                  hold_ticks)
 
     _, failed = jax.lax.scan(tick, G.rise_track_start(h[0]), (jnp.asarray(h[1:]), jnp.asarray(up_z[1:])))

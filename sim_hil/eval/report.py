@@ -80,7 +80,7 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
     th = events.EventThresholds()
     lines += ["## Definitions", "",
               f"- Events (`common/events.py`, also used by the MJX evaluator): fallen = trunk below "
-              f"{th.fallen_trunk_height_m} m; standing = trunk ≥ {th.standing_trunk_height_m} m and up_z ≥ "
+              f"{th.fallen_trunk_height_m} m; standing = trunk ≥ {th.standing_trunk_threshold_m} m and up_z ≥ "
               f"{th.upright_up_z}, held {th.stand_hold_s} s; a getup attempt = a rise of {th.attempt_rise_m} m "
               "from the lowest height while down (hysteresis both ways); success = not down at the end.",
               f"- Every metric starts when the runtime first commands in POLICY (after its PREPARE ramp: "

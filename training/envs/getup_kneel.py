@@ -22,6 +22,8 @@ import jax
 import jax.numpy as jnp
 from ml_collections import config_dict
 
+from common import events
+
 from training.envs import getup_base, starts
 from training.envs.starts import demos as demo_starts
 from training.envs import getup_rewards as G
@@ -116,7 +118,7 @@ class GetupKneel(getup_base.GetupTask):
         drop_m = float(self._config.drop_below_gate_m)
         end = super()._terminated(info)
         if drop_m > 0.0:
-            end |= info["gate_height_met"] & (info["trunk_height"] < G.GATE_HEIGHT_M - drop_m)
+            end |= info["gate_height_met"] & (info["trunk_height"] < events.KNEEL_GATE_HEIGHT_M - drop_m)
         if self._reference is not None and float(self._config.tracking.end_height_m) > 0.0:
             end |= (info["ref_row"] >= 0) & (jnp.abs(info["ref_height_error"]) > self._config.tracking.end_height_m)
         return end
