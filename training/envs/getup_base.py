@@ -190,7 +190,6 @@ class GetupTask(GetupStarts):
         off = jnp.zeros((), dtype=bool)
         info["gate"] = self._gate_state(G.gate(info["trunk_height"], info["up_z"]), off, info)
         info["gate_met"] = off              # §4.8's gate has held at a step since the reset
-        info["gate_height_met"] = off       # the trunk has been at the gate's height since the reset
         info["rise_track"] = G.rise_track_start(info["trunk_height"])
         return {**info, **self._task_info(info, data)}
 
@@ -220,7 +219,6 @@ class GetupTask(GetupStarts):
         gate_now = G.gate(info["trunk_height"], info["up_z"])
         info["gate"] = self._gate_state(gate_now, state.info["gate"], info)
         info["gate_met"] = state.info["gate_met"] | gate_now
-        info["gate_height_met"] = state.info["gate_height_met"] | G.at_gate_height(info["trunk_height"])
         info.update(self._task_info(info, data))
         scaled = {k: v * self._scales[k] for k, v in self._reward_terms(data, info).items()}
         reward = sum(scaled.values()) * self.dt

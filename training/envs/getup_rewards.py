@@ -121,9 +121,11 @@ def gated_pose_reward(gate_ok, pose_kneel, pose_standing):
     return (1.0 - g) * pose_kneel + g * (STANDUP_POSE_BONUS + STANDUP_POSE_WEIGHT * pose_standing)
 
 
-def gated_reward_max() -> float:
-    """The most Height + Pose Reward pays per step (gate on, HO at its 1.125 ceiling, pose 1)."""
-    return STANDUP_HEIGHT_BONUS + HO_MAX + STANDUP_POSE_BONUS + STANDUP_POSE_WEIGHT
+def gated_reward_max(height_scale: float = 1.0, pose_scale: float = 1.0) -> float:
+    """The most height_scale · Height + pose_scale · Pose Reward pays per step (scales >= 0; gate on, HO at its
+    1.125 ceiling, pose 1)."""
+    return (height_scale * STANDUP_HEIGHT_BONUS + height_scale * HO_MAX + pose_scale * STANDUP_POSE_BONUS
+            + pose_scale * STANDUP_POSE_WEIGHT)
 
 
 def energy_cost(dq, tau, tau_limit):
