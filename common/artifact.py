@@ -19,11 +19,9 @@ import numpy as np
 from messages import contract
 from common import observation
 
-SCHEMA_VERSION = 1
-RUNTIME_LOOP_DT_S = 0.002      # runtime tick [s] (500 Hz)
-POLICY_DECIMATION = 10         # policy runs every 10th tick
-CONTROL_DT_S = RUNTIME_LOOP_DT_S * POLICY_DECIMATION  # 0.02 s
-CONTROL_DT_TOLERANCE_S = 1e-9
+# The loop and policy rates are the contract's (messages/contract.json): a manifest's control_dt must be the
+# policy period, contract.POLICY_PERIOD_S = LOOP_PERIOD_S × POLICY_DECIMATION.
+RUNTIME_LOOP_DT_S = contract.LOOP_PERIOD_S   # the same value under the name training/envs/starts reads
 
 # Motor classes and their gain ceilings [N·m/rad], [N·m·s/rad]: the kp/kd ranges of the CAN command
 # packing, read from firmware_like's protocol header (the one source; the C++ loader includes it).
@@ -52,11 +50,15 @@ def _protocol_constant(name: str) -> float:
 RUNTIME_CONSTANTS_HEADER = Path(__file__).resolve().parent.parent / "runtime" / "include" / "t1rt" / "constants.hpp"
 
 
-def _runtime_constant(name: str) -> float:
-    match = re.search(rf"constexpr\s+double\s+{name}\s*=\s*([0-9.eE+-]+)\s*;", RUNTIME_CONSTANTS_HEADER.read_text())
+def _runtime_constant(name: str, kind: str = "double") -> float:
+    match = re.search(rf"constexpr\s+{kind}\s+{name}\s*=\s*([0-9.eE+-]+)\s*;", RUNTIME_CONSTANTS_HEADER.read_text())
     if match is None:
-        raise RuntimeError(f"{RUNTIME_CONSTANTS_HEADER}: no constexpr double {name}")
+        raise RuntimeError(f"{RUNTIME_CONSTANTS_HEADER}: no constexpr {kind} {name}")
     return float(match.group(1))
+
+
+SCHEMA_VERSION = int(_runtime_constant("kSchemaVersion", "int"))   # the artifact schema the loader handles
+CONTROL_DT_TOLERANCE_S = _runtime_constant("kControlDtToleranceS")   # |control_dt − the policy period| allowed [s]
 
 
 MAX_ACTION_SCALE_RAD = _runtime_constant("kMaxActionScaleRad")
@@ -263,8 +265,9 @@ def _check_manifest(manifest: dict) -> None:
                 _fail(key, f"{joint} = {gain} is outside [0, {ceiling}] (motor class "
                            f"{MOTOR_CLASS_OF_JOINT[joint]})")
     dt = _finite_number(manifest, "control_dt")
-    if abs(dt - CONTROL_DT_S) > CONTROL_DT_TOLERANCE_S:
-        _fail("control_dt", f"is {dt} s, the runtime needs {RUNTIME_LOOP_DT_S} s × {POLICY_DECIMATION} = {CONTROL_DT_S} s")
+    if abs(dt - contract.POLICY_PERIOD_S) > CONTROL_DT_TOLERANCE_S:
+        _fail("control_dt", f"is {dt} s, the runtime needs {contract.LOOP_PERIOD_S} s × {contract.POLICY_DECIMATION} "
+                            f"= {contract.POLICY_PERIOD_S} s")
     if not 0.0 < _finite_number(manifest, "gait_frequency") <= MAX_GAIT_FREQUENCY_HZ:
         _fail("gait_frequency", f"must be in (0, {MAX_GAIT_FREQUENCY_HZ}] Hz")
     if not 0.0 <= _finite_number(manifest, "phase_freeze_command_norm") <= MAX_COMMAND_MAGNITUDE:

@@ -7,7 +7,7 @@ component of the Trunk's z axis: 1 upright, 0 on its side, -1 upside down; `up_z
 IMU orientation).
 
 Definitions (one sample = one control tick; the series is read causally, left to right):
-- standing: trunk_height >= standing_trunk_height_m AND up_z >= upright_up_z.
+- standing: trunk_height >= standing_trunk_threshold_m AND up_z >= upright_up_z.
 - stood up: a run of standing samples lasting at least stand_hold_s; the robot stood up at the FIRST sample
   of that run (so time to stand does not include the hold used to confirm it).
 - down: the robot is down from the first sample with trunk_height < fallen_trunk_height_m (or from t[0]
@@ -39,19 +39,20 @@ import numpy as np
 from messages import contract
 
 
-# Trunk origin below this = lying on the ground [m] (standing: 0.665 m).
-FALLEN_TRUNK_HEIGHT_M = 0.35
-# Standing Trunk origin height is 0.665 m (t1_facts); 0.6 m leaves room for a bent-knee stance, yet is well
-# above kneeling, where the Trunk stays below ~0.5 m.
-STANDING_TRUNK_HEIGHT_M = 0.6
+# The heights are the contract's (messages/contract.json, one meaning each) [m]: Trunk origin below
+# FALLEN_TRUNK_HEIGHT_M = lying on the ground; at or above STANDING_TRUNK_THRESHOLD_M (and upright) = standing,
+# below the nominal standing height to leave room for a bent-knee stance, yet above kneeling.
+FALLEN_TRUNK_HEIGHT_M = contract.FALLEN_TRUNK_HEIGHT_M
+STANDING_TRUNK_THRESHOLD_M = contract.STANDING_TRUNK_THRESHOLD_M
 UPRIGHT_UP_Z = 0.9          # cos(25.8 deg): trunk tilt that still counts as upright
-STAND_HOLD_S = 1.0          # a stand must last this long to count (a stumble through 0.6 m does not)
+STAND_HOLD_S = 1.0          # a stand must last this long to count (a stumble through the threshold does not)
 # Lying trunk height is ~0.1-0.25 m, kneeling ~0.4-0.5 m: 0.15 m is a clear push off the ground (sitting
 # up, rolling onto the knees) but more than the bounce of a body settling after impact (a few cm).
 ATTEMPT_RISE_M = 0.15
 # The seed's kneel gate (§4.8; training/envs/getup_rewards.py rewards on these same numbers): trunk height
-# 0.4 − min(h, 0.4) < 0.005 m and ‖u − e_z‖ < 0.01, u the trunk's up vector, so ‖u − e_z‖ = √(2 − 2·u_z).
-KNEEL_GATE_HEIGHT_M = 0.4
+# H − min(h, H) < 0.005 m (H the contract's kneel_gate_height_m, 0.4 m) and ‖u − e_z‖ < 0.01, u the
+# trunk's up vector, so ‖u − e_z‖ = √(2 − 2·u_z).
+KNEEL_GATE_HEIGHT_M = contract.KNEEL_GATE_HEIGHT_M   # the Trunk origin's [m]
 KNEEL_GATE_HEIGHT_TOL_M = 0.005
 KNEEL_GATE_UP_ERROR = 0.01
 # The kneeling posture stage 1 must meet the gate in (ours: the gate alone is also met by a crouch or a half kneel):
@@ -76,19 +77,19 @@ HIP_PITCHES = ("Left_Hip_Pitch", "Right_Hip_Pitch")
 @dataclass(frozen=True)
 class EventThresholds:
     fallen_trunk_height_m: float = FALLEN_TRUNK_HEIGHT_M
-    standing_trunk_height_m: float = STANDING_TRUNK_HEIGHT_M
+    standing_trunk_threshold_m: float = STANDING_TRUNK_THRESHOLD_M
     upright_up_z: float = UPRIGHT_UP_Z
     stand_hold_s: float = STAND_HOLD_S
     attempt_rise_m: float = ATTEMPT_RISE_M
 
     def __post_init__(self):
-        for name in ("fallen_trunk_height_m", "standing_trunk_height_m", "upright_up_z",
+        for name in ("fallen_trunk_height_m", "standing_trunk_threshold_m", "upright_up_z",
                      "stand_hold_s", "attempt_rise_m"):
             value = getattr(self, name)
             if not math.isfinite(value):
                 raise ValueError(f"EventThresholds.{name} must be finite, got {value!r}")
-        if self.standing_trunk_height_m <= self.fallen_trunk_height_m:
-            raise ValueError(f"EventThresholds: standing_trunk_height_m ({self.standing_trunk_height_m}) "
+        if self.standing_trunk_threshold_m <= self.fallen_trunk_height_m:
+            raise ValueError(f"EventThresholds: standing_trunk_threshold_m ({self.standing_trunk_threshold_m}) "
                              f"must be above fallen_trunk_height_m ({self.fallen_trunk_height_m})")
         if self.stand_hold_s < 0 or self.attempt_rise_m <= 0:
             raise ValueError("EventThresholds: stand_hold_s must be >= 0 and attempt_rise_m > 0")
@@ -153,11 +154,11 @@ def standing_mask(trunk_height, up_z, th: EventThresholds = EventThresholds()) -
     u = np.asarray(up_z, dtype=np.float64)
     if h.shape != u.shape:
         raise ValueError(f"standing_mask: trunk_height shape {h.shape} != up_z shape {u.shape}")
-    return (h >= th.standing_trunk_height_m) & (u >= th.upright_up_z)
+    return (h >= th.standing_trunk_threshold_m) & (u >= th.upright_up_z)
 
 
 def at_kneel_gate_height(trunk_height, xp=np):
-    """The kneel gate's height condition (§4.8): 0.4 − min(h, 0.4) < 0.005 m, trunk height h [m].
+    """The kneel gate's height condition (§4.8): H − min(h, H) < 0.005 m, trunk height h [m], H = KNEEL_GATE_HEIGHT_M.
     xp: numpy or jax.numpy (the getup rewards read the same definition under jit)."""
     return KNEEL_GATE_HEIGHT_M - xp.minimum(trunk_height, KNEEL_GATE_HEIGHT_M) < KNEEL_GATE_HEIGHT_TOL_M
 
@@ -218,7 +219,7 @@ def keyframe_stage(stage, forward_z, trunk_height, up_z, ang_speed_rad_s, xp=np)
     (the rise if already face down); above the fallen height, the rise; standing, stand. xp: numpy or jax.numpy."""
     roll_, rise_, stand_ = range(len(KEYFRAME_STAGES))
     h = xp.asarray(trunk_height)
-    first = xp.where(h < FALLEN_TRUNK_HEIGHT_M, roll_, xp.where(h < STANDING_TRUNK_HEIGHT_M, rise_, stand_))
+    first = xp.where(h < FALLEN_TRUNK_HEIGHT_M, roll_, xp.where(h < STANDING_TRUNK_THRESHOLD_M, rise_, stand_))
     stage = xp.where(xp.asarray(stage) == KEYFRAME_START, first, stage)
     roll = xp.where(rolled_face_down(forward_z, h, ang_speed_rad_s, xp), rise_, roll_)
     rise = xp.where(kneel_gate(h, up_z, xp), stand_,

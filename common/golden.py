@@ -17,7 +17,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from common import observation as obsdef
-from common.artifact import CONTROL_DT_S, SCHEMA_VERSION, read_artifact, write_artifact
+from common.artifact import SCHEMA_VERSION, read_artifact, write_artifact
 from messages import contract
 
 # Home pose [rad], joint order (t1_facts.md §3, Menagerie/Playground `home` keyframe).
@@ -62,7 +62,7 @@ def base_manifest(**overrides) -> dict[str, Any]:
         "schema_version": SCHEMA_VERSION, "name": "policy", "activation": "swish",
         "output_rule": "tanh_normal", "obs_terms": [list(t) for t in obsdef.TERMS_UNION],
         "joint_names": list(contract.JOINT_NAMES), "default_pose": list(HOME_POSE_RAD),
-        "action_scale": DEFAULT_ACTION_SCALE, "kp": kp, "kd": kd, "control_dt": CONTROL_DT_S,
+        "action_scale": DEFAULT_ACTION_SCALE, "kp": kp, "kd": kd, "control_dt": contract.POLICY_PERIOD_S,
         "gait_frequency": DEFAULT_GAIT_FREQUENCY_HZ,
         "phase_freeze_command_norm": DEFAULT_PHASE_FREEZE_COMMAND_NORM,
         "command_ranges": {k: list(v) for k, v in DEFAULT_COMMAND_RANGES.items()}, "trained": False,

@@ -1,5 +1,6 @@
-"""Joint order, channel names, the default LCM URL and the composite's waist switch height, read from messages/contract.json (the one source;
-C++ gets the same values in a header generated at build time)."""
+"""Joint order, channel names, the default LCM URL, the loop and policy rates and the heights every layer
+shares (fallen, standing, the kneel gate, the composite's waist switch), read from messages/contract.json (the
+one source; C++ gets the same values in a header generated at build time)."""
 from __future__ import annotations
 
 import json
@@ -15,6 +16,20 @@ CHANNELS: dict[str, str] = dict(_DATA["channels"])
 # channel name -> LCM type name (messages/t1/<type>.lcm), e.g. "T1_IMU" -> "imu_t"
 CHANNEL_TYPES: dict[str, str] = {CHANNELS[key]: type_name for key, type_name in _DATA["channel_types"].items()}
 DEFAULT_LCM_URL: str = _DATA["lcm_url"]
+# The runtime's loop and the policy's rate: one loop tick every LOOP_PERIOD_S (500 Hz), the policy every
+# POLICY_DECIMATION-th tick, POLICY_PERIOD_S apart (50 Hz): every artifact's control_dt, the training envs' step.
+LOOP_PERIOD_S: float = float(_DATA["loop_period_s"])
+POLICY_DECIMATION: int = int(_DATA["policy_decimation"])
+POLICY_PERIOD_S: float = LOOP_PERIOD_S * POLICY_DECIMATION
+LOOP_RATE_HZ: float = 1.0 / LOOP_PERIOD_S
+POLICY_RATE_HZ: float = 1.0 / POLICY_PERIOD_S
+# Heights above the floor [m] (contract.json "_heights_comment" has each one's meaning).
+FALLEN_TRUNK_HEIGHT_M: float = float(_DATA["fallen_trunk_height_m"])            # Trunk below: lying
+STANDING_TRUNK_THRESHOLD_M: float = float(_DATA["standing_trunk_threshold_m"])  # Trunk at or above (upright): standing
+NOMINAL_STANDING_TRUNK_HEIGHT_M: float = float(_DATA["nominal_standing_trunk_height_m"])   # home pose, standing
+STANDING_TARGET_TRUNK_M: float = float(_DATA["standing_target_trunk_m"])   # getup Height Reward's targets after
+STANDING_TARGET_WAIST_M: float = float(_DATA["standing_target_waist_m"])   # the kneel gate
+KNEEL_GATE_HEIGHT_M: float = float(_DATA["kneel_gate_height_m"])    # the kneel gate's Trunk height
 # The composite's switch [m]: getup member below this Waist height, upright member at or above it.
 WAIST_SWITCH_HEIGHT_M: float = float(_DATA["waist_switch_height_m"])
 # Who may command (messages/auth.py): the channels whose messages are signed, the approval context, the key size.
@@ -35,6 +50,9 @@ CH_RUN_INFO = CHANNELS["run_info"]
 
 assert len(JOINT_NAMES) == NUM_JOINTS, "contract.json: joints list length differs from num_joints"
 assert set(_DATA["channel_types"]) == set(CHANNELS), "contract.json: channel_types must name every channel"
+assert POLICY_DECIMATION >= 1 and LOOP_PERIOD_S > 0, "contract.json: loop_period_s > 0, policy_decimation >= 1"
+assert 0 < FALLEN_TRUNK_HEIGHT_M < KNEEL_GATE_HEIGHT_M < STANDING_TRUNK_THRESHOLD_M \
+    < NOMINAL_STANDING_TRUNK_HEIGHT_M, "contract.json: heights must order fallen < kneel gate < standing < nominal"
 
 
 def lcm_url() -> str:

@@ -1,10 +1,11 @@
 """Simulator constants (one place; the CLI overrides some)."""
 from pathlib import Path
 
-from common.artifact import RUNTIME_LOOP_DT_S
+from messages import contract
 
-CONTROL_DT_S = RUNTIME_LOOP_DT_S   # bus cycle = state/command period: the runtime's 500 Hz tick
-DEFAULT_PHYSICS_DT_S = 0.002    # MuJoCo step; must divide CONTROL_DT_S
+# bus cycle = state/command period [s]: the runtime's loop tick (500 Hz, messages/contract.json)
+LOOP_PERIOD_S = contract.LOOP_PERIOD_S
+DEFAULT_PHYSICS_DT_S = LOOP_PERIOD_S   # MuJoCo step [s]: one per loop tick unless --physics-dt divides it finer
 STATUS_RATE_HZ = 10.0           # T1_SIM_STATUS rate (sim time)
 LOCKSTEP_TIMEOUT_S = 0.5        # wall time to wait for the command answering state k before going on
 LOCKSTEP_FIRST_COMMAND_TIMEOUT_S = 30.0   # the client may still be starting: wait longer for the first one

@@ -82,9 +82,9 @@ class Simulator:
             raise ValueError(f"--lockstep-timeout {cfg.lockstep_timeout_s}: must be a finite number of seconds > 0")
         # Checked before dividing: 0, negative, nan and inf are refused with the option named.
         valid_dt = math.isfinite(cfg.physics_dt_s) and cfg.physics_dt_s > 0
-        substeps = config.CONTROL_DT_S / cfg.physics_dt_s if valid_dt else float("nan")
+        substeps = config.LOOP_PERIOD_S / cfg.physics_dt_s if valid_dt else float("nan")
         if not valid_dt or abs(substeps - round(substeps)) > 1e-9:
-            raise ValueError(f"--physics-dt {cfg.physics_dt_s}: must divide the {config.CONTROL_DT_S} s "
+            raise ValueError(f"--physics-dt {cfg.physics_dt_s}: must divide the {config.LOOP_PERIOD_S} s "
                              "control period (0.002, 0.001, 0.0005, ...)")
         spawn_kind, spawn_seed = parse_spawn(cfg.spawn)
         faults = parse_faults(cfg.faults)      # raises FaultSpecError with the bad part named
@@ -115,9 +115,9 @@ class Simulator:
         self.seq = 0
         self.lockstep_timeouts = 0
         self._frozen_q: dict[int, float] = {}
-        if not 0 < cfg.status_rate_hz <= 1.0 / config.CONTROL_DT_S:
-            raise ValueError(f"--status-rate {cfg.status_rate_hz}: must be in (0, {1 / config.CONTROL_DT_S:g}] Hz")
-        self._status_every = max(1, int(round(1.0 / (cfg.status_rate_hz * config.CONTROL_DT_S))))
+        if not 0 < cfg.status_rate_hz <= 1.0 / config.LOOP_PERIOD_S:
+            raise ValueError(f"--status-rate {cfg.status_rate_hz}: must be in (0, {1 / config.LOOP_PERIOD_S:g}] Hz")
+        self._status_every = max(1, int(round(1.0 / (cfg.status_rate_hz * config.LOOP_PERIOD_S))))
         self._rtf = 0.0
         self._rtf_mark = (time.perf_counter(), 0.0)
         self.recorder = None
@@ -251,7 +251,7 @@ class Simulator:
             return 1
         n = min(max_ticks, self._status_every - self.seq % self._status_every)
         quiet_s = self.faults.next_change_s(t) - t - config.FAULT_EDGE_MARGIN_S
-        return min(n, int(quiet_s / config.CONTROL_DT_S)) if math.isfinite(quiet_s) else n
+        return min(n, int(quiet_s / config.LOOP_PERIOD_S)) if math.isfinite(quiet_s) else n
 
     def _maybe_publish_status(self) -> None:
         if self.seq % self._status_every == 0:
@@ -269,7 +269,7 @@ class Simulator:
     def _needs_python(self, t: float) -> bool:
         """Whether this tick needs what only the Python tick does: IMU noise or bias, a frozen encoder, a push,
         the live view's mouse."""
-        return self.viewer is not None or self.faults.needs_python_tick(t, t + config.CONTROL_DT_S)
+        return self.viewer is not None or self.faults.needs_python_tick(t, t + config.LOOP_PERIOD_S)
 
     def _python_tick(self, dead: set[int], drop: float) -> None:
         self._publish_state()
@@ -303,12 +303,12 @@ class Simulator:
 
     def run(self, on_status=None) -> None:
         """Tick until duration (or forever). Realtime: tick k starts at wall start + k·dt."""
-        n_ticks = None if self.cfg.duration_s is None else int(round(self.cfg.duration_s / config.CONTROL_DT_S))
+        n_ticks = None if self.cfg.duration_s is None else int(round(self.cfg.duration_s / config.LOOP_PERIOD_S))
         start = time.perf_counter()
         try:
             while n_ticks is None or self.seq < n_ticks:
                 if self.cfg.clock == "realtime":
-                    self._wait_until(start + self.seq * config.CONTROL_DT_S)
+                    self._wait_until(start + self.seq * config.LOOP_PERIOD_S)
                     self.tick()
                 else:
                     self.advance(self._status_every if n_ticks is None else n_ticks - self.seq)

@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from messages import contract
 from common import model as t1model
 from training import envs
 
@@ -83,7 +84,7 @@ def test_batch_of_envs_stands_under_the_home_targets(cpu_env):
     for _ in range(25):                       # 0.5 s with action 0: q_des = home
         state = step(state, jnp.zeros((n, 23)))
     trunk = np.asarray(state.info["trunk_height"])
-    assert np.all(np.abs(trunk - 0.665) < 0.02), trunk
+    assert np.all(np.abs(trunk - contract.NOMINAL_STANDING_TRUNK_HEIGHT_M) < 0.02), trunk
     assert not np.any(np.asarray(state.done))
     assert np.all(np.asarray(cpu_env.foot_contacts(jax.tree.map(lambda x: x[0], state.data))))
 

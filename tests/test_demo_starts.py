@@ -5,7 +5,6 @@ from __future__ import annotations
 import shutil
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -96,37 +95,3 @@ def test_the_kneel_task_starts_its_fallen_episodes_from_the_demonstrations(tmp_p
         i = int(np.argmin(np.abs(qpos - q).sum(1)))
         np.testing.assert_allclose(q, qpos[i], atol=1e-6)
         np.testing.assert_allclose(v, qvel[i], atol=1e-6)      # moving: the rise's velocities come along
-
-
-def test_the_tracking_term_follows_the_demonstration_an_episode_started_on(tmp_path):
-    folder = str(demos.REPO_ROOT / DEMOS)
-    over = {"backend": "cpu", "fallen.bank_starts": 2, "demo_starts.prob": 0.5, "demo_starts.folder": folder,
-            "demo_starts.bank_starts": 8, "reward.scales.track": 1.0, "tracking.end_height_m": 0.05}
-    env = envs.make("getup_kneel", config_overrides=over)
-    plain = envs.make("getup_kneel", config_overrides={**over, "reward.scales.track": 0.0})
-    pool = demos.demo_pool(folder, 0.5)
-    start = demos.bank_rows(folder, 0.5, 8, int(env._config.demo_starts.seed))
-    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 16))
-    info = jax.tree.map(np.asarray, state.info)
-    on = info["bank_row"] >= 0
-    assert 0 < on.sum() < 16
-    np.testing.assert_array_equal(info["ref_row"], np.where(on, start[np.maximum(info["bank_row"], 0)], -1))
-    np.testing.assert_allclose(np.asarray(state.data.qpos)[on], pool["qpos"][info["ref_row"][on]], atol=1e-6)
-    np.testing.assert_allclose(info["ref_pose"][on], 1.0, atol=1e-5)          # at the reference: the term's best
-    np.testing.assert_allclose(info["ref_height_error"], 0.0, atol=1e-5)
-    extra = state.obs["privileged_state"].shape[-1] - plain.reset(jax.random.PRNGKey(0)).obs["privileged_state"].size
-    assert extra == 3                                                            # the reference, to the critic only
-    assert state.obs["state"].shape[-1] == plain.reset(jax.random.PRNGKey(0)).obs["state"].size
-    step = jax.jit(jax.vmap(env.step))
-    for k in range(1, 4):
-        state = step(state, jnp.zeros((16, env.action_size)))
-        info = jax.tree.map(np.asarray, state.info)
-        first = start[np.maximum(info["bank_row"], 0)]
-        want = np.minimum(first + k, pool["last"][first])
-        np.testing.assert_array_equal(info["ref_row"], np.where(on, want, -1))   # one row per step, held at the end
-    track = np.asarray(state.metrics["reward/track"])
-    assert np.all(track[~on] == 0) and np.all(track[on] > 0)
-    done = np.asarray(state.done) > 0
-    np.testing.assert_array_equal(done, on & (np.abs(info["ref_height_error"]) > 0.05))   # deviation ends it
-    with pytest.raises(ValueError, match="demo_starts.prob > 0"):
-        envs.make("getup_kneel", config_overrides={"fallen.bank_starts": 2, "reward.scales.track": 1.0})

@@ -162,8 +162,8 @@ def test_bad_input_names_the_problem(bad, match):
 
 
 def test_bad_thresholds_rejected():
-    with pytest.raises(ValueError, match="standing_trunk_height_m"):
-        EventThresholds(standing_trunk_height_m=0.3)
+    with pytest.raises(ValueError, match="standing_trunk_threshold_m"):
+        EventThresholds(standing_trunk_threshold_m=0.3)
     with pytest.raises(ValueError, match="attempt_rise_m"):
         EventThresholds(attempt_rise_m=0.0)
 

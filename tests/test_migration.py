@@ -57,18 +57,19 @@ def test_campaigns_are_there_to_migrate():
 
 def test_a_getup_run_before_the_split_comes_back_as_its_stage_s_task():
     """task "getup" with env_config "stage": stage 1 → getup_kneel with its stage-1 keys moved (its start mix,
-    gate and slope rewards, sag end), stage 2 → getup_stand, full → getup; the keys a stage never read are dropped,
-    the energy weight becomes the energy term's negative scale."""
+    gate and slope rewards; the sag end is gone: only its neutral 0 loads), stage 2 → getup_stand, full → getup;
+    the keys a stage never read are dropped, the energy weight becomes the energy term's negative scale."""
     old = {"stage": "stage1", "start_probs": [0.4, 0.4, 0.2], "stage1_start_probs": [0.7, 0.3, 0.0],
            "stage2_start_probs": [0.0, 1.0, 0.0], "stage1_gate_reward": 1.0, "stage1_upright_reward": 0.5,
-           "stage1_drop_below_m": 0.03, "stage2_fall_trunk_height_m": 0.35, "stage2_fall_up_z": 0.7,
+           "stage1_drop_below_m": 0.0, "stage2_fall_trunk_height_m": 0.35, "stage2_fall_up_z": 0.7,
            "gate_latches": True, "energy_weight": 0.01, "reverse_curriculum": {"max_progress": 2.0}}
     state = {"task": "getup", "preset": "cpu", "ppo_config": {}, "env_config": old}
     assert migration.run_task(state) == "getup_kneel"
     env = migration.run_configs(state)[1]
-    assert list(env.start_probs) == [0.7, 0.3, 0.0] and env.drop_below_gate_m == 0.03
-    assert env.reward.scales.to_dict() == {"height": 1.0, "pose": 1.0, "gate": 1.0, "upright": 0.5, "energy": -0.01,
-                                           "track": 0.0}
+    assert list(env.start_probs) == [0.7, 0.3, 0.0] and "drop_below_gate_m" not in env
+    assert env.reward.scales.to_dict() == {"height": 1.0, "pose": 1.0, "gate": 1.0, "upright": 0.5, "energy": -0.01}
+    with pytest.raises(migration.MigrationError, match=r"env\.stage1_drop_below_m=0\.03"):
+        migration.run_configs({**state, "env_config": {**old, "stage1_drop_below_m": 0.03}}, "runs/x/run_state.json")
     stand = {**state, "env_config": {"stage": "stage2", "stage2_fall_up_z": 0.6, "stage1_gate_reward": 1.0}}
     assert migration.run_task(stand) == "getup_stand" and migration.run_configs(stand)[1].fall_up_z == 0.6
     full = {**state, "env_config": {"gate_latches": False, "stage2_fall_up_z": 0.6, "energy_weight": 0.0}}
@@ -86,6 +87,35 @@ def test_a_run_with_another_gate_than_its_task_s_is_refused(stage, latches):
              "env_config": {"stage": stage, "gate_latches": latches}}
     with pytest.raises(migration.MigrationError, match=rf"env\.gate_latches={latches}"):
         migration.run_configs(state, "runs/old/run_state.json")
+
+
+def test_a_kneel_run_with_the_sag_end_and_tracking_knobs_loads_while_they_are_off():
+    """drop_below_gate_m, reward.scales.track and the tracking group are gone (no recipe or card sets them): a
+    kneel run saved with them at their neutral values (off) loads as today's task; one that used them is refused
+    by the key's name."""
+    saved = envs.default_config("getup_kneel").to_dict()
+    saved["drop_below_gate_m"] = 0.0
+    saved["reward"]["scales"]["track"] = 0.0
+    saved["tracking"] = {"height_sigma_m": 0.1, "end_height_m": 0.0}
+    cfg = migration.migrate(saved, envs.default_config("getup_kneel"), "env")
+    assert cfg.to_dict() == envs.default_config("getup_kneel").to_dict()
+    for key, value, match in (("drop_below_gate_m", 0.03, r"env\.drop_below_gate_m=0\.03"),
+                              ("track", 1.0, r"env\.reward\.scales\.track=1\.0")):
+        bad = json.loads(json.dumps(saved))
+        (bad["reward"]["scales"] if key == "track" else bad)[key] = value
+        with pytest.raises(migration.MigrationError, match=match):
+            migration.migrate(bad, envs.default_config("getup_kneel"), "env", "runs/x/run_state.json")
+
+
+def test_a_unified_run_s_getup_energy_weight_becomes_its_energy_scale():
+    """The unified env's skills reward weighs the getup expert's terms by reward.getup.scales as the getup tasks'
+    reward.scales do: a saved positive reward.getup.energy_weight W becomes scales.energy −W."""
+    saved = envs.default_config("unified").to_dict()
+    del saved["reward"]["getup"]["scales"]
+    saved["reward"]["getup"]["energy_weight"] = 0.01
+    cfg = migration.migrate(saved, envs.default_config("unified"), "env")
+    assert cfg.reward.getup.scales.to_dict() == {"height": 1.0, "pose": 1.0, "energy": -0.01}
+    assert cfg.to_dict() == envs.default_config("unified").to_dict()
 
 
 def test_a_key_the_run_predates_gets_today_s_default():

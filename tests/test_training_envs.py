@@ -56,7 +56,7 @@ def test_tasks_and_configs():
         assert list(cfg.start_probs) == probs and cfg.reward.scales.energy == 0.0 and cfg.obs_noise_scale == 0.0
         assert cfg.action_space == "full" and cfg.collision == "full_body", task
     assert envs.default_config("getup_kneel").reward.scales.to_dict() == {
-        "height": 1.0, "pose": 1.0, "gate": 0.0, "upright": 0.0, "energy": 0.0, "track": 0.0}   # the seed's stage 1
+        "height": 1.0, "pose": 1.0, "gate": 0.0, "upright": 0.0, "energy": 0.0}   # the seed's stage 1
     uni, joy = envs.default_config("unified"), envs.default_config("joystick")
     assert list(uni.start_probs) == [0.4, 0.4, 0.2] and uni.collision == "full_body"
     assert uni.episode_length == 1000 and uni.command_resample_steps == 500 and uni.zero_command_prob == 0.1

@@ -88,13 +88,13 @@ def test_the_first_policy_tick_of_the_loop_starts_where_training_does(netns):
     expected_q, _ = fallen.fallen_states(2, 0, fallen.PREPARE_S, SUPERVISOR)
     for seed in range(2):
         sim = Simulator(SimConfig(scenario="flat", spawn=f"fallen:{seed}", clock="lockstep", seed=seed,
-                                  lcm_url=netns, status_rate_hz=1.0 / sim_config.CONTROL_DT_S))
+                                  lcm_url=netns, status_rate_hz=1.0 / sim_config.LOOP_PERIOD_S))
         runtime = start_runtime(UNTRAINED_STUDENT, "--clock", "lockstep", "--autostart",
                                 "--prepare-s", f"{fallen.PREPARE_S:g}", "--lcm-url", netns)
         wait_until_listening(runtime)
         at_policy = None
         try:
-            for _ in range(int(2 * fallen.PREPARE_S / sim_config.CONTROL_DT_S)):
+            for _ in range(int(2 * fallen.PREPARE_S / sim_config.LOOP_PERIOD_S)):
                 sim.tick()
                 if sim.link.latest is not None and sim.link.latest.mode == MODE_POLICY:
                     at_policy = sim.data.qpos.copy()

@@ -9,12 +9,13 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from messages import contract
 from sim_hil.launch import ROOT
 from training import envs
 from training.envs import base, motor
 
 SAFETY_HPP = ROOT / "runtime" / "include" / "t1rt" / "safety.hpp"
-RUNTIME_TICK_S = 0.002   # the runtime's loop period: max_target_step_rad is per tick
+RUNTIME_TICK_S = contract.LOOP_PERIOD_S   # the runtime's loop period: max_target_step_rad is per tick
 
 
 def _hpp_float(name: str) -> float:

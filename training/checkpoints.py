@@ -147,12 +147,13 @@ POLICIES_ROOT = REPO_ROOT / "policies"
 CARD = "CARD.md"
 PROVENANCE_COLUMNS = ("date", "artifact", "name", "task", "trained", "env steps", "minutes", "env-steps/s",
                       "device", "git commit", "content hash", "command", "evaluation")
-# A card the first --ship of a policy creates: the sections every card has, to be filled in from the
-# evaluations before the policy counts as shipped.
+# A card the first --ship of a policy creates: the sections every card has, in a card's order (what it is, how
+# to run it, what it measured, then its lineage), to be filled in from the evaluations before the policy counts
+# as shipped; --ship appends its provenance rows at the end.
 CARD_TEMPLATE = (
-    "# {name}\n\nWhat it is: (to write)\n\n## How it was made\nThe provenance rows below (recipe, commit, "
-    "command).\n\n## Measured\n(no figure yet: `python -m training evaluate` and the loop's `make eval-*`)\n\n"
-    "## Misses / known limits\n(to write)\n\n## Provenance\n")
+    "# {name}\n\nWhat it is: (to write)\n\n## Run it\n(to write)\n\n## Measured\n(no figure yet: "
+    "`python -m training evaluate` and the loop's `make eval-*`)\n\n## Misses / known limits\n(to write)\n\n"
+    "## How it was made\nThe provenance rows below (recipe, commit, command).\n\n## Provenance\n")
 
 
 def policy_dir(name: str, root=POLICIES_ROOT) -> Path:

@@ -10,6 +10,8 @@ import shlex
 import sys
 from typing import Sequence
 
+from messages import contract
+
 # = training.envs.TASKS (checked when the envs load)
 TASKS = ("joystick", "getup", "getup_kneel", "getup_roll", "getup_stand", "getup_baseline", "unified")
 RUNS_DIR = "runs"   # experiments' default home (ignored by git): = training.recipe_runner.RUNS_ROOT
@@ -242,7 +244,8 @@ def _add_evaluate(sub) -> None:
     p = sub.add_parser("evaluate", help="batched rollouts of an artifact: getup from seeded fallen "
                        "starts, or joystick command tracking")
     p.add_argument("--policy", required=True, help="policy artifact (.safetensors); for getup also GETUP,UPRIGHT: "
-                   "the runtime's composite of two (getup below waist 0.5 m, upright above)")
+                   f"the runtime's composite of two (getup below waist {contract.WAIST_SWITCH_HEIGHT_M:g} m, upright "
+                   "above)")
     p.add_argument("--baseline", help="second policy to compare against (getup): an artifact or GETUP,UPRIGHT")
     p.add_argument("--task", choices=tuple(EVAL_SECONDS), default="getup")
     p.add_argument("--seeds", type=int, default=32,

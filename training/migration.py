@@ -31,7 +31,8 @@ def _cost_scale(weight):
 # old dotted path → today's (or (today's, conversion of the value)), per config ("env", "ppo")
 RENAMED: dict[str, dict[str, str | tuple[str, Callable]]] = {
     "env": {"fallen_bank_size": "fallen.bank_starts", "fallen_seed": "fallen.seed",
-            "fallen_prepare_s": "fallen.prepare_s", "energy_weight": ("reward.scales.energy", _cost_scale)},
+            "fallen_prepare_s": "fallen.prepare_s", "energy_weight": ("reward.scales.energy", _cost_scale),
+            "reward.getup.energy_weight": ("reward.getup.scales.energy", _cost_scale)},
     "ppo": {}}
 
 
@@ -51,7 +52,9 @@ REMOVED: dict[str, dict[str, Any]] = {
             "push_starts": {"prob": 0.0}, "handover.push_prob": 0.0, "failed_rise": {"cost": 0.0},
             "handover.knockdown_prob": 0.0, "handover.joystick_policy": "", "handover.zero_command_prob": 0.0,
             "push.torso_shove_prob": 0.0, "harness": {"stiffness_n_per_m": 0.0}, "rise_starts": {"prob": 0.0},
-            "collapse_starts": {"prob": 0.0}, "prone_starts": {"prob": 0.0}},
+            "collapse_starts": {"prob": 0.0}, "prone_starts": {"prob": 0.0},
+            # the kneel task's sag end and demonstration tracking term: no recipe sets them
+            "drop_below_gate_m": 0.0, "reward.scales.track": 0.0, "tracking": UNUSED},
     "ppo": {}}
 
 # getup runs before the split: env_config["stage"] (default "full") → today's task
@@ -62,9 +65,8 @@ _STAGE2_KEYS = ("stage2_start_probs", "stage2_fall_trunk_height_m", "stage2_fall
 # kneel task's gate latches, the others' is per step (LESSONS.md, "Knobs and modules removed")
 SPLIT: dict[str, dict[str, dict[str, Any]]] = {
     "stage1": {"renamed": {"stage1_start_probs": "start_probs", "stage1_gate_reward": "reward.scales.gate",
-                           "stage1_upright_reward": "reward.scales.upright",
-                           "stage1_drop_below_m": "drop_below_gate_m"},
-               "removed": {"stage": UNUSED, "start_probs": UNUSED, **dict.fromkeys(_STAGE2_KEYS, UNUSED),
+                           "stage1_upright_reward": "reward.scales.upright"},
+               "removed": {"stage": UNUSED, "stage1_drop_below_m": 0.0, "start_probs": UNUSED, **dict.fromkeys(_STAGE2_KEYS, UNUSED),
                            "reverse_curriculum": UNUSED, "gate_latches": True, "knockdown_starts": {"prob": 0.0}}},
     "stage2": {"renamed": {"stage2_start_probs": "start_probs", "stage2_fall_trunk_height_m": "fall_trunk_height_m",
                            "stage2_fall_up_z": "fall_up_z"},
@@ -103,14 +105,15 @@ def _drop_removed(saved: dict, removed: Mapping[str, Any], what: str, source: st
     """`saved` without the removed keys; an error naming those set away from their neutral value."""
     saved, refused = dict(saved), []
     for path, neutral in removed.items():
-        head, _, rest = path.partition(".")
+        *groups, head = path.split(".")
         parent = saved
-        if rest:   # a field of a group that stays
-            if not isinstance(saved.get(head), Mapping):
-                continue
-            parent = saved[head] = dict(saved[head])
-            head = rest
-        if head in parent:
+        for group in groups:   # a field of a group that stays (copied on the way down: `saved` is the caller's)
+            if not isinstance(parent.get(group), Mapping):
+                parent = None
+                break
+            parent[group] = dict(parent[group])
+            parent = parent[group]
+        if parent is not None and head in parent:
             if not _neutral(parent[head], neutral):
                 refused.append(f"{what}.{path}={parent[head]!r} (neutral: {neutral!r})")
             del parent[head]

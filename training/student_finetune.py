@@ -14,7 +14,7 @@ with n the env steps of this fine-tune, read from the observation normaliser's s
 env step; the only step counter brax hands its loss) minus the count it started from (the run state's
 `bc_count_start`). With teacher.bc_hold_in_course, samples of wall-course episodes keep teacher.bc_weight
 (no decay): there the teacher trips across the wall and gets up beyond, the one way on for a blind policy,
-while PPO alone learned to balance in front of it (training/LESSONS.md). They are told apart by the unified
+while PPO alone learns to balance in front of it (training/LESSONS.md). They are told apart by the unified
 env's "wall_course" metric, which brax hands the loss summed over the episode so far.
 The teacher reads what it switches on (the privileged waist height, or the keyframe chain's stage): the env is
 wrapped in training/teacher.py's teacher_observation.

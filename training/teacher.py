@@ -94,8 +94,8 @@ def switched_teacher(experts: Sequence[Expert], pick, student_terms: Sequence, s
 
     The observation's last action is mapped back the same way: an expert that reads `last_action` gets
     clip(a_s · s_s / s_e, −1, 1), the previous joint targets in ITS map, so while it drives it reads its own
-    previous action, as when it was trained and in the runtime. (Read in the student's map, the joystick
-    expert saw a quarter of its own action and fell several times as often: training/LESSONS.md.) The clip
+    previous action, as when it was trained and in the runtime (read in the student's map, the joystick
+    expert would see a quarter of its own action). The clip
     matters only on the first tick after another expert or the student acted with targets outside the expert's range.
 
     The label is what the student must output to execute a_s. brax bc's loss is

@@ -53,7 +53,7 @@ class TickLog:
         self._force = np.zeros(6)
 
     def record(self, k: int, data: mujoco.MjData, runtime_mode: int) -> None:
-        dt = config.CONTROL_DT_S
+        dt = config.LOOP_PERIOD_S
         self.t[k] = data.time
         self.trunk[k] = data.xpos[self._trunk, 2]
         self.waist[k] = data.xpos[self._waist, 2]
@@ -104,7 +104,7 @@ def effort_metrics(log: TickLog, begin: int, end: int) -> dict[str, float]:
     """
     if not 0 <= begin < end <= log.n:
         raise ValueError(f"effort_metrics: window [{begin}, {end}) outside the {log.n} logged ticks")
-    dt = config.CONTROL_DT_S
+    dt = config.LOOP_PERIOD_S
     w = slice(begin, end)
     return {
         "energy_J": float(log.power[w].sum() * dt),
@@ -130,7 +130,7 @@ def _runs(mask: np.ndarray, min_len: int) -> int:
 def slip_events(log: TickLog, window: slice) -> int:
     """Slips: per foot, runs of >= SLIP_MIN_S where the foot carries >= SLIP_LOAD_N of ground contact force
     and its origin moves >= SLIP_SPEED_MPS horizontally; both feet counted."""
-    min_len = max(1, int(round(SLIP_MIN_S / config.CONTROL_DT_S)))
+    min_len = max(1, int(round(SLIP_MIN_S / config.LOOP_PERIOD_S)))
     load, speed = log.foot_load[window], log.foot_speed[window]
     return sum(_runs((load[:, f] >= SLIP_LOAD_N) & (speed[:, f] >= SLIP_SPEED_MPS), min_len) for f in range(2))
 
@@ -141,4 +141,4 @@ def ran_to_stabilise(log: TickLog, window: slice) -> bool:
     trunk = log.trunk[window]
     if trunk.size == 0 or np.any(trunk < FALLEN_TRUNK_HEIGHT_M):
         return False
-    return _runs(log.speed_xy[window] >= RUN_SPEED_MPS, int(round(RUN_MIN_S / config.CONTROL_DT_S))) > 0
+    return _runs(log.speed_xy[window] >= RUN_SPEED_MPS, int(round(RUN_MIN_S / config.LOOP_PERIOD_S))) > 0

@@ -10,6 +10,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from common import events
+from messages import contract
 from sim_hil.eval import metrics
 from sim_hil.eval.plans import COMMON_ROWS, Plan
 from common.seed_figures import SEED_FIGURES, SEED_TRIAL_TABLES, seed_cells, seed_columns
@@ -55,8 +56,8 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
     lines = [f"# Evaluation `{plan.name}`: {plan.description}", "",
              trained_line(flags), ""]
     for c in controllers:
-        members = f"getup `{c.policy}` + joystick `{c.upright}` (composite, switched at waist 0.5 m)" if c.upright \
-            else f"`{c.policy}`"
+        members = (f"getup `{c.policy}` + joystick `{c.upright}` (composite, switched at waist "
+                   f"{contract.WAIST_SWITCH_HEIGHT_M:g} m)" if c.upright else f"`{c.policy}`")
         lines.append(f"- **{c.label}**: {members}")
     lines += ["", f"Command: `{command}`  ",
               f"{trials} seeded trial(s) per policy, {seconds:g} s of sim time each, "
@@ -80,7 +81,7 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
     th = events.EventThresholds()
     lines += ["## Definitions", "",
               f"- Events (`common/events.py`, also used by the MJX evaluator): fallen = trunk below "
-              f"{th.fallen_trunk_height_m} m; standing = trunk ≥ {th.standing_trunk_height_m} m and up_z ≥ "
+              f"{th.fallen_trunk_height_m} m; standing = trunk ≥ {th.standing_trunk_threshold_m} m and up_z ≥ "
               f"{th.upright_up_z}, held {th.stand_hold_s} s; a getup attempt = a rise of {th.attempt_rise_m} m "
               "from the lowest height while down (hysteresis both ways); success = not down at the end.",
               f"- Every metric starts when the runtime first commands in POLICY (after its PREPARE ramp: "

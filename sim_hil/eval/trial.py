@@ -112,21 +112,21 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
     lockstep = spec.clock == "lockstep"
     sim = Simulator(SimConfig(scenario=spec.scenario, spawn=spec.spawn, clock=spec.clock, seed=spec.seed,
                               faults=spec.faults, lcm_url=lcm_url, record=spec.record,
-                              status_rate_hz=1.0 / config.CONTROL_DT_S))
+                              status_rate_hz=1.0 / config.LOOP_PERIOD_S))
     clock_args = ("--clock", "lockstep") if lockstep else ()     # realtime: the runtime's own clock
     runtime_args = [*clock_args, "--autostart", "--prepare-s", f"{spec.prepare_s:g}", *controller.runtime_args()]
     capture = _start_log(spec, controller, runtime_args, lcm_url) if spec.log else None
     runtime = start_runtime(controller.policy, *runtime_args, "--lcm-url", lcm_url)
     signer = runtime.run_key.signer()            # the trial's operator: a fresh key of this run
     wait_until_listening(runtime)
-    n = int(round(spec.seconds / config.CONTROL_DT_S))
+    n = int(round(spec.seconds / config.LOOP_PERIOD_S))
     log = TickLog(sim.model, n)
     stick = joystick_t()
     wall_start = time.perf_counter()
     try:
         for k in range(n):
             # realtime: tick k starts at wall start + k·dt, the wait spent handling LCM (as Simulator.run)
-            while not lockstep and (remaining := wall_start + k * config.CONTROL_DT_S - time.perf_counter()) > 0:
+            while not lockstep and (remaining := wall_start + k * config.LOOP_PERIOD_S - time.perf_counter()) > 0:
                 sim.link.poll(remaining)
             if k % JOYSTICK_EVERY_TICKS == 0:
                 commanding = sim.data.time >= spec.command_start_s and (
@@ -248,7 +248,7 @@ def _kneel(log: TickLog, start: int) -> dict:
     met = np.flatnonzero(kneel_gate_mask(log.trunk[sl], log.up_z[sl]) & (log.kneeling[sl] > 0))
     return {"lying": lying_side(float(log.forward_z[start])),
             "kneel_time_s": float(log.t[start + met[0]] - log.t[start]) if met.size else float("nan"),
-            "kneel_hold_s": kneel_hold_s(log.trunk[sl], log.up_z[sl], log.kneeling[sl], config.CONTROL_DT_S)}
+            "kneel_hold_s": kneel_hold_s(log.trunk[sl], log.up_z[sl], log.kneeling[sl], config.LOOP_PERIOD_S)}
 
 
 # ---- pool workers (module level: a spawned worker imports them by name) --------------------------------

@@ -31,6 +31,7 @@ from mujoco_playground._src import mjx_env
 from common import model as t1model
 from common import observation as obsdef
 from common.golden import DEFAULT_ACTION_SCALE
+from messages import contract
 from training.envs import collision, cpu_backend, motor, sagittal, wall_course
 
 BACKENDS = ("mjx", "cpu")
@@ -48,8 +49,8 @@ PRIVILEGED_BASE_SIZE = 3 + 3 + 3 + 3 + NUM_JOINTS + 2
 def base_config() -> config_dict.ConfigDict:
     """Settings every task shares (tasks add their own). Times in s, action_scale in rad per unit."""
     return config_dict.create(
-        ctrl_dt=0.02,
-        sim_dt=0.002,
+        ctrl_dt=contract.POLICY_PERIOD_S,   # the policy's step: every artifact's control_dt
+        sim_dt=contract.LOOP_PERIOD_S,      # physics + PD substep: the runtime's loop tick
         episode_length=1000,
         action_scale=DEFAULT_ACTION_SCALE,   # rad per unit action: ±0.5 around home at |a| = 1
         action_space="full",   # the policy's action: "full" (23 joints) or "sagittal" (sagittal.py)

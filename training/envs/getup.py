@@ -1,7 +1,7 @@
 """Getup, the gated full task (thesis §4.5, §4.8): from stage 2 on, fallen / kneeling / standing starts
 (0.4 / 0.4 / 0.2) and the gated Height and Pose Rewards: below §4.8's gate the kneel's, once the gate holds
-that step the standing's with its bonuses (getup_rewards.py). The gate is per step, as written: latched (held
-until the trunk is down) PPO learned to meet it once and then tilt (training/LESSONS.md, `getup_full*`).
+that step the standing's with its bonuses (getup_rewards.py). The gate is per step, as written: a gate latched
+until the trunk is down pays a policy that meets it once and then tilts.
 Ours, off by default: `knockdown_starts` (starts/knockdown.py) replaces a share of the fallen starts by the
 joystick expert's landings after a push. The evaluations (`python -m training evaluate`) build this task for its
 fallen starts and physics.

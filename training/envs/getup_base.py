@@ -22,10 +22,11 @@ from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
 from common import observation as obsdef
-from common.events import STAND_HOLD_S, STANDING_TRUNK_HEIGHT_M, UPRIGHT_UP_Z
+from common.events import STAND_HOLD_S, STANDING_TRUNK_THRESHOLD_M, UPRIGHT_UP_Z
 from training.envs import base, starts
 from training.envs import getup_rewards as G
 from training.envs.starts.fallen import fallen_states, weight_sides
+from messages import contract
 
 GETUP_ACTION_SCALE_RAD = 2.0    # rad per unit action (base_config says why)
 START_KINDS = ("fallen", "kneeling", "standing")
@@ -43,7 +44,8 @@ def base_config() -> config_dict.ConfigDict:
     cfg.obs_terms = [list(t) for t in obsdef.TERMS_GETUP]
     cfg.obs_noise_scale = 0.0            # U(−1, 1)·this per observation entry; 0 = off (seed's fine-tune: 1)
     cfg.start_probs = [1.0, 0.0, 0.0]    # (fallen, kneeling, standing)
-    cfg.standing_targets_m = [G.STANDING_TORSO_M, G.STANDING_WAIST_M]   # (torso, waist) of standing [m]
+    # (torso, waist) heights the Height Reward wants once the kneel gate holds [m]
+    cfg.standing_targets_m = [contract.STANDING_TARGET_TRUNK_M, contract.STANDING_TARGET_WAIST_M]
     return cfg
 
 
@@ -102,7 +104,7 @@ class GetupStarts(base.T1Env):
 
     @staticmethod
     def standing(info):
-        return (info["trunk_height"] >= STANDING_TRUNK_HEIGHT_M) & (info["up_z"] >= UPRIGHT_UP_Z)
+        return (info["trunk_height"] >= STANDING_TRUNK_THRESHOLD_M) & (info["up_z"] >= UPRIGHT_UP_Z)
 
     def energy_cost(self, data):
         """§4.7's energy cost Σ|v·τ/τmax| of the state after the step (before its weight)."""
@@ -188,7 +190,6 @@ class GetupTask(GetupStarts):
         off = jnp.zeros((), dtype=bool)
         info["gate"] = self._gate_state(G.gate(info["trunk_height"], info["up_z"]), off, info)
         info["gate_met"] = off              # §4.8's gate has held at a step since the reset
-        info["gate_height_met"] = off       # the trunk has been at the gate's height since the reset
         info["rise_track"] = G.rise_track_start(info["trunk_height"])
         return {**info, **self._task_info(info, data)}
 
@@ -218,7 +219,6 @@ class GetupTask(GetupStarts):
         gate_now = G.gate(info["trunk_height"], info["up_z"])
         info["gate"] = self._gate_state(gate_now, state.info["gate"], info)
         info["gate_met"] = state.info["gate_met"] | gate_now
-        info["gate_height_met"] = state.info["gate_height_met"] | G.at_gate_height(info["trunk_height"])
         info.update(self._task_info(info, data))
         scaled = {k: v * self._scales[k] for k, v in self._reward_terms(data, info).items()}
         reward = sum(scaled.values()) * self.dt

@@ -1,8 +1,8 @@
 """Baseline getup: the reward-only standing policy the seed compares the keyframe curriculum against (§4.4).
 
 Same model, gains, action map and observation as the keyframe tasks; fallen starts by default (it rises straight
-from the ground); no keyframe, no curriculum, no gate in its reward: Height = HO(h_torso, h_waist, u_z; torso
-0.67 m, waist 0.55 m). `success` is the other tasks': standing by common/events.py's definition, so all are
+from the ground); no keyframe, no curriculum, no gate in its reward: Height = HO(h_torso, h_waist, u_z; the
+contract's standing targets). `success` is the other tasks': standing by common/events.py's definition, so all are
 compared on one. Ours (policies/getup_baseline/CARD.md says so where it is shown): `start_probs` may mix in
 standing starts (a policy trained from fallen starts only never visits a quiet stance except by rising into
 one), and `reward.scales.energy` < 0 charges §4.7's energy cost, which breaks its squat-jump cycle.

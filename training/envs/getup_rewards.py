@@ -9,9 +9,10 @@ Height & orientation (§4.7), per body part p ∈ {torso, waist} with desired he
 Pose (§4.7): exp(−0.5·‖q − q_ref‖²) over the 23 joint angles [rad].
 Turn (ours, the roll onto the front): (1 − f_z) / 2, f_z the world z of the torso's forward axis.
 Energy cost (§4.7): Σ_i |v_i · τ_i / τmax_i| [rad/s], used only in the energy fine-tune.
-Gate (§4.8): common/events.kneel_gate, the evaluations' own definition (trunk above 0.395 m, tilt below 0.573°).
+Gate (§4.8): common/events.kneel_gate, the evaluations' own definition (trunk within 0.005 m of the contract's
+kneel gate height or above, tilt below 0.573°). Standing targets: the contract's standing_target_trunk_m / _waist_m.
 Gated terms (§4.8):
-    Height Reward = (1 − gate)·HO(kneel targets) + gate·(1.83 + HO(standing targets: torso 0.67, waist 0.55))
+    Height Reward = (1 − gate)·HO(kneel targets) + gate·(1.83 + HO(standing targets))
     Pose Reward   = (1 − gate)·pose(q, q_kneel)  + gate·(0.6 + 100·pose(q, q_init))   (q_init: standing pose)
 Failed rise (ours, not the seed's): the rise tracker counts a getup attempt that fails by common/events.py's
 definitions (the trunk rose ATTEMPT_RISE_M from its low while down, then dropped ATTEMPT_RISE_M below the
@@ -24,14 +25,11 @@ import jax.numpy as jnp
 
 from common import events
 
-GATE_HEIGHT_M = events.KNEEL_GATE_HEIGHT_M            # torso height the gate checks [m]
 GATE_UP_ERROR = events.KNEEL_GATE_UP_ERROR            # ‖u − e_z‖ below this
 STANDUP_HEIGHT_BONUS = 1.83    # gate·(1.83 + …) in the Height Reward
 STANDUP_POSE_BONUS = 0.6       # gate·(0.6 + …) in the Pose Reward
 STANDUP_POSE_WEIGHT = 100.0    # gate·(… + 100·pose(q, q_init))
 HO_MAX = 1.125   # height_orientation_reward upright (r_ori 0.5625) at both targets: 2·0.5625·(2 + 1)/3
-STANDING_TORSO_M = 0.67        # standing targets after the gate [m]
-STANDING_WAIST_M = 0.55
 
 
 def part_height_reward(h, h_des):
@@ -123,9 +121,11 @@ def gated_pose_reward(gate_ok, pose_kneel, pose_standing):
     return (1.0 - g) * pose_kneel + g * (STANDUP_POSE_BONUS + STANDUP_POSE_WEIGHT * pose_standing)
 
 
-def gated_reward_max() -> float:
-    """The most Height + Pose Reward pays per step (gate on, HO at its 1.125 ceiling, pose 1)."""
-    return STANDUP_HEIGHT_BONUS + HO_MAX + STANDUP_POSE_BONUS + STANDUP_POSE_WEIGHT
+def gated_reward_max(height_scale: float = 1.0, pose_scale: float = 1.0) -> float:
+    """The most height_scale · Height + pose_scale · Pose Reward pays per step (scales >= 0; gate on, HO at its
+    1.125 ceiling, pose 1)."""
+    return (height_scale * STANDUP_HEIGHT_BONUS + height_scale * HO_MAX + pose_scale * STANDUP_POSE_BONUS
+            + pose_scale * STANDUP_POSE_WEIGHT)
 
 
 def energy_cost(dq, tau, tau_limit):

@@ -1,11 +1,11 @@
-"""Getup stage 2, kneel → stand (thesis §4.5): Height = HO(standing targets: torso 0.67 m, waist 0.55 m),
-Pose = pose(q, q_init), from the kneel keyframe. The gate's 1.83 / 0.6 bonuses and 100· weight belong to the
-full task (§4.8, getup.py): without a gate they pay standing-like joint angles in any posture.
+"""Getup stage 2, kneel → stand (thesis §4.5): Height = HO(standing targets: the contract's torso and waist
+targets), Pose = pose(q, q_init), from the kneel keyframe. The gate's 1.83 / 0.6 bonuses and 100· weight belong
+to the full task (§4.8, getup.py): without a gate they pay standing-like joint angles in any posture.
 
 Ours: an episode ends when the robot leaves the kneel downward (trunk below fall_trunk_height_m, or up_z below
-fall_up_z): stage 2's Pose pays straight legs in any posture, and without the end PPO learned to lie or lean
-back with straight legs (training/LESSONS.md, `getup_stage2`). Off by default: the reverse curriculum
-(`reverse_curriculum`, starts/kneeling_path.py) draws starts along a path from standing to the kneel.
+fall_up_z), because stage 2's Pose pays straight legs in any posture, lying or leaning back included. Off by
+default: the reverse curriculum (`reverse_curriculum`, starts/kneeling_path.py) draws starts along a path from
+standing to the kneel.
 """
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from ml_collections import config_dict
 
+from messages import contract
 from training.envs import getup_base, starts
 from training.envs import getup_rewards as G
 from training.envs.starts import kneeling_path
@@ -23,7 +24,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg = getup_base.base_config()
     cfg.start_probs = [0.0, 1.0, 0.0]      # (fallen, kneeling, standing): the seed's stage 2 starts kneeling
     cfg.reward = config_dict.create(scales=config_dict.create(height=1.0, pose=1.0, energy=0.0))
-    cfg.fall_trunk_height_m = 0.35         # the episode ends with the trunk below this [m] (docstring)
+    cfg.fall_trunk_height_m = contract.FALLEN_TRUNK_HEIGHT_M   # the episode ends with the trunk below this [m]
     cfg.fall_up_z = 0.7                    # ... or with the trunk's up_z below this (46° of tilt)
     starts.add_config_groups(cfg, "getup_stand")   # fallen starts, the reverse curriculum
     return cfg

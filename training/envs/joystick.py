@@ -106,7 +106,7 @@ class Joystick(Walking):
     def _maybe_handover_start(self, rng, qpos, qvel, last_act, yaw, command):
         """With probability handover.prob, a hand-over state instead of the standing start, at the standing
         start's place and heading; its last action = the getup expert's last targets in this env's map."""
-        k_use, k_idx, _ = jax.random.split(rng, 3)   # three keys: the stream the hand-over stage trained on
+        k_use, k_idx = jax.random.split(rng)
         bank = self._handover
         idx = jax.random.randint(k_idx, (), 0, bank.qpos.shape[0])
         hq, hv = place(bank.qpos[idx], bank.qvel[idx], qpos[0:2], yaw)

@@ -44,7 +44,7 @@ def feet_phase(foot_z, phase, max_foot_height, command, clock_freeze_command_nor
     """Swing-height tracking of the gait clock's Bezier reference; both feet on the floor while the command
     is below the clock's freeze threshold. Why: our clock freezes there wherever it stopped (the
     observation contract), where Playground resets it to π, i.e. both feet in stance. Tracking a frozen
-    mid-swing reference taught the policy to stand on one leg at zero command, and to fall after stopping
+    mid-swing reference teaches the policy to stand on one leg at zero command, and to fall after stopping
     from a walk (training/LESSONS.md)."""
     standing = jnp.linalg.norm(command) < clock_freeze_command_norm
     rz = jnp.where(standing, 0.0, gait.get_rz(phase, swing_height=max_foot_height))

@@ -3,7 +3,7 @@
 The policy sets the pitch joints only, one value per left/right pair; every roll and yaw joint (head yaw,
 shoulder and hip roll, elbow and hip yaw, the waist, ankle roll) keeps its home target (action 0). Why: the kneel
 differs from home in hip, knee and ankle pitch only, and both sides' pitch joints share one axis, so mirroring is a
-copy; over all 23 joints the learner sprawled from the planner's arrivals and let the trunk sag below the gate
+copy; over all 23 joints the learner sprawls from the planner's arrivals and lets the trunk sag below the gate
 (training/LESSONS.md). The env expands the action before anything reads it (base.T1Env.full_action), so
 observations (last_action), targets and artifacts stay in the 23-joint contract.
 """

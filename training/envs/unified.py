@@ -14,7 +14,8 @@ Reward (reward.mode), per control step × ctrl_dt:
   alive + w_height·HO(standing targets) + standing·(w_lin·tracking_lin_vel + w_ang·tracking_ang_vel), standing =
   waist at or above the teacher's switch height (0.5 m).
 * "skills" (the fine-tune): each expert's own reward where it is in charge. Below the switch
-  reward.getup.scale × the getup expert's gated Height + Pose (− its energy term); at or above it the joystick
+  reward.getup.scale × the getup expert's reward, its gated Height, Pose and energy terms weighted by
+  reward.getup.scales as the getup task's reward.scales weigh them; at or above it the joystick
   env's terms × reward.joystick_scales (clipped at 0) + the most the scaled getup reward can pay below (the
   standing bonus); − reward.getup.failed_rise_cost per failed attempt (events.py). With
   reward.walk_after_stand_up the walk pays only after the getup's stand-up (events.py: standing held
@@ -82,8 +83,10 @@ def default_config() -> config_dict.ConfigDict:
         # "skills": the joystick env's terms and scales above the switch, the getup expert's below it
         max_foot_height_m=joy.reward.max_foot_height_m,
         joystick_scales=config_dict.create(**joy.reward.scales.to_dict()),
-        # energy_weight: getup_knockdown's; scale: the docstring's
-        getup=config_dict.create(scale=0.02, energy_weight=0.01, failed_rise_cost=0.0),
+        # "skills": below the switch the getup expert's terms, weighted by scales (getup_knockdown's own
+        # reward.scales), the sum × scale (docstring)
+        getup=config_dict.create(scale=0.02, scales=config_dict.create(height=1.0, pose=1.0, energy=-0.01),
+                                 failed_rise_cost=0.0),
         course=config_dict.create(progress_weight=0.0),   # [1/m] of credited progress (docstring); 0: off
         walk_after_stand_up=False)   # the walk's reward waits for the getup's stand-up (docstring)
     return cfg
@@ -119,8 +122,11 @@ class Unified(GetupStarts, Walking):
             self._init_reward_constants()
             self._progress_weight = self._config.reward.course.progress_weight
             self._walk_after_stand_up = bool(self._config.reward.walk_after_stand_up)
-            if not self._config.reward.getup.scale > 0:
-                raise ValueError(f"reward.getup.scale must be > 0, got {self._config.reward.getup.scale}")
+            g = self._config.reward.getup
+            if not (g.scale > 0 and g.scales.height >= 0 and g.scales.pose >= 0 and g.scales.energy <= 0):
+                raise ValueError(f"reward.getup: scale must be > 0, scales.height and scales.pose >= 0 and "
+                                 f"scales.energy <= 0 (a cost), got {g.scale}, {g.scales.height}, {g.scales.pose} "
+                                 f"and {g.scales.energy}")
         # the share of knockdowns that are torso shoves
         self._torso_share = {"velocity": 0.0, "torso": 1.0}.get(shove, float(kd.torso_share))
         if not 0.0 <= self._torso_share <= 1.0:
@@ -128,12 +134,12 @@ class Unified(GetupStarts, Walking):
         self._torso_shove = TorsoShove(self._mj_model, self._home_qpos) if self._torso_share > 0 else None
 
     def reset(self, rng: jax.Array) -> mjx_env.State:
-        rng, k_start, k_cmd, k_push, k_obs = jax.random.split(rng, 5)
+        rng, k_start, k_cmd, k_push, k_obs, k_start_course = jax.random.split(rng, 6)
         qpos, qvel, kind = self._start_state(k_start)
         command = self.sample_command(k_cmd)
         course = jnp.zeros((), bool)
-        if self._wall_share() > 0:   # (kept out otherwise: the random streams of runs without walls stay as they were)
-            rng, k_course, k_approach = jax.random.split(rng, 3)
+        if self._wall_share() > 0:   # the course's start only where walls are drawn (its keys always are)
+            k_course, k_approach = jax.random.split(k_start_course, 2)
             course = jax.random.bernoulli(k_course, self._wall_share())
             xy, yaw, course_command = wall_course.course_start(k_approach, self._config.wall_course)
             standing_qpos, standing_qvel = place(self._home_qpos, jnp.zeros_like(qvel), xy, yaw)
@@ -219,10 +225,11 @@ class Unified(GetupStarts, Walking):
         contact, first_contact = self._feet_touchdown(data, info)
         standing = info["waist_height"] >= cfg.standing_waist_height_m
         walk = self._scaled_reward_terms(cfg.joystick_scales, data, action, info, first_contact, contact)
-        joystick = jnp.maximum(sum(walk.values()), 0.0) + cfg.getup.scale * G.gated_reward_max()
+        w = cfg.getup.scales
+        joystick = jnp.maximum(sum(walk.values()), 0.0) + cfg.getup.scale * G.gated_reward_max(w.height, w.pose)
         gate = G.gate(info["trunk_height"], info["up_z"])
         height, pose = self.gated_rewards(data.qpos[7:], info, gate)
-        getup = cfg.getup.scale * (height + pose - cfg.getup.energy_weight * self.energy_cost(data))
+        getup = cfg.getup.scale * (w.height * height + w.pose * pose + w.energy * self.energy_cost(data))
         info["rise_track"], failed = G.rise_track_step(info["rise_track"], info["trunk_height"], self.standing(info),
                                                        self._stand_hold_ticks)
         if self._walk_after_stand_up:

@@ -1,8 +1,8 @@
 """The seed's low-wall course in the training worlds (ours: the seed trains on flat ground only).
 
 Why: in the loop's wall test (sim_hil/eval, Tables 6.1–6.2) the robot trips over a 0.2 m wall and must get
-up beside it, on it or with its legs across it. The getup expert had only ever risen on open floor, and
-each wall cost the student several getup attempts (training/LESSONS.md). With the course in the world, the
+up beside it, on it or with its legs across it. A getup expert that has only risen on open floor costs
+the student several getup attempts at each wall (training/LESSONS.md). With the course in the world, the
 getup evaluation can start from where the joystick expert lands after walking into a wall (handover.wall_bank,
 `evaluate --starts wall`) and the unified env can walk a share of its episodes into one (config walls.prob).
 

@@ -13,8 +13,9 @@ COLLECTED = "collected.json"
 
 def default_config() -> config_dict.ConfigDict:
     return config_dict.create(
-        rounds=15,     # rounds 7 … 14 rolled out by PPO fine-tunes of the learner (--policy), 9 … 14 from on-back
-                       # starts only (--lying), 12 … 14 labelled by best-of-K (expert.best_of_k.k 32, sigma 0.05)
+        # rounds in the campaign (round 0: the demonstrations); a round may be rolled out by another policy
+        # (--policy), from one lying side only (--lying), or labelled by best-of-K (expert.best_of_k)
+        rounds=15,
         # each round rolls the current policy out from this many fallen starts (seeds first_seed + round ·
         # starts_per_round …), disjoint from the evaluation's seeds 0 … eval_seeds − 1
         starts_per_round=32,
@@ -35,8 +36,8 @@ def default_config() -> config_dict.ConfigDict:
             horizon_s=0.5,
             # a robot past the first waypoint whose trunk falls below this [m] has fallen back to the floor:
             # its rise starts over at the first waypoint (a new attempt from where it lies, as a robot would),
-            # not toward the kneel from the floor; 0 = never (the rule of rounds 1 … 11); kneeling ≈ 0.41 m,
-            # lying 0.03–0.22 m
+            # not toward the kneel from the floor; 0 = never; the kneeling trunk is at ≈ 0.41 m, a lying one at
+            # 0.03–0.22 m
             restart_below_m=0.25,
             # best-of-K in place of the takeovers (best_of_k.py; k 0 = the planner): from each start k rises of
             # the policy, all but the first with Gaussian target noise sigma_rad at knots knot_s apart; the first

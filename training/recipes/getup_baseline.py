@@ -9,10 +9,14 @@ RECIPE = Recipe(
     name="getup_baseline", policy="getup_baseline",
     summary="reward-only baseline getup (Table 4.3's comparison, the chapter-6 baseline composite)",
     stages=(
+        # the seed's reward alone, from scratch (LESSONS.md: `getup_baseline`)
         Stage("reward_only", task="getup_baseline", steps=40_140_800, config={"ppo.policy_std_scale": 0.5}),
+        # narrower sampling noise, then none from entropy: a stand that holds still (`getup_baseline_std025`,
+        # `getup_baseline_quiet`)
         Stage("narrow", task="getup_baseline", steps=9_031_680, init="reward_only",
               config={"ppo.policy_std_scale": 0.25}),
         Stage("quiet", task="getup_baseline", steps=15_052_800, init="narrow", config=QUIET),
+        # a longer horizon, standing starts, then the energy cost (`getup_baseline_g099`, `_stand`, `_energy`)
         Stage("discount", task="getup_baseline", steps=5_529_600, init="quiet",
               config={**QUIET, "ppo.discounting": 0.99, "ppo.value_warmup_steps": 500_000}),
         Stage("stand", task="getup_baseline", steps=10_547_200, init="discount",

@@ -12,9 +12,11 @@ RECIPE = Recipe(
     summary="gated full-task getup from the baseline, energy-tuned, trained on knockdown landings (the student's "
             "teacher member; it does not kneel)",
     stages=(
+        # the seed's gated rewards from a policy that already stands (`getup_full_from_baseline_pergate`)
         Stage("gated", task="getup", steps=7_024_640, init="@getup_baseline/energy",
               config={**GATED, "ppo.value_warmup_steps": 1_000_000}),
-        Stage("energy", task="getup", steps=9_543_680, init="gated", config=ENERGY),
+        Stage("energy", task="getup", steps=9_543_680, init="gated", config=ENERGY),   # `getup_keyframe_energy`
+        # the states the teacher hands over after a push, then a bank of them (`getup_knockdown`, `getup_kd_bank`)
         Stage("knockdown", task="getup", steps=6_533_120, init="energy",
               config={**ENERGY, "env.knockdown_starts.prob": 0.5,
                       "env.knockdown_starts.joystick_policy": TEACHER_JOYSTICK}),

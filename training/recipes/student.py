@@ -10,8 +10,8 @@ from training.recipe import Recipe, Stage
 JOYSTICK = "policies/joystick_handover/joystick_handover.safetensors"
 GETUP = "policies/getup_knockdown/getup_knockdown.safetensors"
 KNOCKDOWN = {"env.knockdown.prob": 0.25}
-# two fine-tunes (LESSONS, periods 5b and 6) were best on the walls at 3 M steps and from 5 M on stood at them;
-# BC decays on the 30 M schedule they ran, so it still weighs 0.9 at the stage's end
+# the stage stops at 3 M steps, where the fine-tune is best on the walls (later it stands at them: LESSONS.md,
+# "student / finetune"); BC decays on a 30 M schedule, so it still weighs 0.9 at the stage's end
 FINETUNE_STEPS = 3_010_560
 BC_DECAY_STEPS = 30_000_000
 FINETUNE = {
@@ -36,6 +36,8 @@ RECIPE = Recipe(
     name="student", policy="student",
     summary="the distilled student the runtime runs (walk, fall, get up) under the safety supervisor",
     stages=(
+        # DAgger from the stitched teacher, then with knockdown pushes, then with the wall course
+        # (LESSONS.md: `student_handover`, `student_knockdown`, `student_walls`)
         Stage("handover", kind="distill", steps=1600, envs=1024,
               teacher={"getup": "@getup_knockdown/energy", "joystick": JOYSTICK},
               config={"bc.num_evals": 21}),
@@ -45,6 +47,7 @@ RECIPE = Recipe(
         Stage("walls", kind="distill", steps=400, envs=1024, init="knockdown",
               teacher={"getup": GETUP, "joystick": JOYSTICK},
               config={**KNOCKDOWN, "env.walls.prob": 0.2, "bc.num_evals": 5}),
+        # PPO on its own outcomes toward the same teacher (`student` / `finetune`)
         Stage("finetune", task="unified", steps=FINETUNE_STEPS, init="walls",
               teacher={"getup": GETUP, "joystick": JOYSTICK}, config=FINETUNE),
     ))

@@ -1,7 +1,7 @@
 """Reverse curriculum for the stand task (getup_stand.py; ours, not the seed's): starts along a path from standing
 to the kneel.
 
-Why: stage 2 from the kneel alone (the seed's start) learned to hold the kneel and never stood
+Why: stage 2 from the kneel alone (the seed's start) learns to hold the kneel and never stands
 (training/LESSONS.md). Standing up from this model's kneel (both knees and both toe tips
 on the floor, feet behind) needs a lunge — one foot brought forward flat, then a push up over it — and
 every exploratory move toward it that tips the robot ends the episode. Starting some episodes part of the

@@ -1,0 +1,135 @@
+"""Each shared constant has one definition: the loop and policy rates and the heights (fallen, standing, the
+kneel gate, the waist switch, the getup reward's standing targets) live in messages/contract.json, and the
+Python packages read them through messages/contract.py. This scans the packages' sources (their AST) for a
+second definition: a name or config key that speaks of one of these quantities given one of their values as
+a literal, and the names retired because they meant different things in different modules."""
+from __future__ import annotations
+
+import ast
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from messages import contract
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("messages", "common", "sim_hil", "training")
+DATA = json.loads((ROOT / "messages" / "contract.json").read_text())
+
+RATE_VALUES = {contract.LOOP_PERIOD_S, contract.POLICY_PERIOD_S, contract.LOOP_RATE_HZ, contract.POLICY_RATE_HZ}
+HEIGHT_VALUES = {contract.FALLEN_TRUNK_HEIGHT_M, contract.STANDING_TRUNK_THRESHOLD_M,
+                 contract.NOMINAL_STANDING_TRUNK_HEIGHT_M, contract.STANDING_TARGET_TRUNK_M,
+                 contract.STANDING_TARGET_WAIST_M, contract.KNEEL_GATE_HEIGHT_M, contract.WAIST_SWITCH_HEIGHT_M}
+# a name (variable, attribute, keyword, dict key) that speaks of the loop's or the policy's rate ...
+RATE_NAME = re.compile(r"ctrl_dt|control_dt|loop_(dt|period)|policy_(dt|period|rate|hz)|tick_s\b|decimation|"
+                       r"sim_dt|physics_dt", re.I)
+# ... or of a body height
+HEIGHT_NAME = re.compile(r"height|standing|fallen|fall_trunk|gate|switch", re.I)
+# (file relative to the root, name): literals under such names that mean something else, with the reason
+ALLOWED: dict[tuple[str, str], str] = {}
+RETIRED_NAMES = {
+    "CONTROL_DT_S": "meant 0.02 s in one module and 0.002 s in another: contract.POLICY_PERIOD_S / LOOP_PERIOD_S",
+    "STANDING_TRUNK_HEIGHT_M": "the standing threshold: contract.STANDING_TRUNK_THRESHOLD_M",
+    "STANDING_TORSO_M": "the getup reward's target: contract.STANDING_TARGET_TRUNK_M",
+    "STANDING_WAIST_M": "the getup reward's target: contract.STANDING_TARGET_WAIST_M",
+    "GATE_HEIGHT_M": "the kneel gate's height: events.KNEEL_GATE_HEIGHT_M (= contract.KNEEL_GATE_HEIGHT_M)",
+}
+
+
+def _sources() -> list[Path]:
+    return sorted(p for package in PACKAGES for p in (ROOT / package).rglob("*.py"))
+
+
+def _number(node: ast.AST) -> float | None:
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+        inner = _number(node.operand)
+        return None if inner is None else -inner
+    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
+        return float(node.value)
+    return None
+
+
+def _named_literals(tree: ast.AST):
+    """(line, name, value) of every number given to a name: assignments, keyword arguments, dict entries."""
+    for node in ast.walk(tree):
+        pairs = []
+        if isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            pairs = [(t, node.value) for t in targets if node.value is not None]
+        elif isinstance(node, ast.keyword) and node.arg:
+            pairs = [(node.arg, node.value)]
+        elif isinstance(node, ast.Dict):
+            pairs = [(k.value, v) for k, v in zip(node.keys, node.values)
+                     if isinstance(k, ast.Constant) and isinstance(k.value, str)]
+        for target, value in pairs:
+            name = target if isinstance(target, str) else getattr(target, "id", None) or getattr(target, "attr", None)
+            number = _number(value)
+            if name and number is not None:
+                yield getattr(value, "lineno", 0), name, number
+
+
+def _matches(number: float, values: set[float]) -> bool:
+    return any(abs(number - v) < 1e-12 for v in values)
+
+
+def test_contract_defines_each_shared_constant():
+    for key in ("loop_period_s", "policy_decimation", "fallen_trunk_height_m", "standing_trunk_threshold_m",
+                "nominal_standing_trunk_height_m", "standing_target_trunk_m", "standing_target_waist_m",
+                "kneel_gate_height_m", "waist_switch_height_m"):
+        assert key in DATA, f"messages/contract.json: no {key}"
+    assert contract.POLICY_PERIOD_S == pytest.approx(contract.LOOP_PERIOD_S * contract.POLICY_DECIMATION)
+
+
+def test_no_second_definition_in_the_python_sources():
+    found = []
+    for path in _sources():
+        rel = path.relative_to(ROOT).as_posix()
+        if rel == "messages/contract.py":
+            continue
+        tree = ast.parse(path.read_text())
+        for line, name, number in _named_literals(tree):
+            if (rel, name) in ALLOWED:   # a literal that means something else (ALLOWED says what)
+                continue
+            if RATE_NAME.search(name) and (_matches(number, RATE_VALUES) or "decimation" in name.lower()):
+                found.append(f"{rel}:{line}: {name} = {number:g} (a rate: messages/contract.py)")
+            elif HEIGHT_NAME.search(name) and _matches(number, HEIGHT_VALUES):
+                found.append(f"{rel}:{line}: {name} = {number:g} (a height: messages/contract.py)")
+    assert not found, "constants defined again outside messages/contract.json:\n" + "\n".join(found)
+
+
+def test_retired_names_are_gone():
+    found = []
+    for path in _sources():
+        for node in ast.walk(ast.parse(path.read_text())):
+            name = getattr(node, "id", None) or getattr(node, "attr", None)
+            if name in RETIRED_NAMES:
+                found.append(f"{path.relative_to(ROOT)}:{node.lineno}: {name}: {RETIRED_NAMES[name]}")
+    assert not found, "\n".join(found)
+
+
+def test_the_scan_finds_a_second_definition():
+    """The scan itself: a module repeating the fallen height, the policy period or the decimation is caught."""
+    tree = ast.parse("FALLEN_TRUNK_HEIGHT_M = 0.35\ncfg = dict(ctrl_dt=0.02)\nPOLICY_DECIMATION = 10\n"
+                     "x = {'fall_trunk_height_m': 0.35}\nOTHER = 0.35\n")
+    hits = [(name, number) for _, name, number in _named_literals(tree)
+            if (HEIGHT_NAME.search(name) and _matches(number, HEIGHT_VALUES))
+            or (RATE_NAME.search(name) and (_matches(number, RATE_VALUES) or "decimation" in name.lower()))]
+    assert sorted(hits) == sorted([("FALLEN_TRUNK_HEIGHT_M", 0.35), ("ctrl_dt", 0.02), ("POLICY_DECIMATION", 10.0),
+                                   ("fall_trunk_height_m", 0.35)])
+
+
+def _cpp_constant(header: Path, name: str) -> float:
+    match = re.search(rf"constexpr\s+\w+\s+{name}\s*=\s*([0-9.'eE+-]+)\s*;", header.read_text())
+    assert match, f"{header}: no {name}"
+    return float(match.group(1).replace("'", ""))
+
+
+def test_runtime_constants_agree_with_the_contract():
+    """The runtime's loop constants (runtime/include/t1rt/constants.hpp) are still its own copy: they must equal
+    the contract's until the runtime reads t1_contract.hpp's kLoopPeriodS / kPolicyDecimation."""
+    header = ROOT / "runtime" / "include" / "t1rt" / "constants.hpp"
+    assert _cpp_constant(header, "kLoopDtS") == contract.LOOP_PERIOD_S
+    assert _cpp_constant(header, "kLoopPeriodNs") == pytest.approx(contract.LOOP_PERIOD_S * 1e9)
+    assert _cpp_constant(header, "kPolicyDecimation") == contract.POLICY_DECIMATION
