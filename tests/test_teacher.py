@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from common import observation as obsdef
+from training import cli as training_cli
 from training.teacher import STUDENT_OBS_KEY, WAIST_OBS_KEY, Expert, make_teacher
 
 N = obsdef.NUM_JOINTS
@@ -96,3 +97,12 @@ def test_the_chain_teacher_acts_with_the_stage_s_member():
     np.testing.assert_allclose(np.asarray(extra["loc"]), np.asarray(action), rtol=1e-6)
     with pytest.raises(ValueError, match="a chain teacher has 3 members"):
         make_chain_teacher(members[:2], obsdef.TERMS_GETUP, 2.0, student_tanh_squash=False)
+
+
+def test_distill_names_a_bad_teacher(capsys):
+    assert training_cli.main(["distill", "--getup", "g", "--out", "o"]) == 2
+    assert "needs both --getup and --joystick" in capsys.readouterr().err
+    assert training_cli.main(["distill", "--chain", "a,b", "--out", "o"]) == 2
+    assert "--chain takes 3 artifacts" in capsys.readouterr().err
+    assert training_cli.main(["distill", "--chain", "a,b,c", "--getup", "g", "--out", "o"]) == 2
+    assert "either --getup and --joystick" in capsys.readouterr().err

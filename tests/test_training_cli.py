@@ -255,15 +255,6 @@ def test_toy_distill_from_the_keyframe_chain_exports_a_getup_policy(toy_runs):
     assert set(manifest["provenance"]["teacher"]) == {"roll", "rise", "stand"} and manifest["trained"] is False
 
 
-def test_distill_names_a_bad_teacher(capsys):
-    assert cli.main(["distill", "--getup", "g", "--out", "o"]) == 2
-    assert "needs both --getup and --joystick" in capsys.readouterr().err
-    assert cli.main(["distill", "--chain", "a,b", "--out", "o"]) == 2
-    assert "--chain takes 3 artifacts" in capsys.readouterr().err
-    assert cli.main(["distill", "--chain", "a,b,c", "--getup", "g", "--out", "o"]) == 2
-    assert "either --getup and --joystick" in capsys.readouterr().err
-
-
 @pytest.mark.slow
 def test_export_phase_writes_an_earlier_checkpoint(toy_runs, capsys):
     from training.distill import export_phase

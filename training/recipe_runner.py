@@ -142,6 +142,27 @@ def _init_path(init: str, recipe: R.Recipe, root: Path) -> Path:
     return stage_artifact(run_dir, recipe, stage) if stage.kind == "imitation" else run_dir
 
 
+def export_newest(run_dir) -> Path:
+    """A run's newest kept checkpoint → its export (run_dir/<name>.safetensors), as the run's end exports it: what a
+    campaign restored on another machine (checkpoint and run state only) exports when a later stage reads it. The
+    manifest's env fields come from the run's env without its start banks (they do not depend on them)."""
+    from training import migration, train
+    from training.envs import starts      # the envs package brings JAX along: only when exporting
+    run_dir = Path(run_dir)
+    state = checkpoints.load_run_state(run_dir)
+    ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
+    if "fallen" in env_cfg:
+        env_cfg.fallen.update(bank_starts=1, side_weights=[1] * len(env_cfg.fallen.side_weights))
+    for group in starts.SOURCES:   # the banked start sources off: building them rolls policies out
+        if group.bank and group.group in env_cfg:
+            env_cfg[group.group].prob = 0.0
+    env_cfg.backend = "cpu"
+    state = {**state, "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict()}
+    params = checkpoints.load_checkpoint(run_dir)
+    return train.export_run(run_dir, train.make_env(migration.run_task(state, str(run_dir)), env_cfg), state, params,
+                      state["preset"])
+
+
 def resolve_ref(value, root: Path, shipped: bool = False):
     """A `@RECIPE/STAGE` reference → the artifact that stage exported into `root` (with `shipped`: that
     recipe's shipped policy instead); other values unchanged."""
@@ -155,8 +176,7 @@ def resolve_ref(value, root: Path, shipped: bool = False):
     dirs = stage_dirs(root, recipe, stage)
     path = stage_artifact(dirs[-1], recipe, stage) if dirs else None
     if path is not None and not path.exists() and stage.kind == "ppo" and stage_complete(root, recipe, stage):
-        from training import train      # a campaign restored without its export: export its newest checkpoint
-        path = train.export_newest(dirs[-1])
+        path = export_newest(dirs[-1])    # a campaign restored without its export
     if path is None or not path.exists():
         raise FileNotFoundError(f"{value}: no artifact under {root / name}; run `python -m training recipe {name} "
                                 f"--stage {stage_name}` first (with the same --out)")

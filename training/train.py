@@ -353,26 +353,6 @@ def _env_fields_artifact(run_dir: Path, state: dict) -> Path:
         return own     # named in the error below
 
 
-def export_newest(run_dir) -> Path:
-    """A run's newest kept checkpoint → its export (run_dir/<name>.safetensors), as the run's end exports it: what a
-    campaign restored on another machine (checkpoint and run state only) exports when a later stage reads it. The
-    manifest's env fields come from the run's env without its start banks (they do not depend on them)."""
-    from training.envs import starts      # the envs package brings JAX along: only when exporting
-    run_dir = Path(run_dir)
-    state = checkpoints.load_run_state(run_dir)
-    ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
-    if "fallen" in env_cfg:
-        env_cfg.fallen.update(bank_starts=1, side_weights=[1] * len(env_cfg.fallen.side_weights))
-    for group in starts.SOURCES:   # the banked start sources off: building them rolls policies out
-        if group.bank and group.group in env_cfg:
-            env_cfg[group.group].prob = 0.0
-    env_cfg.backend = "cpu"
-    state = {**state, "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict()}
-    params = checkpoints.load_checkpoint(run_dir)
-    return export_run(run_dir, make_env(migration.run_task(state, str(run_dir)), env_cfg), state, params,
-                      state["preset"])
-
-
 def export_checkpoint(run_dir, env_steps, name: str, like=None) -> Path:
     """A run's kept checkpoint at `env_steps` → run_dir/<name>.safetensors: the env and network fields of
     `like` (default: the run's export, mid-run its --from run's), this run's provenance at that checkpoint's
