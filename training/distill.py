@@ -39,6 +39,8 @@ def bc_config(preset: str = "gpu") -> config_dict.ConfigDict:
         num_envs=1024, demo_length=6, batch_size=256, learning_rate=4e-4, epochs=4,
         normalize_observations=True, dagger_steps=1000,
         beta_teacher_phases=1,  # β = 1 for this many DAgger phases, then 0 (the seed's step function)
+        beta_floor=0.0,  # β after the teacher's phases; > 0 keeps the teacher's states in every phase's data
+        beta_decay_phases=0,  # phases over which β falls linearly from 1 to beta_floor (0: at once)
         num_evals=11,  # the initial evaluation + the seed's 10
         num_eval_envs=128, eval_length_factor=1.15,  # × the env's episode length (Table 5.2: 1150 of 1000)
         scramble_time=0,  # 0: the env's episode length (Table 5.2: 1000)
@@ -96,11 +98,21 @@ def _write_state(run_dir: Path, before: dict, steps_per_phase: int, phases: int,
          "steps_per_phase": steps_per_phase, "from": before["checkpoint"], **fields}, indent=1) + "\n")
 
 
-def beta_schedule(teacher_phases: int):
-    """β(step) = probability that the teacher's action is executed: 1 in the first `teacher_phases` DAgger
-    phases, then 0 (the seed's Algorithm 1 with teacher_phases = 1)."""
+def beta_schedule(teacher_phases: int, floor: float = 0.0, decay_phases: int = 0):
+    """β(step) = probability that the teacher's action is executed at a step: 1 in the first `teacher_phases`
+    DAgger phases, then falling linearly to `floor` over `decay_phases` (the seed's Algorithm 1: teacher_phases
+    1, floor 0, no decay). Brax's bc learns from the newest phase only: a floor keeps the states the teacher
+    reaches (standing, the kneel) in every phase, where a student that falls early would otherwise forget them."""
     import jax.numpy as jnp
-    return lambda step: jnp.where(step < teacher_phases, 1.0, 0.0)
+    if not 0.0 <= floor <= 1.0:
+        raise ValueError(f"beta_floor: {floor} is not a probability in [0, 1]")
+    if decay_phases < 0:
+        raise ValueError(f"beta_decay_phases: {decay_phases} is negative")
+
+    def beta(step):
+        fall = jnp.clip((step - teacher_phases + 1) / max(decay_phases, 1), 0.0, 1.0)
+        return jnp.where(step < teacher_phases, 1.0, 1.0 - (1.0 - floor) * fall)
+    return beta
 
 
 def loc_half(policy_params) -> dict:
@@ -267,7 +279,7 @@ def _train_bc(cfg, env, teacher, network_factory, progress_fn, seed: int, episod
             eval_length=round(cfg.eval_length_factor * episode_length), batch_size=cfg.batch_size,
             scramble_time=cfg.scramble_time or episode_length, network_factory=network_factory,
             progress_fn=progress_fn, seed=seed, learning_rate=cfg.learning_rate, dagger_steps=cfg.dagger_steps,
-            dagger_beta_fn=beta_schedule(cfg.beta_teacher_phases), num_evals=cfg.num_evals,
+            dagger_beta_fn=beta_schedule(cfg.beta_teacher_phases, cfg.beta_floor, cfg.beta_decay_phases), num_evals=cfg.num_evals,
             reset=cfg.reset, save_checkpoint_path=str(ckpt_root), restore_checkpoint_path=restore)
     except _Stop:
         return None, True
