@@ -98,12 +98,15 @@ bool DdsTransport::open(int domain_id, ClockMode clock, Supervisor* supervisor, 
     *error = dds_error("dds_create_topic", state_topic < 0 ? state_topic : cmd_topic);
     return false;
   }
-  // State: best effort, newest only (a best-effort reader matches a reliable or a best-effort robot).
+  // State: best effort (a best-effort reader matches a reliable or a best-effort robot), the last
+  // kTakeBatch samples: LowState_ has no key, so with a depth of 1 a second writer's sample would overwrite
+  // the robot's before the loop takes it (the robot's state starved); taken in order, the newest last.
   // Command: reliable, newest only, as the robot's ROS 2 variant declares joint_ctrl.
   dds_qos_t* qos = dds_create_qos();
   dds_qset_reliability(qos, DDS_RELIABILITY_BEST_EFFORT, 0);
-  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, kTakeBatch);
   state_reader_ = dds_create_reader(participant_, state_topic, qos, nullptr);
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1);
   dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
   cmd_writer_ = dds_create_writer(participant_, cmd_topic, qos, nullptr);
   dds_delete_qos(qos);
