@@ -1,4 +1,5 @@
-"""Who may command the runtime: the signing of runtime_cmd_t and joystick_t, key files, artifact approvals.
+"""Who may command the runtime and whose state it takes: the signing of runtime_cmd_t and joystick_t (the
+operator's key) and of imu_t and joint_state_t (the robot key), key files, artifact approvals.
 The one definition of the protocol; C++ verifies it in runtime/include/t1rt/command_auth.hpp, held to this
 file by the golden vector tests/golden/command_auth.json (`python -m messages.auth golden tests/golden`).
 
@@ -11,6 +12,12 @@ program's plain runtime_cmd_t is a whole datagram; any other tag_size is refused
 only when its tag verifies under the sender's key, its timestamp is after the last one taken from that sender
 on that channel, and it lies within the runtime's freshness window (t1rt::AuthConfig) and not before the
 runtime started. estop is the exception: obeyed from anyone, signed or not.
+
+State (STATE_CHANNELS): the robot signs each imu_t / joint_state_t it publishes in the same way with the robot
+key, a key file of its own (never the operator's: who holds one may neither command as the other nor publish
+state). The runtime started with --robot-key FILE takes state only when it verifies under FILE's keys, fresh
+and after the last one per channel, as above; every other frame is refused and counted by reason. Without
+--robot-key (a bench) state is unsigned and only a second sequence stream is detected (safety rule R12).
 
 Key file: text, one sender a line, "<sender_id> <key: 64 hex digits>", '#' comments; open to its owner only
 (mode 0600: the runtime and these tools refuse anything else). The runtime's file lists every sender it
@@ -45,11 +52,12 @@ from pathlib import Path
 
 from messages import contract
 
-TAG_BYTES = 32                                   # tag_size of a signed runtime_cmd_t / joystick_t (0: unsigned)
+TAG_BYTES = 32                                   # tag_size of a signed message (0: unsigned)
 TAG_SIZE_BYTES = 2                               # the int16_t tag_size field, just before the tag
 KEY_BYTES = int(contract.AUTH["key_bytes"])
 APPROVAL_CONTEXT = contract.AUTH["approval_context"].encode()
-SIGNED_CHANNELS = frozenset(contract.CHANNELS[k] for k in contract.AUTH["signed_channels"])
+STATE_CHANNELS = frozenset(contract.CHANNELS[k] for k in contract.AUTH["state_channels"])     # the robot key's
+SIGNED_CHANNELS = frozenset(contract.CHANNELS[k] for k in contract.AUTH["signed_channels"]) | STATE_CHANNELS
 UNSIGNED_SENDER = 0
 NEW_SENDER_ID_MAX = 2**31 - 1                    # new-key's random ids lie in [1, this]
 GOLDEN_FILE = "command_auth.json"
@@ -150,6 +158,20 @@ class Signer:
         return data[:-TAG_BYTES] + msg.tag
 
 
+LEGACY_STATE_FINGERPRINTS = {name: int(fp, 16) for name, fp in contract.AUTH["legacy_fingerprints"].items()}
+UNSIGNED_TAIL = bytes(8 + 8 + TAG_SIZE_BYTES)     # sender_id 0, timestamp_us 0, tag_size 0: no tag
+
+
+def upgrade_legacy_state(type_name: str, data: bytes, fingerprint: int) -> bytes | None:
+    """A state frame recorded before state was signed (its type's legacy fingerprint) as the same frame of
+    today's type, unsigned: the old encoding is today's before sender_id, so only the fingerprint and the
+    unsigned tail change. None when data is not a frame of that legacy version."""
+    legacy = LEGACY_STATE_FINGERPRINTS.get(type_name)
+    if legacy is None or len(data) < 8 or int.from_bytes(data[:8], "big") != legacy:
+        return None
+    return fingerprint.to_bytes(8, "big") + data[8:] + UNSIGNED_TAIL
+
+
 def file_sha256(path: str | os.PathLike) -> bytes:
     return hashlib.sha256(Path(path).read_bytes()).digest()
 
@@ -167,20 +189,29 @@ def append_approvals(approvals: str | os.PathLike, sender: Sender, artifacts) ->
 
 
 class RunKey:
-    """A fresh key for one run: a private temporary folder (mode 0700) holding the key file (0600) and the
-    run's approvals file, removed by close() or at exit. The launcher hands both to the runtime (--key,
-    --approvals) and the run's clients sign with signer(). The key never leaves the folder."""
+    """A fresh key for one run: a private temporary folder (mode 0700) holding the operator's key file (0600),
+    the run's approvals file and the robot key file (0600), removed by close() or at exit. The launcher hands
+    them to the runtime (--key, --approvals, --robot-key) and the robot key to the simulator (--robot-key);
+    the run's clients sign with signer(). The keys never leave the folder."""
+
+    ROBOT_SENDER_ID = 1                          # the robot key file's one line
 
     def __init__(self):
         self.dir = Path(tempfile.mkdtemp(prefix="t1-run-key-"))
         self.key_path, self.approvals_path = self.dir / "key", self.dir / "approvals"
+        self.robot_key_path = self.dir / "robot_key"
         self.senders = [new_sender(1)]
         write_key_file(self.key_path, self.senders)
+        write_key_file(self.robot_key_path, [new_sender(self.ROBOT_SENDER_ID)])
         self.approvals_path.touch(mode=0o600)
         self._finalizer = weakref.finalize(self, shutil.rmtree, self.dir, True)
 
     def signer(self, index: int = 0) -> Signer:
         return Signer(self.senders[index])
+
+    def robot_signer(self) -> Signer:
+        """Signs state as this run's robot does (sim_hil --robot-key)."""
+        return Signer(read_key_file(self.robot_key_path)[0])
 
     def add_sender(self) -> Sender:
         """A second sender with its own key and id, added to the runtime's key file (read at its start)."""
@@ -199,21 +230,29 @@ class RunKey:
 
 def golden_document() -> dict:
     """Fixed key, sender, timestamps and fields: the signed encodings and an approval tag."""
-    from t1 import joystick_t, runtime_cmd_t
+    from t1 import imu_t, joint_state_t, joystick_t, runtime_cmd_t
     key = bytes(range(KEY_BYTES))
-    clock = iter([1_700_000_000_000_000, 1_700_000_000_020_000])
+    clock = iter([1_700_000_000_000_000, 1_700_000_000_020_000, 1_700_000_000_040_000, 1_700_000_000_042_000])
     signer = Signer(Sender(7, key), clock_ns=lambda: next(clock) * 1000)
     cmd = runtime_cmd_t()
     cmd.utime, cmd.seq, cmd.verb, cmd.argument = 123456, 5, "load_policy", "student/student.safetensors"
     stick = joystick_t()
     stick.utime, stick.seq, stick.vx, stick.vy, stick.yaw_rate = 654321, 9, 0.5, -0.25, 0.125
+    imu = imu_t()
+    imu.utime, imu.seq, imu.quat, imu.gyro, imu.accel = 777000, 11, [1.0, 0.0, 0.0, 0.0], [0.5, 0, 0], [0, 0, 9.81]
+    joints = joint_state_t()
+    joints.utime, joints.seq = 777000, 11
+    joints.q = [0.01 * i for i in range(contract.NUM_JOINTS)]
+    joints.motor_status = [i % 3 for i in range(contract.NUM_JOINTS)]
     messages = []
-    for channel, msg in ((contract.CH_RUNTIME_CMD, cmd), (contract.CH_JOYSTICK, stick)):
+    for channel, msg in ((contract.CH_RUNTIME_CMD, cmd), (contract.CH_JOYSTICK, stick), (contract.CH_IMU, imu),
+                         (contract.CH_JOINT_STATE, joints)):
         data = signer.sign(channel, msg)
         messages.append({"channel": channel, "sender_id": msg.sender_id, "timestamp_us": msg.timestamp_us,
                          "tag_size": msg.tag_size, "encoded_hex": data.hex(), "tag_hex": msg.tag.hex()})
     digest = hashlib.sha256(b"T1 golden artifact bytes\n").digest()
-    return {"_comment": f"Signed runtime_cmd_t / joystick_t and an approval under a fixed key (messages/auth.py); "
+    return {"_comment": f"Signed runtime_cmd_t / joystick_t / imu_t / joint_state_t and an approval under a fixed "
+                        f"key (messages/auth.py); "
                         f"regenerate with `{GOLDEN_COMMAND}`",
             "key_hex": key.hex(), "messages": messages,
             "approval": {"artifact_sha256_hex": digest.hex(), "sender_id": 7, "tag_hex": approval_tag(key, digest).hex()}}

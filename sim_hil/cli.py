@@ -39,6 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rt", action="store_true",
                    help="with --clock realtime: SCHED_FIFO priority (needs root or CAP_SYS_NICE; refusal reported)")
     p.add_argument("--lcm-url", default=None, help="default: $T1_LCM_URL or " + contract.DEFAULT_LCM_URL)
+    p.add_argument("--robot-key", metavar="FILE", default=None,
+                   help="sign every T1_IMU / T1_JOINT_STATE with this robot key file (messages/auth.py, mode 600; "
+                        "the runtime's --robot-key): a runtime with the key takes state from this robot only"),
     p.add_argument("--lockstep-timeout", type=float, default=config.LOCKSTEP_TIMEOUT_S,
                    help="wall seconds to wait for the command answering a state")
     p.add_argument("--status-rate", type=float, default=config.STATUS_RATE_HZ, help="T1_SIM_STATUS rate [Hz]")
@@ -80,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
                     lcm_url=args.lcm_url or contract.lcm_url(), can_interface=args.can_interface,
                     can_log=args.can_log, record=args.record, lockstep_timeout_s=args.lockstep_timeout,
                     status_rate_hz=args.status_rate, dds=args.dds,
-                    viewer=args.viewer, rt=args.rt, python_tick=args.python_tick)
+                    viewer=args.viewer, rt=args.rt, python_tick=args.python_tick, robot_key=args.robot_key)
     shim = None
     if args.fastdds_compat:
         if not args.dds:
@@ -91,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
         shim = FastDdsShim()
     try:
         sim = Simulator(cfg)
-    except (ValueError, FaultSpecError) as exc:
+    except (ValueError, FaultSpecError) as exc:       # KeyFileError is a ValueError: a refused key file
         print(f"sim_hil: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except RuntimeError as exc:

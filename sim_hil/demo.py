@@ -17,6 +17,7 @@ import lcm
 from t1 import controller_status_t, joystick_t, sim_status_t
 
 from messages import contract
+from messages.auth import RunKey
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop, stop_cleanly_on_sigterm
 from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.plots import plot_heights_and_velocity
@@ -142,8 +143,9 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
         out / f"{name}.lcmlog", contract.lcm_url(),
         RunInfo(run_name=name, producer="demo", clock="realtime", policy_path=str(policy),
                 policy_hash=manifest["content_hash"], runtime_args=runtime_args, sim_args=sim_args))
-    sim = start_sim(*sim_args)
-    runtime = start_runtime(policy, *runtime_args)     # with a fresh key of this run: the script signs
+    run_key = RunKey()                                  # this run's keys: the operator's and the robot's
+    sim = start_sim(*sim_args, run_key=run_key)         # signs its state with the robot key
+    runtime = start_runtime(policy, *runtime_args, run_key=run_key)   # takes only that state; the script signs
     signer = runtime.run_key.signer()
     js, seq, next_print, final = joystick_t(), 0, 0.0, None
     stop_cleanly_on_sigterm()

@@ -22,11 +22,13 @@ def _env() -> dict:
     return dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(BUILD / "gen" / "python")]))
 
 
-def start_sim(*args: str) -> subprocess.Popen:
+def start_sim(*args: str, run_key: RunKey | None = None) -> subprocess.Popen:
     """`python -m sim_hil --quiet ARGS`; stderr is kept for the caller to report. No LCM log unless ARGS name
-    one with --log (callers that log, like the demo, capture the run themselves)."""
+    one with --log (callers that log, like the demo, capture the run themselves). run_key: the run's keys
+    (start_runtime's run_key too): the simulator signs its state with the run's robot key (--robot-key)."""
     log_args = () if "--log" in args else ("--no-log",)
-    return subprocess.Popen([sys.executable, "-m", "sim_hil", "--quiet", *log_args, *args], cwd=ROOT, env=_env(),
+    key_args = ("--robot-key", str(run_key.robot_key_path)) if run_key is not None and "--robot-key" not in args else ()
+    return subprocess.Popen([sys.executable, "-m", "sim_hil", "--quiet", *log_args, *key_args, *args], cwd=ROOT, env=_env(),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -34,23 +36,27 @@ def _value_of(args: tuple[str, ...], flag: str) -> str | None:
     return args[args.index(flag) + 1] if flag in args[:-1] else None
 
 
-def start_runtime(policy: Path, *args: str, output=None, sign: bool = True) -> subprocess.Popen:
+def start_runtime(policy: Path, *args: str, output=None, sign: bool = True, run_key: RunKey | None = None) -> subprocess.Popen:
     """`t1-runtime --policy POLICY --quiet ARGS`, commanded by this run only: unless ARGS carry --key or
     --unauthenticated, a fresh key of this run (messages.auth.RunKey: a private temporary folder) is made,
     the run's policies (POLICY, --policy-upright) approved under it, and --key, --approvals and --policy-dir
     (ARGS' own, else the policies' common folder) added. The process's run_key signs what the caller sends
     (run_key.signer(); None when ARGS chose) and approves what it loads; stop() removes it. output: a file
     for stdout and stderr (default: pipes the caller reads). sign=False adds nothing: the runtime then takes
-    estop only."""
+    estop only. run_key: the run's keys, made by the caller before the simulator (start_sim(run_key=...)):
+    used instead of a fresh one, and its robot key added (--robot-key): the runtime takes state only from the
+    simulator of this run."""
     if not RUNTIME.exists():
         raise FileNotFoundError(f"{RUNTIME} is not built: run `make build`")
-    run_key, auth_args = None, []
+    given, auth_args = run_key, []
+    if given is not None and "--robot-key" not in args:
+        auth_args = ["--robot-key", str(given.robot_key_path)]
     if sign and "--key" not in args and "--unauthenticated" not in args:
         policies = [Path(policy)] + ([Path(u)] if (u := _value_of(args, "--policy-upright")) else [])
         folder = _value_of(args, "--policy-dir") or os.path.commonpath([str(p.resolve().parent) for p in policies])
-        run_key = RunKey()
+        run_key = given or RunKey()
         run_key.approve(*policies)
-        auth_args = ["--key", str(run_key.key_path), "--approvals", str(run_key.approvals_path)]
+        auth_args += ["--key", str(run_key.key_path), "--approvals", str(run_key.approvals_path)]
         auth_args += [] if "--policy-dir" in args else ["--policy-dir", folder]
     streams = dict(stdout=output, stderr=subprocess.STDOUT) if output is not None else dict(
         stdout=subprocess.PIPE, stderr=subprocess.PIPE)

@@ -77,6 +77,10 @@ class LcmBridge:
     def publish_state(self, utime: int, seq: int, quat, gyro, accel, q, dq, tau, status) -> None:
         self.core.publish_state(utime, seq, quat, gyro, accel, q, dq, tau, status)
 
+    def sign_state(self, sender) -> None:
+        """Sign every state from now on with the robot key's sender (messages/auth.py), in the C++ link."""
+        self.core.sign_state(sender)
+
     def publish_status(self, status: sim_status_t) -> None:
         self.lc.publish(contract.CH_SIM_STATUS, status.encode())
 

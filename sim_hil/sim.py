@@ -27,6 +27,7 @@ from t1 import sim_status_t
 from common import model as t1model
 from common import scenarios
 from common.events import FALLEN_TRUNK_HEIGHT_M
+from messages.auth import read_key_file
 from sim_hil import config
 from sim_hil.faults import FaultSchedule, parse_faults
 from sim_hil.imu import Imu
@@ -54,6 +55,7 @@ class SimConfig:
     viewer: bool = False             # MuJoCo's interactive viewer on the run (sim_hil/viewer.py)
     python_tick: bool = False        # every tick in Python: the reference the C++ lockstep tick is tested against
     rt: bool = False                 # realtime clock under SCHED_FIFO (the runtime's --rt counterpart)
+    robot_key: str | None = None     # sign the LCM state with this robot key file (messages/auth.py); None: unsigned
 
 
 def parse_spawn(spawn: str) -> tuple[str, int]:
@@ -111,6 +113,8 @@ class Simulator:
             self.link = DdsBridge(cfg.lcm_url)
         else:
             self.link = LcmBridge(cfg.lcm_url)
+            if cfg.robot_key:
+                self.link.sign_state(read_key_file(cfg.robot_key)[0])
         self.trunk_id = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "Trunk")
         self.seq = 0
         self.lockstep_timeouts = 0

@@ -30,6 +30,7 @@ def _load() -> C.CDLL:
     vp, i64, f64 = C.c_void_p, C.c_int64, C.c_double
     for name, res, args in (
             ("t1_sim_link_open", vp, [C.c_char_p]), ("t1_sim_link_close", None, [vp]),
+            ("t1_sim_link_set_robot_key", C.c_int, [vp, i64, C.c_char_p, C.c_int]),
             ("t1_sim_link_publish", C.c_int, [vp, C.c_char_p, C.c_char_p, C.c_int]),
             ("t1_sim_link_publish_state", None, [vp, i64, i64] + [vp] * 7),
             ("t1_sim_link_poll", None, [vp, f64]), ("t1_sim_link_wait_for_answer", C.c_int, [vp, i64, f64]),
@@ -63,6 +64,11 @@ class Link:
 
     def __del__(self) -> None:      # a simulator dropped without close(): its LCM receive thread goes too
         self.close()
+
+    def sign_state(self, sender) -> None:
+        """Sign every state from now on as this sender (messages.auth.Sender: the robot key)."""
+        if not _lib.t1_sim_link_set_robot_key(self._p, sender.sender_id, sender.key, len(sender.key)):
+            raise RuntimeError("OpenSSL could not key the state's HMAC-SHA256")
 
     def publish(self, channel: str, payload: bytes) -> None:
         _lib.t1_sim_link_publish(self._p, channel.encode(), payload, len(payload))

@@ -11,7 +11,8 @@ import pytest
 
 from messages import contract
 
-DDS_FILES = {"test_dds.py", "test_dds_booster_sdk.py", "test_fastdds_shim.py", "test_motor_watchdog.py"}
+DDS_FILES = {"test_dds.py", "test_dds_booster_sdk.py", "test_fastdds_shim.py", "test_motor_watchdog.py",
+             "test_state_source.py"}
 # The files whose module fixtures train toy runs (minutes each): scheduled first, so the many short files fill
 # the workers around them instead of one worker finishing the run alone on one of these.
 LONG_FILES = ("test_recipes.py", "test_training_cli.py")

@@ -45,7 +45,7 @@ def test_timestamps_strictly_increase_per_channel_even_when_the_clock_steps_back
     assert stamps == [5_000_000, 5_000_001, 5_000_002]
     assert joystick_t.decode(signer.sign(contract.CH_JOYSTICK, joystick_t())).timestamp_us == 9_000_000
     with pytest.raises(ValueError, match="not a signed channel"):
-        signer.sign(contract.CH_IMU, joystick_t())
+        signer.sign(contract.CH_JOINT_CMD, joystick_t())
 
 
 def test_a_default_constructed_message_is_a_whole_unsigned_one():

@@ -246,3 +246,21 @@ def test_the_logger_refuses_bad_arguments_and_skips_foreign_channels(tmp_path, n
     assert proc.wait(timeout=10) == 0, proc.stderr.read()
     seqs = [joint_state_t.decode(e.data).seq for e in read_events(path, LogProblems())]
     assert seqs[-2000:] == list(range(1, 2001))          # every one, in order; nothing else
+
+
+def test_state_recorded_before_state_was_signed_is_kept_as_unsigned_frames_and_named(tmp_path):
+    """A log from before imu_t / joint_state_t carried the robot's signature: its state events decode as
+    today's types, unsigned, every field kept, and the reader names the old version by its fingerprint."""
+    from messages.auth import LEGACY_STATE_FINGERPRINTS
+    unsigned_tail = 8 + 8 + 2                           # sender_id, timestamp_us, tag_size: what the old type lacked
+    imu = imu_t()
+    imu.seq, imu.quat, imu.accel = 5, [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 9.81]
+    old_imu = LEGACY_STATE_FINGERPRINTS["imu_t"].to_bytes(8, "big") + imu.encode()[8:-unsigned_tail]
+    old_js = LEGACY_STATE_FINGERPRINTS["joint_state_t"].to_bytes(8, "big") + _state(6)[8:-unsigned_tail]
+    log = open_log(write_events(tmp_path / "old.lcmlog", [Event(0, 1, contract.CH_IMU, old_imu),
+                                                          Event(0, 2, contract.CH_JOINT_STATE, old_js)]))
+    got_imu, got_js = log.first(contract.CH_IMU), log.first(contract.CH_JOINT_STATE)
+    assert (got_imu.seq, list(got_imu.accel), got_imu.sender_id, got_imu.tag_size) == (5, [0.0, 0.0, np.float32(9.81)], 0, 0)
+    assert got_js.encode() == _state(6) and not log.problems.wrong_version
+    text = "\n".join(log.problems.messages(log.path))
+    assert f"1 events of the imu_t version before state was signed (fingerprint {LEGACY_STATE_FINGERPRINTS['imu_t']:#018x})" in text

@@ -13,6 +13,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 
 from common.artifact import read_artifact
+from messages.auth import RunKey
 from sim_hil.eval import plans
 from sim_hil.eval.trial import trial_lcm_url
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop, wait_until_listening
@@ -59,10 +60,11 @@ def _run(slots: queue.Queue, policy: str, sim_args: list[str], seconds: float, p
 
 
 def _run_on(url: str, policy: str, sim_args: list[str], seconds: float, prepare_s: float) -> str:
+    run_key = RunKey()                  # as the launcher runs a robot: its state signed, the runtime takes only it
     runtime = start_runtime(ROOT / policy, "--clock", "lockstep", "--autostart", "--prepare-s", f"{prepare_s:g}",
-                            "--lcm-url", url)
+                            "--lcm-url", url, run_key=run_key)
     wait_until_listening(runtime)
-    sim = start_sim(*sim_args, "--clock", "lockstep", "--duration", str(seconds), "--lcm-url", url)
+    sim = start_sim(*sim_args, "--clock", "lockstep", "--duration", str(seconds), "--lcm-url", url, run_key=run_key)
     try:
         _, sim_err = sim.communicate(timeout=LIVENESS_S)
     finally:

@@ -1,6 +1,8 @@
 // The runtime's side of messages/auth.py: key files, tag verification, freshness, approvals (command_auth.hpp).
 #include "t1rt/command_auth.hpp"
 
+#include "t1/imu_t.hpp"
+#include "t1/joint_state_t.hpp"
 #include "t1/joystick_t.hpp"
 
 #include <fcntl.h>
@@ -39,10 +41,15 @@ uint32_t big_endian(const uint8_t* p, std::size_t n) {
 // the datagram ends first, or a string length the decoder would take for a negative size (an LCM string's
 // length counts its NUL, so it is at least 1).
 bool tag_size_offset(CommandAuth::Stream stream, const uint8_t* p, std::size_t size, std::size_t* offset) {
-  if (stream == CommandAuth::kJoystickStream) {  // fixed-size fields only: a default message's encoding
-    static const std::size_t joystick = static_cast<std::size_t>(t1::joystick_t{}.getEncodedSize()) - kTagSizeBytes;
-    *offset = joystick;
-    return true;
+  // Fixed-size fields only (joystick_t, imu_t, joint_state_t): a default message's encoding, tag_size last.
+  static const std::size_t joystick = static_cast<std::size_t>(t1::joystick_t{}.getEncodedSize()) - kTagSizeBytes;
+  static const std::size_t imu = static_cast<std::size_t>(t1::imu_t{}.getEncodedSize()) - kTagSizeBytes;
+  static const std::size_t joint = static_cast<std::size_t>(t1::joint_state_t{}.getEncodedSize()) - kTagSizeBytes;
+  switch (stream) {
+    case CommandAuth::kJoystickStream: *offset = joystick; return true;
+    case CommandAuth::kImuStream: *offset = imu; return true;
+    case CommandAuth::kJointStream: *offset = joint; return true;
+    default: break;
   }
   // runtime_cmd_t: fingerprint, utime, seq; verb, argument (int32 length, bytes, NUL); sender_id, timestamp_us
   constexpr std::size_t kHead = 3 * sizeof(int64_t), kLength = sizeof(int32_t), kStrings = 2;
@@ -324,6 +331,24 @@ void CommandAuth::report(t1::controller_status_t& s) const {
   s.refused_stale = refused(Refusal::kStale);
   s.refused_tag_size = refused(Refusal::kTagSize);
 }
+
+void CommandAuth::report_state(t1::controller_status_t& s) const {
+  s.state_auth.assign(describe_.data(), std::min(std::strlen(describe_.data()), s.state_auth.capacity()));
+  s.state_refused_unsigned = refused(Refusal::kUnsigned);
+  s.state_refused_unknown_sender = refused(Refusal::kUnknownSender);
+  s.state_refused_bad_tag = refused(Refusal::kBadTag);
+  s.state_refused_replayed = refused(Refusal::kReplayed);
+  s.state_refused_stale = refused(Refusal::kStale);
+  s.state_refused_tag_size = refused(Refusal::kTagSize);
+}
+
+int64_t CommandAuth::refused_total() const {
+  int64_t n = 0;
+  for (int64_t r : refused_) n += r;
+  return n;
+}
+
+void CommandAuth::set_description(const char* text) { std::snprintf(describe_.data(), describe_.size(), "%s", text); }
 
 void CommandAuth::refuse_tag_size(const char* what, int tag_size) {
   verdict_ = Refusal::kTagSize;

@@ -11,16 +11,11 @@ namespace t1rt {
 
 namespace {
 std::atomic<bool> g_sighup{false};
-constexpr std::size_t kStringReserve = 512;   // status strings reuse this capacity: no per-tick allocation
+constexpr std::size_t kStringReserve = Controller::kStatusStringReserve;
 constexpr std::size_t kObsReserve = 1024;     // observation_t vectors: largest obs size without reallocation
 constexpr int64_t kLiveLinePeriodNs = 200'000'000;  // terminal status line at 5 Hz
 constexpr double kSToUs = 1e6, kSToMs = 1e3;
 constexpr const char* kApprovalsFileName = "approvals";  // the approvals file's default name in the policy folder
-
-void assign_bounded(std::string& dst, const char* src) {
-  const std::size_t n = std::min(std::strlen(src), dst.capacity());
-  dst.assign(src, n);
-}
 }  // namespace
 
 PolicyStore make_policy_store(const ControllerOptions& o) {
@@ -41,7 +36,8 @@ Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyE
   member_ = CompositeMember::kUpright;
   current_path_ = opt_.policy_path;
   for (std::string* s : {&status_.mode_name, &status_.policy_name, &status_.policy_hash, &status_.clock,
-                         &status_.last_fault, &status_.info, &status_.command_auth})
+                         &status_.last_fault, &status_.info, &status_.command_auth, &status_.state_auth,
+                         &status_.state_source})
     s->reserve(kStringReserve);
   obs_msg_.raw.reserve(kObsReserve);
   obs_msg_.normalized.reserve(kObsReserve);
@@ -62,11 +58,21 @@ Controller::~Controller() {
 bool Controller::open(std::string* error) {
   const bool dds = opt_.robot_link == RobotLink::kDds;
   if (!auth_.open(opt_.auth, opt_.keys, opt_.auth_config, error)) return false;
-  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, &auth_, error, composite(), !dds)) return false;
+  // Whose state: the robot key's frames only (--robot-key), else every frame (rule R12 still watches).
+  const bool robot_key = opt_.robot_keys != nullptr;
+  if (!state_auth_.open(robot_key ? AuthMode::kSigned : AuthMode::kUnauthenticated, opt_.robot_keys,
+                        opt_.auth_config, error))
+    return false;
+  char describe[96];
+  if (robot_key) std::snprintf(describe, sizeof(describe), "signed (robot key, %zu senders)", opt_.robot_keys->size());
+  else std::snprintf(describe, sizeof(describe), "unauthenticated (no --robot-key)");
+  state_auth_.set_description(describe);
+  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, &auth_, error, composite(), !dds, &state_auth_))
+    return false;
   if (!dds) return true;
   dds_ = std::make_unique<DdsTransport>();
   return dds_->open(opt_.dds_domain_id, opt_.clock, &supervisor_, &transport_.imu, &transport_.joint,
-                    &transport_.new_joint_state, error);
+                    &transport_.new_joint_state, error, opt_.safety.restart_quiet_s);
 }
 
 void Controller::publish_command() {
@@ -251,80 +257,6 @@ void Controller::select_member(float waist_height_m) {
   if (next != member_) ++member_switches_;
   member_ = next;
   active_ = next == CompositeMember::kGetup ? engine_.get() : upright_.get();
-}
-
-void Controller::format_policy_identity() {
-  const PolicyArtifact& a = engine_->artifact();
-  if (!upright_) {
-    std::snprintf(policy_name_, sizeof(policy_name_), "%s", a.name.c_str());
-    std::snprintf(policy_hash_, sizeof(policy_hash_), "%s", a.content_hash.c_str());
-    return;
-  }
-  const PolicyArtifact& u = upright_->artifact();
-  std::snprintf(policy_name_, sizeof(policy_name_), "composite[getup=%s,upright=%s] active=%s", a.name.c_str(),
-                u.name.c_str(), member_name(member_));
-  std::snprintf(policy_hash_, sizeof(policy_hash_), "%.32s+%.32s", a.content_hash.c_str(), u.content_hash.c_str());
-}
-
-void Controller::publish_status(double now_s) {
-  const Mode mode = supervisor_.mode();
-  status_.utime = static_cast<int64_t>(now_s * kSToUs);
-  status_.mode = static_cast<int8_t>(mode);
-  assign_bounded(status_.mode_name, mode_name(mode));
-  format_policy_identity();
-  assign_bounded(status_.policy_name, policy_name_);
-  assign_bounded(status_.policy_hash, policy_hash_);
-  assign_bounded(status_.clock, clock_name(opt_.clock));
-  status_.ticks = ticks_;
-  status_.policy_ticks = policy_ticks_;
-  status_.overruns = task_.overruns();
-  status_.seq_gaps_imu = supervisor_.imu_seq().gaps();
-  status_.seq_gaps_joint = supervisor_.joint_seq().gaps();
-  status_.seq_reordered_imu = supervisor_.imu_seq().reordered();
-  status_.seq_reordered_joint = supervisor_.joint_seq().reordered();
-  status_.decode_errors = transport_.decode_errors + (dds_ ? dds_->rejected : 0);  // DDS: samples refused whole
-  status_.commands_dropped = transport_.commands_dropped;
-  status_.sends_dropped = static_cast<int64_t>(transport_.send_dropped());
-  TimingStats& late = task_.lateness();
-  TimingStats& comp = task_.compute();
-  status_.lateness_us_last = static_cast<float>(late.last());
-  status_.lateness_us_mean = static_cast<float>(late.mean());
-  status_.lateness_us_p99 = static_cast<float>(late.p99());
-  status_.lateness_us_max = static_cast<float>(late.max());
-  status_.compute_us_last = static_cast<float>(comp.last());
-  status_.compute_us_mean = static_cast<float>(comp.mean());
-  status_.compute_us_p99 = static_cast<float>(comp.p99());
-  status_.compute_us_max = static_cast<float>(comp.max());
-  auto age_ms = [now_s](bool have, double t) { return have ? static_cast<float>((now_s - t) * kSToMs) : -1.0f; };
-  status_.imu_age_ms = age_ms(transport_.imu.have, transport_.imu.stamp_s);
-  status_.joint_age_ms = age_ms(transport_.joint.have, transport_.joint.stamp_s);
-  status_.joystick_age_ms = age_ms(transport_.joystick.have, transport_.joystick.stamp_s);
-  status_.fault_bits = supervisor_.fault_bits();
-  assign_bounded(status_.last_fault, supervisor_.last_fault());
-  auth_.report(status_);
-  if (message_changed_.load()) {
-    std::unique_lock<std::mutex> lock(reload_mutex_, std::try_to_lock);
-    if (lock.owns_lock()) {
-      std::snprintf(reload_info_, sizeof(reload_info_), "%s", reload_message_.c_str());
-      message_changed_.store(false);
-    }
-  }
-  char composite_info[160] = {0};
-  if (upright_)
-    std::snprintf(composite_info, sizeof(composite_info), "composite: waist %.3f m from T1_SIM_STATUS (privileged sim "
-                  "signal), getup below %.2f m, active %s, switches %lld | ", transport_.sim_status.msg.waist_height,
-                  kGetupSwitchWaistHeightM, member_name(member_), static_cast<long long>(member_switches_));
-  // Who may command next to the mode: "commands unauthenticated" on a bench runtime, the last refusal.
-  const char* bench = auth_.mode() == AuthMode::kUnauthenticated ? " | commands unauthenticated" : "";
-  const char* refusal = auth_.last_refusal();
-  char info[kStringReserve + 880];  // composite (160) + supervisor (160) + auth (230) + reload message + DDS reject (160)
-  const char* dds_info = dds_ && dds_->rejected ? dds_->last_reject.data() : "";
-  std::snprintf(info, sizeof(info), "%s%s%s%s%s%s%s%s%s", composite_info, supervisor_.last_info(), bench,
-                refusal[0] ? " | " : "", refusal, reload_info_[0] ? " | " : "", reload_info_, dds_info[0] ? " | " : "",
-                dds_info);
-  assign_bounded(status_.info, info);
-  transport_.publish(t1::CH_CONTROLLER_STATUS, status_);
-  if (!opt_.quiet) post_live_line();
 }
 
 void Controller::post_live_line() {

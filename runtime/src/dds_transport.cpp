@@ -77,7 +77,9 @@ DdsTransport::~DdsTransport() {
 }
 
 bool DdsTransport::open(int domain_id, ClockMode clock, Supervisor* supervisor, MessageSlot<t1::imu_t>* imu,
-                        MessageSlot<t1::joint_state_t>* joint, bool* new_state, std::string* error) {
+                        MessageSlot<t1::joint_state_t>* joint, bool* new_state, std::string* error,
+                        double restart_quiet_s) {
+  restart_quiet_s_ = restart_quiet_s;
   clock_ = clock;
   supervisor_ = supervisor;
   imu_ = imu;
@@ -96,12 +98,15 @@ bool DdsTransport::open(int domain_id, ClockMode clock, Supervisor* supervisor, 
     *error = dds_error("dds_create_topic", state_topic < 0 ? state_topic : cmd_topic);
     return false;
   }
-  // State: best effort, newest only (a best-effort reader matches a reliable or a best-effort robot).
+  // State: best effort (a best-effort reader matches a reliable or a best-effort robot), the last
+  // kTakeBatch samples: LowState_ has no key, so with a depth of 1 a second writer's sample would overwrite
+  // the robot's before the loop takes it (the robot's state starved); taken in order, the newest last.
   // Command: reliable, newest only, as the robot's ROS 2 variant declares joint_ctrl.
   dds_qos_t* qos = dds_create_qos();
   dds_qset_reliability(qos, DDS_RELIABILITY_BEST_EFFORT, 0);
-  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, kTakeBatch);
   state_reader_ = dds_create_reader(participant_, state_topic, qos, nullptr);
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1);
   dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
   cmd_writer_ = dds_create_writer(participant_, cmd_topic, qos, nullptr);
   dds_delete_qos(qos);
@@ -123,7 +128,8 @@ void DdsTransport::accept(const DdsLowState& sample) {
     return;
   }
   const int64_t seq = accepted_ + lost;  // arrival order; samples DDS lost show up as gaps
-  if (supervisor_ && !(supervisor_->accept_imu_seq(seq) && supervisor_->accept_joint_seq(seq))) return;
+  const double now_s = monotonic_s();
+  if (supervisor_ && !(supervisor_->accept_imu_seq(seq, now_s) && supervisor_->accept_joint_seq(seq, now_s))) return;
   low_state_to_messages(sample, &imu_->scratch, &joint_->scratch, accepted_ > 0 ? lost_seen_.data() : nullptr);
   for (std::size_t i = 0; i < kJoints; ++i) lost_seen_[i] = sample.motor_state_serial._buffer[i].lost;
   // Lockstep: one state per control period, so the state's own time is its number times the loop dt.
@@ -141,6 +147,42 @@ void DdsTransport::accept(const DdsLowState& sample) {
   *new_state_ = true;
 }
 
+void DdsTransport::format_guid(dds_instance_handle_t writer, std::array<char, 48>* out) const {
+  // The matched writer's built-in topic data holds its GUID (allocated by Cyclone: only when a writer is
+  // first followed or first refused, not per sample).
+  dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(state_reader_, writer);
+  if (!ep) {
+    std::snprintf(out->data(), out->size(), "handle %016llx", static_cast<unsigned long long>(writer));
+    return;
+  }
+  char* p = out->data();
+  for (std::size_t i = 0; i < sizeof(ep->key.v); ++i) p += std::snprintf(p, 3, "%02x", ep->key.v[i]);
+  dds_builtintopic_free_endpoint(ep);
+}
+
+bool DdsTransport::from_followed_writer(dds_instance_handle_t writer, double now_s) {
+  if (writer == writer_) {
+    writer_last_s_ = now_s;
+    return true;
+  }
+  if (writer_ == 0 || now_s - writer_last_s_ >= restart_quiet_s_) {  // the first writer, or the old one is silent
+    if (writer_ != 0) ++writer_changes;
+    writer_ = writer;
+    writer_last_s_ = now_s;
+    format_guid(writer, &followed);
+    return true;
+  }
+  ++other_writer_samples;
+  if (writer != named_other_) {
+    named_other_ = writer;
+    std::array<char, 48> guid{};
+    format_guid(writer, &guid);
+    std::snprintf(other_writer.data(), other_writer.size(), "refused rt/low_state of a second writer %s (following %s)",
+                  guid.data(), followed.data());
+  }
+  return false;
+}
+
 int DdsTransport::take() {
   dds_sample_lost_status_t lost_status;
   if (dds_get_sample_lost_status(state_reader_, &lost_status) == DDS_RETCODE_OK) lost += lost_status.total_count_change;
@@ -153,6 +195,7 @@ int DdsTransport::take() {
     if (n <= 0) break;
     for (dds_return_t i = 0; i < n; ++i) {
       if (!infos[i].valid_data) continue;  // dispose / unregister notifications carry no state
+      if (!from_followed_writer(infos[i].publication_handle, monotonic_s())) continue;
       accept(*static_cast<const DdsLowState*>(samples[i]));
       ++taken_valid;
     }

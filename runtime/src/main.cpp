@@ -68,6 +68,10 @@ void usage(FILE* out) {
       "  --policy-dir DIR       the folder load_policy names an artifact in (default: the folder of --policy);\n"
       "                         with --key the startup --policy must lie in it too\n"
       "  --approvals FILE       with --key: the approvals file (default: DIR/approvals)\n"
+      "  --robot-key FILE       take the robot's state (T1_IMU, T1_JOINT_STATE) only when signed by a sender of\n"
+      "                         FILE (messages/auth.py, mode 0600; the robot's own key, not the operator's):\n"
+      "                         unsigned, wrong-key, stale and replayed frames are refused and counted. Without\n"
+      "                         it state is unauthenticated (a bench): a second sequence stream is a FAULT\n"
       "  --autostart            go PASSIVE -> DAMPING -> PREPARE -> POLICY by itself\n"
       "  --prepare-s S          PREPARE ramp duration in seconds (default 2; 0 < S <= 10)\n"
       "  --duration S           stop after S wall-clock seconds, 0 < S <= 30 days (default: until SIGINT/SIGTERM)\n"
@@ -102,7 +106,7 @@ int main(int argc, char** argv) {
   std::string cli_url;
   bool rt = false, rt_required = false;
   t1rt::RtOptions rt_options;
-  std::string histogram_path, key_path;
+  std::string histogram_path, key_path, robot_key_path;
   FILE* histogram_file = nullptr;
   bool unauthenticated = false;
   for (int i = 1; i < argc; ++i) {
@@ -140,6 +144,7 @@ int main(int argc, char** argv) {
       rt_options.cpu = static_cast<int>(cpu);
     }
     else if (a == "--key") key_path = value("--key");
+    else if (a == "--robot-key") robot_key_path = value("--robot-key");
     else if (a == "--unauthenticated") unauthenticated = true;
     else if (a == "--policy-dir") opt.policy_dir = value("--policy-dir");
     else if (a == "--approvals") opt.approvals_path = value("--approvals");
@@ -194,6 +199,12 @@ int main(int argc, char** argv) {
     if (!opt.keys) { std::fprintf(stderr, "t1-runtime: refused: %s\n", error.c_str()); return kExitKey; }
   }
 
+  if (!robot_key_path.empty()) {
+    std::string error;
+    opt.robot_keys = t1rt::KeyRing::load(robot_key_path, &error);
+    if (!opt.robot_keys) { std::fprintf(stderr, "t1-runtime: refused: robot %s\n", error.c_str()); return kExitKey; }
+  }
+
   std::unique_ptr<t1rt::PolicyEngine> engine, upright;
   std::string loading = opt.policy_path;
   try {
@@ -227,6 +238,12 @@ int main(int argc, char** argv) {
                  t1rt::clock_name(opt.clock), opt.lcm_url.c_str(),
                  opt.robot_link == t1rt::RobotLink::kDds ? "DDS (rt/low_state -> rt/joint_ctrl)" : "LCM");
   }
+  if (opt.robot_keys)
+    std::fprintf(stderr, "t1-runtime: state: only the robot's signed frames (--robot-key %s, %zu senders)\n",
+                 robot_key_path.c_str(), opt.robot_keys->size());
+  else if (opt.robot_link == t1rt::RobotLink::kLcm)
+    std::fprintf(stderr, "t1-runtime: state unauthenticated (no --robot-key, a bench setup): any program on the LCM "
+                 "group can publish T1_IMU / T1_JOINT_STATE; a second sequence stream is a FAULT (rule R12)\n");
   if (upright)
     std::fprintf(stderr, "t1-runtime: COMPOSITE mode: getup below waist %.2f m, else upright; waist height from "
                  "T1_SIM_STATUS (privileged simulator signal, not available on a robot)\n", t1rt::kGetupSwitchWaistHeightM);

@@ -1,6 +1,6 @@
 // The safety supervisor: the single source of truth for every safety rule of the runtime
 // (ARCHITECTURE.md "Safety supervisor"). No heap use: fixed arrays and snprintf into fixed buffers.
-// The rules R1-R11 this file implements, and why their values: the comment at the top of t1rt/safety.hpp (R3's
+// The rules R1-R12 this file implements, and why their values: the comment at the top of t1rt/safety.hpp (R3's
 // per-stream sequence bookkeeping, SeqTracker, is seq_tracker.cpp).
 #include <algorithm>
 #include <cmath>
@@ -60,6 +60,28 @@ void Supervisor::request_mode(Mode target) {
   requested_ = target;
   has_request_ = true;
   operator_hold_ = target == Mode::kPassive || target == Mode::kDamping;
+}
+
+// Rule R12: one state source. A frame R3 would take as a restart, or a jump far ahead, while the followed
+// stream is alive is a second publisher (a log replay, another simulator, a forger): FAULT, never adopted.
+bool Supervisor::accept_state_seq(StateSource& source, SeqTracker& tracker, int64_t seq, double now_s) {
+  const SeqTracker::Step step = tracker.step(seq);
+  const bool alive = source.have && now_s - source.last_s < cfg_.restart_quiet_s;
+  const bool restart = step == SeqTracker::Step::kRestart;
+  const bool jump = step == SeqTracker::Step::kNew && tracker.newest() >= 0 &&
+                    seq - tracker.newest() > cfg_.max_seq_jump_frames;
+  if (alive && (restart || jump)) {
+    ++second_source_frames_;
+    std::snprintf(second_source_.data(), second_source_.size(), "second state source on %s: seq %lld %s the followed stream at seq %lld, "
+                  "alive %.0f ms ago", source.channel, static_cast<long long>(seq), restart ? "behind" : "far ahead of",
+                  static_cast<long long>(tracker.newest()), (now_s - source.last_s) * 1e3);
+    if (!(latched_bits_ & fault_bit::kSecondStateSource)) fault(fault_bit::kSecondStateSource, second_source_.data());
+    return false;
+  }
+  if (!tracker.accept(seq)) return false;
+  source.have = true;
+  source.last_s = now_s;
+  return true;
 }
 
 // Rule R11: estop from anyone (it only ever damps); everything else from an authorised sender only.

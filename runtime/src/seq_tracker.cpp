@@ -4,6 +4,11 @@
 
 namespace t1rt {
 
+SeqTracker::Step SeqTracker::step(int64_t seq) const {
+  if (newest_ < 0 || seq > newest_) return Step::kNew;
+  return seq < newest_ - kWindowFrames ? Step::kRestart : Step::kLate;
+}
+
 bool SeqTracker::accept(int64_t seq) {  // rule R3
   constexpr int kMaskBits = 64;
   static_assert(kWindowFrames <= kMaskBits, "the received-frame mask holds 64 frames");

@@ -40,10 +40,12 @@ LcmTransport::~LcmTransport() {
 }
 
 bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* supervisor, CommandAuth* auth,
-                        std::string* error, bool subscribe_sim_status, bool subscribe_robot_state) {
+                        std::string* error, bool subscribe_sim_status, bool subscribe_robot_state,
+                        CommandAuth* state_auth) {
   clock_ = clock;
   supervisor_ = supervisor;
   auth_ = auth;
+  state_auth_ = state_auth;
   buffer_.assign(kEncodeBufferBytes, 0);
   rx_.assign(t1::kLcmMaxDatagramBytes, 0);
   if (!sender_.open(url)) {
@@ -63,6 +65,8 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
   }
   // A signed message's tag decodes into this capacity (every buffer a decode or a swap can reach): no allocation.
   for (t1::joystick_t* m : {&joystick.msg, &joystick.scratch}) m->tag.reserve(kTagBytes);
+  for (t1::imu_t* m : {&imu.msg, &imu.scratch}) m->tag.reserve(kTagBytes);
+  for (t1::joint_state_t* m : {&joint.msg, &joint.scratch}) m->tag.reserve(kTagBytes);
   command_scratch_.tag.reserve(kTagBytes);
   for (t1::runtime_cmd_t& c : commands) c.tag.reserve(kTagBytes);
   subscribe(t1::CH_JOYSTICK, &LcmTransport::on_joystick);
@@ -132,15 +136,40 @@ void LcmTransport::commit(MessageSlot<Message>& slot) {
   ++slot.received;
 }
 
+template <class Message>
+bool LcmTransport::robot_frame(MessageSlot<Message>& slot, CommandAuth::Stream stream, const char* channel,
+                               const Datagram& d) {
+  int tag_size = 0;
+  if (!CommandAuth::read_tag_size(stream, d.data, d.size, &tag_size)) {  // shorter than a frame: not decoded
+    ++decode_errors;
+    return false;
+  }
+  char what[64];
+  if (!CommandAuth::tag_size_ok(tag_size)) {  // a tag vector of that size would allocate: never decoded
+    if (state_auth_) {
+      std::snprintf(what, sizeof(what), "%s frame", channel);
+      state_auth_->refuse_tag_size(what, tag_size);
+    }
+    return false;
+  }
+  if (!decode_scratch(slot, d)) return false;
+  const Message& m = slot.scratch;
+  if (!state_auth_ || state_auth_->verify(stream, channel, d.data, d.size, m.sender_id, m.timestamp_us, m.tag_size))
+    return true;
+  std::snprintf(what, sizeof(what), "%s seq %lld", channel, static_cast<long long>(m.seq));
+  state_auth_->refuse(what, m.sender_id);
+  return false;
+}
+
 void LcmTransport::on_imu(const Datagram& d) {
-  if (!decode_scratch(imu, d)) return;
-  if (supervisor_ && !supervisor_->accept_imu_seq(imu.scratch.seq)) return;
+  if (!robot_frame(imu, CommandAuth::kImuStream, t1::CH_IMU, d)) return;
+  if (supervisor_ && !supervisor_->accept_imu_seq(imu.scratch.seq, monotonic_s())) return;
   commit(imu);
 }
 
 void LcmTransport::on_joint(const Datagram& d) {
-  if (!decode_scratch(joint, d)) return;
-  if (supervisor_ && !supervisor_->accept_joint_seq(joint.scratch.seq)) return;
+  if (!robot_frame(joint, CommandAuth::kJointStream, t1::CH_JOINT_STATE, d)) return;
+  if (supervisor_ && !supervisor_->accept_joint_seq(joint.scratch.seq, monotonic_s())) return;
   commit(joint);
   new_joint_state = true;
 }

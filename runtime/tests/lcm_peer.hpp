@@ -47,13 +47,16 @@ class LcmPeer {
   }
   // A runtime_cmd_t or joystick_t with this peer's sender id, a fresh timestamp and its tag.
   template <class M>
-  void publish_signed(const char* channel, M m) {
-    m.sender_id = ring_->sender_id(sender_);
+  void publish_signed(const char* channel, M m) { publish_signed_by(*ring_, sender_, channel, std::move(m)); }
+  // The same signed by sender i of another ring (the robot key: imu_t, joint_state_t).
+  template <class M>
+  void publish_signed_by(const KeyRing& ring, std::size_t i, const char* channel, M m) {
+    m.sender_id = ring.sender_id(i);
     timespec ts{};
     clock_gettime(CLOCK_REALTIME, &ts);
     last_us_ = std::max(last_us_ + 1, static_cast<int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000);
     m.timestamp_us = last_us_;
-    const std::vector<uint8_t> buf = ring_->encode_signed(sender_, channel, m);
+    const std::vector<uint8_t> buf = ring.encode_signed(i, channel, m);
     lcm_publish(lcm_, channel, buf.data(), static_cast<unsigned>(buf.size()));
   }
   void command(const std::string& verb, const std::string& arg = "") {

@@ -13,6 +13,8 @@
 #include <sstream>
 #include <nlohmann/json.hpp>
 
+#include "t1/imu_t.hpp"
+#include "t1/joint_state_t.hpp"
 #include "t1/joystick_t.hpp"
 #include "t1/runtime_cmd_t.hpp"
 #include "t1rt/command_auth.hpp"
@@ -78,15 +80,27 @@ TEST(CommandAuth, AgreesWithThePythonGoldenVector) {
   cmd.utime = 123456, cmd.seq = 5, cmd.verb = "load_policy", cmd.argument = "student/student.safetensors";
   t1::joystick_t stick{};
   stick.utime = 654321, stick.seq = 9, stick.vx = 0.5f, stick.vy = -0.25f, stick.yaw_rate = 0.125f;
+  // The robot's state, signed the same way (messages/auth.py golden_document's fields).
+  t1::imu_t imu{};
+  imu.utime = 777000, imu.seq = 11, imu.quat[0] = 1.0f, imu.gyro[0] = 0.5f, imu.accel[2] = 9.81f;
+  t1::joint_state_t joints{};
+  joints.utime = 777000, joints.seq = 11;
+  for (std::size_t i = 0; i < t1::kNumJoints; ++i)
+    joints.q[i] = static_cast<float>(0.01 * static_cast<double>(i)), joints.motor_status[i] = static_cast<int32_t>(i % 3);
+  int seen_state = 0;
   for (const auto& m : doc["messages"]) {
     const std::string channel = m["channel"];
     const int64_t ts = m["timestamp_us"];
-    const auto mine = channel == t1::CH_RUNTIME_CMD ? signed_bytes(*ring, 0, t1::CH_RUNTIME_CMD, cmd, ts)
-                                                    : signed_bytes(*ring, 0, t1::CH_JOYSTICK, stick, ts);
+    std::vector<uint8_t> mine;
+    if (channel == t1::CH_RUNTIME_CMD) mine = signed_bytes(*ring, 0, t1::CH_RUNTIME_CMD, cmd, ts);
+    else if (channel == t1::CH_JOYSTICK) mine = signed_bytes(*ring, 0, t1::CH_JOYSTICK, stick, ts);
+    else if (channel == t1::CH_IMU) mine = signed_bytes(*ring, 0, t1::CH_IMU, imu, ts), ++seen_state;
+    else mine = signed_bytes(*ring, 0, t1::CH_JOINT_STATE, joints, ts), ++seen_state;
     EXPECT_EQ(mine, from_hex(m["encoded_hex"])) << channel;
     EXPECT_EQ(m["tag_size"], static_cast<int>(kTagBytes)) << channel;
     EXPECT_EQ(std::vector<uint8_t>(mine.end() - kTagBytes, mine.end()), from_hex(m["tag_hex"])) << channel;
   }
+  EXPECT_EQ(seen_state, 2) << "the golden vector holds a signed imu_t and joint_state_t";
   const auto& a = doc["approval"];
   const std::string approvals = own_path("golden", ".approvals");
   std::ofstream(approvals) << a["artifact_sha256_hex"].get<std::string>() << " 7 " << a["tag_hex"].get<std::string>() << " golden\n";

@@ -66,7 +66,9 @@ TEST(NoHeap, CounterSeesAllocations) {
 // N lockstep ticks through POLICY (observation, MLP, supervisor, LCM handle + publish of every message,
 // status at 10 Hz) with a joystick every tick, unsigned to a --unauthenticated runtime or signed to one with a
 // key (ring non-null). The loop thread's allocations are left in g_allocations.
-static void run_joystick_loop(const char* name, std::shared_ptr<const KeyRing> ring) {
+// robot_ring non-null: the runtime takes state only from its robot (--robot-key), every imu_t / joint_state_t signed.
+static void run_joystick_loop(const char* name, std::shared_ptr<const KeyRing> ring,
+                              std::shared_ptr<const KeyRing> robot_ring = nullptr) {
   LcmPeer peer;
   ASSERT_TRUE(peer.ok()) << "run inside tools/netns";
   ControllerOptions opt;
@@ -78,6 +80,7 @@ static void run_joystick_loop(const char* name, std::shared_ptr<const KeyRing> r
   opt.safety.prepare_duration_s = 0.02;
   opt.auth = ring ? AuthMode::kSigned : AuthMode::kUnauthenticated;
   opt.keys = ring;
+  opt.robot_keys = robot_ring;
   if (ring) peer.sign_with(ring);
   Controller ctrl(opt, std::make_unique<PolicyEngine>(load_artifact(opt.policy_path)));
   std::string error;
@@ -92,11 +95,14 @@ static void run_joystick_loop(const char* name, std::shared_ptr<const KeyRing> r
   const long counted_ticks = run_counted_ticks(ctrl, peer, [&](int k) {
     imu.utime = js.utime = stick.utime = k * 2000;
     imu.seq = js.seq = stick.seq = k;
-    peer.publish(t1::CH_IMU, imu);
+    if (robot_ring) peer.publish_signed_by(*robot_ring, 0, t1::CH_IMU, imu);
+    else peer.publish(t1::CH_IMU, imu);
     if (ring) peer.publish_signed(t1::CH_JOYSTICK, stick);
     else peer.publish(t1::CH_JOYSTICK, stick);
-    peer.publish(t1::CH_JOINT_STATE, js);
+    if (robot_ring) peer.publish_signed_by(*robot_ring, 0, t1::CH_JOINT_STATE, js);
+    else peer.publish(t1::CH_JOINT_STATE, js);
   });
+  EXPECT_EQ(ctrl.state_auth().refused_total(), 0) << ctrl.state_auth().last_refusal();
   EXPECT_EQ(ctrl.supervisor().mode(), Mode::kPolicy) << ctrl.supervisor().last_fault();
   EXPECT_GE(ctrl.policy_ticks(), kCounted / kPolicyDecimation);
   EXPECT_EQ(counted_ticks, kCounted);
@@ -116,6 +122,16 @@ TEST(NoHeap, SignedJoystickAllocatesOnlyInsideOpenSSL) {
   run_joystick_loop("noheap_signed", test_ring("noheap", {test_sender(1, 0x33)}));
   std::printf("signed joystick: %ld allocations in %d ticks\n", g_allocations.load(), kCounted);
   EXPECT_LE(g_allocations.load(), kOpenSslAllocationsPerVerify * kCounted);
+}
+
+// The same with the robot key too: every imu_t and joint_state_t verified (3 verifications a tick), still
+// nothing of ours; OpenSSL's own 2 per verification as above.
+TEST(NoHeap, SignedStateAllocatesOnlyInsideOpenSSL) {
+  constexpr long kOpenSslAllocationsPerVerify = 2, kVerifiesPerTick = 3;
+  run_joystick_loop("noheap_state", test_ring("noheap_op", {test_sender(1, 0x33)}),
+                    test_ring("noheap_robot", {test_sender(1, 0x44)}));
+  std::printf("signed state + joystick: %ld allocations in %d ticks\n", g_allocations.load(), kCounted);
+  EXPECT_LE(g_allocations.load(), kOpenSslAllocationsPerVerify * kVerifiesPerTick * kCounted);
 }
 
 // The same in composite mode: T1_SIM_STATUS decoded every tick (its strings into reserved capacity), the

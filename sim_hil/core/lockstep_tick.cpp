@@ -49,6 +49,11 @@ RobotLink* t1_sim_link_open(const char* url) {
 
 void t1_sim_link_close(RobotLink* link) { delete link; }
 
+// 1: the link signs its state from now on as sender_id with this key (messages/auth.py); 0: OpenSSL refused.
+int t1_sim_link_set_robot_key(RobotLink* link, int64_t sender_id, const uint8_t* key, int size) {
+  return size > 0 && link->set_robot_key(sender_id, key, static_cast<std::size_t>(size)) ? 1 : 0;
+}
+
 int t1_sim_link_publish(RobotLink* link, const char* channel, const void* data, int size) {
   return link->publish(channel, data, size);
 }

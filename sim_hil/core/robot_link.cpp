@@ -1,12 +1,18 @@
 #include "robot_link.hpp"
 
+#include <openssl/core_names.h>
+#include <openssl/crypto.h>
+#include <openssl/evp.h>
+#include <openssl/params.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 
 #include <t1/imu_t.hpp>
 #include <t1/joint_command_t.hpp>
@@ -17,6 +23,15 @@
 namespace t1sim {
 namespace {
 constexpr int kReportedDrops = 5;   // drop reasons printed; the rest only counted (commands come at 500 Hz)
+constexpr std::size_t kTagBytes = 32;            // messages/auth.py TAG_BYTES
+constexpr std::size_t kSignedTail = 2 + kTagBytes;  // tag_size (int16) and the tag: what the tag does not cover
+enum StateStream { kImuStream = 0, kJointStream = 1 };
+
+int64_t wall_us() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000;
+}
 
 template <size_t N>
 bool finite(const float (&v)[N]) {
@@ -40,6 +55,23 @@ RobotLink::RobotLink(const std::string& url)
 
 RobotLink::~RobotLink() {
   if (sock_ >= 0) close(sock_);
+  EVP_MAC_CTX_free(mac_);
+}
+
+bool RobotLink::set_robot_key(int64_t sender_id, const uint8_t* key, std::size_t size) {
+  static char digest[] = "SHA256";
+  OSSL_PARAM params[] = {OSSL_PARAM_construct_utf8_string(OSSL_MAC_PARAM_DIGEST, digest, 0), OSSL_PARAM_construct_end()};
+  EVP_MAC* hmac = EVP_MAC_fetch(nullptr, "HMAC", nullptr);
+  EVP_MAC_CTX* ctx = hmac ? EVP_MAC_CTX_new(hmac) : nullptr;
+  EVP_MAC_free(hmac);  // the context holds its own reference
+  if (!ctx || sender_id <= 0 || EVP_MAC_init(ctx, key, size, params) != 1) {
+    EVP_MAC_CTX_free(ctx);
+    return false;
+  }
+  EVP_MAC_CTX_free(mac_);
+  mac_ = ctx;
+  sender_id_ = sender_id;
+  return true;
 }
 
 int RobotLink::handle_queued() {
@@ -68,14 +100,32 @@ void RobotLink::publish_state(const StateReading& s) {
     js.tau_est[i] = static_cast<float>(s.tau[i]);
     js.motor_status[i] = s.status[i];
   }
-  send(t1::CH_IMU, imu);
-  send(t1::CH_JOINT_STATE, js);
+  send(t1::CH_IMU, imu, kImuStream);
+  send(t1::CH_JOINT_STATE, js, kJointStream);
 }
 
 template <class Message>
-void RobotLink::send(const char* channel, const Message& msg) {
+void RobotLink::send(const char* channel, Message& msg, int stream) {
+  if (mac_) {  // messages/auth.py Signer.sign: the tag over channel + NUL + the encoding before tag_size
+    int64_t& last = last_us_[static_cast<std::size_t>(stream)];
+    last = std::max(wall_us(), last + 1);
+    msg.sender_id = sender_id_;
+    msg.timestamp_us = last;
+    msg.tag_size = static_cast<int16_t>(kTagBytes);
+    msg.tag.assign(kTagBytes, 0);
+  }
   const int size = msg.encode(tx_.data(), 0, static_cast<int>(tx_.size()));
-  if (size >= 0) sender_.send(channel, tx_.data(), static_cast<std::size_t>(size));
+  if (size < 0) return;
+  if (mac_) {
+    uint8_t* tag = tx_.data() + size - kTagBytes;
+    std::size_t n = 0;
+    const bool ok = EVP_MAC_init(mac_, nullptr, 0, nullptr) &&
+                    EVP_MAC_update(mac_, reinterpret_cast<const uint8_t*>(channel), std::strlen(channel) + 1) &&
+                    EVP_MAC_update(mac_, tx_.data(), static_cast<std::size_t>(size) - kSignedTail) &&
+                    EVP_MAC_final(mac_, tag, &n, kTagBytes) && n == kTagBytes;
+    if (!ok) return;  // never sent with a wrong tag
+  }
+  sender_.send(channel, tx_.data(), static_cast<std::size_t>(size));
 }
 
 void RobotLink::drop(const std::string& reason) {

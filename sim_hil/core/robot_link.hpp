@@ -4,14 +4,19 @@
 // Commands are read from a socket of the link's own on the LCM group (messages/cpp/t1_lcm_group.hpp), not
 // through an LCM subscription, which would wake a receive thread for every datagram, the sim's own included;
 // states go out from one preallocated buffer through that header's sender, which never waits or allocates.
+// With a robot key (set_robot_key) every imu_t / joint_state_t is signed as messages/auth.py says: sender_id,
+// timestamp_us (the wall clock, strictly increasing per channel), tag = HMAC-SHA256 through OpenSSL.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "t1_firmware.h"
 #include "t1_lcm_group.hpp"
+
+struct evp_mac_ctx_st;
 
 namespace t1sim {
 
@@ -31,6 +36,8 @@ class RobotLink {
   bool good() const { return sender_.good() && sock_ >= 0; }
 
   void publish_state(const StateReading& s);
+  // Signs the state from now on as sender_id with this key (32 bytes); false when OpenSSL cannot key it.
+  bool set_robot_key(int64_t sender_id, const uint8_t* key, std::size_t size);
   // 0 sent, -1 not (LCM's convention): the Python side's status and fault messages
   int publish(const std::string& channel, const void* data, int size) {
     return size >= 0 && sender_.send(channel.c_str(), data, static_cast<std::size_t>(size)) ? 0 : -1;
@@ -52,7 +59,8 @@ class RobotLink {
 
  private:
   template <class Message>
-  void send(const char* channel, const Message& msg);   // encoded into tx_, then sent (or counted dropped)
+  void send(const char* channel, Message& msg, int stream);   // encoded into tx_ (signed with a robot key),
+                                                               // then sent (or counted dropped)
   void on_command(const uint8_t* payload, size_t size);
   int handle_queued();   // commands read from the socket now; returns how many datagrams were read
   void drop(const std::string& reason);
@@ -66,6 +74,9 @@ class RobotLink {
   uint8_t frames_[T1_NUM_MOTORS * T1_FRAME_SLOT_BYTES] = {};
   bool fresh_ = false;
   int reported_ = 0;
+  evp_mac_ctx_st* mac_ = nullptr;      // keyed HMAC-SHA256 context of the robot key (null: unsigned state)
+  int64_t sender_id_ = 0;
+  std::array<int64_t, 2> last_us_{};   // the last timestamp per state channel (imu, joint)
 };
 
 }  // namespace t1sim

@@ -25,6 +25,7 @@ from sim_hil import config
 from common.events import (FALLEN_TRUNK_HEIGHT_M, GetupEvents, getup_events, heading_from_quat, kneel_gate_mask,
                            kneel_hold_s, lying_side, through_kneel_gate, up_z_from_quat)
 from sim_hil.eval.metrics import TickLog, effort_metrics, ran_to_stabilise, slip_events
+from messages.auth import RunKey
 from sim_hil.launch import start_runtime, stop, wait_until_listening
 
 JOYSTICK_EVERY_TICKS = 10       # 50 Hz joystick, as a gamepad; the runtime zeroes it only after 250 ms
@@ -110,13 +111,14 @@ def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m:
               segment_edges_x: list[float] | None = None) -> TrialResult:
     from sim_hil.sim import SimConfig, Simulator   # heavy (MuJoCo, CAN); only where a trial runs
     lockstep = spec.clock == "lockstep"
+    run_key = RunKey()                               # the trial's keys: the sim signs state with its robot key
     sim = Simulator(SimConfig(scenario=spec.scenario, spawn=spec.spawn, clock=spec.clock, seed=spec.seed,
                               faults=spec.faults, lcm_url=lcm_url, record=spec.record,
-                              status_rate_hz=1.0 / config.LOOP_PERIOD_S))
+                              status_rate_hz=1.0 / config.LOOP_PERIOD_S, robot_key=str(run_key.robot_key_path)))
     clock_args = ("--clock", "lockstep") if lockstep else ()     # realtime: the runtime's own clock
     runtime_args = [*clock_args, "--autostart", "--prepare-s", f"{spec.prepare_s:g}", *controller.runtime_args()]
     capture = _start_log(spec, controller, runtime_args, lcm_url) if spec.log else None
-    runtime = start_runtime(controller.policy, *runtime_args, "--lcm-url", lcm_url)
+    runtime = start_runtime(controller.policy, *runtime_args, "--lcm-url", lcm_url, run_key=run_key)
     signer = runtime.run_key.signer()            # the trial's operator: a fresh key of this run
     wait_until_listening(runtime)
     n = int(round(spec.seconds / config.LOOP_PERIOD_S))

@@ -3,7 +3,9 @@
 Format of one event, big-endian: sync word 0xEDA1DA01 (u32), event number (i64), timestamp [us] (i64),
 channel length (i32), data length (i32), channel bytes, data bytes. lcm's own reader stops or raises at
 the first damaged byte; this one reports what is wrong (truncated tail, corrupt span skipped by scanning
-for the next sync word, unknown channel, another type version) and keeps every event it can read.
+for the next sync word, unknown channel, another type version) and keeps every event it can read. State
+recorded before imu_t / joint_state_t were signed (messages/auth.py LEGACY_STATE_FINGERPRINTS) is read as
+today's type, unsigned, and said so: such a log still replays (replay.py signs its state as the robot).
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from messages import contract
+from messages.auth import upgrade_legacy_state
 
 SYNC = 0xEDA1DA01
 HEADER = struct.Struct(">IqqII")
@@ -37,6 +40,8 @@ class LogProblems:
     wrong_version: Counter = field(default_factory=Counter)              # channel -> events skipped
     undecodable: Counter = field(default_factory=Counter)                # channel -> events skipped
     wrong_version_fingerprint: dict = field(default_factory=dict)        # channel -> (found, expected)
+    legacy_state: Counter = field(default_factory=Counter)               # channel -> events read as unsigned
+    legacy_fingerprint: dict = field(default_factory=dict)               # channel -> the legacy fingerprint
 
     def messages(self, path: Path) -> list[str]:
         """One clear sentence per problem (empty when the log is clean)."""
@@ -51,6 +56,10 @@ class LogProblems:
             found, expected = self.wrong_version_fingerprint[ch]
             out.append(f"{path}: channel {ch}: {n} events of another {contract.CHANNEL_TYPES[ch]} version "
                        f"(fingerprint {found:#018x}, this build expects {expected:#018x}) skipped")
+        for ch, n in sorted(self.legacy_state.items()):
+            out.append(f"{path}: channel {ch}: {n} events of the {contract.CHANNEL_TYPES[ch]} version before state "
+                       f"was signed (fingerprint {self.legacy_fingerprint[ch]:#018x}) read as unsigned frames of "
+                       f"today's version (kept)")
         for ch, n in sorted(self.undecodable.items()):
             out.append(f"{path}: channel {ch}: {n} events do not decode as {contract.CHANNEL_TYPES[ch]} "
                        "(truncated or malformed payload) skipped")
@@ -118,12 +127,19 @@ def open_log(path: Path | str) -> ProjectLog:
             continue
         expected = struct.unpack(">Q", cls._get_packed_fingerprint())[0]
         found = struct.unpack(">Q", ev.data[:8])[0] if len(ev.data) >= 8 else None
+        data = ev.data
+        if found is not None and found != expected:
+            upgraded = upgrade_legacy_state(contract.CHANNEL_TYPES[ev.channel], ev.data, expected)
+            if upgraded is not None:
+                problems.legacy_state[ev.channel] += 1
+                problems.legacy_fingerprint[ev.channel] = found
+                data, found = upgraded, expected
         if found is not None and found != expected:
             problems.wrong_version[ev.channel] += 1
             problems.wrong_version_fingerprint[ev.channel] = (found, expected)
             continue
         try:
-            decoded[ev.channel].append((ev, cls.decode(ev.data)))
+            decoded[ev.channel].append((ev, cls.decode(data)))
         except Exception:          # lcm-gen's decoders raise ValueError or struct.error on short data
             problems.undecodable[ev.channel] += 1
     return ProjectLog(path, events, dict(decoded), problems)

@@ -1,7 +1,10 @@
 """Re-run the C++ runtime on a log's states, in lockstep, and compare its commands with the logged ones.
 
 Only the runtime's inputs are replayed (T1_IMU, T1_JOINT_STATE, T1_JOYSTICK, T1_RUNTIME_CMD, T1_SIM_STATUS),
-in the logged order, byte for byte but for the operator's messages: a signed T1_JOYSTICK or T1_RUNTIME_CMD
+in the logged order, byte for byte but for the signed ones. The replay is the robot: every state frame is
+signed with the replay's own robot key (the runtime gets --robot-key), so a log's state, signed by its run's
+robot, unsigned, or recorded before state was signed (eventlog.py reads it as unsigned), replays alike, and
+the same fields reach the runtime. A signed T1_JOYSTICK or T1_RUNTIME_CMD
 is signed again with the replay's own fresh key (its logged tag was made with a key of the logged run and its
 timestamp is old: the runtime would take neither); an unsigned one goes as logged, refused again as it was
 (one signed with a key the logged runtime did not hold cannot be told apart: it is taken in the replay);
@@ -22,10 +25,10 @@ from pathlib import Path
 
 import lcm
 import numpy as np
-from t1 import joint_command_t, joint_state_t, joystick_t, runtime_cmd_t
+from t1 import joint_command_t, joystick_t, runtime_cmd_t
 
 from messages import contract
-from messages.auth import UNSIGNED_SENDER
+from messages.auth import STATE_CHANNELS, UNSIGNED_SENDER, RunKey
 from sim_hil.launch import start_runtime, stop, wait_until_listening
 from sim_hil.lcmlog.eventlog import ProjectLog
 
@@ -108,20 +111,23 @@ def replay(log: ProjectLog, policy: Path | None = None, url: str | None = None) 
     states = log.messages.get(contract.CH_JOINT_STATE, [])
     if not states:
         raise ValueError(f"{log.path}: no T1_JOINT_STATE in the log: nothing to replay")
-    inputs = sorted((ev for ch in RUNTIME_INPUTS for ev, _ in log.messages.get(ch, [])), key=lambda e: e.offset)
+    inputs = sorted((pair for ch in RUNTIME_INPUTS for pair in log.messages.get(ch, [])), key=lambda p: p[0].offset)
     answers: dict[int, joint_command_t] = {}
     lc = lcm.LCM(url)
     lc.subscribe(contract.CH_JOINT_CMD, lambda _c, d: _keep(answers, joint_command_t.decode(d)))
-    runtime = start_runtime(chosen, *args, "--lcm-url", url)
-    signer = runtime.run_key.signer() if runtime.run_key else None   # None: the log's runtime was unauthenticated
+    run_key = RunKey()                       # the replay's keys: its robot signs the state
+    runtime = start_runtime(chosen, *args, "--lcm-url", url, run_key=run_key)
+    signer = None if "--unauthenticated" in args else runtime.run_key.signer()   # as the logged runtime took commands
+    robot = run_key.robot_signer()
     unanswered = 0
     try:
         wait_until_listening(runtime)
-        for ev in inputs:
-            lc.publish(ev.channel, _resigned(ev.channel, ev.data, signer))
+        for ev, msg in inputs:
+            lc.publish(ev.channel, robot.sign(ev.channel, msg) if ev.channel in STATE_CHANNELS
+                       else _resigned(ev.channel, ev.data, signer))
             if ev.channel != contract.CH_JOINT_STATE:
                 continue
-            seq = joint_state_t.decode(ev.data).seq
+            seq = msg.seq
             deadline = time.monotonic() + ANSWER_TIMEOUT_S
             while seq not in answers and time.monotonic() < deadline and runtime.poll() is None:
                 lc.handle_timeout(50)

@@ -11,7 +11,7 @@
    by exchange (tests/bench/link_latency.py).
 4. The same over DDS (t1-runtime --transport dds, Cyclone, the T1's own topics), next to the LCM row.
 
-    python -m tests.bench.runtime_bench [--quick] [--seconds S] [--only mlp,loop,lcm,dds] [--policy PATH]
+    python -m tests.bench.runtime_bench [--quick] [--seconds S] [--only mlp,loop,lcm,dds,state] [--policy PATH]
     (inside tools/netns; `make bench` runs it after sim_rtf with the same command-line arguments)
 
 This file is also the onnxruntime worker: `.venv-bench/bin/python tests/bench/runtime_bench.py --ort-worker DIR`
@@ -262,12 +262,24 @@ def bench_loop(seconds: float) -> None:
           f"same core and priority; overruns = ticks woken more than one period ({LOOP_PERIOD_US} µs) late)")
 
 
+def bench_state_auth(policy: Path, quick: bool) -> None:
+    """The policy tick with the robot's state verified (--robot-key: every imu_t / joint_state_t's HMAC checked)
+    against unverified state, side by side in one run (target on / off <= 1.1, reported, not asserted)."""
+    r = run_json([bench_binary("t1rt_bench_state_auth"), "--policy", policy, "--blocks", 5 if quick else 20], 600)
+    print(f"\n== state verification (--robot-key) in the lockstep policy tick, {int(r['policy_ticks'])} policy ticks "
+          f"each, alternating blocks (µs; ratio = on / off, target <= 1.1) ==")
+    print(f"{'':<24}{'median':>9}{'p99':>9}")
+    for name, key in (("off (unsigned state)", "off"), ("on (signed state)", "on")):
+        print(f"{name:<24}{r[f'{key}_policy_tick_us_median']:>9.1f}{r[f'{key}_policy_tick_us_p99']:>9.1f}")
+    print(f"{'ratio on / off':<24}{r['ratio_median']:>9.3f}{r['ratio_p99']:>9.3f}")
+
+
 # ------------------------------------------------------------------------------------ entry points
 def parse_args(argv: list[str]) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m tests.bench.runtime_bench", description=__doc__.split("\n\n")[0])
     p.add_argument("--quick", action="store_true", help=f"{QUICK_SECONDS:g} s loop runs, fewer exchanges")
     p.add_argument("--seconds", type=float, default=None, help=f"loop-lateness run time each (default {DEFAULT_SECONDS:g})")
-    p.add_argument("--only", default="mlp,loop,lcm,dds", help="comma-separated sections: mlp, loop, lcm, dds")
+    p.add_argument("--only", default="mlp,loop,lcm,dds,state", help="comma-separated sections: mlp, loop, lcm, dds, state")
     p.add_argument("--policy", type=Path, default=STUDENT_POLICY, help="artifact for the MLP and LCM sections")
     p.add_argument("--mlp-iterations", type=int, default=MLP_ITERATIONS)
     p.add_argument("--lcm-count", type=int, default=None)
@@ -275,8 +287,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--iterations", type=int, default=0, help=argparse.SUPPRESS)
     args, _ = p.parse_known_args(argv)  # `make bench` passes the same argv to every bench
     sections = set(args.only.split(","))
-    if not sections <= {"mlp", "loop", "lcm", "dds"}:
-        p.error(f"--only: unknown section(s) {sorted(sections - {'mlp', 'loop', 'lcm', 'dds'})}")
+    if not sections <= {"mlp", "loop", "lcm", "dds", "state"}:
+        p.error(f"--only: unknown section(s) {sorted(sections - {'mlp', 'loop', 'lcm', 'dds', 'state'})}")
     if args.seconds is not None and args.seconds <= 0:
         p.error(f"--seconds must be > 0, not {args.seconds}")
     if not args.ort_worker and not args.policy.is_file():
@@ -298,6 +310,8 @@ def main(argv: list[str] | None = None) -> None:
     lcm = bench_lcm(args.policy.resolve(), args.lcm_count) if "lcm" in args.sections else None
     if "dds" in args.sections:
         bench_dds(args.policy.resolve(), args.lcm_count, lcm)
+    if "state" in args.sections:
+        bench_state_auth(args.policy.resolve(), args.quick)
     if "loop" in args.sections:
         bench_loop(args.seconds)
 

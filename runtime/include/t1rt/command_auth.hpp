@@ -1,4 +1,4 @@
-// Who may command the runtime: the runtime's side of messages/auth.py (the protocol's one definition, held to
+// Who may command the runtime, and whose state it takes: the runtime's side of messages/auth.py (the protocol's one definition, held to
 // this code by tests/golden/command_auth.json). runtime_cmd_t and joystick_t carry sender_id, timestamp_us and,
 // last, tag_size (0: unsigned, kTagBytes: signed) and tag = HMAC-SHA256(key, channel + NUL + the payload before
 // tag_size); an artifact approval is
@@ -9,6 +9,9 @@
 // timestamp is fresh (AuthConfig) and after the sender's last one on that channel. kUnauthenticated (the
 // explicit bench flag): every message is taken, as before signing existed. kEstopOnly (neither flag, the
 // default): nothing is taken. estop is obeyed in every mode (safety rule R11, src/safety_supervisor.cpp).
+// The robot's state (imu_t, joint_state_t) is verified by a second instance with the robot key (--robot-key):
+// kSigned takes only the robot's frames, kUnauthenticated (no robot key, a bench) takes every one, and the
+// supervisor's rule R12 then only tells a second sequence stream apart.
 #pragma once
 #include <array>
 #include <cstddef>
@@ -89,7 +92,8 @@ class KeyRing {
 // NoHeap.SignedJoystickAllocatesOnlyInsideOpenSSL). Loop thread only.
 class CommandAuth {
  public:
-  enum Stream : int { kCommandStream = 0, kJoystickStream = 1, kStreams = 2 };  // timestamps per channel
+  // Timestamps per channel: the operator's (runtime_cmd_t, joystick_t) and the robot's (imu_t, joint_state_t).
+  enum Stream : int { kCommandStream = 0, kJoystickStream = 1, kImuStream = 2, kJointStream = 3, kStreams = 4 };
   CommandAuth() = default;
   ~CommandAuth();
   CommandAuth(const CommandAuth&) = delete;
@@ -119,6 +123,10 @@ class CommandAuth {
   const char* describe() const { return describe_.data(); }          // controller_status_t.command_auth
   // controller_status_t.command_auth and refused_* (its strings' capacity reserved: no allocation).
   void report(t1::controller_status_t& status) const;
+  // The robot's verifier: controller_status_t.state_auth and state_refused_*.
+  void report_state(t1::controller_status_t& status) const;
+  int64_t refused_total() const;
+  void set_description(const char* text);  // replaces describe() (the robot's verifier says "robot key")
 
  private:
   static int64_t wall_us();

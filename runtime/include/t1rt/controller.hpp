@@ -43,6 +43,9 @@ struct ControllerOptions {
   // Who may command (command_auth.hpp; safety rule R11). kSigned: keys is the --key file.
   AuthMode auth = AuthMode::kEstopOnly;
   std::shared_ptr<const KeyRing> keys;
+  // Whose state (--robot-key FILE): only imu_t / joint_state_t signed by a sender of robot_keys are taken;
+  // null: every frame (a bench), safety rule R12 still tells a second sequence stream apart.
+  std::shared_ptr<const KeyRing> robot_keys;
   AuthConfig auth_config;
   std::string policy_dir;      // load_policy's folder; empty: the folder of policy_path
   std::string approvals_path;  // with keys: the approvals file; empty: policy_dir/approvals
@@ -54,6 +57,7 @@ PolicyStore make_policy_store(const ControllerOptions& options);
 
 class Controller {
  public:
+  static constexpr std::size_t kStatusStringReserve = 512;  // status strings reuse this capacity: no per-tick allocation
   // upright_policy non-null: composite mode, initial_policy is the getup member. Throws ArtifactError
   // when the pair does not share one gain set (check_composite_pair).
   Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial_policy,
@@ -87,6 +91,8 @@ class Controller {
   const t1::joint_command_t& last_command() const { return command_; }
   std::string reload_message();  // last reload result (copy, for tests)
   const CommandAuth& auth() const { return auth_; }
+  const CommandAuth& state_auth() const { return state_auth_; }
+  const t1::controller_status_t& status() const { return status_; }
   const PolicyStore& policy_store() const { return store_; }
 
  private:
@@ -95,6 +101,7 @@ class Controller {
   void publish_policy_telemetry(double now_s);  // T1_OBS / T1_ACTION of this policy tick, after its command
   void adopt_ready_policy();
   void publish_status(double now_s);
+  void report_state_source();
   void post_live_line();   // the loop's side: a snapshot into live_line_
   void live_line_worker(); // its own thread: prints the newest snapshot at 5 Hz
   void reload_worker();
@@ -105,6 +112,9 @@ class Controller {
   ControllerOptions opt_;
   Supervisor supervisor_;
   CommandAuth auth_;
+  CommandAuth state_auth_;  // the robot's state frames (ControllerOptions::robot_keys)
+  int64_t reported_state_refused_ = 0, reported_second_source_ = 0;  // as of the previous status
+  char state_source_[512] = {0};
   PolicyStore store_;
   LcmTransport transport_;
   std::unique_ptr<DdsTransport> dds_;  // RobotLink::kDds: the robot's state in, joint commands out

@@ -10,6 +10,12 @@
 // serial motors, every number finite); a rejected sample is counted and the state is left unchanged.
 // LowState_ carries no sequence number: the runtime numbers accepted samples in arrival order and adds
 // the samples DDS reports lost (SAMPLE_LOST status), so the supervisor sees a loss as a sequence gap.
+//
+// One writer (safety rule R12 on DDS): the runtime follows the rt/low_state writer of its first valid sample
+// (the sample info's publication handle; its GUID named in the status). A sample of another writer is
+// refused, counted and named with that writer's GUID while the followed one is alive (a sample of it taken
+// less than SafetyConfig::restart_quiet_s ago); after that silence the new writer is followed (the robot's
+// own stack restarted).
 #pragma once
 #include <dds/dds.h>
 
@@ -55,7 +61,8 @@ class DdsTransport {
   // Creates the participant, the two topics, the state reader and the command writer; the accepted state
   // lands in imu / joint (seq checked by the supervisor), and *new_state is set for each accepted sample.
   bool open(int domain_id, ClockMode clock, Supervisor* supervisor, MessageSlot<t1::imu_t>* imu,
-            MessageSlot<t1::joint_state_t>* joint, bool* new_state, std::string* error);
+            MessageSlot<t1::joint_state_t>* joint, bool* new_state, std::string* error,
+            double restart_quiet_s = SafetyConfig{}.restart_quiet_s);
   int wait(int timeout_ms);  // waits for a state sample, takes what is queued; >0 took one, 0 timeout
   void drain();              // takes everything queued, without waiting
   bool publish(const t1::joint_command_t& cmd);
@@ -63,10 +70,18 @@ class DdsTransport {
   int64_t rejected = 0;            // samples refused by check_low_state (state unchanged)
   int64_t lost = 0;                // samples DDS reports lost before they reached the reader
   std::array<char, 160> last_reject{};  // why the newest rejected sample was refused
+  int64_t other_writer_samples = 0;     // samples of a writer other than the followed one, refused
+  int64_t writer_changes = 0;           // followed writers replaced after the old one fell silent
+  std::array<char, 48> followed{};      // the followed writer's GUID (hex), "" before the first sample
+  std::array<char, 160> other_writer{}; // the newest refused writer, named with its GUID ("" until one)
 
  private:
   int take();
   void accept(const DdsLowState& sample);
+  // Whether a sample of `writer` is the followed writer's (adopting a first one, or a new one after the
+  // followed one's silence); a refused one is counted and named.
+  bool from_followed_writer(dds_instance_handle_t writer, double now_s);
+  void format_guid(dds_instance_handle_t writer, std::array<char, 48>* out) const;
 
   dds_entity_t participant_ = 0, state_reader_ = 0, cmd_writer_ = 0, waitset_ = 0;
   ClockMode clock_ = ClockMode::kRealtime;
@@ -75,6 +90,9 @@ class DdsTransport {
   MessageSlot<t1::joint_state_t>* joint_ = nullptr;
   bool* new_state_ = nullptr;
   int64_t accepted_ = 0;  // arrival-order number of the next accepted sample
+  double restart_quiet_s_ = 0.0;
+  dds_instance_handle_t writer_ = 0, named_other_ = 0;  // the followed writer, the last one named refused
+  double writer_last_s_ = 0.0;                          // CLOCK_MONOTONIC time of its newest sample [s]
   std::array<uint32_t, kJoints> lost_seen_{};  // MotorState_.lost of the last accepted sample
   std::array<DdsMotorCmd, kJoints> motors_{};
   DdsLowCmd low_cmd_{};

@@ -48,6 +48,13 @@
 //     runtime's key file with a fresh timestamp (t1rt/command_auth.hpp), or the runtime was started
 //     --unauthenticated. So after anyone's estop only the key holder releases R1's hold or leaves
 //     FAULT/DAMPING for PREPARE or POLICY. A refused message changes nothing and is counted by reason.
+//  R12 One state source. With --robot-key only the robot's signed state frames reach this rule at all
+//     (t1rt/command_auth.hpp: the others are refused and counted by reason). On every transport, a state
+//     frame R3 would take for a publisher restart (more than SeqTracker::kWindowFrames behind the newest)
+//     or a jump of more than max_seq_jump_frames ahead is a second source while the followed stream is
+//     alive (a frame of it taken less than restart_quiet_s ago): FAULT "second state source on <channel>",
+//     and the frame is refused, never adopted. A real restart stops the old stream first: after
+//     restart_quiet_s of silence the new numbering is taken, as R3 says.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -77,6 +84,7 @@ inline constexpr int32_t kNonFiniteSimStatus = 1 << 7; // composite mode: waist 
 inline constexpr int32_t kMotorSilent = 1 << 8;        // rule R8: a motor sent no reply for too many bus cycles
 inline constexpr int32_t kEncoderFrozen = 1 << 9;      // rule R9: an encoder read still while the body moved
 inline constexpr int32_t kImpossibleReading = 1 << 10; // rule R10: a reading no joint can produce
+inline constexpr int32_t kSecondStateSource = 1 << 11; // rule R12: a second state stream beside the robot's
 inline constexpr int32_t kLatchedMask = t1::controller_status_t::LATCHED_FAULT_MASK;  // the bits above: warnings
 inline constexpr int32_t kImuHold = 1 << 16;
 inline constexpr int32_t kJointHold = 1 << 17;
@@ -87,6 +95,8 @@ inline constexpr int32_t kTorqueClamped = 1 << 21;   // includes "torque bound n
 inline constexpr int32_t kMotorWarning = 1 << 22;    // R4 bits, R8 or R9 seen in PASSIVE/DAMPING (blocks PREPARE)
 inline constexpr int32_t kMotorOverLimit = 1 << 23;  // OVER_LIMIT: information, never a fault
 inline constexpr int32_t kSimStatusHold = 1 << 24;   // composite mode: T1_SIM_STATUS older than hold age
+inline constexpr int32_t kStateRefused = 1 << 25;    // state frames refused in the last status period (named
+                                                     // in controller_status_t.state_source)
 static_assert(kSimStatusHold > kLatchedMask && kNonFiniteSimStatus <= kLatchedMask,
               "fault causes in the latched low bits, warnings above them");
 }  // namespace fault_bit
@@ -154,6 +164,8 @@ struct SafetyConfig {
   double prepare_duration_s = 2.0;   // PREPARE ramp from the current pose to the default pose
   float max_target_step_rad = 0.05f; // target rate limit per 2 ms tick (25 rad/s, above every motor's speed)
   float joint_range_fraction = 0.95f;  // targets clamped to this centred fraction of the joint range
+  double restart_quiet_s = 0.1;      // R12: a new numbering is a restart only after this much silence [s]
+  int64_t max_seq_jump_frames = 500; // R12: a jump further ahead while the stream is alive: a second source
 };
 
 // Sequence bookkeeping of one state stream (imu_t or joint_state_t); the rules are in accept().
@@ -161,6 +173,11 @@ class SeqTracker {
  public:
   static constexpr int64_t kWindowFrames = 64;  // width of the received-frame mask below
   bool accept(int64_t seq);  // false: not newer than the newest frame (reordered or duplicate): reject
+  // Where seq lies from the newest frame: kNew (the first one, or newer), kLate (within the window, not
+  // newer), kRestart (further behind: R3's publisher restart). accept() is unchanged by it.
+  enum class Step { kNew, kLate, kRestart };
+  Step step(int64_t seq) const;
+  int64_t newest() const { return newest_; }  // -1: none yet
   int64_t gaps() const { return gaps_; }            // seq numbers never received
   int64_t reordered() const { return reordered_; }  // frames rejected because a newer one came first
  private:
@@ -208,9 +225,12 @@ class Supervisor {
   void estop();                    // DAMPING now (FAULT stays latched); holds autostart off
   void reset();                    // FAULT -> DAMPING; releases the operator hold
 
-  // Called by the transport for every decoded state frame: false = older than the newest, do not use it.
-  bool accept_imu_seq(int64_t seq) { return imu_seq_.accept(seq); }
-  bool accept_joint_seq(int64_t seq) { return joint_seq_.accept(seq); }
+  // Called by the transport for every decoded (and, with a robot key, verified) state frame, received at
+  // now_s (CLOCK_MONOTONIC): false = do not use it (rules R3 and R12).
+  bool accept_imu_seq(int64_t seq, double now_s) { return accept_state_seq(imu_source_, imu_seq_, seq, now_s); }
+  bool accept_joint_seq(int64_t seq, double now_s) { return accept_state_seq(joint_source_, joint_seq_, seq, now_s); }
+  int64_t second_source_frames() const { return second_source_frames_; }  // R12: refused as a second source
+  const char* second_source() const { return second_source_.data(); }       // R12: the latest one, named ("")
   const SeqTracker& imu_seq() const { return imu_seq_; }
   const SeqTracker& joint_seq() const { return joint_seq_; }
 
@@ -240,6 +260,15 @@ class Supervisor {
   void clamp_targets(const StateView& state, const JointArray& kp, const JointArray& kd, JointArray& target);
   int watch_motors(const StateView& state, int32_t* bit, char* why, std::size_t why_size);
   void remember_command(const t1::joint_command_t& out);
+  struct StateSource {         // rule R12: the followed stream of one state channel
+    const char* channel;
+    bool have = false;
+    double last_s = 0.0;       // CLOCK_MONOTONIC time of its newest taken frame [s]
+  };
+  bool accept_state_seq(StateSource& source, SeqTracker& tracker, int64_t seq, double now_s);
+  StateSource imu_source_{"T1_IMU"}, joint_source_{"T1_JOINT_STATE"};
+  int64_t second_source_frames_ = 0;
+  std::array<char, 160> second_source_{};
 
   // Rules R8, R9, R10: per-motor watch, advanced once per joint state.
   struct MotorWatch {

@@ -7,7 +7,9 @@
 // so decoding an operator command allocates (rare, operator-driven, never per tick); verifying a signed
 // message allocates inside OpenSSL (command_auth.hpp). runtime_cmd_t and joystick_t are decoded only when
 // their tag_size is 0 or 32 (CommandAuth::read_tag_size: their tags decode into reserved capacity) and taken
-// only when the CommandAuth and safety rule R11 admit them.
+// only when the CommandAuth and safety rule R11 admit them. imu_t and joint_state_t are read the same way and
+// taken only when the robot's verifier (a second CommandAuth with the robot key) takes them, then rules R3 and
+// R12 (src/safety_supervisor.cpp); a refused state frame is counted by reason and never reaches the loop.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -20,11 +22,10 @@
 #include "t1/runtime_cmd_t.hpp"
 #include "t1/sim_status_t.hpp"
 #include "t1_lcm_group.hpp"
+#include "t1rt/command_auth.hpp"
 #include "t1rt/safety.hpp"
 
 namespace t1rt {
-
-class CommandAuth;
 
 enum class ClockMode { kRealtime, kLockstep };
 const char* clock_name(ClockMode mode);
@@ -55,9 +56,9 @@ class LcmTransport {
   // mode only (T1_SIM_STATUS is privileged simulator truth; a single policy never listens to it).
   // subscribe_robot_state false: the robot's state comes from another transport (DDS), so T1_IMU and
   // T1_JOINT_STATE on LCM are ignored (one source for the live state, never two).
-  // auth: who may command (null: nobody but estop).
+  // auth: who may command (null: nobody but estop). state_auth: whose state is taken (null: every frame).
   bool open(const std::string& url, ClockMode clock, Supervisor* supervisor, CommandAuth* auth, std::string* error,
-            bool subscribe_sim_status = false, bool subscribe_robot_state = true);
+            bool subscribe_sim_status = false, bool subscribe_robot_state = true, CommandAuth* state_auth = nullptr);
   int handle(int timeout_ms);  // >0 handled datagrams (waiting up to timeout_ms for the first), 0 timeout
   void drain();                // handle everything already queued, without waiting
 
@@ -100,6 +101,10 @@ class LcmTransport {
   void on_joystick(const Datagram& d);
   void on_sim_status(const Datagram& d);
   void on_command(const Datagram& d);
+  // Whether an imu_t / joint_state_t datagram is the robot's: tag_size readable and 0 or 32, decoded into
+  // slot.scratch, verified by state_auth_ (a refusal counted and named); then the caller applies R3/R12.
+  template <class Message>
+  bool robot_frame(MessageSlot<Message>& slot, CommandAuth::Stream stream, const char* channel, const Datagram& d);
   // Whether a runtime_cmd_t / joystick_t datagram may be decoded: its tag_size 0 or 32, else refused
   // (counted, named) whatever its verb; one that ends before its tag_size is a decode error.
   bool decodable(Supervisor::OperatorInput input, const Datagram& d, const char* what);
@@ -124,6 +129,7 @@ class LcmTransport {
   ClockMode clock_ = ClockMode::kRealtime;
   Supervisor* supervisor_ = nullptr;
   CommandAuth* auth_ = nullptr;
+  CommandAuth* state_auth_ = nullptr;
   std::vector<uint8_t> buffer_;
 };
 
