@@ -56,7 +56,6 @@ Controller::~Controller() {
 }
 
 bool Controller::open(std::string* error) {
-  const bool dds = opt_.robot_link == RobotLink::kDds;
   if (!auth_.open(opt_.auth, opt_.keys, opt_.auth_config, error)) return false;
   // Whose state: the robot key's frames only (--robot-key), else every frame (rule R12 still watches).
   const bool robot_key = opt_.robot_keys != nullptr;
@@ -67,18 +66,15 @@ bool Controller::open(std::string* error) {
   if (robot_key) std::snprintf(describe, sizeof(describe), "signed (robot key, %zu senders)", opt_.robot_keys->size());
   else std::snprintf(describe, sizeof(describe), "unauthenticated (no --robot-key)");
   state_auth_.set_description(describe);
-  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, &auth_, error, composite(), !dds, &state_auth_))
+  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, &auth_, error, composite(),
+                       state_on_lcm(opt_.robot_link), &state_auth_))
     return false;
-  if (!dds) return true;
-  dds_ = std::make_unique<DdsTransport>();
-  return dds_->open(opt_.dds_domain_id, opt_.clock, &supervisor_, &transport_.imu, &transport_.joint,
-                    &transport_.new_joint_state, error, opt_.safety.restart_quiet_s);
+  link_ = open_robot_link(opt_.robot_link, opt_.dds_domain_id, opt_.clock, &supervisor_, &transport_, error,
+                          opt_.safety.restart_quiet_s);
+  return link_ != nullptr;
 }
 
-void Controller::publish_command() {
-  if (dds_) dds_->publish(command_);
-  else transport_.publish(t1::CH_JOINT_CMD, command_);
-}
+void Controller::publish_command() { link_->publish(command_); }
 
 void Controller::send_exit_damping() {
   if (!transport_.joint.have) return;  // never commanded anything: nothing to release
@@ -294,7 +290,7 @@ bool Controller::step_lockstep(int timeout_ms) {
   while (!transport_.new_joint_state) {
     const int64_t left_ms = timeout_ms - (monotonic_ns() - start) / 1'000'000;
     if (left_ms <= 0) return false;
-    const int got = dds_ ? dds_->wait(static_cast<int>(left_ms)) : transport_.handle(static_cast<int>(left_ms));
+    const int got = link_->wait(static_cast<int>(left_ms));
     if (got < 0) return false;
   }
   transport_.drain();  // the IMU or commands sent alongside this state
@@ -308,7 +304,7 @@ bool Controller::step_lockstep(int timeout_ms) {
 void Controller::step_realtime() {
   const int64_t wake_ns = task_.wait_next();
   transport_.drain();
-  if (dds_) dds_->drain();
+  link_->drain();
   tick(ns_to_s(wake_ns));
   task_.end_compute();
 }

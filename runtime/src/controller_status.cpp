@@ -47,7 +47,7 @@ void Controller::publish_status(double now_s) {
   status_.seq_gaps_joint = supervisor_.joint_seq().gaps();
   status_.seq_reordered_imu = supervisor_.imu_seq().reordered();
   status_.seq_reordered_joint = supervisor_.joint_seq().reordered();
-  status_.decode_errors = transport_.decode_errors + (dds_ ? dds_->rejected : 0);  // DDS: samples refused whole
+  status_.decode_errors = transport_.decode_errors + link_->rejected_samples();  // and samples the link refused whole
   status_.commands_dropped = transport_.commands_dropped;
   status_.sends_dropped = static_cast<int64_t>(transport_.send_dropped());
   TimingStats& late = task_.lateness();
@@ -83,11 +83,11 @@ void Controller::publish_status(double now_s) {
   // Who may command next to the mode: "commands unauthenticated" on a bench runtime, the last refusal.
   const char* bench = auth_.mode() == AuthMode::kUnauthenticated ? " | commands unauthenticated" : "";
   const char* refusal = auth_.last_refusal();
-  char info[kStringReserve + 880 + 2 * sizeof(state_source_)];  // composite (160) + supervisor (160) + auth (230) + reload message + DDS reject (160)
-  const char* dds_info = dds_ && dds_->rejected ? dds_->last_reject.data() : "";
+  char info[kStringReserve + 880 + 2 * sizeof(state_source_)];  // composite (160) + supervisor (160) + auth (230) + reload message + the link's rejection (160)
+  const char* link_info = link_->last_rejection();
   std::snprintf(info, sizeof(info), "%s%s%s%s%s%s%s%s%s%s%s", composite_info, supervisor_.last_info(), bench,
-                refusal[0] ? " | " : "", refusal, reload_info_[0] ? " | " : "", reload_info_, dds_info[0] ? " | " : "",
-                dds_info, state_source_[0] ? " | " : "", state_source_);
+                refusal[0] ? " | " : "", refusal, reload_info_[0] ? " | " : "", reload_info_, link_info[0] ? " | " : "",
+                link_info, state_source_[0] ? " | " : "", state_source_);
   assign_bounded(status_.info, info);
   transport_.publish(t1::CH_CONTROLLER_STATUS, status_);
   if (!opt_.quiet) post_live_line();
@@ -98,20 +98,20 @@ void Controller::publish_status(double now_s) {
 void Controller::report_state_source() {
   state_auth_.report_state(status_);
   const int64_t refused = state_auth_.refused_total();
-  const int64_t second = supervisor_.second_source_frames() + (dds_ ? dds_->other_writer_samples : 0);
+  const int64_t second = supervisor_.second_source_frames() + link_->second_writer_samples();
   const int64_t new_refused = refused - reported_state_refused_, new_second = second - reported_second_source_;
   reported_state_refused_ = refused;
   reported_second_source_ = second;
   const bool warning = new_refused > 0 || new_second > 0;
   if (warning) status_.fault_bits |= fault_bit::kStateRefused;
   const char* refusal = state_auth_.last_refusal();
-  const char* dds_other = dds_ ? dds_->other_writer.data() : "";
+  const char* link_other = link_->second_writer();
   if (warning || !state_source_[0])
     std::snprintf(state_source_, sizeof(state_source_), "%s%lld state frames refused, %lld of a second source%s%s%s%s%s%s",
                   warning ? "REFUSING STATE: " : "", static_cast<long long>(new_refused),
                   static_cast<long long>(new_second), refusal[0] ? "; last: " : "", refusal,
-                  supervisor_.second_source()[0] ? "; " : "", supervisor_.second_source(), dds_other[0] ? "; " : "",
-                  dds_other);
+                  supervisor_.second_source()[0] ? "; " : "", supervisor_.second_source(), link_other[0] ? "; " : "",
+                  link_other);
   if (!warning && refused == 0 && second == 0) state_source_[0] = '\0';
   assign_bounded(status_.state_source, state_source_);
 }

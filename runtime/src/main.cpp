@@ -128,8 +128,8 @@ int main(int argc, char** argv) {
       else { std::fprintf(stderr, "t1-runtime: --clock must be realtime or lockstep, not '%s'\n", c.c_str()); return kExitUsage; }
     } else if (a == "--transport") {
       const std::string t = value("--transport");
-      if (t == "lcm") opt.robot_link = t1rt::RobotLink::kLcm;
-      else if (t == "dds") opt.robot_link = t1rt::RobotLink::kDds;
+      if (t == "lcm") opt.robot_link = t1rt::RobotLinkKind::kLcm;
+      else if (t == "dds") opt.robot_link = t1rt::RobotLinkKind::kDds;
       else { std::fprintf(stderr, "t1-runtime: --transport must be lcm or dds, not '%s'\n", t.c_str()); return kExitUsage; }
     } else if (a == "--lcm-url") cli_url = value("--lcm-url");
     else if (a == "--rt") rt = true;
@@ -236,12 +236,12 @@ int main(int argc, char** argv) {
                  !upright ? "" : p == engine.get() ? "getup member: " : "upright member: ", art.name.c_str(),
                  art.content_hash.c_str(), art.trained ? "true" : "false", art.obs_size, art.layers.size(), p->mlp_variant(),
                  t1rt::clock_name(opt.clock), opt.lcm_url.c_str(),
-                 opt.robot_link == t1rt::RobotLink::kDds ? "DDS (rt/low_state -> rt/joint_ctrl)" : "LCM");
+                 t1rt::robot_link_description(opt.robot_link));
   }
   if (opt.robot_keys)
     std::fprintf(stderr, "t1-runtime: state: only the robot's signed frames (--robot-key %s, %zu senders)\n",
                  robot_key_path.c_str(), opt.robot_keys->size());
-  else if (opt.robot_link == t1rt::RobotLink::kLcm)
+  else if (t1rt::state_on_lcm(opt.robot_link))
     std::fprintf(stderr, "t1-runtime: state unauthenticated (no --robot-key, a bench setup): any program on the LCM "
                  "group can publish T1_IMU / T1_JOINT_STATE; a second sequence stream is a FAULT (rule R12)\n");
   if (upright)

@@ -11,6 +11,7 @@
 #include "t1_motor_protocol.h"
 #include "t1rt/dds_transport.hpp"
 #include "t1rt/policy.hpp"
+#include "t1rt/robot_link.hpp"
 
 using namespace t1rt;
 
@@ -139,4 +140,21 @@ TEST(LowCmd, SerialWithTheContractsCustomModeFieldsAndTheSupervisorsNumbers) {
   EXPECT_NEAR(out.motor_cmd._buffer[7].tau, -1.0f, kTol);
   EXPECT_EQ(out.motor_cmd._buffer[7].mode, t1::kDdsMotorMode);
   EXPECT_NEAR(out.motor_cmd._buffer[7].weight, t1::kDdsMotorWeight, kTol);
+}
+
+// The controller sees one RobotLink: the LCM link opens over the LCM transport without a network of its own,
+// and leaves refusals to the transport's verifier and rules R3 / R12 (nothing refused at the link).
+TEST(RobotLink, LcmLinkRefusesNothingItselfAndEachKindIsNamed) {
+  LcmTransport lcm;
+  std::string error;
+  std::unique_ptr<RobotLink> link = open_robot_link(RobotLinkKind::kLcm, 0, ClockMode::kLockstep, nullptr, &lcm, &error);
+  ASSERT_NE(link, nullptr) << error;
+  EXPECT_EQ(link->rejected_samples(), 0);
+  EXPECT_STREQ(link->last_rejection(), "");
+  EXPECT_EQ(link->second_writer_samples(), 0);
+  EXPECT_STREQ(link->second_writer(), "");
+  EXPECT_TRUE(state_on_lcm(RobotLinkKind::kLcm));
+  EXPECT_FALSE(state_on_lcm(RobotLinkKind::kDds));
+  EXPECT_STREQ(robot_link_description(RobotLinkKind::kLcm), "LCM");
+  EXPECT_NE(std::string(robot_link_description(RobotLinkKind::kDds)).find("rt/low_state"), std::string::npos);
 }

@@ -7,6 +7,7 @@
 
 #include "lcm_peer.hpp"
 #include "t1rt/controller.hpp"
+#include "t1rt/dds_transport.hpp"
 #include "t1/sim_status_t.hpp"
 #include "test_artifact.hpp"
 #include "test_keys.hpp"
@@ -183,7 +184,7 @@ TEST(NoHeap, DdsLoopTicksAllocateOnlyInsideCyclone) {
   opt.policy_path = write_spec("noheap_dds", make_spec({256, 128, 128}));
   opt.lcm_url = resolve_lcm_url("");
   opt.clock = ClockMode::kLockstep;
-  opt.robot_link = RobotLink::kDds;
+  opt.robot_link = RobotLinkKind::kDds;
   opt.dds_domain_id = t1::kDdsDomainId;
   opt.quiet = true;
   opt.autostart = true;

@@ -14,25 +14,22 @@
 #include "t1/observation_t.hpp"
 #include "t1rt/command_auth.hpp"
 #include "t1rt/composite.hpp"
-#include "t1rt/dds_transport.hpp"
 #include "t1rt/handover.hpp"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/policy.hpp"
 #include "t1rt/policy_store.hpp"
+#include "t1rt/robot_link.hpp"
 #include "t1rt/safety.hpp"
 #include "t1rt/transport.hpp"
 
 namespace t1rt {
 
-// Which transport faces the robot: LCM (the project's own messages, default) or DDS (the real T1's own
-// rt/low_state and rt/joint_ctrl, dds_transport.hpp). Operator and telemetry channels are LCM in both.
-enum class RobotLink { kLcm, kDds };
 
 struct ControllerOptions {
   std::string policy_path;          // the single policy; in composite mode the getup member
   std::string upright_policy_path;  // non-empty: composite mode (composite.hpp), the upright member
   std::string lcm_url;          // resolved (resolve_lcm_url)
-  RobotLink robot_link = RobotLink::kLcm;
+  RobotLinkKind robot_link = RobotLinkKind::kLcm;  // which link faces the robot (robot_link.hpp)
   int dds_domain_id = 0;        // --transport dds: the robot's DDS domain (contract.json)
   ClockMode clock = ClockMode::kRealtime;
   bool autostart = false;       // PASSIVE -> DAMPING -> PREPARE -> POLICY without operator commands
@@ -64,7 +61,7 @@ class Controller {
              std::unique_ptr<PolicyEngine> upright_policy = nullptr);
   ~Controller();
 
-  bool open(std::string* error);  // LCM transport (+ DDS with RobotLink::kDds); false on failure
+  bool open(std::string* error);  // the LCM transport and the robot link; false on failure
   // The single code path: one control tick on the newest state at time now_s (see StateView for clocks).
   void tick(double now_s);
   bool step_lockstep(int timeout_ms);  // waits for a joint_state_t, then ticks; false on timeout
@@ -85,7 +82,6 @@ class Controller {
   int64_t member_switches() const { return member_switches_; }
   PeriodicTask& task() { return task_; }
   LcmTransport& transport() { return transport_; }
-  DdsTransport* dds() { return dds_.get(); }  // null unless RobotLink::kDds
   int64_t ticks() const { return ticks_; }
   int64_t policy_ticks() const { return policy_ticks_; }
   const t1::joint_command_t& last_command() const { return command_; }
@@ -117,7 +113,7 @@ class Controller {
   char state_source_[512] = {0};
   PolicyStore store_;
   LcmTransport transport_;
-  std::unique_ptr<DdsTransport> dds_;  // RobotLink::kDds: the robot's state in, joint commands out
+  std::unique_ptr<RobotLink> link_;  // the robot's state in, joint commands out (LCM or DDS)
   PeriodicTask task_;
   std::unique_ptr<PolicyEngine> engine_;
   std::unique_ptr<PolicyEngine> upright_;    // composite mode only; never reloaded

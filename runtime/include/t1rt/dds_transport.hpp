@@ -2,8 +2,8 @@
 // (messages/contract.json "dds"; types generated from messages/dds/booster_low.idl):
 //   rt/low_state (LowState_: IMU rpy/gyro/acc + serial motor states) in,
 //   rt/joint_ctrl (LowCmd_: SERIAL, 23 MotorCmd_) out.
-// It fills the same live slots (imu_t, joint_state_t) the LCM transport fills, so the observation,
-// supervisor and policy code do not know which transport feeds them. Operator channels (joystick,
+// A RobotLink (robot_link.hpp): it fills the same live slots (imu_t, joint_state_t) the LCM link fills, so
+// the observation, supervisor and policy code do not know which link feeds them. Operator channels (joystick,
 // runtime_cmd) and telemetry (status, obs, action) stay on LCM.
 //
 // Safety rule R3 on this transport: a sample is checked whole before it may replace the live state (23
@@ -28,6 +28,7 @@
 #include "t1/joint_command_t.hpp"
 #include "t1/joint_state_t.hpp"
 #include "t1rt/constants.hpp"
+#include "t1rt/robot_link.hpp"
 #include "t1rt/transport.hpp"
 
 namespace t1rt {
@@ -49,7 +50,7 @@ void low_state_to_messages(const DdsLowState& sample, t1::imu_t* imu, t1::joint_
 // motors[kJoints]; out->motor_cmd must point at motors.
 void joint_command_to_low_cmd(const t1::joint_command_t& cmd, DdsLowCmd* out, DdsMotorCmd* motors);
 
-class DdsTransport {
+class DdsTransport final : public RobotLink {
  public:
   static constexpr int kTakeBatch = 8;  // samples taken per dds_take call
 
@@ -63,9 +64,13 @@ class DdsTransport {
   bool open(int domain_id, ClockMode clock, Supervisor* supervisor, MessageSlot<t1::imu_t>* imu,
             MessageSlot<t1::joint_state_t>* joint, bool* new_state, std::string* error,
             double restart_quiet_s = SafetyConfig{}.restart_quiet_s);
-  int wait(int timeout_ms);  // waits for a state sample, takes what is queued; >0 took one, 0 timeout
-  void drain();              // takes everything queued, without waiting
-  bool publish(const t1::joint_command_t& cmd);
+  int wait(int timeout_ms) override;  // waits for a state sample, takes what is queued; >0 took one, 0 timeout
+  void drain() override;              // takes everything queued, without waiting
+  bool publish(const t1::joint_command_t& cmd) override;
+  int64_t rejected_samples() const override { return rejected; }
+  const char* last_rejection() const override { return rejected ? last_reject.data() : ""; }
+  int64_t second_writer_samples() const override { return other_writer_samples; }
+  const char* second_writer() const override { return other_writer.data(); }
 
   int64_t rejected = 0;            // samples refused by check_low_state (state unchanged)
   int64_t lost = 0;                // samples DDS reports lost before they reached the reader
