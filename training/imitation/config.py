@@ -13,8 +13,8 @@ COLLECTED = "collected.json"
 
 def default_config() -> config_dict.ConfigDict:
     return config_dict.create(
-        rounds=15,     # rounds 7 … 14 rolled out by PPO fine-tunes of the learner (--policy), 9 … 14 from on-back
-                       # starts only (--lying), 12 … 14 labelled by best-of-K (expert.best_of_k.k 32, sigma 0.05)
+        rounds=15,     # which policy rolled each round out, from which starts, with which expert: the imitation
+                       # stages of training/recipes/getup_keyframe.py
         # each round rolls the current policy out from this many fallen starts (seeds first_seed + round ·
         # starts_per_round …), disjoint from the evaluation's seeds 0 … eval_seeds − 1
         starts_per_round=32,

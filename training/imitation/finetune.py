@@ -83,12 +83,14 @@ def normalizer_state(mean: np.ndarray, std: np.ndarray, count: int, observation_
 
 
 def _campaign_of(init) -> Path:
-    """The DAgger campaign of what a run starts from: a DAgger artifact's folder, or, for a PPO run (a fine-tune
-    going on from another), that run's own campaign."""
+    """The DAgger campaign of what a run starts from: a DAgger artifact's folder, or, for a PPO run or its export
+    (a fine-tune going on from another), that run's own campaign."""
     from training import checkpoints
     path = repo_path(init) if init else None
     if path is not None and is_artifact(path):
-        return path.parent
+        if not (path.parent / checkpoints.RUN_STATE).exists():
+            return path.parent
+        path = path.parent
     run = path.parent.parent if path is not None and path.parent.name == checkpoints.CHECKPOINT_DIR else path
     try:
         state = checkpoints.load_run_state(run)
