@@ -208,3 +208,15 @@ def test_imitation_stage_settings_are_checked():
     ok = R.Recipe("x", "x", "", (dagger, ppo, R.Stage("e", kind="imitation", steps=3, continues="d", policy="p",
                                                       lying="on_back")))
     assert ok.campaign_stage(ok.stage("e")) is dagger and ok.rounds_through(ok.stage("e")) == 5
+
+
+def test_a_stage_whose_artifact_rolls_out_rounds_still_to_run_is_not_superseded(tmp_path):
+    recipe = R.load("getup_keyframe")
+    _ppo_run(tmp_path, "getup_keyframe", "rise_best", [recipe.stage("rise_best").end_at],
+             {"env_steps": 3_031_040, "target_steps": 3_031_040})
+    folder = tmp_path / "getup_keyframe" / "dagger"
+    folder.mkdir()
+    for rounds, superseded in ((12, False), (15, True)):     # dagger_best's rounds are rolled out by rise_wide
+        (folder / imitation_config.STATE).write_text(json.dumps({"config": {}, "rounds": [{}] * rounds}))
+        assert recipe_runner.superseded(tmp_path, recipe, recipe.stage("rise_wide")) is superseded
+        assert recipe_runner.superseded(tmp_path, recipe, recipe.stage("rise_slow"))

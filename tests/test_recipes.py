@@ -138,7 +138,9 @@ def test_the_dagger_rounds_between_the_rise_stages_are_rolled_out_by_them(toy_ro
             assert Path(row["policy_from"]) == policy and row.get("lying", "") == s.lying, row
             assert row["expert"]["best_of_k"]["k"] == s.config.get("dagger.expert.best_of_k.k", 0)
     best = json.loads((toy_root / "getup_keyframe" / "rise_best" / checkpoints.RUN_STATE).read_text())
-    assert best["ppo_config"]["imitation"]["first_round"] == recipe.rounds_through(recipe.stage("dagger_back"))
+    assert recipe.stage("rise_best").config["ppo.imitation.first_round"] == \
+        recipe.rounds_through(recipe.stage("dagger_back"))
+    assert best["ppo_config"]["imitation"]["first_round"] == 0          # a toy best-of-K round labels nothing
     assert best["end_at"] == recipe_runner.TOY_END_AT_STEPS[1] and best["env_steps"] == best["end_at"]
 
 

@@ -28,6 +28,8 @@ TOY_PPO_STEPS = 80        # one toy PPO update: 8 envs × 5 unroll × 2 minibatc
 TOY_END_AT_STEPS = (2 * TOY_PPO_STEPS, TOY_PPO_STEPS)
 TOY_BANK_STARTS = 4       # landing banks of a toy stage (their rollouts dominate a toy run otherwise)
 # a toy imitation stage: its rounds (as many as the stage's, so that round numbers read the same), of this size
+# a toy BC term reads every round: a toy best-of-K round labels nothing (no 0.2 s rise meets the gate)
+TOY_ALL_ROUNDS = ("ppo.imitation.first_round",)
 TOY_IMITATION = ("dagger.starts_per_round=2", "dagger.rollout_s=0.2", "dagger.eval_seeds=2",
                  "dagger.eval_seconds=0.2", "dagger.fit.steps=2", "dagger.fit.hidden_layer_sizes=[16, 16]",
                  "dagger.expert.policy_samples=2", "dagger.expert.plan_samples=2", "dagger.expert.horizon_s=0.2")
@@ -99,14 +101,15 @@ def stage_complete(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
 
 def superseded(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
     """Whether a complete later stage of the recipe starts, through its chain of inits, from `stage` (a
-    campaign may keep only the newest stage of a chain)."""
+    campaign may keep only the newest stage of a chain), and no imitation stage still to run rolls out by it."""
     for later in recipe.stages[recipe.stages.index(stage) + 1:]:
         chain, s = set(), later
         while s.init and not s.init.startswith(R.REF_PREFIX):
             chain.add(s.init)
             s = recipe.stage(s.init)
         if stage.name in chain and stage_complete(root, recipe, later):
-            return True
+            return not any(s.policy == stage.name and not stage_complete(root, recipe, s)   # rounds it rolls out
+                           for s in recipe.stages if s.kind == "imitation")
     return False
 
 
@@ -219,7 +222,8 @@ def _overrides(config: dict, toy: bool) -> list[str]:
     from training.student_finetune import LEARNER_KEYS
     banked = tuple(f"env.{s.group}" for s in starts.SOURCES if {"prob", "bank_starts"} <= set(s.functions()[0]()))
     out = [f"{k}={TOY_BANK_STARTS if k.endswith('.bank_starts') else v!r}" for k, v in config.items()
-           if k.startswith(LEARNER_KEYS + IMITATION_KEYS) or not k.startswith(("ppo.", "bc."))]
+           if (k.startswith(LEARNER_KEYS + IMITATION_KEYS) or not k.startswith(("ppo.", "bc.")))
+           and k not in TOY_ALL_ROUNDS]
     for k, v in config.items():
         if k.endswith(".prob") and isinstance(v, float) and v > 0 and k[:-len(".prob")] in banked:
             out.append(f"{k[:-len('.prob')]}.bank_starts={TOY_BANK_STARTS}")
@@ -234,7 +238,9 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
     provenance = {"name": name, "sha256": R.content_hash(name)}
     todo = recipe.stages if stage is None else (recipe.stage(stage),)
     t0 = time.monotonic()
-    if resume:   # every kept stage first: whether an earlier stage is superseded depends on the later ones
+    # every kept stage first: whether an earlier stage is superseded depends on the later ones (a toy run's
+    # stages are its own)
+    if resume and not toy:
         for s in recipe.stages:
             if not stage_dirs(root, recipe, s):
                 restore_campaign(recipe, s, root)
@@ -248,7 +254,8 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
         left = None if max_minutes is None else max_minutes - (time.monotonic() - t0) / 60.0
         if left is not None and left <= 0:
             break
-        print(f"recipe {name}: stage {s.name} ({s.kind}) → {root / name / s.name}", flush=True)
+        folder = recipe.campaign_stage(s).name if s.kind == "imitation" else s.name
+        print(f"recipe {name}: stage {s.name} ({s.kind}) → {root / name / folder}", flush=True)
         _run_stage(recipe, s, root, resume=resume, max_minutes=left, backend=backend, toy=toy,
                    progress=progress, provenance={**provenance, "stage": s.name})
         if not stage_complete(root, recipe, s):

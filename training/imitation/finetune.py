@@ -117,6 +117,9 @@ def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarr
         raise ValueError(f"{campaign}: not a DAgger campaign (no {campaign_files.DATA}/{campaign_files.COLLECTED})")
     rounds = 1 + max((int(k) for k in json.loads(collected.read_text())["rounds"]), default=0)
     obs, q = dataset.aggregate(data, repo_path(t.demos), rounds, int(t.first_round))
+    if len(obs) == 0:
+        raise ValueError(f"{campaign}: no labels in rounds {int(t.first_round)} … {rounds - 1} "
+                         "(ppo.imitation.first_round) for the BC term")
     return obs, targets_to_labels(q, action_map["default_pose"], action_map["action_scale"])
 
 
