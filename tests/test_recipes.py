@@ -87,14 +87,21 @@ def test_the_student_fine_tune_starts_from_dagger_and_exports_a_student(toy_root
 
 @pytest.mark.slow
 def test_the_kneel_rise_starts_from_the_dagger_learner_with_the_bc_term(toy_root):
-    """getup_keyframe's PPO stage `rise` starts from its imitation stage's artifact, reads the BC term's data from
-    that campaign and exports its kept checkpoints (mid-run: the manifest fields of the artifact it started from)."""
+    """getup_keyframe's first PPO stage starts from its imitation stage's artifact and ends at its end_at
+    checkpoint; `rise` starts from that checkpoint's export (a DAgger round was rolled out by it), reads the BC
+    term's data from the campaign and exports its kept checkpoints (mid-run: the manifest fields of the artifact
+    it started from)."""
     from training import train
     from training.imitation import config as imitation_config, finetune
+    dagger = toy_root / "getup_keyframe" / "dagger"
+    explore = toy_root / "getup_keyframe" / "rise_explore"
+    first = json.loads((explore / checkpoints.RUN_STATE).read_text())
+    assert Path(first["init"]) == dagger / imitation_config.ARTIFACT
+    assert (first["env_steps"], first["target_steps"]) == (recipe_runner.TOY_END_AT_STEPS[1],
+                                                           recipe_runner.TOY_END_AT_STEPS[0])
     run = toy_root / "getup_keyframe" / "rise"
     state = json.loads((run / checkpoints.RUN_STATE).read_text())
-    dagger = toy_root / "getup_keyframe" / "dagger"
-    assert Path(state["init"]) == dagger / imitation_config.ARTIFACT
+    assert Path(state["init"]) == explore / "getup_keyframe_rise_explore.safetensors"
     assert state["ppo_config"]["imitation"]["bc_weight"] > 0 and state["bc_count_start"] == finetune.NORMALIZER_COUNT
     from training import kneel_report
     (run / "getup_keyframe_rise.safetensors").rename(run / "moved.safetensors")   # as mid-run: no export yet
@@ -114,6 +121,27 @@ def test_the_kneel_rise_starts_from_the_dagger_learner_with_the_bc_term(toy_root
     fine = json.loads((toy_root / "getup_keyframe" / "rise_fine" / checkpoints.RUN_STATE).read_text())
     assert Path(fine["init"]).is_relative_to(run)                       # rise's newest checkpoint
     assert fine["ppo_config"]["imitation"]["campaign"] == ""              # its data: rise's campaign
+
+
+@pytest.mark.slow
+def test_the_dagger_rounds_between_the_rise_stages_are_rolled_out_by_them(toy_root):
+    """The stage-1 campaign holds every round of its imitation stages, in the recipe's order, each rolled out by
+    its stage's policy from its lying side, with its expert; rise_best's BC term reads the best-of-K rounds."""
+    from training.imitation import config as imitation_config
+    recipe = R.load("getup_keyframe")
+    dagger = toy_root / "getup_keyframe" / "dagger"
+    rows = json.loads((dagger / imitation_config.STATE).read_text())["rounds"]
+    assert [r["round"] for r in rows] == list(range(recipe.rounds_through(recipe.stage("dagger_best"))))
+    for s in (s for s in recipe.stages if s.kind == "imitation" and s.policy):
+        policy = recipe_runner.stage_artifact(toy_root / "getup_keyframe" / s.policy, recipe, recipe.stage(s.policy))
+        for row in rows[recipe.rounds_through(s) - s.steps:recipe.rounds_through(s)]:
+            assert Path(row["policy_from"]) == policy and row.get("lying", "") == s.lying, row
+            assert row["expert"]["best_of_k"]["k"] == s.config.get("dagger.expert.best_of_k.k", 0)
+    best = json.loads((toy_root / "getup_keyframe" / "rise_best" / checkpoints.RUN_STATE).read_text())
+    assert recipe.stage("rise_best").config["ppo.imitation.first_round"] == \
+        recipe.rounds_through(recipe.stage("dagger_back"))
+    assert best["ppo_config"]["imitation"]["first_round"] == 0          # a toy best-of-K round labels nothing
+    assert best["end_at"] == recipe_runner.TOY_END_AT_STEPS[1] and best["env_steps"] == best["end_at"]
 
 
 @pytest.mark.slow

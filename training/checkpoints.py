@@ -76,14 +76,23 @@ def save_run_state(run_dir, state: dict[str, Any]) -> None:
 
 
 # ---------------------------------------------------------------- checkpoints (orbax via brax)
-def save_checkpoint(run_dir, env_steps: int, params, network_config) -> Path:
-    """Write params at `env_steps` (total over all resumes) and prune to the newest KEEP_CHECKPOINTS."""
+def save_checkpoint(run_dir, env_steps: int, params, network_config, end_at: int | None = None) -> Path:
+    """Write params at `env_steps` (total over all resumes) and prune to the newest KEEP_CHECKPOINTS; the
+    checkpoint a run ends at (end_checkpoint of `end_at`) is kept however far the run goes."""
     from brax.training import checkpoint as brax_checkpoint
     root = Path(run_dir) / CHECKPOINT_DIR
     brax_checkpoint.save(root, int(env_steps), tuple(params), network_config, "network_config.json")
+    keep = end_checkpoint(run_dir, end_at) if end_at is not None else None
     for old in list_checkpoints(run_dir)[:-KEEP_CHECKPOINTS]:
-        shutil.rmtree(old, ignore_errors=True)
+        if old != keep:
+            shutil.rmtree(old, ignore_errors=True)
     return checkpoint_path(run_dir, env_steps)
+
+
+def end_checkpoint(run_dir, end_at: int) -> Path | None:
+    """The checkpoint a run ends at: its first kept one at or after `end_at` env steps (a run's checkpoints fall
+    on its epochs, whole PPO updates), or None before it got there."""
+    return next((p for p in list_checkpoints(run_dir) if int(p.name) >= int(end_at)), None)
 
 
 def checkpoint_path(run_dir, count: int) -> Path:

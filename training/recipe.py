@@ -9,6 +9,12 @@ campaign: its learner's artifact) it starts from (a fine-tune); `init` may also 
 stage of another recipe, run into the same runs root. Policy
 references in a stage (`teacher`, or config values) are paths under policies/ or `@RECIPE/STAGE`, the
 artifact that stage exported.
+
+A PPO stage with `end_at` ends at its kept checkpoint at that many env steps (its run may go further): that
+checkpoint is what a later stage starts from and what the stage exports. An imitation stage that `continues`
+another appends its rounds to that stage's campaign folder (DAgger aggregates every round); with `policy`, each of
+its rounds is rolled out by that stage's artifact (and refitted from it), with `lying`, from fallen starts lying
+that way only.
 """
 from __future__ import annotations
 
@@ -18,6 +24,8 @@ import pkgutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
+
+from common.events import LYING_SIDES
 
 KINDS = ("ppo", "distill", "imitation", "random_init")
 REF_PREFIX = "@"
@@ -39,10 +47,20 @@ class Stage:
     # ppo: (metric, value): the stage is complete at its first evaluation with the metric at or above the value
     # (backplay: the start moves back along the demonstrations once success from it has risen); steps cap it
     advance_at: tuple[str, float] | None = None
+    # ppo: env steps of the kept checkpoint the stage ends at (≤ steps: the run's schedule stays that of `steps`)
+    end_at: int | None = None
+    # ppo: start from init's exported artifact (a fresh critic, the sampling std of ppo.init_noise_std) in place
+    # of its checkpoint
+    init_artifact: bool = False
+    # imitation: the earlier imitation stage whose campaign folder this stage's rounds are appended to
+    continues: str | None = None
+    # imitation: the stage (this recipe's, or @RECIPE/STAGE) whose artifact rolls out each of this stage's rounds
+    policy: str | None = None
+    lying: str = ""                # imitation: this stage's rounds start only from fallen starts lying this way
 
     def references(self) -> list[str]:
         """Every `@RECIPE/STAGE` this stage reads."""
-        values = [*self.teacher.values(), *self.config.values(), self.init]
+        values = [*self.teacher.values(), *self.config.values(), self.init, self.policy]
         return [v for v in values if isinstance(v, str) and v.startswith(REF_PREFIX)]
 
 
@@ -64,6 +82,12 @@ class Recipe:
                 raise ValueError(f"recipe {self.name}, stage {s.name}: init {s.init!r} is not an earlier stage")
             if s.advance_at is not None and (s.kind != "ppo" or len(s.advance_at) != 2):
                 raise ValueError(f"recipe {self.name}, stage {s.name}: advance_at is a PPO stage's (metric, value)")
+            if s.end_at is not None and (s.kind != "ppo" or not 0 < int(s.end_at) <= int(s.steps)):
+                raise ValueError(f"recipe {self.name}, stage {s.name}: end_at is a PPO stage's checkpoint, in env "
+                                 f"steps within its {s.steps:,}, got {s.end_at!r}")
+            if s.init_artifact and (s.kind != "ppo" or s.init is None):
+                raise ValueError(f"recipe {self.name}, stage {s.name}: init_artifact is a PPO stage's with an init")
+            self._check_rounds(s, names[:i])
             stitched, chain = {"getup", "joystick"}, {"roll", "rise", "stand"}
             if s.kind == "distill" and set(s.teacher) not in (stitched, chain):
                 raise ValueError(f"recipe {self.name}, stage {s.name}: a distill stage's teacher is getup and "
@@ -71,6 +95,36 @@ class Recipe:
             if s.kind != "distill" and s.teacher and set(s.teacher) not in (stitched, chain):
                 raise ValueError(f"recipe {self.name}, stage {s.name}: a teacher is getup and joystick or roll, rise "
                                  "and stand")
+
+    def _check_rounds(self, s: Stage, earlier: list[str]) -> None:
+        where = f"recipe {self.name}, stage {s.name}"
+        if s.kind != "imitation":
+            if s.continues or s.policy or s.lying:
+                raise ValueError(f"{where}: continues, policy and lying are an imitation stage's")
+            return
+        if s.continues is not None and (s.continues not in earlier or self.stage(s.continues).kind != "imitation"):
+            raise ValueError(f"{where}: continues {s.continues!r} is not an earlier imitation stage")
+        if s.policy is not None and not s.policy.startswith(REF_PREFIX) and s.policy not in earlier:
+            raise ValueError(f"{where}: policy {s.policy!r} is not an earlier stage")
+        if (s.policy or s.lying) and s.continues is None:
+            raise ValueError(f"{where}: policy and lying take over rounds after the first: the stage continues "
+                             "an earlier imitation stage's campaign")
+        if s.lying and s.lying not in LYING_SIDES:
+            raise ValueError(f"{where}: lying must be one of {', '.join(LYING_SIDES)}, got {s.lying!r}")
+
+    def campaign_stage(self, stage: Stage) -> Stage:
+        """The imitation stage whose folder holds `stage`'s rounds (the first of the stages it continues)."""
+        while stage.continues is not None:
+            stage = self.stage(stage.continues)
+        return stage
+
+    def rounds_through(self, stage: Stage) -> int:
+        """The rounds its campaign holds once the imitation stage `stage` is complete (its own and those of the
+        stages before it that share the folder)."""
+        folder = self.campaign_stage(stage)
+        shared = [s for s in self.stages[:self.stages.index(stage) + 1]
+                  if s.kind == "imitation" and self.campaign_stage(s) is folder]
+        return sum(int(s.steps) for s in shared)
 
     def stage(self, name: str) -> Stage:
         for s in self.stages:

@@ -24,9 +24,13 @@ DISTILL_STATE = "distill_state.json"   # = training.distill.STATE_FILE (not impo
 CURVE_FILES = ("metrics.csv", "learning_curve.png")
 REPORT_FILES = (kneel_report.REPORT, kneel_report.ROWS)   # a run's figures per checkpoint beside its curve
 TOY_PPO_STEPS = 80        # one toy PPO update: 8 envs × 5 unroll × 2 minibatches
+# a toy stage with end_at: two updates' target, ended at the first (the end_at mechanism at toy size)
+TOY_END_AT_STEPS = (2 * TOY_PPO_STEPS, TOY_PPO_STEPS)
 TOY_BANK_STARTS = 4       # landing banks of a toy stage (their rollouts dominate a toy run otherwise)
-# a toy imitation stage: the demonstrations' fit and one labelled round, of this size
-TOY_IMITATION = ("dagger.rounds=2", "dagger.starts_per_round=2", "dagger.rollout_s=0.2", "dagger.eval_seeds=2",
+# a toy imitation stage: its rounds (as many as the stage's, so that round numbers read the same), of this size
+# a toy BC term reads every round: a toy best-of-K round labels nothing (no 0.2 s rise meets the gate)
+TOY_ALL_ROUNDS = ("ppo.imitation.first_round",)
+TOY_IMITATION = ("dagger.starts_per_round=2", "dagger.rollout_s=0.2", "dagger.eval_seeds=2",
                  "dagger.eval_seconds=0.2", "dagger.fit.steps=2", "dagger.fit.hidden_layer_sizes=[16, 16]",
                  "dagger.expert.policy_samples=2", "dagger.expert.plan_samples=2", "dagger.expert.horizon_s=0.2")
 
@@ -41,12 +45,14 @@ def describe() -> str:
 
 
 def stage_dirs(root: Path, recipe: R.Recipe, stage: R.Stage) -> list[Path]:
-    """The stage's run directories: <stage>, then <stage>.2, .3 … where a DAgger stage went on after a stop."""
-    base = root / recipe.name / stage.name
+    """The stage's run directories: <stage>, then <stage>.2, .3 … where a DAgger stage went on after a stop; an
+    imitation stage that continues another: that stage's campaign folder."""
+    name = recipe.campaign_stage(stage).name if stage.kind == "imitation" else stage.name
+    base = root / recipe.name / name
     found = [base] if base.exists() else []
     k = 2
-    while (root / recipe.name / f"{stage.name}.{k}").exists():
-        found.append(root / recipe.name / f"{stage.name}.{k}")
+    while (root / recipe.name / f"{name}.{k}").exists():
+        found.append(root / recipe.name / f"{name}.{k}")
         k += 1
     return found
 
@@ -62,6 +68,19 @@ def stage_artifact(run_dir: Path, recipe: R.Recipe, stage: R.Stage) -> Path:
     return run_dir / f"{artifact_name(recipe, stage)}.safetensors"
 
 
+def end_at(stage: R.Stage, state: dict) -> int | None:
+    """The env steps a PPO stage ends at (its end_at; a toy run's: TOY_END_AT_STEPS), None: at its target."""
+    if stage.end_at is None:
+        return None
+    return TOY_END_AT_STEPS[1] if state.get("preset") == "toy" else int(stage.end_at)
+
+
+def end_checkpoint(run_dir: Path, stage: R.Stage) -> Path | None:
+    """The checkpoint a PPO stage with end_at ends at (None: not reached, or the stage has none)."""
+    ends = end_at(stage, _json(run_dir / checkpoints.RUN_STATE))
+    return None if ends is None else checkpoints.end_checkpoint(run_dir, ends)
+
+
 def stage_complete(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
     dirs = stage_dirs(root, recipe, stage)
     if not dirs:
@@ -72,24 +91,25 @@ def stage_complete(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
     if stage.kind == "distill":
         state = _json(last / DISTILL_STATE)
         return bool(state.get("finished")) and not state.get("stopped_by_max_minutes")
-    if stage.kind == "imitation":    # its rounds, or fewer where the campaign's own config asks for fewer
-        state = _json(last / imitation_config.STATE)
-        rounds = min(int(stage.steps), int(state.get("config", {}).get("dagger", {}).get("rounds", stage.steps)))
-        return bool(state) and len(state["rounds"]) >= rounds
+    if stage.kind == "imitation":    # its campaign holds the rounds through this stage's
+        return _rounds(last) >= recipe.rounds_through(stage)
     state = _json(last / checkpoints.RUN_STATE)
+    if stage.end_at is not None:
+        return bool(state) and end_checkpoint(last, stage) is not None
     return bool(state) and (int(state["env_steps"]) >= int(state["target_steps"]) or "advanced" in state)
 
 
 def superseded(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
     """Whether a complete later stage of the recipe starts, through its chain of inits, from `stage` (a
-    campaign may keep only the newest stage of a chain)."""
+    campaign may keep only the newest stage of a chain), and no imitation stage still to run rolls out by it."""
     for later in recipe.stages[recipe.stages.index(stage) + 1:]:
         chain, s = set(), later
         while s.init and not s.init.startswith(R.REF_PREFIX):
             chain.add(s.init)
             s = recipe.stage(s.init)
         if stage.name in chain and stage_complete(root, recipe, later):
-            return True
+            return not any(s.policy == stage.name and not stage_complete(root, recipe, s)   # rounds it rolls out
+                           for s in recipe.stages if s.kind == "imitation")
     return False
 
 
@@ -135,11 +155,44 @@ def _run_dir(init: str, recipe: R.Recipe, root: Path) -> Path:
 
 
 def _init_path(init: str, recipe: R.Recipe, root: Path) -> Path:
-    """What a stage starts from: the run directory of `init`, or, of an imitation campaign, its learner's
-    artifact (a PPO fine-tune of the DAgger policy)."""
+    """What a stage starts from: the run directory of `init` (its newest checkpoint), the checkpoint it ended at
+    (end_at), or, of an imitation campaign, its learner's artifact (a PPO fine-tune of the DAgger policy)."""
     run_dir = _run_dir(init, recipe, root)
     recipe, stage = _stage_of(init, recipe)
-    return stage_artifact(run_dir, recipe, stage) if stage.kind == "imitation" else run_dir
+    if stage.kind == "imitation":
+        return stage_artifact(run_dir, recipe, stage)
+    if stage.end_at is not None:
+        ended = end_checkpoint(run_dir, stage)
+        if ended is None:
+            raise FileNotFoundError(f"{init}: {run_dir} has no checkpoint at its end_at ({stage.end_at:,} env "
+                                    f"steps) yet; run `python -m training recipe {recipe.name} --stage "
+                                    f"{stage.name} --resume` first")
+        return ended
+    return run_dir
+
+
+def ended_artifact(run_dir: Path, recipe: R.Recipe, stage: R.Stage) -> Path:
+    """A PPO stage's artifact at the checkpoint it ended at: its run's export where that is of this checkpoint,
+    else that checkpoint exported in its place (a run that went further, or a campaign's kept checkpoint)."""
+    path = stage_artifact(run_dir, recipe, stage)
+    ended = end_checkpoint(run_dir, stage) if stage.kind == "ppo" else None
+    if ended is None:
+        return path
+    if not path.exists():    # a campaign restored without its export: the newest checkpoint's, for the manifest
+        path = export_newest(run_dir)
+    from common.artifact import read_artifact
+    if path.exists() and int(read_artifact(path)[3]["provenance"]["steps"]) == int(ended.name):
+        return path
+    from training.train import export_checkpoint
+    return export_checkpoint(run_dir, int(ended.name), artifact_name(recipe, stage), like=path)
+
+
+def _policy_path(policy: str, recipe: R.Recipe, root: Path) -> Path:
+    """The artifact of the stage `policy` names (at its end): what an imitation stage's rounds are rolled out
+    by, or what a stage with init_artifact starts from."""
+    run_dir = _run_dir(policy, recipe, root)
+    recipe, stage = _stage_of(policy, recipe)
+    return ended_artifact(run_dir, recipe, stage)
 
 
 def export_newest(run_dir) -> Path:
@@ -174,7 +227,7 @@ def resolve_ref(value, root: Path, shipped: bool = False):
         return str(checkpoints.policy_dir(recipe.policy) / f"{recipe.policy}.safetensors")
     stage = recipe.stage(stage_name)
     dirs = stage_dirs(root, recipe, stage)
-    path = stage_artifact(dirs[-1], recipe, stage) if dirs else None
+    path = ended_artifact(dirs[-1], recipe, stage) if dirs else None
     if path is not None and not path.exists() and stage.kind == "ppo" and stage_complete(root, recipe, stage):
         path = export_newest(dirs[-1])    # a campaign restored without its export
     if path is None or not path.exists():
@@ -193,7 +246,8 @@ def _overrides(config: dict, toy: bool) -> list[str]:
     from training.student_finetune import LEARNER_KEYS
     banked = tuple(f"env.{s.group}" for s in starts.SOURCES if {"prob", "bank_starts"} <= set(s.functions()[0]()))
     out = [f"{k}={TOY_BANK_STARTS if k.endswith('.bank_starts') else v!r}" for k, v in config.items()
-           if k.startswith(LEARNER_KEYS + IMITATION_KEYS) or not k.startswith(("ppo.", "bc."))]
+           if (k.startswith(LEARNER_KEYS + IMITATION_KEYS) or not k.startswith(("ppo.", "bc.")))
+           and k not in TOY_ALL_ROUNDS]
     for k, v in config.items():
         if k.endswith(".prob") and isinstance(v, float) and v > 0 and k[:-len(".prob")] in banked:
             out.append(f"{k[:-len('.prob')]}.bank_starts={TOY_BANK_STARTS}")
@@ -208,7 +262,9 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
     provenance = {"name": name, "sha256": R.content_hash(name)}
     todo = recipe.stages if stage is None else (recipe.stage(stage),)
     t0 = time.monotonic()
-    if resume:   # every kept stage first: whether an earlier stage is superseded depends on the later ones
+    # every kept stage first: whether an earlier stage is superseded depends on the later ones (a toy run's
+    # stages are its own)
+    if resume and not toy:
         for s in recipe.stages:
             if not stage_dirs(root, recipe, s):
                 restore_campaign(recipe, s, root)
@@ -222,7 +278,8 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
         left = None if max_minutes is None else max_minutes - (time.monotonic() - t0) / 60.0
         if left is not None and left <= 0:
             break
-        print(f"recipe {name}: stage {s.name} ({s.kind}) → {root / name / s.name}", flush=True)
+        folder = recipe.campaign_stage(s).name if s.kind == "imitation" else s.name
+        print(f"recipe {name}: stage {s.name} ({s.kind}) → {root / name / folder}", flush=True)
         _run_stage(recipe, s, root, resume=resume, max_minutes=left, backend=backend, toy=toy,
                    progress=progress, provenance={**provenance, "stage": s.name})
         if not stage_complete(root, recipe, s):
@@ -232,7 +289,7 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
     complete = stage_complete(root, recipe, final)
     if complete and ship:
         from training.export import ship_artifact
-        artifact = stage_dirs(root, recipe, final)[-1] / f"{recipe.policy}.safetensors"
+        artifact = ended_artifact(stage_dirs(root, recipe, final)[-1], recipe, final)
         print(f"recipe {name}: shipped {ship_artifact(artifact, {'task': f'recipe {name}'})}")
     return complete
 
@@ -240,7 +297,8 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
 def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_minutes, backend, toy, progress,
                provenance: dict) -> None:
     dirs = stage_dirs(root, recipe, s)
-    init = _init_path(s.init, recipe, root) if s.init else None
+    init = None if not s.init else _policy_path(s.init, recipe, root) if s.init_artifact else \
+        _init_path(s.init, recipe, root)
     command = (f"python -m training recipe {recipe.name} --stage {s.name}"
                f"{' --toy' if toy else ''} (recipe sha256 {provenance['sha256'][:12]})")
     # a toy stage's landing banks roll the policies its config names, which must be trained experts (a toy
@@ -257,11 +315,8 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         untrained.main([str(out / f"{name}.safetensors")])
         return
     if s.kind == "imitation":
-        from training import imitation
-        if dirs and not resume:
-            raise FileExistsError(f"{dirs[-1]} holds an unfinished imitation stage {s.name}: pass --resume to go on")
-        imitation.run(root / recipe.name / s.name, overrides + list(TOY_IMITATION if toy else ()),
-                      rounds=int(s.steps), max_minutes=max_minutes)
+        _run_rounds(recipe, s, root, overrides + list(TOY_IMITATION if toy else ()), resume=resume,
+                    max_minutes=max_minutes)
         return
     if s.kind == "ppo":
         from training import train
@@ -270,11 +325,16 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         if again and not resume:
             raise FileExistsError(f"{out} holds an unfinished run of stage {s.name}: pass --resume to go on")
         preset = "toy" if toy else ("gpu" if (backend or train.default_backend()) == "mjx" else "cpu")
-        train.train(s.task, out, steps=TOY_PPO_STEPS if toy else s.steps, num_envs=None if toy else s.envs,
+        steps, ends = s.steps, s.end_at
+        if toy:
+            steps, ends = TOY_END_AT_STEPS if s.end_at is not None else (TOY_PPO_STEPS, None)
+        train.train(s.task, out, steps=steps, num_envs=None if toy else s.envs,
                     resume=again, max_minutes=max_minutes, overrides=() if again else overrides,
                     from_checkpoint=None if again else init, preset=preset, name=name,
                     command=command, progress=progress, backend=backend, recipe=provenance,
-                    advance_at=s.advance_at)
+                    advance_at=s.advance_at, end_at=ends)
+        if s.end_at is not None and stage_complete(root, recipe, s):
+            ended_artifact(out, recipe, s)
         return
     from training import distill
     teacher = {k: resolve_ref(v, root) for k, v in s.teacher.items()}
@@ -299,15 +359,46 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
                     from_checkpoint=start, recipe=provenance)
 
 
+def _run_rounds(recipe: R.Recipe, s: R.Stage, root: Path, overrides: list[str], *, resume: bool,
+                max_minutes) -> None:
+    """An imitation stage's rounds into its campaign folder. With a policy or a lying side, one call per round
+    (each call's first round is the one `--policy` rolls out and `--lying` starts: each of the stage's rounds
+    is rolled out by that policy and refitted from it)."""
+    from training import imitation
+    folder = root / recipe.name / recipe.campaign_stage(s).name
+    last = recipe.rounds_through(s)
+    first = last - int(s.steps)
+    if _rounds(folder) > first and not resume:
+        raise FileExistsError(f"{folder} holds unfinished rounds of imitation stage {s.name}: pass --resume to go on")
+    if _rounds(folder) < first:
+        raise FileNotFoundError(f"{folder}: {_rounds(folder)} rounds, stage {s.name} continues from round {first}; "
+                                f"run `python -m training recipe {recipe.name} --stage {s.continues}` first")
+    overrides = [*overrides, f"dagger.rounds={last}"]
+    policy = _policy_path(s.policy, recipe, root) if s.policy else None
+    t0 = time.monotonic()
+    each = policy is not None or bool(s.lying)
+    while _rounds(folder) < last:
+        left = None if max_minutes is None else max_minutes - (time.monotonic() - t0) / 60.0
+        if left is not None and left <= 0:
+            return
+        imitation.run(folder, overrides, rounds=_rounds(folder) + 1 if each else last, max_minutes=left,
+                      policy=policy, lying=s.lying)
+        if not each:
+            return
+
+
 # ---------------------------------------------------------------- campaigns (training/campaigns/<recipe>/)
 def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS_ROOT) -> list[Path]:
-    """Copy each run stage's newest checkpoint, run state, curve and report into campaigns/NAME/<stage dir>/
-    (replacing what was there): what a campaign needs to go on on another machine. A superseded stage that
-    nothing reads is dropped from the campaign instead. An imitation stage is its campaign folder, kept whole:
-    its data are the planner's labels, the costliest thing a campaign holds."""
+    """Copy each run stage's newest checkpoint (with end_at: the one it ended at), run state, curve and report
+    into campaigns/NAME/<stage dir>/ (replacing what was there): what a campaign needs to go on on another
+    machine. A superseded stage that nothing reads is dropped from the campaign instead. An imitation stage is
+    its campaign folder, kept whole (the stages that continue it included): its data are the planner's labels,
+    the costliest thing a campaign holds."""
     recipe = R.load(name)
     saved = []
     for s in recipe.stages:
+        if s.continues is not None:     # its rounds are in the folder of the stage it continues, saved with it
+            continue
         drop = superseded(root, recipe, s) and not referenced(recipe, s) and s.kind != "imitation"
         for run_dir in stage_dirs(root, recipe, s):
             dest = campaigns / name / run_dir.name
@@ -329,8 +420,10 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
                 if (run_dir / f).exists():
                     shutil.copy2(run_dir / f, dest / f)
             kept = checkpoints.list_checkpoints(run_dir)
-            if kept:
-                shutil.copytree(kept[-1], dest / checkpoints.CHECKPOINT_DIR / kept[-1].name)
+            ended = end_checkpoint(run_dir, s) if s.kind == "ppo" else None
+            if ended is not None or kept:     # the checkpoint the stage ended at, else its newest
+                chosen = ended or kept[-1]
+                shutil.copytree(chosen, dest / checkpoints.CHECKPOINT_DIR / chosen.name)
             saved.append(dest)
     return saved
 

@@ -45,6 +45,10 @@ class _Advanced(Exception):
     """Raised from brax's progress_fn when the run's advance_at criterion is met (after that step's checkpoint)."""
 
 
+class _Ended(Exception):
+    """Raised from brax's policy_params_fn after the checkpoint the run ends at (its end_at)."""
+
+
 def _randomization(cfg, env=None, seed: int = 0):
     """brax's randomization_fn, or None. On the CPU backend the env randomises its C simulations itself
     (the same function, applied on the host) and brax gets None."""
@@ -205,12 +209,14 @@ class _Epochs:
         now, state = time.monotonic(), self.run.state
         epoch_s, self.epoch_end = now - self.epoch_end, now
         total = self.phase_offset + int(step)
-        checkpoints.save_checkpoint(self.run.dir, total, params, self.net_cfg)
+        checkpoints.save_checkpoint(self.run.dir, total, params, self.net_cfg, state.get("end_at"))
         self.latest.update(params=params, steps=total)
         state["env_steps"] = total
         self.call.update(to_steps=total, minutes=round((now - self.t_start) / 60.0, 2))
         state["minutes"] = self.minutes_before + (now - self.t_start) / 60.0
         checkpoints.save_run_state(self.run.dir, state)
+        if state.get("end_at") is not None and total >= int(state["end_at"]):
+            raise _Ended()
         next_s = next_epoch_estimate_s(epoch_s, total - self.last_total, self.sps[-1] if self.sps else None,
                                        first_of_call=self.last_total == self.offset)
         self.last_total = total
@@ -277,7 +283,7 @@ def _train_phases(run: _Run, env, epochs: _Epochs, seed: int) -> bool:
                     _run_ppo(run, env, epochs, end - epochs.latest["steps"], network_factory, seed)
     except _StopAtCheckpoint:
         return True
-    except _Advanced:
+    except (_Advanced, _Ended):
         return False
     return False
 
@@ -287,11 +293,12 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
           from_checkpoint=None, preset: str = "gpu", ship: bool = False,
           name: str | None = None, command: str = "", progress: bool = True,
           backend: str | None = None, recipe: dict | None = None,
-          advance_at: tuple[str, float] | None = None) -> TrainResult:
+          advance_at: tuple[str, float] | None = None, end_at: int | None = None) -> TrainResult:
     """One PPO run (or a call that resumes one). `recipe` ({"name", "stage", "sha256"}) is recorded in the run
     state and the artifact's provenance when a recipe runs it (training/recipe_runner.py). `advance_at`
     (metric, value): the run is complete at the first evaluation with the metric at or above the value (a
-    backplay stage ends once success from its starts has risen)."""
+    backplay stage ends once success from its starts has risen). `end_at` (env steps): the run is complete at
+    its first checkpoint at or after it (kept whatever follows), trained on the schedule of its target steps."""
     checkpoints.jax_setup()
     t_start = time.monotonic()
     run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
@@ -303,6 +310,8 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     preset = run.state["preset"]  # a resumed toy run stays a toy run (and its artifact untrained)
     if advance_at is not None:
         run.state["advance_at"] = [str(advance_at[0]), float(advance_at[1])]
+    if end_at is not None:
+        run.state["end_at"] = int(end_at)
     if num_envs is not None:
         run.ppo_cfg.num_envs = run.state["ppo_config"]["num_envs"] = int(num_envs)
     _check_batch_shape(run.ppo_cfg)
@@ -316,7 +325,8 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
     if latest["params"] is None:
         raise RuntimeError(f"{run_dir}: no parameters to export (zero steps trained and no --from)")
     artifact = export_run(run_dir, env, run.state, latest["params"], preset)
-    complete = latest["steps"] >= target or "advanced" in run.state
+    ended = run.state.get("end_at") is not None and latest["steps"] >= int(run.state["end_at"])
+    complete = latest["steps"] >= target or "advanced" in run.state or ended
     if ship and complete:
         export.ship_artifact(artifact, run.state)
     return TrainResult(run_dir, artifact, latest["steps"], target, run.state["minutes"], sps, complete=complete)

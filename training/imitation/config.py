@@ -13,9 +13,8 @@ COLLECTED = "collected.json"
 
 def default_config() -> config_dict.ConfigDict:
     return config_dict.create(
-        # rounds in the campaign (round 0: the demonstrations); a round may be rolled out by another policy
-        # (--policy), from one lying side only (--lying), or labelled by best-of-K (expert.best_of_k)
-        rounds=15,
+        rounds=15,     # which policy rolled each round out, from which starts, with which expert: the imitation
+                       # stages of training/recipes/getup_keyframe.py
         # each round rolls the current policy out from this many fallen starts (seeds first_seed + round ·
         # starts_per_round …), disjoint from the evaluation's seeds 0 … eval_seeds − 1
         starts_per_round=32,

@@ -23,6 +23,7 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_DEMOS = REPO_ROOT / "training" / "campaigns" / "getup_keyframe" / "demos"   # the planner's stored rises
 STATE, ARTIFACT, DATA, COLLECTED = config.STATE, config.ARTIFACT, config.DATA, config.COLLECTED
 LYING_DRAWS = 4    # a round from one lying side draws its starts from this many times as many seeds (each side ~0.4)
+LYING_DOUBLINGS = 3   # … doubled up to this many times where those seeds hold too few of the side
 
 
 def beta(cfg, k: int) -> float:
@@ -151,15 +152,19 @@ class Campaign:
 
 def round_starts(env, n: int, first_seed: int, lying: str = "") -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) of a round's n fallen starts, seeds first_seed …; with `lying` (common/events.py's sides) the
-    first n of those seeds that lie that way."""
+    first n of those seeds that lie that way (from LYING_DRAWS · n seeds, twice as many where those hold fewer:
+    a small round may draw few of one side)."""
     if not lying:
         return env.fallen_starts(n, first_seed)
     from training.planner.demos import start_side
-    qpos, qvel = env.fallen_starts(LYING_DRAWS * n, first_seed)
-    keep = np.flatnonzero([start_side(q) == lying for q in qpos])[:n]
-    if len(keep) < n:
-        raise ValueError(f"only {len(keep)} of {LYING_DRAWS * n} fallen starts from seed {first_seed} lie {lying}")
-    return qpos[keep], qvel[keep]
+    draws = LYING_DRAWS * n
+    for _ in range(LYING_DOUBLINGS + 1):
+        qpos, qvel = env.fallen_starts(draws, first_seed)
+        keep = np.flatnonzero([start_side(q) == lying for q in qpos])[:n]
+        if len(keep) == n:
+            return qpos[keep], qvel[keep]
+        draws *= 2
+    raise ValueError(f"only {len(keep)} of {draws // 2} fallen starts from seed {first_seed} lie {lying}")
 
 
 def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: int | None = None,

@@ -83,12 +83,14 @@ def normalizer_state(mean: np.ndarray, std: np.ndarray, count: int, observation_
 
 
 def _campaign_of(init) -> Path:
-    """The DAgger campaign of what a run starts from: a DAgger artifact's folder, or, for a PPO run (a fine-tune
-    going on from another), that run's own campaign."""
+    """The DAgger campaign of what a run starts from: a DAgger artifact's folder, or, for a PPO run or its export
+    (a fine-tune going on from another), that run's own campaign."""
     from training import checkpoints
     path = repo_path(init) if init else None
     if path is not None and is_artifact(path):
-        return path.parent
+        if not (path.parent / checkpoints.RUN_STATE).exists():
+            return path.parent
+        path = path.parent
     run = path.parent.parent if path is not None and path.parent.name == checkpoints.CHECKPOINT_DIR else path
     try:
         state = checkpoints.load_run_state(run)
@@ -115,6 +117,9 @@ def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarr
         raise ValueError(f"{campaign}: not a DAgger campaign (no {campaign_files.DATA}/{campaign_files.COLLECTED})")
     rounds = 1 + max((int(k) for k in json.loads(collected.read_text())["rounds"]), default=0)
     obs, q = dataset.aggregate(data, repo_path(t.demos), rounds, int(t.first_round))
+    if len(obs) == 0:
+        raise ValueError(f"{campaign}: no labels in rounds {int(t.first_round)} … {rounds - 1} "
+                         "(ppo.imitation.first_round) for the BC term")
     return obs, targets_to_labels(q, action_map["default_pose"], action_map["action_scale"])
 
 

@@ -2,11 +2,13 @@
 
 Stages (each one line of why below; the runs behind each: training/LESSONS.md, the getup_keyframe rows):
 - stage 1, the rise to the kneel (task getup_kneel): DAgger with the sampling planner as the expert
-  (training/imitation/), then PPO from that policy with a decaying behaviour-cloning term on the planner's data
+  (training/imitation/), then PPO from that policy with a decaying behaviour-cloning term on the campaign's data
   (DAPG), the seed's stage-1 reward plus §4.8's gate and a slope to its tilt, starts along the planner's gated
-  rises (backplay), sampling noise small enough for the rollouts to meet the gate; the rate falls stage by
-  stage (rise → rise_fine → rise_slow), the fallen starts widen (rise_wide), then the BC term reads best-of-K
-  rises of the policy itself (rise_best).
+  rises (backplay); first at brax-scale sampling noise (rise_explore), then at noise small enough for the
+  rollouts to meet the gate; the rate falls stage by stage (rise → rise_fine → rise_slow), the fallen starts
+  widen (rise_wide), then the BC term reads best-of-K rises of the policy itself (rise_best). Between the PPO
+  stages, DAgger rounds rolled out by the PPO policy so far join the same campaign (dagger_*), and the PPO
+  stages after them read them.
 - stage 0, the roll (task getup_roll, ours): from the back or side onto the front, where the rise is reliable;
   then with the side starts weighted up (roll_side).
 - stage 2, the stand from the kneel (task getup_stand) along a reverse curriculum of starts up the lunge.
@@ -19,6 +21,10 @@ The runtime's target rule R6 is in every stage.
 from training.recipe import Recipe, Stage
 
 DEMOS = "training/campaigns/getup_keyframe/demos"
+# the planner's takeovers as the expert, a robot that fell back not restarted (the restart rule came with best-of-K)
+PLANNER = {"dagger.expert.restart_below_m": 0.0}
+# best of 32 rises of the policy as the expert: the planner's labels met the gate less often than the learner
+BEST_OF_K = {"dagger.expert.best_of_k.k": 32, "dagger.expert.best_of_k.sigma_rad": 0.05}
 # sampling std 0.015 pre-tanh (≈ 0.03 rad of target noise): the gate asks for the trunk within 0.57° of vertical,
 # which rollouts meet only under that little noise; the BC term keeps the rise while PPO finds the gate; a
 # critic-only warm-up first (a new critic under a trained policy)
@@ -29,15 +35,17 @@ RISE = {"ppo.imitation.demos": DEMOS, "ppo.imitation.bc_weight": 10.0, "ppo.imit
         "env.demo_starts.prob": 0.5, "env.demo_starts.folder": DEMOS, "env.demo_starts.window_s": 8.0,
         "env.demo_starts.gated_only": True}
 # at that noise the step must shrink with the std (LESSONS: period 3)
+# the first PPO from the DAgger learner, at brax-scale sampling noise: where the small-noise stages start
+RISE_EXPLORE = {**RISE, "ppo.init_noise_std": 0.1, "ppo.entropy_cost": 0.001}
 RISE_FINE = {**RISE, "ppo.learning_rate": 3e-5, "ppo.value_warmup_steps": 0}
 RISE_SLOW = {**RISE_FINE, "ppo.learning_rate": 1e-5, "ppo.imitation.bc_weight": 8.0,
              "ppo.imitation.bc_decay_steps": 16_000_000}
 # 2048 fallen starts from seeds far from the evaluation's generalise where 128 are learnt start by start (period 4)
 RISE_WIDE = {**RISE_SLOW, "ppo.imitation.bc_weight": 6.0, "ppo.imitation.bc_decay_steps": 12_000_000,
              "env.fallen.bank_starts": 2048, "env.fallen.seed": 1_000_000}
-# the BC term reads only the best-of-K rounds (12 …): the policy's own rises that met the gate (period 8)
-RISE_BEST = {**RISE_WIDE, "ppo.imitation.campaign": "training/campaigns/getup_keyframe/dagger",
-             "ppo.imitation.first_round": 12, "ppo.imitation.bc_weight": 3.0,
+# the BC term reads only the best-of-K rounds (dagger_best's, 12 …): the policy's own rises that met the gate
+# (period 8)
+RISE_BEST = {**RISE_WIDE, "ppo.imitation.first_round": 12, "ppo.imitation.bc_weight": 3.0,
              "ppo.imitation.bc_decay_steps": 12_000_000}
 # the roll (stage 0) from scratch on the back and side starts of a bank far from the evaluation's seeds; half of
 # brax's sampling std (its full std throws the 2 rad-scale targets from limit to limit)
@@ -61,12 +69,28 @@ RECIPE = Recipe(
     name="getup_keyframe", policy="getup_keyframe",
     summary="the seed's keyframe getup through the kneel as one network (not shipped until it meets its targets)",
     stages=(
-        Stage("dagger", kind="imitation", steps=15),
-        Stage("rise", task="getup_kneel", steps=1_495_040, init="dagger", config=RISE),
-        Stage("rise_fine", task="getup_kneel", steps=4_014_080, init="rise", config=RISE_FINE),
+        Stage("dagger", kind="imitation", steps=7, config=PLANNER),
+        # its 1.5 M checkpoint rose most before the rise was lost at that noise (LESSONS: period 2)
+        Stage("rise_explore", task="getup_kneel", steps=20_000_000, end_at=1_495_040, init="dagger",
+              config=RISE_EXPLORE),
+        # labels on the states the PPO policy visits (DAgger on the learner that goes on)
+        Stage("dagger_explore", kind="imitation", steps=1, continues="dagger", policy="rise_explore",
+              config=PLANNER),
+        # the policy the round was rolled out by, under a new critic and the small noise
+        Stage("rise", task="getup_kneel", steps=1_495_040, init="rise_explore", init_artifact=True, config=RISE),
+        # its 4.0 M checkpoint, before the rate fell (period 3)
+        Stage("rise_fine", task="getup_kneel", steps=20_000_000, end_at=4_014_080, init="rise", config=RISE_FINE),
+        Stage("dagger_fine", kind="imitation", steps=1, continues="dagger", policy="rise_fine", config=PLANNER),
         Stage("rise_slow", task="getup_kneel", steps=3_010_560, init="rise_fine", config=RISE_SLOW),
+        # labels where the on-back rises fail (period 5)
+        Stage("dagger_back", kind="imitation", steps=3, continues="dagger", policy="rise_slow", lying="on_back",
+              config=PLANNER),
         Stage("rise_wide", task="getup_kneel", steps=6_021_120, init="rise_slow", config=RISE_WIDE),
-        Stage("rise_best", task="getup_kneel", steps=1_515_520, init="rise_wide", config=RISE_BEST),
+        Stage("dagger_best", kind="imitation", steps=3, continues="dagger", policy="rise_wide", lying="on_back",
+              config=BEST_OF_K),
+        # its 1.5 M checkpoint, the best of the run's four (period 8)
+        Stage("rise_best", task="getup_kneel", steps=3_031_040, end_at=1_515_520, init="rise_wide",
+              config=RISE_BEST),
         Stage("roll", task="getup_roll", steps=2_007_040, config=ROLL),
         Stage("roll_side", task="getup_roll", steps=1_515_520, init="roll", config=ROLL_SIDE),
         Stage("stand_path", task="getup_stand", steps=27_095_040, config=STAND),
