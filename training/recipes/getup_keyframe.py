@@ -16,7 +16,7 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
   fine-tunes.
 The runtime's target rule R6 is in every stage.
 """
-from training.recipe import Recipe, Stage
+from training.recipes.base import Recipe, Stage
 
 DEMOS = "training/campaigns/getup_keyframe/demos"
 # sampling std 0.015 pre-tanh (≈ 0.03 rad of target noise): the gate asks for the trunk within 0.57° of vertical,
