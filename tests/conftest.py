@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+import common.render  # noqa: F401  (first: it picks the offscreen GL before any test module loads mujoco)
 from messages import contract
 
 DDS_FILES = {"test_dds.py", "test_dds_booster_sdk.py", "test_fastdds_shim.py", "test_motor_watchdog.py",

@@ -1,4 +1,4 @@
-"""The keyframe getup's latched chain (training/artifact_policy.py ChainPolicy): roll → rise → stand, switched by
+"""The keyframe getup's latched chain (training/evaluation/artifact_policy.py ChainPolicy): roll → rise → stand, switched by
 common/events' hand-over rules, and those rules themselves."""
 import math
 from pathlib import Path
@@ -8,7 +8,7 @@ import pytest
 
 from common import events
 from common import observation as obsdef
-from training.artifact_policy import ChainPolicy, load_policy
+from training.evaluation.artifact_policy import ChainPolicy, load_policy
 
 ROOT = Path(__file__).resolve().parents[1]
 MEMBER = ROOT / "policies" / "getup_baseline" / "getup_baseline.safetensors"

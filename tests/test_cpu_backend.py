@@ -140,7 +140,7 @@ def test_every_task_step_keeps_the_metrics_wrappers_add(task):
     assert set(after.metrics) == set(state.metrics)
 
 
-# Getup evaluation rollouts (training/evaluate.py's MJX scan, training/evaluate_cpu.py's C batch), first
+# Getup evaluation rollouts (training/evaluation/batch.py's MJX scan, training/evaluation/cpu.py's C batch), first
 # control tick from the same fallen starts and policy. The supervisor's rate limit keeps the torques off
 # their clamps, so they follow the engines' small differences in q, dq (kp·Δq): trunk readings agree to
 # ≤ 1e-3 (measured 3.4e-4) and peak torques to ≤ 0.5 N·m of 60 (measured 0.13); integrals (energy, Σ|q̈|·dt, Σ|τ|·dt) to ≤ 3 % (measured ≤ 2.5 %: the engines' contact solvers
@@ -153,9 +153,9 @@ EVAL_TOL = {"readings": (0.0, 1e-3), "max_torque_Nm": (0.0, 0.5), "energy_J": (0
 
 @pytest.mark.slow
 def test_getup_evaluation_rollout_matches_mjx_on_the_first_tick():
-    from training.artifact_policy import ArtifactPolicy
-    from training.evaluate import make_rollout
-    from training.evaluate_cpu import cpu_rollout
+    from training.evaluation.artifact_policy import ArtifactPolicy
+    from training.evaluation.batch import make_rollout
+    from training.evaluation.cpu import cpu_rollout
     from sim_hil.launch import ROOT
     policy = ArtifactPolicy.load(ROOT / "tests" / "golden" / "random_policy.safetensors")  # any policy will do
     qpos, qvel = envs.fallen_states(3, 0)
@@ -172,9 +172,9 @@ def test_getup_evaluation_rollout_matches_mjx_on_the_first_tick():
 
 
 def test_target_noise_moves_the_rollout_reproducibly_and_is_refused_on_mjx():
-    from training.artifact_policy import ArtifactPolicy
-    from training.evaluate import run_policy
-    from training.evaluate_cpu import cpu_rollout
+    from training.evaluation.artifact_policy import ArtifactPolicy
+    from training.evaluation.batch import run_policy
+    from training.evaluation.cpu import cpu_rollout
     from sim_hil.launch import ROOT
     policy = ArtifactPolicy.load(ROOT / "tests" / "golden" / "random_policy.safetensors")
     qpos, qvel = (np.asarray(a) for a in envs.fallen_states(2, 0))

@@ -1,4 +1,4 @@
-"""The batch evaluator's composite (training/evaluate.py CompositePolicy): the runtime's --policy-upright
+"""The batch evaluator's composite (training/evaluation/batch.py CompositePolicy): the runtime's --policy-upright
 mode, the seed's chapter-6 baseline (getup policy below waist 0.5 m, joystick policy above)."""
 from pathlib import Path
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from common import observation as obsdef
-from training.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
+from training.evaluation.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -82,7 +82,7 @@ def test_each_member_reads_its_own_last_action_and_the_idle_one_the_applied_targ
 
 @pytest.mark.slow
 def test_composite_getup_evaluation_on_the_cpu_backend(tmp_path):
-    from training.evaluate import evaluate
+    from training.evaluation.batch import evaluate
     report = evaluate(f"{GETUP},{UPRIGHT}", tmp_path, baseline=GETUP, seeds=2, seconds=0.2, backend="cpu")
     text = report.read_text()
     assert "composite (getup below waist 0.5 m, upright above)" in text and "| success rate |" in text

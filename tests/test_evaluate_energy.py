@@ -1,10 +1,10 @@
-"""The getup evaluation's energy until the first stand-up (training/evaluate.py episode_row) and its
+"""The getup evaluation's energy until the first stand-up (training/evaluation/batch.py episode_row) and its
 seed-paired ratio: the getup's own energy, apart from the standing that follows it."""
 import math
 
 import numpy as np
 
-from training.evaluate import episode_row, paired_energy_to_stand
+from training.evaluation.batch import episode_row, paired_energy_to_stand
 
 DT = 0.02       # [s] control tick
 TICKS = 500     # 10 s
@@ -46,7 +46,7 @@ def test_the_paired_ratio_uses_only_seeds_where_both_stood():
 def test_attempts_per_fall_counts_a_mid_fall_start_once():
     """A bank's mid-fall start (trunk still above the fallen height) is down only once it lands: that landing
     is its one down phase, so one attempt that stands is 1.0 attempts per fall, as for a fallen start."""
-    from training.evaluate import summarize
+    from training.evaluation.batch import summarize
     t, readings, series = _episode(stand_at_s=2.0)
     readings[:10, 0] = 0.45                                   # the hand-over tick, then landing at 0.2 m
     mid_fall = episode_row(t, readings, series)
@@ -70,7 +70,7 @@ def test_the_kneel_figures_come_from_the_posture_column_and_are_nan_without_it()
 
 
 def test_a_kneel_runs_seen_seeds_are_its_fallen_bank_and_its_demonstrations_starts(tmp_path):
-    from training.kneel_report import seen_seeds
+    from training.ppo.kneel_report import seen_seeds
     for seed in (3, 40):
         (tmp_path / f"demo_{seed}.npz").write_bytes(b"")
     env = {"fallen": {"seed": 1000, "bank_starts": 3}, "demo_starts": {"prob": 0.0, "folder": str(tmp_path)}}

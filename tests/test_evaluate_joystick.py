@@ -1,4 +1,4 @@
-"""The joystick evaluation's reductions (training/evaluate_joystick.py) on synthetic series: fall cut-off,
+"""The joystick evaluation's reductions (training/evaluation/joystick.py) on synthetic series: fall cut-off,
 RMS over all ticks, and the settled window after a command change."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from training import evaluate_joystick as ej
+from training.evaluation import joystick as ej
 
 DT = 0.02            # control tick [s]
 STANDING = 0.66      # trunk height while walking [m]

@@ -11,7 +11,7 @@ import pytest
 from messages import contract
 from common import artifact
 from common import golden as export
-from training import export as training_export
+from training.export import brax as training_export
 from common import observation as ob
 
 GOLDEN = Path(__file__).resolve().parent / "golden" / export.GOLDEN_ARTIFACT

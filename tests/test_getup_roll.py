@@ -16,7 +16,7 @@ def test_turn_reward_runs_from_the_back_to_face_down():
 
 
 def test_the_recipe_starts_the_roll_on_the_back_or_side_only():
-    from training import recipe as R
+    from training.recipes import base as R
     assert R.load("getup_keyframe").stage("roll").config["env.fallen.side_weights"] == [0, 1, 1]
     cfg = envs.default_config("getup_roll")
     assert list(cfg.start_probs) == [1.0, 0.0, 0.0]

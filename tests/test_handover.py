@@ -131,7 +131,7 @@ def test_getup_env_starts_fallen_episodes_from_the_knockdown_bank(knock_bank):
 def test_evaluate_from_knockdown_landings(knock_bank, tmp_path):
     """`evaluate --starts knockdown`: one episode per landing of the same (cached) bank, counted from the landing;
     the report names the starts and drops the seed's fallen-start figures."""
-    from training.evaluate import evaluate
+    from training.evaluation.batch import evaluate
     seed = int(envs.default_config("getup").knockdown_starts.seed)
     report = evaluate(GETUP, tmp_path, seeds=KNOCK_STARTS, seconds=0.2, first_seed=seed, backend="cpu",
                       starts="knockdown", start_joystick=JOYSTICK).read_text()
@@ -146,7 +146,7 @@ def test_evaluate_from_knockdown_landings(knock_bank, tmp_path):
                                        ({"starts": "knockdown"}, "start joystick policy goes with"),
                                        ({"start_joystick": JOYSTICK}, "start joystick policy goes with")])
 def test_evaluate_refuses_bad_starts(over, why, tmp_path):
-    from training.evaluate import evaluate
+    from training.evaluation.batch import evaluate
     with pytest.raises(ValueError, match=why):
         evaluate(GETUP, tmp_path, seeds=1, seconds=0.2, backend="cpu", **over)
 

@@ -9,10 +9,11 @@ import pytest
 
 from common import events
 from common import observation as obsdef
-from training.artifact_policy import ArtifactPolicy
+from training.evaluation.artifact_policy import ArtifactPolicy
 from training.imitation import __main__ as cli
 from training.imitation import config
-from training.imitation import best_of_k, build, coverage, dagger, dataset, expert
+from training.imitation import best_of_k, coverage, dagger, dataset, expert
+from training.imitation.campaign import build
 from training.imitation.learner import fit, load_learner, new_learner
 
 TINY = ["expert.policy_samples=2", "expert.plan_samples=2", "expert.horizon_s=0.2", "fit.steps=16",

@@ -10,7 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training import configs, recipe as R, recipe_runner
+from training.ppo import configs
+
+from training.recipes import base as R
+
+from training.recipes import runner as recipe_runner
 from training.imitation import config as imitation_config, dagger, dataset, finetune
 from training.imitation.learner import load_learner, new_learner, targets_to_labels
 
@@ -49,7 +53,7 @@ def _ppo_cfg(**imitation):
 
 def _network(cfg):
     from brax.training.acme import running_statistics
-    from training import ppo_networks
+    from training.core import networks as ppo_networks
     return ppo_networks.network_factory(cfg)(SIZES, 23, preprocess_observations_fn=running_statistics.normalize)
 
 

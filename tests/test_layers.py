@@ -73,3 +73,59 @@ def test_training_envs_import_nothing_of_training_above_them():
     wrong = sorted(f"{m} → {t}" for m, ts in edges.items() if m.startswith("training.envs")
                    for t in ts if t.startswith("training") and not t.startswith("training.envs"))
     assert not wrong, f"training.envs reaching up: {wrong}"
+
+
+# training's packages from the bottom up (training/README.md, docs/ARCHITECTURE.md): a package imports only its own
+# layer and those before it. core: checkpoints, curves, overrides, networks, the PPOExtension interface; export:
+# brax params → artifacts; evaluation: rollouts of artifacts; distill: teachers, DAgger and the student's PPO
+# fine-tune; imitation: DAgger from the planner and RL from its policy; ppo: the trainer, which picks among
+# distill's and imitation's extensions; recipes: the stages of a shipped policy; the root: the CLI.
+TRAINING_LAYERS = ("envs", "core", "export", "planner", "evaluation", "distill", "imitation", "ppo", "recipes", "")
+MAX_TRAINING_LAZY_IMPORTS = 50
+
+
+def _training_layer(module: str) -> int:
+    parts = module.split(".")
+    package = parts[1] if len(parts) > 2 or (len(parts) == 2 and parts[1] in TRAINING_LAYERS) else ""
+    return TRAINING_LAYERS.index(package)
+
+
+def test_training_packages_import_only_the_layers_below():
+    edges = _imports(_modules())
+    for module in edges:
+        if module.startswith("training."):
+            assert module.split(".")[1] in TRAINING_LAYERS or module.count(".") == 1, \
+                f"{module}: in no layer of TRAINING_LAYERS"
+    wrong = sorted(f"{m} → {t}" for m, ts in edges.items() if m.startswith("training")
+                   for t in ts if t.startswith("training") and _training_layer(t) > _training_layer(m))
+    assert not wrong, f"training imports reaching up a layer: {wrong}"
+
+
+def _function_imports(path: Path) -> list[int]:
+    """Line numbers of the import statements inside functions of the file."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            found += [n.lineno for n in ast.walk(node) if isinstance(n, (ast.Import, ast.ImportFrom))]
+    return sorted(set(found))
+
+
+def test_training_imports_inside_functions_are_few_and_say_why():
+    """An import inside a function hides a dependency from the module's head; each one left says why (e.g. keeping
+    JAX out of the CLI's --help, an optional package, a backend chosen before pyplot loads)."""
+    lazy = {path: _function_imports(path) for path in (ROOT / "training").rglob("*.py")}
+    count = sum(len(lines) for lines in lazy.values())
+    assert count <= MAX_TRAINING_LAZY_IMPORTS, f"{count} imports inside functions in training/"
+    silent = []
+    for path, lines in lazy.items():
+        text = path.read_text().split("\n")
+        silent += [f"{path.relative_to(ROOT)}:{n}" for n in lines
+                   if "#" not in text[n - 1] and not text[n - 2].strip().startswith("#")]
+    assert not silent, f"imports inside functions without a comment saying why: {silent}"
+
+
+def test_layer_check_sees_an_upward_import():
+    """The layer rule itself: an evaluation module importing the trainer is caught."""
+    assert _training_layer("training.evaluation.batch") < _training_layer("training.ppo.train")
+    assert _training_layer("training.cli") == len(TRAINING_LAYERS) - 1
+    assert _training_layer("training.envs.starts.fallen") == 0

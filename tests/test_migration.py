@@ -1,4 +1,4 @@
-"""A saved run's task and configs come back in today's schema in one place (training/migration.py): every committed
+"""A saved run's task and configs come back in today's schema in one place (training/ppo/migration.py): every committed
 campaign's run state migrates, keeps what it trained with and resumes, a getup run from before the getup tasks
 were split becomes its stage's task, a key it predates gets today's default, a renamed key is moved, and a removed
 or unknown key is refused by its name (unless a removed one is at its neutral value)."""
@@ -9,8 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from training import envs, migration
-from training.configs import ppo_config
+from training import envs
+
+from training.ppo import migration
+from training.ppo.configs import ppo_config
 
 ROOT = Path(__file__).resolve().parents[1]
 CAMPAIGN_STATES = sorted((ROOT / "training" / "campaigns").glob("*/*/run_state.json"))
@@ -160,7 +162,7 @@ def test_every_stored_campaign_resumes_on_today_s_code(tmp_path, stored):
     the call (at its steps already: no PPO update) exports its params and saves the run back in today's schema."""
     import shutil
     from common.artifact import read_artifact
-    from training import train
+    from training.ppo import train
     run = tmp_path / stored.name
     shutil.copytree(stored, run)
     state = json.loads((run / "run_state.json").read_text())

@@ -1,4 +1,4 @@
-"""training/ppo_networks.py: the sampling-std scale (policy_std_scale) and the critic-only warm-up networks
+"""training/core/networks.py: the sampling-std scale (policy_std_scale) and the critic-only warm-up networks
 (value_warmup_steps), each through brax's own distribution and PPO loss."""
 import numpy as np
 
@@ -6,8 +6,8 @@ import numpy as np
 def test_policy_std_scale_scales_only_the_sampling_std():
     import jax
     import jax.numpy as jnp
-    from training.ppo_networks import network_factory
-    from training.configs import ppo_config
+    from training.core.networks import network_factory
+    from training.ppo.configs import ppo_config
     cfg = ppo_config("getup", "toy")
     params = jnp.linspace(-1.0, 1.0, 2 * 23)
     stds = []
@@ -28,8 +28,8 @@ def test_value_warmup_networks_train_only_the_critic():
     from brax.training import types
     from brax.training.acme import running_statistics
     from brax.training.agents.ppo import losses
-    from training.ppo_networks import frozen_policy_factory, network_factory
-    from training.configs import ppo_config
+    from training.core.networks import frozen_policy_factory, network_factory
+    from training.ppo.configs import ppo_config
     cfg = ppo_config("getup", "toy")
     obs_size, act, batch, unroll = {"state": (6,), "privileged_state": (8,)}, 3, 4, 5
     key = jax.random.PRNGKey(0)

@@ -79,7 +79,7 @@ def test_push_bank_holds_the_falls_of_the_push_test(push_bank):
 
 @pytest.mark.slow
 def test_evaluate_starts_from_push_landings(push_bank, tmp_path):
-    from training.evaluate import evaluate
+    from training.evaluation.batch import evaluate
     report = evaluate("policies/getup_knockdown/getup_knockdown.safetensors", tmp_path, seeds=STARTS, seconds=0.2, first_seed=SEED,
                       backend="cpu", starts="push", start_joystick=JOYSTICK).read_text()
     assert f"{push_bank[0].shape[0]} landings in the loop's push test (of {STARTS} standing starts" in report

@@ -9,7 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from training import checkpoints, recipe as R, recipe_runner
+from training.core import checkpoints
+from training.imitation import campaign as imitation
+from training.recipes import base as R, runner as recipe_runner
 from training.imitation import config as imitation_config
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -124,7 +126,6 @@ def test_the_campaigns_rounds_were_made_as_the_recipe_says():
 
 def _recorded_rounds(monkeypatch) -> list[dict]:
     """imitation.run replaced by one that records its arguments and adds the rounds it was asked for."""
-    from training import imitation
     calls = []
 
     def run(out, overrides, demos=None, rounds=None, max_minutes=None, eval_dir=None, refit=False, policy=None,

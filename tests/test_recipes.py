@@ -13,7 +13,10 @@ from pathlib import Path
 import pytest
 
 from common.artifact import read_artifact, stitched_teacher
-from training import checkpoints, cli, recipe as R, recipe_runner
+from training import cli
+from training.core import checkpoints
+from training.recipes import base as R
+from training.recipes import runner as recipe_runner
 
 ROOT = Path(__file__).resolve().parents[1]
 TOY_ENV = {**os.environ,       # XLA_FLAGS: tests/conftest.py's
@@ -69,7 +72,7 @@ def test_the_student_fine_tune_starts_from_dagger_and_exports_a_student(toy_root
     """The student's PPO stage starts from the walls stage's DAgger checkpoint and exports, at its end and from
     any kept checkpoint, the artifact the runtime runs: output rule linear, the student's layer shapes, and
     the teacher it was fine-tuned toward."""
-    from training import train
+    from training.ppo import train
     run = toy_root / "student" / "finetune"
     state = json.loads((run / checkpoints.RUN_STATE).read_text())
     assert Path(state["init"]).parent.parent == toy_root / "student" / "walls"
@@ -91,7 +94,7 @@ def test_the_kneel_rise_starts_from_the_dagger_learner_with_the_bc_term(toy_root
     checkpoint; `rise` starts from that checkpoint's export (a DAgger round was rolled out by it), reads the BC
     term's data from the campaign and exports its kept checkpoints (mid-run: the manifest fields of the artifact
     it started from)."""
-    from training import train
+    from training.ppo import train
     from training.imitation import config as imitation_config, finetune
     dagger = toy_root / "getup_keyframe" / "dagger"
     explore = toy_root / "getup_keyframe" / "rise_explore"
@@ -103,7 +106,7 @@ def test_the_kneel_rise_starts_from_the_dagger_learner_with_the_bc_term(toy_root
     state = json.loads((run / checkpoints.RUN_STATE).read_text())
     assert Path(state["init"]) == explore / "getup_keyframe_rise_explore.safetensors"
     assert state["ppo_config"]["imitation"]["bc_weight"] > 0 and state["bc_count_start"] == finetune.NORMALIZER_COUNT
-    from training import kneel_report
+    from training.ppo import kneel_report
     (run / "getup_keyframe_rise.safetensors").rename(run / "moved.safetensors")   # as mid-run: no export yet
     try:
         kept = read_artifact(train.export_checkpoint(run, checkpoints.checkpoint_steps(run), "kept"))
@@ -211,7 +214,7 @@ def test_a_backplay_stage_advances_once_its_metric_has_risen(tmp_path):
     """advance_at: the run stops at the first evaluation after trained steps with the metric at the value (its
     checkpoint saved just before), records it, and its recipe stage counts as complete."""
     from types import SimpleNamespace
-    from training import train
+    from training.ppo import train
     state = {"name": "s", "env_steps": 0, "target_steps": 1000, "minutes": 0.0, "calls": [],
              "advance_at": ["eval/episode_gate_reached", 0.8]}
     run = train._Run(tmp_path, state, None, None, None, None)

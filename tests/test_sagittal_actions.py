@@ -53,7 +53,7 @@ def test_a_sagittal_policy_exports_as_the_same_policy_over_the_23_joints(tmp_pat
 
     from common import artifact
     from common import observation as ob
-    from training import export
+    from training.export import brax as export
 
     obs_size, n = ob.observation_size(ob.TERMS_GETUP), len(sagittal.PITCH_JOINTS)
     nets = ppo_networks.make_ppo_networks(obs_size, n, preprocess_observations_fn=running_statistics.normalize,

@@ -6,7 +6,11 @@ from __future__ import annotations
 
 import pytest
 
-from training import envs, evaluate, recipe_runner
+from training import envs
+
+from training.evaluation import batch as evaluate
+
+from training.recipes import runner as recipe_runner
 from training.envs import starts
 
 SHARES = tuple(s for s in starts.SOURCES if "prob" in s.functions()[0]())

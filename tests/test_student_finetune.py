@@ -1,4 +1,4 @@
-"""The student's RL fine-tune (training/student_finetune.py): the DAgger weights become a PPO policy that acts
+"""The student's RL fine-tune (training/distill/finetune.py): the DAgger weights become a PPO policy that acts
 exactly as the student did, the export is the student's artifact again, the BC term decays as configured and
 reaches brax's PPO loss only while it is open, and the unified env's "skills" reward pays each expert's own
 reward on its side of the switch."""
@@ -11,9 +11,9 @@ import pytest
 from ml_collections import config_dict
 
 from common import observation as obsdef
-from training import student_finetune as F
-from training import ppo_networks
-from training.configs import ppo_config
+from training.distill import finetune as F
+from training.core import networks as ppo_networks
+from training.ppo.configs import ppo_config
 
 OBS = {"state": (82,), "privileged_state": (125,), "waist_height": (1,)}
 HIDDEN = (16, 8)
@@ -49,7 +49,7 @@ def test_the_fine_tuned_policy_starts_as_the_student_and_exports_back_to_it():
     loc = bc_nets.policy_network.apply(normalizer, policy, obs)[..., :obsdef.NUM_JOINTS]
     np.testing.assert_allclose(mean, loc, rtol=1e-5, atol=1e-6)      # acts with the student's loc
     np.testing.assert_allclose(logits[1], 0.05, rtol=1e-5)           # and samples with init_noise_std
-    from training.export import student_layers
+    from training.export.brax import student_layers
     exported = student_layers(params[1])["params"]
     assert sorted(exported) == ["hidden_0", "hidden_1", "hidden_2"]
     np.testing.assert_array_equal(exported["hidden_2"]["kernel"], policy["params"]["hidden_2"]["kernel"][:, :23])
@@ -72,8 +72,8 @@ def test_a_student_checkpoint_needs_the_normal_policy_and_a_teacher():
 
 
 def test_the_trainer_gets_the_fine_tune_only_where_asked():
-    """train.py knows one PPOExtension: plain PPO unless the config or the checkpoint asks for the fine-tune."""
-    from training.ppo_extension import PPOExtension
+    """ppo/train.py knows one PPOExtension: plain PPO unless the config or the checkpoint asks for the fine-tune."""
+    from training.core.extension import PPOExtension
     _, normalizer, policy = _student()
     plain = ppo_config("unified", "toy")
     assert type(F.extension(plain)) is PPOExtension and F.extension(plain).state_fields(None) == {}
@@ -95,7 +95,7 @@ def test_the_bc_weight_decays_linearly_to_zero_and_counts_samples():
 
 def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
     from brax.training.agents.ppo import losses as ppo_losses
-    from training import teacher as teacher_module
+    from training.distill import teacher as teacher_module
     original = ppo_losses.compute_ppo_loss
     monkeypatch.setattr(teacher_module, "load_expert", lambda path, kind: kind)
 
@@ -117,7 +117,7 @@ def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
 
 
 def test_the_teacher_is_the_stitched_one_or_the_keyframe_chain():
-    from training.teacher import KeyframeStageObservation, WaistObservation, teacher_observation
+    from training.distill.teacher import KeyframeStageObservation, WaistObservation, teacher_observation
     chain = _ppo_cfg(getup="", joystick="", roll="r", rise="s", stand="t")
     assert F.teacher_roles(chain) == {"roll": "r", "rise": "s", "stand": "t"}
     assert teacher_observation(F.teacher_roles(chain)) is KeyframeStageObservation

@@ -1,7 +1,7 @@
-"""The Table 4.3 comparison (training/table_4_3.py): ratios, direction against the seed, the bar plot."""
+"""The Table 4.3 comparison (training/evaluation/table_4_3.py): ratios, direction against the seed, the bar plot."""
 import math
 
-from training import table_4_3
+from training.evaluation import table_4_3
 
 
 def _summaries(policy_scale: float) -> dict:

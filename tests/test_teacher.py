@@ -8,7 +8,7 @@ import pytest
 
 from common import observation as obsdef
 from training import cli as training_cli
-from training.teacher import STUDENT_OBS_KEY, WAIST_OBS_KEY, Expert, make_teacher
+from training.distill.teacher import STUDENT_OBS_KEY, WAIST_OBS_KEY, Expert, make_teacher
 
 N = obsdef.NUM_JOINTS
 
@@ -86,7 +86,7 @@ def test_each_expert_reads_its_own_previous_action():
 
 def test_the_chain_teacher_acts_with_the_stage_s_member():
     """The keyframe chain (roll, rise, stand): the member the stage in the observation names acts."""
-    from training.teacher import STAGE_OBS_KEY, make_chain_teacher
+    from training.distill.teacher import STAGE_OBS_KEY, make_chain_teacher
     members = [_expert(name, obsdef.TERMS_GETUP, 2.0, bias) for name, bias in (("roll", 0.1), ("rise", 0.2),
                                                                                 ("stand", 0.3))]
     teacher = make_chain_teacher(members, obsdef.TERMS_GETUP, 2.0, student_tanh_squash=False)

@@ -4,7 +4,7 @@ exported artifacts.
 
 The slow tests share one module-scoped set of toy runs (tiny networks, 8 envs, 0.4 s episodes): the cost
 is jit compilation of the MJX step (minutes on this CPU), which the persistent compilation cache
-(build/jax_cache, training/checkpoints.jax_setup) makes a one-time cost per machine.
+(build/jax_cache, training/core/checkpoints.jax_setup) makes a one-time cost per machine.
 """
 import json
 import os
@@ -15,7 +15,13 @@ import numpy as np
 import pytest
 from ml_collections import config_dict
 
-from training import checkpoints, cli, curves, overrides
+from training import cli
+
+from training.core import checkpoints
+
+from training.core import curves
+
+from training.core import overrides
 from common.artifact import read_artifact
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -184,7 +190,7 @@ def _artifact(run_dir: Path) -> Path:
 def test_the_epoch_after_a_calls_first_is_estimated_from_its_throughput():
     """A call's first epoch holds the compilation: --max-minutes must not take it for the next epoch's length
     (a 7-minute GPU call stopped after 5 M of its 40 M steps that way), but never estimate longer than it."""
-    from training.train import FIRST_EPOCH_MARGIN, next_epoch_estimate_s
+    from training.ppo.train import FIRST_EPOCH_MARGIN, next_epoch_estimate_s
     assert next_epoch_estimate_s(300.0, 5_000_000, 100_000.0, first_of_call=True) == FIRST_EPOCH_MARGIN * 50.0
     assert next_epoch_estimate_s(30.0, 5_000_000, 100_000.0, first_of_call=True) == 30.0
     assert next_epoch_estimate_s(300.0, 5_000_000, None, first_of_call=True) == 300.0       # no throughput yet
@@ -257,7 +263,7 @@ def test_toy_distill_from_the_keyframe_chain_exports_a_getup_policy(toy_runs):
 
 @pytest.mark.slow
 def test_export_phase_writes_an_earlier_checkpoint(toy_runs, capsys):
-    from training.distill import export_phase
+    from training.distill.dagger import export_phase
     run = toy_runs["student"]
     final_layers, _, _, final = read_artifact(run / "student_toy.safetensors")
     phases = final["provenance"]["dagger_phases"]   # the toy run keeps one checkpoint: its last phase
@@ -272,7 +278,7 @@ def test_export_phase_writes_an_earlier_checkpoint(toy_runs, capsys):
 
 @pytest.mark.slow
 def test_export_checkpoint_writes_an_earlier_epoch(toy_runs, capsys):
-    from training.train import export_checkpoint
+    from training.ppo.train import export_checkpoint
     run, first = toy_runs["joystick"], toy_runs["joystick_first"]   # resumed: checkpoints at two step counts
     final_layers, _, _, final = read_artifact(run / "joystick.safetensors")
     path = export_checkpoint(run, first, "joystick_early")
@@ -297,7 +303,7 @@ def test_export_checkpoint_mid_run_takes_env_fields_from_the_from_run(toy_runs, 
     """A run still going has no export yet: the manifest's env fields come from its --from run's export,
     the provenance from its own state."""
     import shutil
-    from training.train import export_checkpoint
+    from training.ppo.train import export_checkpoint
     parent = toy_runs["joystick"]
     child = tmp_path / "child"
     shutil.copytree(parent / checkpoints.CHECKPOINT_DIR, child / checkpoints.CHECKPOINT_DIR)
@@ -320,7 +326,7 @@ def test_export_checkpoint_mid_run_takes_env_fields_from_the_from_run(toy_runs, 
 @pytest.mark.slow
 def test_distill_goes_on_from_a_run(toy_runs, tmp_path, capsys):
     """--from: a new run starts from the old run's newest checkpoint; phases, steps and curve continue."""
-    from training.distill import STATE_FILE
+    from training.distill.dagger import STATE_FILE
     first = json.loads((toy_runs["student"] / STATE_FILE).read_text())
     out = tmp_path / "more"
     args = ["distill", "--getup", str(toy_runs["getup_stand"] / "getup_stand.safetensors"), "--joystick",
@@ -341,7 +347,7 @@ def test_distill_goes_on_from_a_run(toy_runs, tmp_path, capsys):
 def test_a_killed_distillation_goes_on_from_its_newest_checkpoint(toy_runs, tmp_path):
     """A DAgger run killed mid-call (a session cut off) has written its state when it started: --from
     continues the phase and step count from its newest checkpoint."""
-    from training.distill import STATE_FILE, prior_progress
+    from training.distill.dagger import STATE_FILE, prior_progress
     first = json.loads((toy_runs["student"] / STATE_FILE).read_text())
     run_dir = tmp_path / "killed"
     run_until_killed(["distill", "--getup", str(toy_runs["getup_stand"] / "getup_stand.safetensors"), "--joystick",

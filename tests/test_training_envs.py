@@ -84,7 +84,7 @@ def test_observation_sizes_and_manifest(env_by_task):
     assert env_by_task["getup"].obs_terms == list(obsdef.TERMS_GETUP)
     assert env_by_task["unified"].obs_terms == list(obsdef.TERMS_UNION)
     # one gain set and one default pose for all three policies (and the student's env); two action maps:
-    # the joystick's ±0.5 rad, and the getup expert's wider one, which the student shares (teacher.py
+    # the joystick's ±0.5 rad, and the getup expert's wider one, which the student shares (distill/teacher.py
     # converts the joystick expert's actions into it)
     fields = {task: env.manifest_fields() for task, env in env_by_task.items()}
     for key in ("kp", "kd", "default_pose", "control_dt"):

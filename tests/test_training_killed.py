@@ -5,7 +5,7 @@ import json
 import pytest
 
 from tests.test_training_cli import TOY_STEPS, run_until_killed
-from training import checkpoints
+from training.core import checkpoints
 
 
 @pytest.mark.slow

@@ -129,7 +129,7 @@ def test_unified_wall_episodes_walk_at_the_course_and_hold_their_command():
 
 @pytest.mark.slow
 def test_evaluate_from_wall_landings(wall_bank, tmp_path):
-    from training.evaluate import evaluate
+    from training.evaluation.batch import evaluate
     report = evaluate("policies/getup_knockdown/getup_knockdown.safetensors", tmp_path, seeds=APPROACHES, seconds=0.2,
                       first_seed=SEED, backend="cpu", starts="wall", start_joystick=JOYSTICK).read_text()
     assert f"{wall_bank[0].shape[0]} landings at a low wall (of {APPROACHES} approaches" in report

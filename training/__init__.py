@@ -1,3 +1,3 @@
-"""Training side of the T1 project: the one observation definition (common/observation.py), policy
-artifacts (common/artifact.py: write/read/validate), export from brax (training/export.py); MJX envs,
-PPO, teacher and DAgger come later."""
+"""Training side of the T1 project: MJX/CPU envs, PPO, distillation, imitation and the recipes that make the
+shipped policies. Packages by role, each importing only those before it: envs ← core ← export ← planner ←
+evaluation ← distill ← imitation ← ppo ← recipes ← cli.py (training/README.md, tests/test_layers.py)."""

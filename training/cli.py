@@ -8,18 +8,19 @@ from __future__ import annotations
 import argparse
 import shlex
 import sys
+from pathlib import Path
 from typing import Sequence
 
 from messages import contract
 
 # = training.envs.TASKS (checked when the envs load)
 TASKS = ("joystick", "getup", "getup_kneel", "getup_roll", "getup_stand", "getup_baseline", "unified")
-RUNS_DIR = "runs"   # experiments' default home (ignored by git): = training.recipe_runner.RUNS_ROOT
+RUNS_DIR = "runs"   # experiments' default home (ignored by git): = training.recipes.runner.RUNS_ROOT
 
 
 # ---------------------------------------------------------------- subcommands
 def _cmd_train(args, command: str) -> int:
-    from training import train
+    from training.ppo import train   # lazy: keeps JAX out of --help
     out = args.out or f"{RUNS_DIR}/{args.name or args.task}"
     result = train.train(
         args.task, out, steps=args.steps, num_envs=args.envs, seed=args.seed, resume=args.resume,
@@ -33,7 +34,7 @@ def _cmd_train(args, command: str) -> int:
 
 
 def _cmd_teacher(args, command: str) -> int:
-    from training import teacher
+    from training.distill import teacher   # lazy: keeps JAX out of --help
     report = teacher.check_teacher(args.getup, args.joystick, num_envs=args.envs, seed=args.seed,
                                    steps=args.check_steps)
     print(report)
@@ -41,7 +42,8 @@ def _cmd_teacher(args, command: str) -> int:
 
 
 def _cmd_distill(args, command: str) -> int:
-    from training import distill, teacher as T
+    from training.distill import dagger as distill   # lazy: keeps JAX out of --help
+    from training.distill import teacher as T   # lazy: keeps JAX out of --help
     if bool(args.chain) == bool(args.getup or args.joystick):
         raise ValueError("distill: give either --getup and --joystick (the stitched teacher) or --chain ROLL,RISE,STAND")
     if args.chain:
@@ -64,14 +66,14 @@ def _cmd_distill(args, command: str) -> int:
 
 
 def _cmd_export_phase(args, command: str) -> int:
-    from training import distill
+    from training.distill import dagger as distill   # lazy: keeps JAX out of --help
     path = distill.export_phase(args.run, args.phase, args.name, args.like)
     print(f"{path}: DAgger phase {args.phase} of {args.run}")
     return 0
 
 
 def _cmd_export_checkpoint(args, command: str) -> int:
-    from training import train
+    from training.ppo import train   # lazy: keeps JAX out of --help
     path = train.export_checkpoint(args.run, args.steps, args.name, like=args.like)
     what = "the checkpoint" if len(args.steps) == 1 else "the mean of the checkpoints"
     print(f"{path}: {what} at {', '.join(map(str, args.steps))} env steps of {args.run}")
@@ -79,7 +81,7 @@ def _cmd_export_checkpoint(args, command: str) -> int:
 
 
 def _cmd_kneel_report(args, command: str) -> int:
-    from training import kneel_report
+    from training.ppo import kneel_report   # lazy: keeps JAX out of --help
     rows = kneel_report.report(args.run, seeds=args.seeds, seconds=args.seconds, steps=args.steps, like=args.like,
                                mean=args.mean)
     print(f"{args.run}/{kneel_report.REPORT}: {len(rows)} rows")
@@ -87,8 +89,7 @@ def _cmd_kneel_report(args, command: str) -> int:
 
 
 def _cmd_recipe(args, command: str) -> int:
-    from pathlib import Path
-    from training import recipe_runner
+    from training.recipes import runner as recipe_runner   # lazy: keeps JAX out of --help
     if args.list:
         print(recipe_runner.describe())
         return 0
@@ -109,7 +110,7 @@ def _cmd_recipe(args, command: str) -> int:
 BACKEND_CHOICES = ("mjx", "cpu")   # = training.envs.base.BACKENDS (not imported: parsing needs no JAX)
 BACKEND_HELP = "physics engine (default: mjx when JAX sees a GPU, else cpu = MuJoCo C on all cores)"
 EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per evaluated task [s]
-# = training.evaluate.START_KINDS and JOYSTICK_STARTS (not imported: parsing needs no JAX)
+# = training.evaluation.batch.START_KINDS and JOYSTICK_STARTS (not imported: parsing needs no JAX)
 START_CHOICES = ("fallen", "knockdown", "wall", "push")
 JOYSTICK_STARTS = ("knockdown", "wall", "push")
 START_JOYSTICK = "policies/joystick/joystick.safetensors"   # evaluate --starts knockdown|wall|push: the shipped joystick expert
@@ -129,11 +130,11 @@ def _cmd_evaluate(args, command: str) -> int:
             raise ValueError("--starts: the joystick evaluation starts standing")
         if args.target_noise:
             raise ValueError("--target-noise: the getup evaluation only")
-        from training import evaluate_joystick
+        from training.evaluation import joystick as evaluate_joystick   # lazy: keeps JAX out of --help
         report = evaluate_joystick.evaluate(args.policy, out, episodes=args.seeds, seconds=seconds,
                                             first_seed=args.first_seed, command=command, backend=args.backend)
     else:
-        from training import evaluate
+        from training.evaluation import batch as evaluate   # lazy: keeps JAX out of --help
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
                                    command=command, backend=args.backend, starts=args.starts,
@@ -162,7 +163,7 @@ def _add_train(sub) -> None:
                    help="override a PPO (ppo.*) or env (env.*) config field; repeatable")
     p.add_argument("--toy", action="store_true", help="tiny CPU preset; the artifact is marked untrained")
     p.add_argument("--preset", choices=("gpu", "cpu"), default="gpu",
-                   help="PPO sizes: gpu (8192 envs, Playground's recipe) or cpu (256 envs, see train.py)")
+                   help="PPO sizes: gpu (8192 envs, Playground's recipe) or cpu (256 envs, see ppo/train.py)")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     p.add_argument("--name", help="policy name (default: the task)")
     p.add_argument("--ship", action="store_true",

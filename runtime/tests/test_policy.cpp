@@ -133,11 +133,11 @@ TEST(PeriodicTask, MissedPeriodIsCountedAndRePhasedWithoutABurst) {
   EXPECT_GE(task.wait_next() - late_wake_ns, kLoopPeriodNs);
 }
 
-// Golden vectors written by common/observation.py + training/export.py.
+// Golden vectors written by common/observation.py + training/export/brax.py.
 TEST(Golden, ObservationAndActionMatchPython) {
   const std::filesystem::path dir = T1_GOLDEN_DIR;
   const auto json_path = dir / "golden_vectors.json";
-  if (!std::filesystem::exists(json_path)) GTEST_SKIP() << "no " << json_path << " yet (written by training/export.py)";
+  if (!std::filesystem::exists(json_path)) GTEST_SKIP() << "no " << json_path << " yet (written by training/export/brax.py)";
   std::ifstream in(json_path);
   const nlohmann::json g = nlohmann::json::parse(in);
   const PolicyArtifact a = load_artifact((dir / g.at("artifact").get<std::string>()).string());

@@ -23,7 +23,7 @@ STANDING_PREPARE_S = 0.1
 GETUP_TRIALS = 1000
 GETUP_SECONDS = 12.0            # 2 s PREPARE ramp + 10 s to get up
 # kneel: the same fallen starts for stage 1 (fallen → kneel, policies/getup_kneel): §4.8's gate in the kneeling
-# posture within the batch evaluation's 8 s (training/kneel_report.py), held KNEEL_HOLD_S
+# posture within the batch evaluation's 8 s (training/ppo/kneel_report.py), held KNEEL_HOLD_S
 KNEEL_TRIALS = 20
 KNEEL_SECONDS = 10.0            # 2 s PREPARE ramp + 8 s to kneel
 # push: 20 forward and 10 backward torso impulses (the draw: common/push_test.py)

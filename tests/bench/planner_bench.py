@@ -16,7 +16,8 @@ TARGET_CPU_S_PER_LABEL = 0.1
 
 
 def planner_row(seed: int = 123) -> str:
-    from training.imitation import build, dagger, dataset, expert
+    from training.imitation import dagger, dataset, expert
+    from training.imitation.campaign import build
     from training.imitation.learner import fit, new_learner
     cfg, teacher, env = build([])
     obs, q = dataset.demonstration_pairs(dagger.DEFAULT_DEMOS)

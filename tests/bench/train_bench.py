@@ -7,7 +7,7 @@ For each task, in this process one after the other (same machine, same load):
 * the raw physics rate M: the CPU backend's batched C physics alone (firmware motor law and R6 in MuJoCo's
   control callback, 10 substeps a control step) for the preset's envs at the task's own starts, targets
   changing every control step; the time inside `Batch.step` only;
-* a short `--preset cpu` PPO run of the real training code (training/train.py, brax's ppo.train, networks as
+* a short `--preset cpu` PPO run of the real training code (training/ppo/train.py, brax's ppo.train, networks as
   shipped): N, the median of brax's per-epoch `training/sps` after the first (which includes compilation),
   the number `python -m training train` records; R = N / M (target: R ≥ 0.8 for getup_stand and unified);
 * the run's profile: the shares of a steady env step's wall time spent in the C physics and in the host
@@ -66,7 +66,7 @@ def raw_physics_rate(task: str, num_envs: int, seed: int = 0) -> float:
 def ppo_run(task: str, backend: str, updates: int) -> dict:
     """A fresh `--preset cpu` run of `updates`+1 epochs of one update: its steady env-steps/s, wall s, and (CPU
     backend) its profile."""
-    from training import train
+    from training.ppo import train
     from training.envs import cpu_backend
     cpu_backend.PROFILE.reset()
     jiffies, t0 = _cpu_jiffies(), time.monotonic()
@@ -82,7 +82,7 @@ def ppo_run(task: str, backend: str, updates: int) -> dict:
 
 
 def main(argv=None) -> int:
-    from training import configs
+    from training.ppo import configs
     from tests.bench import train_profile
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--tasks", nargs="+", choices=(*TASKS, "planner"), default=[*TASKS, "planner"],

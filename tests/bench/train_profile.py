@@ -48,7 +48,7 @@ def _networks(env, cfg):
     import jax
     import jax.numpy as jnp
     from brax.training.acme import running_statistics
-    from training import ppo_networks
+    from training.core import networks as ppo_networks
     sizes = {k: tuple(v) for k, v in env.observation_size.items()}
     nets = ppo_networks.network_factory(cfg)(sizes, env.action_size,
                                               preprocess_observations_fn=running_statistics.normalize)
@@ -106,7 +106,8 @@ def update_s(env, cfg) -> float:
 
 def profile(task: str, preset: str = "cpu") -> dict[str, float]:
     """{part: seconds per env step} of a `preset` run of `task` (module docstring)."""
-    from training import configs, envs
+    from training import envs
+    from training.ppo import configs
     cfg = configs.ppo_config(task, preset)
     env = envs.make(task, config_overrides={"backend": "cpu"})
     return {"env JAX": env_jax_s(env, cfg.num_envs), "policy pass": policy_pass_s(env, cfg),

@@ -25,6 +25,7 @@ import functools
 
 import mujoco
 import numpy as np
+from mujoco.mjx._src import collision_driver, constraint
 
 from common import model as t1model
 
@@ -136,7 +137,6 @@ def build_spec(variant: str, max_contacts: int = t1model.MJX_NCONMAX,
 
 def contact_budget(mj: mujoco.MjModel) -> dict:
     """MJX (JAX backend) buffer sizes for one world of `mj`: contacts, constraint rows, geom pairs."""
-    from mujoco.mjx._src import collision_driver, constraint
     dim = collision_driver.make_condim(mj)
     efc_type = constraint.make_efc_type(mj, dim)
     pairs = sum(1 for _ in collision_driver.geom_pairs(mj))

@@ -37,6 +37,8 @@ import numpy as np
 from flax import struct
 from mujoco import batch as mj_batch
 
+from training.envs.randomize import RANDOMIZED_FIELDS
+
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LIBRARY = Path("training") / "cpu_physics" / "libt1_mjcb_motor.so"   # under the CMake build folder
@@ -156,7 +158,6 @@ class CpuPhysics:
 
     def _apply_randomization(self, b: mj_batch.Batch, n: int) -> None:
         """The MJX randomization_fn, evaluated once on the host; its per-world fields → per-simulation."""
-        from training.envs.randomize import RANDOMIZED_FIELDS
         rngs = jax.random.split(jax.random.PRNGKey(self._seed), n)
         model_v, _ = self._randomize(self._template, rngs)
         for name in RANDOMIZED_FIELDS:
@@ -226,7 +227,7 @@ class CpuPhysics:
         return b
 
     def evaluation_batch(self, n: int) -> mj_batch.Batch:
-        """A persistent batch (training/evaluate_cpu.py): each simulation's whole MjData, contacts
+        """A persistent batch (training/evaluation/cpu.py): each simulation's whole MjData, contacts
         included, stays readable after every step."""
         return self._new_batch(n, persistent=True)
 

@@ -13,9 +13,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
+import jax.numpy as jnp
 import numpy as np
 
 from common import observation as obsdef
+from common import model as t1model
+from common.artifact import read_artifact
+from training.envs import base
+from training.envs.getup_base import GETUP_ACTION_SCALE_RAD
 from training.envs.policy_files import ACTIVATION, brax_policy_layers, load_checkpoint
 
 WAIST_OBS_KEY = "waist_height"
@@ -34,7 +39,6 @@ class Expert:
 
     def loc(self, obs, xp=None):
         """The pre-tanh mean (brax tanh-normal `loc`) for raw observations in this expert's term layout."""
-        import jax.numpy as jnp
         xp = xp or jnp
         out = obsdef.policy_forward(self.layers, obs, xp.asarray(self.obs_mean), xp.asarray(self.obs_std),
                                     self.activation, "linear", xp=xp)
@@ -54,7 +58,6 @@ def load_expert(path, name: str | None = None) -> Expert:
     """A tanh_normal policy from an artifact (.safetensors) or a brax PPO checkpoint / run directory."""
     path = Path(path)
     if path.suffix == ".safetensors":
-        from common.artifact import read_artifact
         layers, mean, std, manifest = read_artifact(path)
         if manifest["output_rule"] != "tanh_normal":
             raise ValueError(f"{path}: output_rule {manifest['output_rule']!r}; an expert must be a PPO "
@@ -71,9 +74,6 @@ def load_expert(path, name: str | None = None) -> Expert:
         mean, std = mean[STUDENT_OBS_KEY], std[STUDENT_OBS_KEY]
     terms = _terms_for_size(layers[0][0].shape[1], path)
     # a checkpoint has no manifest: its task's action map, from the terms (getup or joystick config)
-    from common import model as t1model
-    from training.envs import base
-    from training.envs.getup_base import GETUP_ACTION_SCALE_RAD
     scale = base.capped_action_scale(GETUP_ACTION_SCALE_RAD if terms == obsdef.TERMS_GETUP
                                      else base.base_config().action_scale,
                                      t1model.joint_ranges(t1model.load_model()))
@@ -102,7 +102,6 @@ class TermAdapter:
         self.identity = self.source_terms == self.target_terms
 
     def __call__(self, obs, xp=None):
-        import jax.numpy as jnp
         xp = xp or jnp
         if self.identity:
             return obs

@@ -1,5 +1,5 @@
 """Where a policy's parameters are read from, for the envs' start banks and the teacher: a brax checkpoint folder
-or a run directory (its newest checkpoint); training/checkpoints.py writes what this reads. Artifacts are read by
+or a run directory (its newest checkpoint); training/core/checkpoints.py writes what this reads. Artifacts are read by
 common/artifact.py."""
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+from brax.training import checkpoint as brax_checkpoint
 
 RUN_STATE = "run_state.json"
 CHECKPOINT_DIR = "checkpoints"
@@ -36,7 +37,6 @@ def resolve_checkpoint(path) -> Path:
 
 def load_checkpoint(path) -> list:
     """[normalizer_state, policy_params, (value_params)] as numpy trees (brax checkpoint.load)."""
-    from brax.training import checkpoint as brax_checkpoint
     return brax_checkpoint.load(resolve_checkpoint(path).resolve())
 
 

@@ -1,5 +1,5 @@
-"""Unified walk–fall–getup task: the env the student is distilled in (training/distill.py default) and
-fine-tuned in (student_finetune.py).
+"""Unified walk–fall–getup task: the env the student is distilled in (training/distill/dagger.py default) and
+fine-tuned in (distill/finetune.py).
 
 The seed's student learns the whole task, so one episode mixes what the two experts do: full-body collision;
 the getup tasks' fallen / kneeling / standing starts (getup_base.GetupStarts); the joystick env's commands,
@@ -34,17 +34,17 @@ from ml_collections import config_dict
 from mujoco_playground._src import mjx_env
 
 from common import observation as obsdef
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 from training.envs import base, starts, wall_course
-from training.envs.starts import knockdown
-from training.envs.starts.bank import place
-from training.envs.starts.push import TorsoShove
 from training.envs import getup_rewards as G
 from training.envs import joystick_rewards as R
 from training.envs.getup import default_config as getup_config
 from training.envs.getup_base import START_KINDS, GetupStarts
 from training.envs.joystick import default_config as joystick_config
+from training.envs.starts import knockdown
+from training.envs.starts.bank import place
+from training.envs.starts.push import TorsoShove
 from training.envs.walking import Walking
-from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 METRIC_NAMES = ("reward/alive", "reward/height", "reward/tracking_lin_vel", "reward/tracking_ang_vel",
                 "standing")

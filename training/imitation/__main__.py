@@ -13,7 +13,8 @@ import json
 import sys
 from pathlib import Path
 
-from training.imitation import dagger, run
+from training.imitation import dagger
+from training.imitation.campaign import run
 
 
 

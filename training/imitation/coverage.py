@@ -7,7 +7,7 @@ label does, so 200 seeds are affordable where the planner's own rises (training/
     python -m training.imitation.coverage --policy ARTIFACT --out FILE.json [--seeds N] [--first-seed S]
                                           [--seconds T] [--lying SIDE] [--jobs J] [--config key=value ...]
 
-The starts are the batch evaluation's (fallen seeds S … S + N − 1, as training/evaluate.py draws them), so its
+The starts are the batch evaluation's (fallen seeds S … S + N − 1, as training/evaluation/batch.py draws them), so its
 share compares with the policy's own `evaluate` row. They run in chunks of CHUNK robots, each seeded by its first
 seed: the report does not depend on --jobs (one worker process per job)."""
 from __future__ import annotations
@@ -24,6 +24,11 @@ import numpy as np
 
 from common import events
 from training.imitation import best_of_k
+from training.imitation import dagger, dataset
+from training.imitation.campaign import build
+from training.imitation.learner import load_learner, new_learner
+from training.planner.batch import end_with_parent
+from training.planner.demos import start_side
 
 CHUNK = 25       # robots planned in one batch
 
@@ -50,8 +55,6 @@ _worker = None      # a worker process's (teacher, env, policy)
 
 
 def _setup(overrides: list[str], policy_path: str):
-    from training.imitation import build, dagger, dataset
-    from training.imitation.learner import load_learner, new_learner
     cfg, teacher, env = build(overrides)
     obs0, _ = dataset.demonstration_pairs(dagger.DEFAULT_DEMOS)
     p = teacher.p
@@ -62,7 +65,6 @@ def _setup(overrides: list[str], policy_path: str):
 
 def _init_worker(overrides: list[str], policy_path: str) -> None:
     global _worker
-    from training.planner.batch import end_with_parent
     end_with_parent()
     _worker = _setup(overrides, policy_path)
 
@@ -90,7 +92,6 @@ def run(policy: Path, seeds: int, first_seed: int, seconds: float, overrides: li
         raise ValueError(f"--policy {policy}: no such artifact")
     _worker = _setup(overrides, str(policy))
     cfg, teacher, env, _ = _worker
-    from training.planner.demos import start_side
     qpos, qvel = (a.astype(np.float64) for a in env.fallen_starts(seeds, first_seed))
     sides = np.array([start_side(q) for q in qpos])
     ids = np.arange(first_seed, first_seed + seeds)

@@ -5,7 +5,7 @@ fresh fallen starts, all at once on the C physics; at the start of every segment
 planner takes over a copy of each robot (expert.Teacher.takeover) and every step of it is a label; with
 probability β the robot goes on from where the expert's takeover left it (the expert acted), else from where the
 learner's own segment did. The labels join the data set, the learner is refitted on all of it, exported and
-evaluated on the batch from `eval_seeds` fallen seeds (training/evaluate.py's "reached the kneel")."""
+evaluated on the batch from `eval_seeds` fallen seeds (training/evaluation/batch.py's "reached the kneel")."""
 from __future__ import annotations
 
 import json
@@ -16,8 +16,13 @@ from pathlib import Path
 import numpy as np
 
 from common.events import LYING_SIDES
+from training.core import checkpoints
+from training.core.checkpoints import repo_relative
+from training.evaluation.batch import kneel_figures
 from training.imitation import best_of_k, config, dataset, expert
+from training.imitation import report
 from training.imitation.learner import fit, load_learner, new_learner
+from training.planner.demos import start_side
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_DEMOS = REPO_ROOT / "training" / "campaigns" / "getup_keyframe" / "demos"   # the planner's stored rises
@@ -62,7 +67,6 @@ def collect(teacher: expert.Teacher, learner, qpos: np.ndarray, qvel: np.ndarray
 
 def manifest(env_fields: dict, labels: int, k: int, started: float) -> dict:
     """The artifact's manifest: the getup env's fields, a name and DAgger's provenance (labels as its steps)."""
-    from training import checkpoints
     return {**env_fields, "name": "getup_kneel", "trained": True,
             "provenance": {"git_commit": checkpoints.git_commit(), "steps": int(labels), "date": checkpoints.utc_now(),
                            "command": "python -m training.imitation", "algorithm": f"dagger, planner expert, round {k}",
@@ -128,7 +132,6 @@ class Campaign:
         if lying:
             stats["lying"] = lying
         if policy is not None:
-            from training.checkpoints import repo_relative
             kept = self._kept_copy(Path(policy)) or dataset.policy_path(self.data, k)
             if not kept.exists():
                 shutil.copy2(policy, kept)
@@ -146,7 +149,6 @@ class Campaign:
     def finish_round(self, row: dict) -> None:
         self.state["rounds"].append(row)
         (self.folder / STATE).write_text(json.dumps(self.state, indent=1))
-        from training.imitation import report
         report.write(self.folder, self.state)
 
 
@@ -156,7 +158,6 @@ def round_starts(env, n: int, first_seed: int, lying: str = "") -> tuple[np.ndar
     a small round may draw few of one side)."""
     if not lying:
         return env.fallen_starts(n, first_seed)
-    from training.planner.demos import start_side
     draws = LYING_DRAWS * n
     for _ in range(LYING_DOUBLINGS + 1):
         qpos, qvel = env.fallen_starts(draws, first_seed)
@@ -174,7 +175,6 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
     PPO fine-tune of it) that the next round rolls out and its fit starts from, in place of the campaign's
     learner: DAgger on the states that policy visits; `lying`: the next round starts only from fallen starts
     lying that way (labels where that side's rises fail)."""
-    from training.evaluate import kneel_figures
     camp = Campaign(folder, cfg, teacher.p.cfg, refit)
     if lying and lying not in LYING_SIDES:
         raise ValueError(f"--lying must be one of {', '.join(LYING_SIDES)}, got {lying!r}")

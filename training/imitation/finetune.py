@@ -9,7 +9,7 @@ are; the scale half of the last layer, which the fit never trained, is reset to 
 NORMALIZER_COUNT times, so a run's samples move it by well under 1 %): the DAgger data are the learner's own
 states already, and a normaliser that moved under the policy would change what it does (training/LESSONS.md).
 The critic's extra inputs (velocities, heights, torque shares, contacts: all of order 1) are held at mean 0 and
-std 1. The critic starts fresh (ppo.value_warmup_steps: train.py).
+std 1. The critic starts fresh (ppo.value_warmup_steps: ppo/train.py).
 BC term, added to brax's PPO loss:
     w(n) · mean over bc_batch random pairs of Σ_joints (tanh(μ(obs)) − label)²
     w(n) = imitation.bc_weight · max(0, 1 − n / imitation.bc_decay_steps)
@@ -21,13 +21,22 @@ import contextlib
 import json
 from pathlib import Path
 
+import jax
+import jax.numpy as jnp
 import numpy as np
+from brax.training import types
+from brax.training.acme import running_statistics
+from brax.training.agents.ppo import losses as ppo_losses
 
-from training.checkpoints import repo_path
-from training.ppo_extension import PPOExtension
-from training.student_finetune import bc_weight, sample_count
+from training.core import checkpoints
+from training.core.checkpoints import repo_path
+from training.core.extension import PPOExtension
+from training.distill.finetune import bc_weight, sample_count
+from training.imitation import config as campaign_files, dataset
+from training.imitation.learner import artifact_params
+from training.imitation.learner import targets_to_labels
 
-# the keys that make a PPO stage this fine-tune: a toy run keeps them (recipe_runner.py)
+# the keys that make a PPO stage this fine-tune: a toy run keeps them (recipes/runner.py)
 LEARNER_KEYS = ("ppo.imitation.",)
 NORMALIZER_COUNT = 2 ** 32   # samples the held normaliser counts (float32 reads it to 512: the BC decay's step)
 MIN_STD = 1e-3            # brax NormalTanhDistribution's min_std: scale = softplus(raw) + MIN_STD
@@ -43,7 +52,6 @@ def is_artifact(path) -> bool:
 
 def read_learner(path) -> dict:
     """The DAgger learner an artifact holds: {"path", "layers": brax policy params, "mean", "std"}."""
-    from training.imitation.learner import artifact_params
     layers, mean, std, manifest = artifact_params(path)
     if manifest.get("output_rule") not in (None, "tanh_normal"):
         raise ValueError(f"{path}: a fine-tune from an artifact needs brax's tanh-normal policy, "
@@ -66,8 +74,6 @@ def policy_params(layers: dict, init_std: float) -> dict:
 def normalizer_state(mean: np.ndarray, std: np.ndarray, count: int, observation_size: dict):
     """brax's running statistics at the learner's (mean, std) for "state", counted `count` times; the critic's
     "privileged_state" starts with the same actor observation, its extras at mean 0, std 1."""
-    from brax.training import types
-    from brax.training.acme import running_statistics
     n = int(observation_size["state"][0])
     if mean.shape != (n,):
         raise ValueError(f"the artifact's observation has {mean.shape[0]} entries, the task's {n}")
@@ -85,7 +91,6 @@ def normalizer_state(mean: np.ndarray, std: np.ndarray, count: int, observation_
 def _campaign_of(init) -> Path:
     """The DAgger campaign of what a run starts from: a DAgger artifact's folder, or, for a PPO run or its export
     (a fine-tune going on from another), that run's own campaign."""
-    from training import checkpoints
     path = repo_path(init) if init else None
     if path is not None and is_artifact(path):
         if not (path.parent / checkpoints.RUN_STATE).exists():
@@ -105,8 +110,6 @@ def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarr
     """(observations, label actions) of the DAgger campaign's aggregate: the demonstrations and every round it
     stored, labels through the getup action map ({"default_pose", "action_scale"} [rad]); `init`: the path the
     run starts from (its folder is the campaign where ppo.imitation.campaign is "")."""
-    from training.imitation import config as campaign_files, dataset
-    from training.imitation.learner import targets_to_labels
     t = ppo_cfg.imitation
     if not t.demos:
         raise ValueError("ppo.imitation.demos must name the planner's demonstrations (the DAgger round 0)")
@@ -157,7 +160,6 @@ class ImitationFinetune(PPOExtension):
 def bc_loss(ppo_network, policy_params, normalizer_params, obs, labels, sizes: dict, policy_key: str = "state"):
     """mean over the pairs of Σ_joints (tanh(μ(obs)) − label)²: the DAgger fit's regression (learner.fit, there a
     mean over the joints) on the PPO policy. sizes: the observation's entries per key (the others are zeros)."""
-    import jax.numpy as jnp
     x = {k: obs if k == policy_key else jnp.zeros((obs.shape[0], n), jnp.float32) for k, n in sizes.items()}
     logits = ppo_network.policy_network.apply(normalizer_params, policy_params, x)
     mean = ppo_network.parametric_action_distribution.mode(logits)
@@ -170,9 +172,6 @@ def imitation_term(ppo_cfg, pairs, count_start: float):
     if pairs is None:
         yield
         return
-    import jax
-    import jax.numpy as jnp
-    from brax.training.agents.ppo import losses as ppo_losses
     t = ppo_cfg.imitation
     weight, decay, batch = float(t.bc_weight), int(t.bc_decay_steps), int(t.bc_batch)
     obs, labels = jnp.asarray(pairs[0], jnp.float32), jnp.asarray(pairs[1], jnp.float32)

@@ -3,7 +3,7 @@ labels by regression, run in NumPy in the rollouts and exported as a runtime art
 
 Its parameters are brax's ({'params': {'hidden_i': {kernel, bias}}}, 2·23 outputs: loc, then the scale half that
 only PPO uses), so the fit's policy is the initial policy of a PPO fine-tune and exports through
-training/export.py as any getup expert does. Observations are normalised by the demonstrations' mean and std,
+training/export/brax.py as any getup expert does. Observations are normalised by the demonstrations' mean and std,
 fixed from round 0 on (a moving normaliser would move every later fit's inputs)."""
 from __future__ import annotations
 
@@ -11,10 +11,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
 
+import jax
+import jax.numpy as jnp
 import numpy as np
+import optax
 
 from common import observation as obsdef
+from common.artifact import read_artifact
+from training.core.networks import ppo_networks_with_std_scale
 from training.envs.policy_files import ACTIVATION, brax_policy_layers
+from training.export.brax import export_brax_ppo
 
 STD_FLOOR = 1e-3         # the normaliser's smallest std (a joint that never moved in the data)
 ACTION_LIMIT = 0.999     # labels' actions are clipped inside tanh's range
@@ -44,7 +50,6 @@ class Learner:
         return targets_to_labels(q_des, self.default_pose, self.action_scale)
 
     def export(self, path: Path, manifest_fields: dict) -> str:
-        from training.export import export_brax_ppo
         norm = SimpleNamespace(mean=self.obs_mean, std=self.obs_std)
         return export_brax_ppo((norm, self.params), manifest_fields, path)
 
@@ -56,8 +61,6 @@ def targets_to_labels(q_des: np.ndarray, default_pose: np.ndarray, action_scale:
 
 def new_learner(obs: np.ndarray, hidden: list[int], seed: int, env_fields: dict, lo, hi) -> Learner:
     """A freshly initialised brax policy network, normalised by `obs`' statistics."""
-    import jax
-    from training.ppo_networks import ppo_networks_with_std_scale
     nets = ppo_networks_with_std_scale(obs.shape[1], len(lo), policy_hidden_layer_sizes=tuple(hidden))
     params = jax.tree.map(np.asarray, nets.policy_network.init(jax.random.PRNGKey(seed)))
     return Learner(params=params, obs_mean=obs.mean(axis=0).astype(np.float32),
@@ -70,7 +73,6 @@ def new_learner(obs: np.ndarray, hidden: list[int], seed: int, env_fields: dict,
 def artifact_params(artifact: Path) -> tuple[dict, np.ndarray, np.ndarray, dict]:
     """(brax policy params, observation mean, std, manifest) of an artifact of `export` (its layers are brax's,
     the scale half included)."""
-    from common.artifact import read_artifact
     layers, mean, std, manifest = read_artifact(Path(artifact))
     params = {f"hidden_{i}": {"kernel": np.ascontiguousarray(w.T), "bias": b} for i, (w, b) in enumerate(layers)}
     return {"params": params}, np.asarray(mean, np.float32), np.asarray(std, np.float32), manifest
@@ -96,9 +98,6 @@ def load_learner(artifact: Path, like: Learner) -> Learner:
 def fit(learner: Learner, obs: np.ndarray, actions: np.ndarray, cfg, seed: int) -> tuple[Learner, list[float]]:
     """cfg.steps of Adam on mean((tanh(loc) − action)²) over shuffled batches, from the learner's params. Returns
     the fitted learner and the loss per pass over the data as a share of the actions' variance."""
-    import jax
-    import jax.numpy as jnp
-    import optax
 
     x = (obs.astype(np.float32) - learner.obs_mean) / learner.obs_std
     y = actions.astype(np.float32)

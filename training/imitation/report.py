@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from training.core import plots
+
 COLUMNS = (("round", "round"), ("beta", "β"), ("policy", "rolled out (– : the learner)"),
            ("lying", "from starts lying (– : any)"), ("labels", "labels"),
            ("labels_total", "labels in total"),
@@ -42,16 +44,14 @@ def write(folder: Path, state: dict) -> None:
             f"takeover {cfg['expert']['takeover_replans']} replans from each segment's start "
             f"({cfg['expert']['policy_samples']} policy + {cfg['expert']['plan_samples']} plan samples, horizon "
             f"{state['config']['planner']['horizon_s']} s), or best-of-K rises of the policy (best_of_k.py); batch "
-            f"evaluation from {cfg['eval_seeds']} fallen seeds × {cfg['eval_seconds']} s (training/evaluate.py, "
+            f"evaluation from {cfg['eval_seeds']} fallen seeds × {cfg['eval_seconds']} s (training/evaluation/batch.py, "
             f"\"reached the kneel\").\n\n" + table(rows))
     (Path(folder) / "report.md").write_text(text)
     _curve(rows, Path(folder) / "curve.png")
 
 
 def _curve(rows: list[dict], png: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = plots.pyplot()
     fig, ax = plt.subplots(figsize=(6, 3.5))
     x = [r["labels_total"] for r in rows]
     for key, label in (("reached_kneel", "all"), ("face_down", "face down"), ("on_back", "on the back")):

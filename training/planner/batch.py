@@ -13,14 +13,14 @@ from pathlib import Path
 import numpy as np
 
 from training.planner import demos      # first: its renderer picks the offscreen GL before mujoco loads
-from training.overrides import apply_overrides
+from training.core.overrides import apply_overrides
 from training.planner import config as planner_config
 from training.planner.mppi import Planner
+from training import envs
 
 
 def build(overrides: list[str]):
     """(config, getup env on the CPU backend, planner): the env gives the training physics and the starts."""
-    from training import envs
     cfg = planner_config.default_config()
     apply_overrides({"planner": cfg}, overrides)
     env = envs.make("getup_kneel", config_overrides={"backend": "cpu", "fallen.bank_starts": 1})

@@ -15,6 +15,7 @@ from common.events import LYING_SIDES, lying_side
 from common.model import trunk_forward_z
 from training.envs.starts import demos as demo_starts
 from training.planner.mppi import Demonstration
+import PIL.Image
 
 ARRAYS = ("qpos", "qvel", "obs", "targets", "trunk_height", "up_z", "gate", "kneeling", "waypoint")
 REPORT = "report.json"
@@ -98,7 +99,6 @@ def summarise(rows: list[dict], within_s: float = 6.0) -> dict:
 
 def frame_strip(model, demo: Demonstration, out_png: Path, frames: int = 8, px: int = 240) -> Path:
     """`frames` states of the demonstration, evenly spaced in time, left to right, from the robot's side."""
-    import PIL.Image
     idx = np.linspace(0, len(demo.qpos) - 1, frames).round().astype(int)
     camera = tracking_camera(model)
     camera.distance = STRIP_CAMERA_DISTANCE_M

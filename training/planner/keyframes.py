@@ -2,6 +2,7 @@
 on the floor in each (heights and up_z, the cost's targets)."""
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
 from common import events
@@ -47,7 +48,6 @@ def targets(model, name: str, cfg) -> dict:
     """A waypoint's cost targets: joint angles q, and the trunk's height h (at the kneel at least the gate's
     height + cfg.kneel_height_margin_m), the waist's h_waist [m] and the trunk's up_z when it rests on the floor
     in that pose; joint_weight, the pose cost's per joint; upright_weight, the orientation cost's."""
-    import mujoco
     q, pitch = pose(model, name, cfg)
     qpos = t1model.keyframe_qpos(model, "kneel")
     qpos[t1model.ROOT_QPOS:t1model.ROOT_QPOS + NUM_JOINTS] = q

@@ -179,7 +179,7 @@ class Planner:
             plan = self.improve(robot, plan, float(sigma), rng, self.keyframes[waypoint], mirrored)
             for q_des in self.interp[:self.replan_knots * self.spk] @ plan:
                 self.physics.write_targets(robot, q_des[None])
-                for _ in range(self.sub):        # the robot's energy, substep by substep (training/evaluate_cpu.py)
+                for _ in range(self.sub):        # the robot's energy, substep by substep (training/evaluation/cpu.py)
                     dq0 = robot.qvel[0, 6:6 + nu].copy()
                     robot.step(nstep=1)
                     energy += float(np.sum(np.abs(robot.actuator_force[0] * dq0))) * float(self.model.opt.timestep)

@@ -1,1 +1,1 @@
-"""One file per recipe: `RECIPE = Recipe(...)` (training/recipe.py). `python -m training recipe --list`."""
+"""One file per recipe: `RECIPE = Recipe(...)` (training/recipes/base.py). `python -m training recipe --list`."""

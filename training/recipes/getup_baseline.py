@@ -1,7 +1,7 @@
 """The reward-only baseline getup (the seed's HO reward, §4.3), from scratch: the comparison of Table 4.3 and
 the baseline composite of chapter 6. After the first stage, the sampling noise is narrowed in two steps, the
 discount raised to 0.99, a standing-start share added and a small energy cost (ours, stated in its card)."""
-from training.recipe import Recipe, Stage
+from training.recipes.base import Recipe, Stage
 
 QUIET = {"ppo.policy_std_scale": 0.125, "ppo.entropy_cost": 0.0}
 

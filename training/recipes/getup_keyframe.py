@@ -18,7 +18,7 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
   fine-tunes.
 The runtime's target rule R6 is in every stage.
 """
-from training.recipe import Recipe, Stage
+from training.recipes.base import Recipe, Stage
 
 DEMOS = "training/campaigns/getup_keyframe/demos"
 # the planner's takeovers as the expert, a robot that fell back not restarted (the restart rule came with best-of-K)

@@ -1,7 +1,7 @@
 """The student's teacher getup expert: the seed's gated full-task rewards (§4.8, per-step gate) fine-tuned
 from the reward-only baseline (not the seed's stage-1/stage-2 curriculum: it rarely kneels), the energy
 fine-tune (§4.7), then fallen starts replaced by landings of the joystick expert knocked over by a push."""
-from training.recipe import Recipe, Stage
+from training.recipes.base import Recipe, Stage
 
 GATED = {"ppo.policy_std_scale": 0.125, "ppo.entropy_cost": 0.0, "ppo.learning_rate": 1e-4}
 ENERGY = {**GATED, "env.reward.scales.energy": -0.01, "ppo.value_warmup_steps": 500_000}

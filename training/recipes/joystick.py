@@ -1,6 +1,6 @@
 """The joystick expert: MuJoCo Playground's T1 joystick recipe (domain randomisation on), then two fine-tunes
-that weigh and sharpen yaw-rate tracking (to reach evaluate_joystick.py's yaw-rate target)."""
-from training.recipe import Recipe, Stage
+that weigh and sharpen yaw-rate tracking (to reach evaluation/joystick.py's yaw-rate target)."""
+from training.recipes.base import Recipe, Stage
 
 RECIPE = Recipe(
     name="joystick", policy="joystick",

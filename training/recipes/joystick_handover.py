@@ -1,6 +1,6 @@
 """The student's teacher joystick expert: the joystick expert fine-tuned with half of its episodes starting
 where a getup expert's rise hands over (the waist passing the switch height), so that it catches the lunge."""
-from training.recipe import Recipe, Stage
+from training.recipes.base import Recipe, Stage
 
 RECIPE = Recipe(
     name="joystick_handover", policy="joystick_handover",

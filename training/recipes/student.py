@@ -1,11 +1,11 @@
 """The student: one network distilled by DAgger (Table 5.2 settings, the unified env) from the stitched
 teacher (getup expert below the 0.5 m waist switch, joystick expert above), then continued with knockdown
 pushes and wall-course episodes (ours): DAgger-3400, the walls stage's 400 phases.
-`finetune` (training/student_finetune.py), what ships: PPO on the unified env's "skills" reward from
+`finetune` (training/distill/finetune.py), what ships: PPO on the unified env's "skills" reward from
 those DAgger weights, critic warm-up first, a behaviour-cloning term toward the same teacher that decays over
 30 M steps (held in wall-course episodes; the stage stops at 3 M), starts mixing fallen, kneeling and standing
 states, knockdowns and the push test's torso shoves, and the low-wall course (CARD.md)."""
-from training.recipe import Recipe, Stage
+from training.recipes.base import Recipe, Stage
 
 JOYSTICK = "policies/joystick_handover/joystick_handover.safetensors"
 GETUP = "policies/getup_knockdown/getup_knockdown.safetensors"
@@ -20,7 +20,7 @@ FINETUNE = {
     "env.reward.mode": "skills", "env.reward.getup.failed_rise_cost": 5.0,
     "env.knockdown.prob": 0.5, "env.knockdown.shove": "mixed", "env.walls.prob": 0.2,
     # walls met at walking speed, as in the loop's test; there the teacher's trip-and-getup stays the target
-    # (student_finetune.py), and ground banked by a fall across the wall pays through the getup beyond it
+    # (distill/finetune.py), and ground banked by a fall across the wall pays through the getup beyond it
     # (unified.py's course term: 10 per m, about 4 per s at the held command, above a getup's loss)
     "env.wall_course.approach_m": [1.0, 5.0], "ppo.teacher.bc_hold_in_course": True,
     "env.reward.course.progress_weight": 10.0,

@@ -1,6 +1,6 @@
 """The untrained student placeholder: the student's network shape with seeded random weights, manifest
 `trained: false`. What `make demo` runs when no trained student is shipped, and the tests' runtime policy."""
-from training.recipe import Recipe, Stage
+from training.recipes.base import Recipe, Stage
 
 RECIPE = Recipe(
     name="student_untrained", policy="student_untrained",

@@ -90,7 +90,7 @@ class PolicyEngine {
   const char* mlp_variant() const { return mlp_.variant_name(); }
   // Composite mode, for the member that did NOT act this policy tick: its clock follows, and its
   // last_action becomes the applied joint targets [rad] in ITS action map, clip((q - pose) / scale, -1, 1),
-  // as the stitched teacher hands each expert the env's one last action (training/teacher.py). The members'
+  // as the stitched teacher hands each expert the env's one last action (training/distill/teacher.py). The members'
   // maps differ (joystick 0.5 rad per unit, getup up to 2): read raw, the other member's action would
   // mean other targets. No MLP is run.
   void follow(const JointArray& applied_q_target, const float* command);

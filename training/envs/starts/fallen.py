@@ -23,9 +23,10 @@ import mujoco
 import numpy as np
 from ml_collections import config_dict
 
-from common.artifact import RUNTIME_LOOP_DT_S
 from common import model as t1model
+from common.artifact import RUNTIME_LOOP_DT_S
 from common.events import LYING_SIDES, lying_side
+from training.envs import base, collision, cpu_backend
 
 # runtime/include/t1rt/prepare_gains.hpp kPrepareKp [N·m/rad] / kPrepareKd [N·m·s/rad], joint order of the
 # contract (tests/test_training_fallen.py reads them back from that header).
@@ -106,7 +107,6 @@ def _prepared(num: int, seed: int, prepare_s: float, supervisor: tuple[float, fl
 
 def backend_model(kp: np.ndarray, kd: np.ndarray) -> mujoco.MjModel:
     """sim_hil's robot with the CPU backend's motor callback and the PD gains kp [N·m/rad], kd [N·m·s/rad]."""
-    from training.envs import base, collision, cpu_backend   # heavy (JAX); only where host rollouts run
 
     spec = mujoco.MjSpec.from_file(str(t1model.MODEL_PATH))
     cpu_backend.add_backend_elements(spec, collision.FOOT_GEOMS, base.FLOOR_GEOM)
@@ -126,7 +126,6 @@ def after_prepare(qpos: np.ndarray, qvel: np.ndarray, prepare_s: float,
                   supervisor: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """The states (qpos [N, nq], qvel [N, nv]) after the runtime's PREPARE ramp from each given state;
     supervisor = (max target speed [rad/s], joint-range fraction) of rule R6."""
-    from training.envs import cpu_backend
 
     mj = _prepare_physics()
     tick_s = mj.opt.timestep                             # one physics step = one 2 ms runtime tick

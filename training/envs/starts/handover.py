@@ -1,4 +1,4 @@
-"""Hand-over starts of the joystick env: the states in which the stitched teacher (training/teacher.py: getup
+"""Hand-over starts of the joystick env: the states in which the stitched teacher (training/distill/teacher.py: getup
 expert below the waist's 0.5 m switch, joystick expert above) hands a rising robot to the joystick expert: a
 getup artifact rising from fallen starts, at the first tick with the waist at the switch, with its last joint
 targets. The joystick env starts a share of episodes there (config handover), so the joystick expert learns to

@@ -23,11 +23,14 @@ Waypoints: config.reverse_curriculum.left_leg_waypoints, rows of (progress, left
 """
 from __future__ import annotations
 
+import sys
+
 import mujoco
 import numpy as np
 from ml_collections import config_dict
 
 from common import model as t1model
+from common.render import save_side_strip
 
 PATH_END = 2.0   # progress of the kneel
 LEFT_LEG = ("Left_Hip_Pitch", "Left_Knee_Pitch", "Left_Ankle_Pitch")
@@ -105,7 +108,6 @@ def bank_range(min_progress: float, max_progress: float, size: int) -> slice:
 
 def render_strip(out_png: str, size: int = 21, px: int = 200) -> None:
     """Side view of `size` placed starts along the path, left to right standing → kneel, as one PNG."""
-    from common.render import save_side_strip
     model = t1model.load_model()
     bank = path_bank(model, t1model.keyframe_qpos(model, "home"), t1model.keyframe_qpos(model, "kneel"),
                      path_config().left_leg_waypoints, size)
@@ -113,7 +115,6 @@ def render_strip(out_png: str, size: int = 21, px: int = 200) -> None:
 
 
 if __name__ == "__main__":   # MUJOCO_GL=osmesa python -m training.envs.starts.kneeling_path OUT.png
-    import sys
     if len(sys.argv) != 2:
         sys.exit("usage: python -m training.envs.starts.kneeling_path OUT.png  (a strip of starts along the path)")
     render_strip(sys.argv[1])

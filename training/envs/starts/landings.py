@@ -1,6 +1,6 @@
 """The joystick expert rolled until it falls: the mid-fall hand-overs of the knockdown, push-test and wall
 banks (knockdown.py, push.py, wall_approach.py) are the first control tick at which the stitched teacher
-(training/teacher.py) would hand it to the getup expert, the waist below the 0.5 m switch. Each bank is rolled
+(training/distill/teacher.py) would hand it to the getup expert, the waist below the 0.5 m switch. Each bank is rolled
 once on the host (CPU physics, full-body collision) and cached."""
 from __future__ import annotations
 

@@ -6,8 +6,8 @@
 N seeded fallen starts (the env's fallen_starts: the settled fall after the runtime's PREPARE ramp, as
 `make eval-getup` hands them to the policy) are rolled out in parallel with the getup env's model
 and motor law, on either physics backend (default as `train`): MJX (jax.vmap over envs, lax.scan over
-control ticks, make_rollout below) or MuJoCo C (training/evaluate_cpu.py, the same series). The policy side is the
-artifact run through common/observation.py with xp=jax.numpy (training/artifact_policy.py): the observation is
+control ticks, make_rollout below) or MuJoCo C (training/evaluation/cpu.py, the same series). The policy side is the
+artifact run through common/observation.py with xp=jax.numpy (training/evaluation/artifact_policy.py): the observation is
 built from the physics state exactly as the runtime builds it (no noise, command 0, gait clock frozen at its initial
 phase because ‖command‖ < phase_freeze_command_norm), normalised, fed through the MLP, mapped to targets.
 A policy may also be the runtime's composite of two artifacts, `--policy GETUP,UPRIGHT` (CompositePolicy:
@@ -25,22 +25,29 @@ import csv
 import math
 from pathlib import Path
 
+import jax
+import jax.numpy as jnp
 import numpy as np
+from mujoco import mjx
+from mujoco.mjx._src import support
 
 from common import events
 from common import model as t1model
 from common import observation as obsdef
-from training import table_4_3
-from training.artifact_policy import ArtifactPolicy, ChainPolicy, CompositePolicy, load_policy
+from common.events import getup_events, reached_kneel, through_kneel_gate
 from messages.contract import WAIST_SWITCH_HEIGHT_M
+from training import envs
+from training.core import plots
+from training.core import checkpoints
+from training.core.backend import default_backend
+from training.envs.starts import landing_bank
+from training.evaluation import table_4_3
+from training.evaluation.artifact_policy import ArtifactPolicy, ChainPolicy, CompositePolicy, load_policy
+from training.evaluation.cpu import cpu_rollout
 
 
 def make_rollout(env, policy: ArtifactPolicy | CompositePolicy | ChainPolicy, num_ticks: int):
     """jitted (params, qpos [N, nq], qvel [N, nv]) → dict of (N, T + 1) / (N, T) series."""
-    import jax
-    import jax.numpy as jnp
-    from mujoco import mjx
-    from mujoco.mjx._src import support
 
     m = env.mjx_model
     sim_dt = float(env.mj_model.opt.timestep)
@@ -105,7 +112,6 @@ def run_policy(env, policy: ArtifactPolicy | CompositePolicy | ChainPolicy, qpos
                target_noise_rad: float = 0.0, noise_seed: int = 0) -> dict:
     """Roll out and reduce to per-env metrics (numpy) plus the height series for plots (target noise:
     evaluate_cpu.cpu_rollout's, CPU backend only)."""
-    import jax
     ctrl_dt = float(policy.manifest["control_dt"])
     ticks = int(round(seconds / ctrl_dt))
     if ticks < 1:
@@ -115,7 +121,6 @@ def run_policy(env, policy: ArtifactPolicy | CompositePolicy | ChainPolicy, qpos
     if target_noise_rad > 0 and env.backend != "cpu":
         raise ValueError("--target-noise: the CPU backend's rollouts only (--backend cpu)")
     if env.backend == "cpu":
-        from training.evaluate_cpu import cpu_rollout
         series = cpu_rollout(env, policy, np.asarray(qpos), np.asarray(qvel), ticks,
                              target_noise_rad=target_noise_rad, noise_seed=noise_seed)
     else:
@@ -135,7 +140,6 @@ def episode_row(t, readings, series) -> dict:
     first stand-up only (nan if it never stood): the energy of getting up, which the whole episode's energy_J
     mixes with the standing that follows it under the upright policy. Without the posture the kneel's figures
     are nan."""
-    from common.events import getup_events, reached_kneel, through_kneel_gate
     ev = getup_events(t, readings[:, 0], readings[:, 1], waist_height=readings[:, 2],
                       switch_height_m=WAIST_SWITCH_HEIGHT_M)
     gate = through_kneel_gate(t, readings[:, 0], readings[:, 1], ev)
@@ -274,7 +278,7 @@ def markdown_report(results: dict, meta: dict) -> str:
     if {"policy", "baseline"} <= set(results) and not from_bank:
         lines += ["", "Direction against the seed's Table 4.3 (the seed compares its keyframe expert with its "
                   "baseline getup: the comparison is the seed's where `policy` is a keyframe getup; "
-                  "`table_4_3.png`; definitions in training/table_4_3.py):", ""]
+                  "`table_4_3.png`; definitions in training/evaluation/table_4_3.py):", ""]
         lines += table_4_3.direction_rows({n: r["summary"] for n, r in results.items()})
     if {"policy", "baseline"} <= set(results):
         ratio, both = paired_energy_to_stand(results["policy"]["run"]["rows"], results["baseline"]["run"]["rows"])
@@ -296,9 +300,7 @@ def paired_energy_to_stand(policy_rows: list[dict], baseline_rows: list[dict]) -
 
 
 def plot_heights(results: dict, png: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = plots.pyplot()
     fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
     for (role, res), color in zip(results.items(), ("tab:blue", "tab:orange")):
         run = res["run"]
@@ -349,8 +351,6 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     hands over to the getup policy mid-fall (training/envs/starts/); the ones it caught are left out.
     starts="wall": the same after `start_joystick` walked into the low-wall course from `seeds` approaches
     (the getup env then has the course in its world); starts="push": after the loop's push test shoved it."""
-    from training import checkpoints, envs
-    from training.train import default_backend
     checkpoints.jax_setup()
     if task != "getup":
         raise ValueError(f"--task {task!r}: only the getup evaluation exists so far")
@@ -365,7 +365,6 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
     if starts == "fallen":
         qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
     else:
-        from training.envs.starts import landing_bank
         qpos, qvel = landing_bank(starts)(envs.make, env, str(start_joystick), seeds, first_seed)
     policies = {role: load_policy(path) for role, path in (("policy", policy_path), ("baseline", baseline))
                 if path is not None}   # both checked before either runs

@@ -13,6 +13,8 @@ import time
 from pathlib import Path
 from typing import Mapping
 
+from training.core import plots
+
 CSV_NAME = "metrics.csv"
 TENSORBOARD_DIR = "tensorboard"
 PNG_NAME = "learning_curve.png"
@@ -98,9 +100,7 @@ def plot_curves(csv_path, png_path, title: str = "", until_wall_s: float | None 
             panels.append((label, name))
     if not panels:
         return None
-    import matplotlib
-    matplotlib.use("Agg")  # headless: no display on the training machines
-    import matplotlib.pyplot as plt
+    plt = plots.pyplot()
     fig, axes = plt.subplots(len(panels), 1, figsize=(7, 2.2 * len(panels)), sharex=True, squeeze=False)
     for ax, (label, name) in zip(axes[:, 0], panels):
         steps, values = zip(*curves[name])

@@ -1,13 +1,14 @@
 """The policy artifacts as the batch evaluations run them, in jax: one artifact (ArtifactPolicy, the file the
 runtime runs, through common/observation.py) or the runtime's composite of two (CompositePolicy,
 `--policy GETUP,UPRIGHT`, the seed's chapter-6 baseline) or the keyframe getup's latched chain of three
-(ChainPolicy, `chain:ROLL,RISE,STAND`). Used by training/evaluate.py (getup) and
-training/evaluate_joystick.py (walking)."""
+(ChainPolicy, `chain:ROLL,RISE,STAND`). Used by training/evaluation/batch.py (getup) and
+training/evaluation/joystick.py (walking)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
 
+import jax.numpy as jnp
 import numpy as np
 
 from common import events
@@ -66,14 +67,12 @@ class ArtifactPolicy:
     def in_own_map(self, q_target):
         """Joint targets [rad] as this policy's action, clipped to its range (how a composite's idle member
         reads what the other applied)."""
-        import jax.numpy as jnp
         pose, scale = (jnp.asarray(self.manifest[k], jnp.float32) for k in ("default_pose", "action_scale"))
         return obsdef.targets_to_action(pose, scale, q_target, jnp)
 
     def act(self, params, obs_state: obsdef.ObservationState, body: dict):
         """One env's tick in jax: (action = the next tick's last action, joint targets [rad]); `body`, the env's
         body_readings (trunk and waist height [m], up_z), is for the policies that switch on them."""
-        import jax.numpy as jnp
         del body
         action = policy_action(self.manifest, params, obs_state)
         return action, obsdef.action_to_targets(jnp.asarray(self.manifest["default_pose"], jnp.float32),
@@ -128,7 +127,6 @@ class CompositePolicy:
         return np.zeros((2, obsdef.NUM_JOINTS), np.float32)     # [getup member's, upright member's]
 
     def act(self, params, obs_state: obsdef.ObservationState, body: dict):
-        import jax.numpy as jnp
         own = obs_state.last_action
         a_g, q_g = self.getup.act(params[0], obs_state._replace(last_action=own[..., 0, :]), body)
         a_u, q_u = self.upright.act(params[1], obs_state._replace(last_action=own[..., 1, :]), body)
@@ -186,12 +184,10 @@ class ChainPolicy:
 
     def next_stage(self, stage, obs_state: obsdef.ObservationState, body: dict):
         """The stage that acts this tick, from the one that acted the last (common/events.keyframe_stage)."""
-        import jax.numpy as jnp
         return events.keyframe_stage(stage, events.forward_z_from_quat(obs_state.imu_quat, jnp), body["trunk_height"],
                                      body["up_z"], jnp.linalg.norm(obs_state.gyro, axis=-1), jnp)
 
     def act(self, params, obs_state: obsdef.ObservationState, body: dict):
-        import jax.numpy as jnp
         own, stage = obs_state.last_action
         stage = self.next_stage(stage, obs_state, body)
         out = [m.act(p, obs_state._replace(last_action=own[..., i, :]), body)
@@ -211,7 +207,6 @@ def load_policy(spec) -> ArtifactPolicy | CompositePolicy | ChainPolicy:
 
 def policy_action(manifest: dict, params, obs_state: obsdef.ObservationState):
     """The artifact's per-tick computation in jax (common/observation.py with xp=jax.numpy)."""
-    import jax.numpy as jnp
     layers, mean, std = params
     obs = obsdef.build_observation(manifest["obs_terms"], obs_state, jnp)
     return obsdef.policy_forward(layers, obs, mean, std, manifest["activation"], manifest["output_rule"], xp=jnp)

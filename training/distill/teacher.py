@@ -4,17 +4,21 @@ keyframe getup's latched chain of three, both a switched_teacher.
 Stitched teacher (ARCHITECTURE.md, Training): the getup expert while the waist is below
 WAIST_SWITCH_HEIGHT_M, else the joystick expert. Waist height is privileged (state.info["waist_height"]);
 brax bc's teacher sees only observations, so distillation adds it to the observation dict under
-WAIST_OBS_KEY (training/distill.py); the student's network reads only "state".
+WAIST_OBS_KEY (training/distill/dagger.py); the student's network reads only "state".
 """
 from __future__ import annotations
 
 from typing import Sequence
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from common import events
 from common import observation as obsdef
 from messages.contract import WAIST_SWITCH_HEIGHT_M
+from training import envs
+from training.core import checkpoints
 from training.envs.experts import STUDENT_OBS_KEY, WAIST_OBS_KEY, Expert, TermAdapter, load_expert, per_joint
 
 STAGE_OBS_KEY = "keyframe_stage"   # the chain teacher's stage in the observation dict (the student never reads it)
@@ -27,7 +31,6 @@ class WaistObservation:
     read from the physics data (so it is right after an auto-reset, when info is still the old one)."""
 
     def __init__(self, wrapped, base_env):
-        import jax
         self._env, self._waist = wrapped, jax.vmap(base_env.waist_height)
 
     def __getattr__(self, name):
@@ -52,8 +55,6 @@ class KeyframeStageObservation:
     the physics data after each step; an episode's first stage is the start rule's, also after an auto-reset."""
 
     def __init__(self, wrapped, base_env):
-        import jax
-        import jax.numpy as jnp
         self._env = wrapped
 
         def stage_after(stage, data):
@@ -72,12 +73,10 @@ class KeyframeStageObservation:
         return state.replace(obs=obs)
 
     def reset(self, rng):
-        import jax.numpy as jnp
         state = self._env.reset(rng)
         return self._add(state, jnp.full(state.done.shape, events.KEYFRAME_START, jnp.int32))
 
     def step(self, state, action):
-        import jax.numpy as jnp
         stage = state.obs[STAGE_OBS_KEY][..., 0].astype(jnp.int32)
         inner_obs = {k: v for k, v in state.obs.items() if k != STAGE_OBS_KEY}
         nxt = self._env.step(state.replace(obs=inner_obs), action)
@@ -103,7 +102,6 @@ def switched_teacher(experts: Sequence[Expert], pick, student_terms: Sequence, s
     loc_student = label. A tanh-squashed student acts with tanh(loc): label = atanh(a_s). A student without
     squash (the seed's Table 5.2) acts with loc itself: label = a_s. (With atanh(a_s) it would execute
     atanh(a_s), e.g. 1.47 for a teacher's 0.9, overshooting every large getup target.)"""
-    import jax.numpy as jnp
     adapters = [TermAdapter(student_terms, e.obs_terms) for e in experts]
     s_student = per_joint(student_action_scale)
     ratios = [e.action_scale / s_student for e in experts]
@@ -190,9 +188,6 @@ def teacher_observation(roles: dict):
 def check_teacher(getup_path, joystick_path, num_envs: int = 16, seed: int = 0, steps: int = 50,
                   task: str = "getup") -> str:
     """Roll the stitched teacher out in the `task` env for `steps` control steps; a one-line summary."""
-    import jax
-    import jax.numpy as jnp
-    from training import checkpoints, envs
     checkpoints.jax_setup()
     getup, joystick = load_expert(getup_path, "getup"), load_expert(joystick_path, "joystick")
     overrides = {"fallen.bank_starts": CHECK_FALLEN_STARTS} if "fallen" in envs.default_config(task) else None

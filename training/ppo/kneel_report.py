@@ -8,7 +8,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from training import checkpoints
+from training.core import checkpoints
+from training.distill.finetune import bc_weight
+from training.envs.starts.demos import demo_seeds
+from training.evaluation.batch import kneel_figures
+from training.imitation.report import table
+from training.ppo.train import export_checkpoint
 
 ROWS = "report.json"
 REPORT = "report.md"
@@ -24,8 +29,6 @@ def report(run_dir, seeds: int = 200, seconds: float = 8.0, steps: list[int] | N
            mean: bool = False, log=print) -> list[dict]:
     """Evaluate the kept checkpoints of `run_dir` (or those at `steps`) missing from its report, and with `mean`
     the mean of their policies (export_checkpoint); returns the rows."""
-    from training.evaluate import kneel_figures
-    from training.train import export_checkpoint
     run_dir = Path(run_dir)
     state = checkpoints.load_run_state(run_dir)
     path = run_dir / ROWS
@@ -63,14 +66,12 @@ def seen_seeds(state: dict) -> frozenset[int]:
     seen = set(range(int(fallen["seed"]), int(fallen["seed"]) + int(fallen["bank_starts"])))
     demo = env.get("demo_starts", {})
     if float(demo.get("prob", 0.0)) > 0:
-        from training.envs.starts.demos import demo_seeds
         seen |= set(demo_seeds(checkpoints.repo_path(demo["folder"])))
     return frozenset(seen)
 
 
 def _bc_weight(state: dict, env_steps: int) -> float | None:
     """The BC term's weight at a checkpoint of a fine-tune from the imitation policy (None: no term)."""
-    from training.student_finetune import bc_weight
     t = state["ppo_config"].get("imitation", {})
     if not t.get("bc_weight"):
         return None
@@ -78,9 +79,8 @@ def _bc_weight(state: dict, env_steps: int) -> float | None:
 
 
 def markdown(state: dict, rows: list[dict]) -> str:
-    from training.imitation.report import table
     text = [f"# {state['name']}: stage 1 per checkpoint\n",
-            f"Started from `{state.get('init')}`; batch evaluation from fallen seeds (training/evaluate.py)."]
+            f"Started from `{state.get('init')}`; batch evaluation from fallen seeds (training/evaluation/batch.py)."]
     for seeds, seconds in sorted({(r["seeds"], r["seconds"]) for r in rows}):
         text += [f"\n## {seeds} fallen seeds × {seconds:g} s\n",
                  table([r for r in rows if (r["seeds"], r["seconds"]) == (seeds, seconds)], COLUMNS)]

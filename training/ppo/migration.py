@@ -20,7 +20,8 @@ from typing import Any, Callable, Mapping
 
 from ml_collections import config_dict
 
-from training.configs import ppo_config
+from training import envs
+from training.ppo.configs import ppo_config
 
 
 def _cost_scale(weight):
@@ -141,7 +142,7 @@ def migrate(saved: Mapping, default: config_dict.ConfigDict, what: str, source: 
     unknown = sorted(k for k in flat if k not in known and not any(k.startswith(p + ".") for p in known))
     if unknown:
         raise MigrationError(f"{source}: {what} keys {', '.join(unknown)} are not in today's schema (neither "
-                             "renamed nor removed: training/migration.py)")
+                             "renamed nor removed: training/ppo/migration.py)")
     merged = default.to_dict()
     for path, value in flat.items():   # plain dicts: a saved int where today's default is a float stays as run
         *parents, leaf = path.split(".")
@@ -170,7 +171,6 @@ def run_task(state: Mapping, source: str = "run state") -> str:
 
 def run_configs(state: Mapping, source: str = "run state") -> tuple[config_dict.ConfigDict, config_dict.ConfigDict]:
     """(ppo config, env config) of a saved PPO run (its run_state.json) in today's schema, for run_task's task."""
-    from training import envs
     task, split = run_task(state, source), SPLIT.get(_getup_stage(state, source), {})
     return (migrate(state["ppo_config"], ppo_config(task, state["preset"]), "ppo", source),
             migrate(state["env_config"], envs.default_config(task), "env", source, **split))

@@ -1,6 +1,6 @@
 """The seed's Table 4.3 (thesis §4.9): keyframe getup against the reward-only baseline, ours beside the seed's.
 
-Each metric is per episode, averaged over the seeded fallen starts (training/evaluate.py computes them; the
+Each metric is per episode, averaged over the seeded fallen starts (training/evaluation/batch.py computes them; the
 definitions are sim_hil/eval/metrics.py's effort_metrics, at the 2 ms physics step). The seed gives no
 definitions and ran IsaacGym on its own model, so absolute values need not agree; what can be compared is
 the direction: whether the keyframe policy is below or above the baseline in both studies. The ratio
@@ -15,9 +15,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from common.seed_figures import SEED_TABLE_4_3
+import numpy as np
 
-# summary key (training/evaluate.py) -> the seed's Table 4.3 row, in the seed's order
+from common.seed_figures import SEED_TABLE_4_3
+from training.core import plots
+
+# summary key (training/evaluation/batch.py) -> the seed's Table 4.3 row, in the seed's order
 SEED_METRIC = {"energy_J": "Average Energy Sum", "max_torque_Nm": "Average Max Torques",
                "max_joint_acc_radps2": "Average Max Joint Acceleration",
                "total_joint_acc_radps": "Total Joint Acceleration", "total_torque_Nms": "Total Torques",
@@ -52,10 +55,7 @@ def direction_rows(summaries: dict) -> list[str]:
 
 def plot_ratios(summaries: dict, png: Path) -> None:
     """Grouped bars of keyframe/baseline per metric, ours and the seed's; 1 = equal effort."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
+    plt = plots.pyplot()
     r = ratios(summaries)
     x = np.arange(len(r))
     fig, ax = plt.subplots(figsize=(10, 4.5))

@@ -4,6 +4,12 @@ from __future__ import annotations
 
 import functools
 
+import jax
+from brax.training import distribution
+from brax.training import networks
+from brax.training.agents.ppo import networks as brax_ppo_networks
+from brax.training.types import identity_observation_preprocessor
+
 from training.envs.policy_files import ACTIVATION  # noqa: F401 (the networks' activation, brax's default)
 
 
@@ -15,10 +21,7 @@ def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observ
     NormalTanhDistribution var_scale; make_ppo_networks does not pass it on). Only sampling and the PPO
     log-probabilities change: the parameters, checkpoints and exported means are brax's. Every keyword is
     named here so that brax's checkpoint network_config records it. policy_distribution "normal" (the student's
-    fine-tune, student_finetune.py): no tanh, a learned state-independent std starting at init_noise_std."""
-    from brax.training import distribution
-    from brax.training.agents.ppo import networks as brax_ppo_networks
-    from brax.training.types import identity_observation_preprocessor
+    fine-tune, distill/finetune.py): no tanh, a learned state-independent std starting at init_noise_std."""
     nets = brax_ppo_networks.make_ppo_networks(
         observation_size, action_size,
         preprocess_observations_fn=preprocess_observations_fn or identity_observation_preprocessor,
@@ -33,7 +36,7 @@ def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observ
 
 
 def network_factory(cfg):
-    """The run's network factory from its PPO config (training/train.py ppo_config)."""
+    """The run's network factory from its PPO config (training/ppo/train.py ppo_config)."""
     return functools.partial(
         ppo_networks_with_std_scale,
         policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),
@@ -46,8 +49,6 @@ def network_factory(cfg):
 def frozen_policy_factory(factory):
     """The same networks, with no gradient into the policy's parameters: PPO's loss then trains only the
     critic (value warm-up). Sampling, checkpoints and exports are unchanged."""
-    import jax
-    from brax.training import networks
 
     def make(*args, **kwargs):
         nets = factory(*args, **kwargs)

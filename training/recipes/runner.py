@@ -15,12 +15,25 @@ import shutil
 import time
 from pathlib import Path
 
-from training import checkpoints, kneel_report, recipe as R
+from common.artifact import read_artifact
+from training.core import checkpoints
+from training.core.backend import default_backend
+from training.distill import dagger as distill
+from training.distill.finetune import LEARNER_KEYS
+from training.envs import starts
+from training.export import untrained
+from training.export.brax import ship_artifact
 from training.imitation import config as imitation_config
+from training.imitation import campaign as imitation
+from training.imitation.finetune import LEARNER_KEYS as IMITATION_KEYS
+from training.ppo import kneel_report
+from training.ppo import migration
+from training.ppo import train
+from training.recipes import base as R
 
 RUNS_ROOT = checkpoints.REPO_ROOT / "runs"
 CAMPAIGNS_ROOT = checkpoints.REPO_ROOT / "training" / "campaigns"
-DISTILL_STATE = "distill_state.json"   # = training.distill.STATE_FILE (not imported: it brings JAX along)
+DISTILL_STATE = distill.STATE_FILE
 CURVE_FILES = ("metrics.csv", "learning_curve.png")
 REPORT_FILES = (kneel_report.REPORT, kneel_report.ROWS)   # a run's figures per checkpoint beside its curve
 TOY_PPO_STEPS = 80        # one toy PPO update: 8 envs × 5 unroll × 2 minibatches
@@ -180,11 +193,9 @@ def ended_artifact(run_dir: Path, recipe: R.Recipe, stage: R.Stage) -> Path:
         return path
     if not path.exists():    # a campaign restored without its export: the newest checkpoint's, for the manifest
         path = export_newest(run_dir)
-    from common.artifact import read_artifact
     if path.exists() and int(read_artifact(path)[3]["provenance"]["steps"]) == int(ended.name):
         return path
-    from training.train import export_checkpoint
-    return export_checkpoint(run_dir, int(ended.name), artifact_name(recipe, stage), like=path)
+    return train.export_checkpoint(run_dir, int(ended.name), artifact_name(recipe, stage), like=path)
 
 
 def _policy_path(policy: str, recipe: R.Recipe, root: Path) -> Path:
@@ -199,8 +210,6 @@ def export_newest(run_dir) -> Path:
     """A run's newest kept checkpoint → its export (run_dir/<name>.safetensors), as the run's end exports it: what a
     campaign restored on another machine (checkpoint and run state only) exports when a later stage reads it. The
     manifest's env fields come from the run's env without its start banks (they do not depend on them)."""
-    from training import migration, train
-    from training.envs import starts      # the envs package brings JAX along: only when exporting
     run_dir = Path(run_dir)
     state = checkpoints.load_run_state(run_dir)
     ppo_cfg, env_cfg = migration.run_configs(state, str(run_dir / checkpoints.RUN_STATE))
@@ -241,9 +250,6 @@ def _overrides(config: dict, toy: bool) -> list[str]:
     (what the learner is, the fine-tune's LEARNER_KEYS, stays the stage's) and the start banks are small."""
     if not toy:
         return [f"{k}={v!r}" for k, v in config.items()]
-    from training.envs import starts
-    from training.imitation.finetune import LEARNER_KEYS as IMITATION_KEYS
-    from training.student_finetune import LEARNER_KEYS
     banked = tuple(f"env.{s.group}" for s in starts.SOURCES if {"prob", "bank_starts"} <= set(s.functions()[0]()))
     out = [f"{k}={TOY_BANK_STARTS if k.endswith('.bank_starts') else v!r}" for k, v in config.items()
            if (k.startswith(LEARNER_KEYS + IMITATION_KEYS) or not k.startswith(("ppo.", "bc.")))
@@ -288,7 +294,6 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
     final = recipe.stages[-1]
     complete = stage_complete(root, recipe, final)
     if complete and ship:
-        from training.export import ship_artifact
         artifact = ended_artifact(stage_dirs(root, recipe, final)[-1], recipe, final)
         print(f"recipe {name}: shipped {ship_artifact(artifact, {'task': f'recipe {name}'})}")
     return complete
@@ -304,12 +309,11 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
     # a toy stage's landing banks roll the policies its config names, which must be trained experts (a toy
     # one never rises or falls as a bank needs): there a reference stands for that recipe's shipped policy
     config = {k: resolve_ref(v, root, shipped=toy) for k, v in s.config.items()}
-    if s.kind == "ppo":   # a PPO stage's teacher is its behaviour-cloning term's (training/student_finetune.py)
+    if s.kind == "ppo":   # a PPO stage's teacher is its behaviour-cloning term's (training/distill/finetune.py)
         config.update({f"ppo.teacher.{k}": resolve_ref(v, root) for k, v in s.teacher.items()})
     overrides = _overrides(config, toy)
     name = artifact_name(recipe, s)
     if s.kind == "random_init":
-        from training import untrained
         out = root / recipe.name / s.name
         out.mkdir(parents=True, exist_ok=True)
         untrained.main([str(out / f"{name}.safetensors")])
@@ -319,12 +323,11 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
                     max_minutes=max_minutes)
         return
     if s.kind == "ppo":
-        from training import train
         out = root / recipe.name / s.name
         again = bool(dirs) and (out / checkpoints.RUN_STATE).exists()
         if again and not resume:
             raise FileExistsError(f"{out} holds an unfinished run of stage {s.name}: pass --resume to go on")
-        preset = "toy" if toy else ("gpu" if (backend or train.default_backend()) == "mjx" else "cpu")
+        preset = "toy" if toy else ("gpu" if (backend or default_backend()) == "mjx" else "cpu")
         steps, ends = s.steps, s.end_at
         if toy:
             steps, ends = TOY_END_AT_STEPS if s.end_at is not None else (TOY_PPO_STEPS, None)
@@ -336,7 +339,6 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         if s.end_at is not None and stage_complete(root, recipe, s):
             ended_artifact(out, recipe, s)
         return
-    from training import distill
     teacher = {k: resolve_ref(v, root) for k, v in s.teacher.items()}
     phases = 0 if toy else int(s.steps)
     if dirs:   # a stopped DAgger stage goes on from its newest checkpoint into the next directory
@@ -364,7 +366,6 @@ def _run_rounds(recipe: R.Recipe, s: R.Stage, root: Path, overrides: list[str], 
     """An imitation stage's rounds into its campaign folder. With a policy or a lying side, one call per round
     (each call's first round is the one `--policy` rolls out and `--lying` starts: each of the stage's rounds
     is rolled out by that policy and refitted from it)."""
-    from training import imitation
     folder = root / recipe.name / recipe.campaign_stage(s).name
     last = recipe.rounds_through(s)
     first = last - int(s.steps)

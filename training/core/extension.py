@@ -1,11 +1,13 @@
 """What a PPO run may add to brax's PPO, as one narrow interface: its first params, the env wrapper brax trains
-through, fields of the run state and an extra loss term. The trainer (train.py) knows only this; plain PPO is the
-base class, the student's fine-tune (student_finetune.py) and RL from the imitation policy (imitation/finetune.py) its
+through, fields of the run state and an extra loss term. The trainer (ppo/train.py) knows only this; plain PPO is the
+base class, the student's fine-tune (distill/finetune.py) and RL from the imitation policy (imitation/finetune.py) its
 extensions."""
 from __future__ import annotations
 
 import contextlib
 import functools
+
+from mujoco_playground import wrapper
 
 
 class PPOExtension:
@@ -25,7 +27,6 @@ class PPOExtension:
     def wrap_env_fn(self, env, full_reset: bool):
         """brax's wrap_env_fn: Playground's training wrapper."""
         del env
-        from mujoco_playground import wrapper
         return functools.partial(wrapper.wrap_for_brax_training, full_reset=full_reset)
 
     def loss_term(self, env, state: dict):

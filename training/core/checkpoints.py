@@ -4,7 +4,7 @@ A run directory (`--out DIR`) holds:
     run_state.json        task, configs, target and done env steps, list of checkpoints, command history
     checkpoints/<step>/   orbax checkpoints written by brax's `training.checkpoint.save` (params tuple:
                           normalizer, policy[, value]) with the network config beside them
-    metrics.csv, tensorboard/, learning_curve.png     (training/curves.py)
+    metrics.csv, tensorboard/, learning_curve.png     (training/core/curves.py)
     <name>.safetensors    the exported policy (policies/ARTIFACT.md)
 
 `--resume` reads run_state.json, restores the newest checkpoint and continues the env-step count from
@@ -20,11 +20,14 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+import jax
+from brax.training import checkpoint as brax_checkpoint
+
 # the reading side of the layout, below the envs (their start banks read policies too); part of this module's API
 from training.envs.policy_files import (  # noqa: F401
     CHECKPOINT_DIR, RUN_STATE, list_checkpoints, load_checkpoint, resolve_checkpoint)
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = Path(__file__).resolve().parents[2]
 KEEP_CHECKPOINTS = 3  # older ones are deleted: each T1 PPO checkpoint is a few MB, GPU disks are small
 STEP_DIGITS = 12      # brax names checkpoint folders f"{step:012d}"
 
@@ -48,7 +51,6 @@ def jax_setup() -> None:
     bc.train call builds fresh closures, so without it each --resume call (and each test) recompiles
     the MJX step for minutes. (2) brax 0.14.2 calls jax.device_put_replicated, removed from jax's
     namespace in 0.10 (the function itself is still in jax._src.api); put it back."""
-    import jax
     cache = os.environ.get("T1_JAX_CACHE", str(REPO_ROOT / "build" / "jax_cache"))
     if cache and jax.config.jax_compilation_cache_dir is None:
         jax.config.update("jax_compilation_cache_dir", cache)
@@ -56,7 +58,7 @@ def jax_setup() -> None:
     try:
         jax.device_put_replicated  # noqa: B018 (probe)
     except AttributeError:
-        from jax._src import api
+        from jax._src import api   # only on a jax without it (its private home; the public name is gone)
         jax.device_put_replicated = api.device_put_replicated
 
 
@@ -79,7 +81,6 @@ def save_run_state(run_dir, state: dict[str, Any]) -> None:
 def save_checkpoint(run_dir, env_steps: int, params, network_config, end_at: int | None = None) -> Path:
     """Write params at `env_steps` (total over all resumes) and prune to the newest KEEP_CHECKPOINTS; the
     checkpoint a run ends at (end_checkpoint of `end_at`) is kept however far the run goes."""
-    from brax.training import checkpoint as brax_checkpoint
     root = Path(run_dir) / CHECKPOINT_DIR
     brax_checkpoint.save(root, int(env_steps), tuple(params), network_config, "network_config.json")
     keep = end_checkpoint(run_dir, end_at) if end_at is not None else None
@@ -142,7 +143,6 @@ def git_commit() -> str:
 
 
 def device_description() -> str:
-    import jax
     device = jax.devices()[0]
     return f"{device.platform}:{getattr(device, 'device_kind', 'unknown')} x{jax.device_count()}"
 

@@ -2,7 +2,7 @@
 the student's shape (82 → 512 → 256 → 128 → 2·23, swish, tanh_normal) with seeded random-init weights and
 an identity normaliser, manifest `trained: false`, so every report and the demo can say it is untrained.
 
-    python -m training.untrained policies/student_untrained/student_untrained.safetensors
+    python -m training.export.untrained policies/student_untrained/student_untrained.safetensors
 """
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ def main(argv=None) -> None:
     size = obsdef.observation_size(obsdef.TERMS_UNION)
     manifest = base_manifest(name="student_untrained", trained=False, provenance={
         "git_commit": _git_commit(), "steps": 0, "date": date.today().isoformat(),
-        "command": f"python -m training.untrained {args.out}  (random init, seed {SEED}: NOT TRAINED)"})
+        "command": f"python -m training.export.untrained {args.out}  (random init, seed {SEED}: NOT TRAINED)"})
     digest = write_artifact(args.out, layers, np.zeros(size, np.float32), np.ones(size, np.float32), manifest)
     print(f"wrote {args.out} (untrained, content_hash {digest[:12]})")
 

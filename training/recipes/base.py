@@ -142,9 +142,14 @@ def _module_file(name: str) -> Path:
     return Path(importlib.import_module(f"training.recipes.{name}").__file__)
 
 
+# the recipes package's modules that are no recipe: this file and the runner
+NOT_RECIPES = ("base", "runner")
+
+
 def names() -> list[str]:
-    from training import recipes
-    return sorted(m.name for m in pkgutil.iter_modules(recipes.__path__) if not m.name.startswith("_"))
+    """The recipes: every module of training/recipes/ but NOT_RECIPES."""
+    return sorted(m.name for m in pkgutil.iter_modules([str(Path(__file__).parent)])
+                  if not m.name.startswith("_") and m.name not in NOT_RECIPES)
 
 
 def load(name: str) -> Recipe:

@@ -1,6 +1,6 @@
 """The getup evaluation's rollout on the CPU backend (MuJoCo C), the same series as evaluate.make_rollout.
 
-evaluate.py's MJX rollout aggregates per physics substep inside one jitted scan. Here the C batch steps one
+evaluation/batch.py's MJX rollout aggregates per physics substep inside one jitted scan. Here the C batch steps one
 substep per call (firmware_like's motor step as MuJoCo's control callback, as in training), the policy runs
 jitted once per control tick, and the host aggregates exactly what the MJX rollout does:
   energy Σ|τ·q̇₀|·dt_sim [J] (q̇₀: joint velocity at the substep's start, τ: the torque applied over it) and
@@ -12,11 +12,14 @@ a tick are those of its last substep's start, as mjx.Data's are after mjx.step.
 """
 from __future__ import annotations
 
+import jax
+import jax.numpy as jnp
 import mujoco
 import numpy as np
 
 from common import events
 from common import observation as obsdef
+from training.envs.cpu_backend import HostData
 
 
 def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int, keep_qpos: bool = False,
@@ -28,9 +31,6 @@ def cpu_rollout(env, policy, qpos: np.ndarray, qvel: np.ndarray, num_ticks: int,
     or render the rollout afterwards). target_noise_rad > 0: every joint target of every tick gets N(0, σ²) [rad]
     (seeded by noise_seed) before the supervisor's rules, as a PPO policy's sampled actions move them: whether a
     behaviour survives the training rollouts' noise."""
-    import jax
-    import jax.numpy as jnp
-    from training.envs.cpu_backend import HostData
 
     physics = env.cpu_physics
     m = physics.model

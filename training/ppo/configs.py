@@ -1,19 +1,17 @@
 """A run's configs: the PPO presets (`ppo_config`) and the env's (`envs.default_config`), with `--config
-key=value` applied (`build_configs`). A saved run's configs come back through training/migration.py."""
+key=value` applied (`build_configs`). A saved run's configs come back through training/ppo/migration.py."""
 from __future__ import annotations
 
 from typing import Sequence
 
 from ml_collections import config_dict
 
-from training import student_finetune
+from training import envs
+from training.core.overrides import TOY_ENV_OVERRIDES, apply_overrides
+from training.distill import finetune as student_finetune
 from training.imitation import config as imitation
-from training.overrides import apply_overrides
 
 PRESETS = ("gpu", "cpu", "toy")
-# Env settings of the toy preset (applied where the task's config has the key): 0.4 s episodes and a
-# small bank of host-precomputed fallen starts.
-TOY_ENV_OVERRIDES = {"episode_length": 20, "fallen.bank_starts": 2}
 
 
 def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
@@ -40,7 +38,7 @@ def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
         # first policy updates do not follow its errors (the full getup task from stage 2's policy)
         value_warmup_steps=0,
         # "normal" = a Gaussian around the mean the policy acts with (no tanh), std starting at init_noise_std
-        # [action units]: the student's fine-tune (ppo_networks.py)
+        # [action units]: the student's fine-tune (core/networks.py)
         policy_distribution="tanh_normal", init_noise_std=0.1,
         teacher=student_finetune.teacher_config(),   # the fine-tune's BC term (its extension's own group)
         imitation=imitation.finetune_config(),       # RL from the imitation policy: its BC term's data
@@ -75,7 +73,6 @@ def ppo_config(task: str, preset: str = "gpu") -> config_dict.ConfigDict:
 
 def build_configs(task: str, preset: str, overrides: Sequence[str]):
     """(ppo config, env config) with --config key=value applied."""
-    from training import envs
     if task not in envs.TASKS:
         raise ValueError(f"task: {task!r} is not one of {envs.TASKS}")
     ppo_cfg, env_cfg = ppo_config(task, preset), envs.default_config(task)

@@ -10,13 +10,13 @@ import numpy as np
 
 from common.artifact import read_artifact, write_artifact
 from common.golden import base_manifest
-from training import checkpoints
+from training.core import checkpoints
 from training.envs import sagittal
 from training.envs.policy_files import brax_policy_layers
 
 
 # ---------------------------------------------------------------- brax PPO
-NORMAL = "normal"   # ppo.policy_distribution of a fine-tuned student (training/student_finetune.py)
+NORMAL = "normal"   # ppo.policy_distribution of a fine-tuned student (training/distill/finetune.py)
 
 
 def student_layers(policy) -> dict:
@@ -32,7 +32,7 @@ def student_layers(policy) -> dict:
 def exported_policy(policy, ppo_config, env_config) -> tuple[dict, str]:
     """(policy params as the artifact's MLP, output rule) of a PPO run's policy: a fine-tuned student acts with
     its mean (`linear`), any other PPO policy is brax's tanh-normal (a sagittal one expanded to the 23 joints).
-    env_config: the run's in today's schema (training/migration.py)."""
+    env_config: the run's in today's schema (training/ppo/migration.py)."""
     if ppo_config["policy_distribution"] == NORMAL:
         return student_layers(policy), "linear"
     if env_config["action_space"] == "sagittal":

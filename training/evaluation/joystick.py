@@ -22,9 +22,15 @@ import csv
 import math
 from pathlib import Path
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
-from training.artifact_policy import ArtifactPolicy, policy_action
+from common.events import getup_events
+from training import envs
+from training.core import checkpoints
+from training.core.backend import default_backend
+from training.evaluation.artifact_policy import ArtifactPolicy, policy_action
 
 SETTLE_S = 1.0  # [s] after a command change before "settled" tracking is counted
 STEP_RESPONSE_S = (0.0, 0.2, 0.4, 0.6, 1.0, 2.0)   # times after a mid-episode command change [s]
@@ -34,7 +40,6 @@ TARGETS = {"fall_rate": 0.05, "rms_lin_vel_mps": 0.15, "rms_yaw_rate_radps": 0.2
 
 def eval_env(backend: str = "mjx"):
     """The joystick env as evaluated: no noise, no pushes, flat ground (its only terrain)."""
-    from training import envs
     cfg = envs.default_config("joystick")
     cfg.noise.level = 0.0
     cfg.push.enable = False
@@ -44,8 +49,6 @@ def eval_env(backend: str = "mjx"):
 
 def make_rollout(env, policy: ArtifactPolicy, num_ticks: int):
     """jitted (params, rngs [N, 2]) → per-tick series (N, T) of the readings the metrics need."""
-    import jax
-    import jax.numpy as jnp
 
     def tick(state, params):
         action = policy_action(policy.manifest, params, _clean_obs_state(env, state))
@@ -69,7 +72,6 @@ def _clean_obs_state(env, state):
 
 def episode_rows(series: dict, ctrl_dt: float) -> list[dict]:
     """Per-episode fall flag and squared-error sums (numpy; split out for tests on synthetic series)."""
-    from common.events import getup_events
     cmd, vel = np.asarray(series["cmd"]), np.asarray(series["vel"])      # (N, T, 3)
     n, t_len = cmd.shape[:2]
     t = (np.arange(t_len) + 1) * ctrl_dt
@@ -181,12 +183,9 @@ def markdown_report(policy: ArtifactPolicy, summary: dict, meta: dict, yaw_bins:
 def evaluate(policy_path, out, episodes: int = 256, seconds: float = 20.0, first_seed: int = 0,
              command: str = "", backend: str | None = None) -> Path:
     """Run the evaluation; returns the path of report.md."""
-    import jax
-    from training import checkpoints
     checkpoints.jax_setup()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    from training.train import default_backend
     env = eval_env(backend or default_backend())
     policy = ArtifactPolicy.load(policy_path)
     policy.check_env(env)

@@ -1,4 +1,4 @@
-"""Student distillation: brax `bc` online DAgger from the stitched teacher (training/teacher.py).
+"""Student distillation: brax `bc` online DAgger from the stitched teacher (training/distill/teacher.py).
 
 Defaults are the seed's Table 5.2 and Algorithm 1: 1024 envs, demo length 6, β 1 → 0 as a step function
 (the teacher's action is executed in the first DAgger phase only, `jp.where(step == 0, 1, 0)`), batch 256,
@@ -24,12 +24,27 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
+import jax
+import jax.numpy as jnp
 import numpy as np
+import tqdm
+from brax.training.agents.bc import networks as bc_networks
+from brax.training.agents.bc import train as bc
 from ml_collections import config_dict
+from mujoco_playground import wrapper
 
-from training import checkpoints, curves
 from common import observation as obsdef
-from training.teacher import STITCHED, STUDENT_OBS_KEY, load_teacher, teacher_kind, teacher_observation
+from common.artifact import read_artifact
+from training import envs
+from training.core import checkpoints
+from training.core import curves
+from training.core.backend import default_backend
+from training.core.networks import ACTIVATION
+from training.core.overrides import apply_overrides
+from training.core.overrides import TOY_ENV_OVERRIDES
+from training.distill.teacher import STITCHED, STUDENT_OBS_KEY, load_teacher, teacher_kind, teacher_observation
+from training.export.brax import export_brax_ppo
+from training.export.brax import ship_artifact
 
 DEFAULT_TASK = "unified"  # the whole walk–fall–getup task (training/envs/unified.py); cli.py repeats it
 
@@ -103,7 +118,6 @@ def beta_schedule(teacher_phases: int, floor: float = 0.0, decay_phases: int = 0
     DAgger phases, then falling linearly to `floor` over `decay_phases` (the seed's Algorithm 1: teacher_phases
     1, floor 0, no decay). Brax's bc learns from the newest phase only: a floor keeps the states the teacher
     reaches (standing, the kneel) in every phase, where a student that falls early would otherwise forget them."""
-    import jax.numpy as jnp
     if not 0.0 <= floor <= 1.0:
         raise ValueError(f"beta_floor: {floor} is not a probability in [0, 1]")
     if decay_phases < 0:
@@ -127,8 +141,6 @@ def loc_half(policy_params) -> dict:
 
 def export_student(params, env, path, name: str, tanh_squash: bool, trained: bool, provenance: dict) -> str:
     """brax bc (normalizer, policy) → artifact; returns the output rule written."""
-    from training.export import export_brax_ppo
-    from training.ppo_networks import ACTIVATION
     policy = params[1]
     output_rule = "tanh_normal"
     if not tanh_squash:  # act = loc
@@ -144,13 +156,10 @@ def dagger_configs(task: str, preset: str, overrides: Sequence[str], num_envs: i
     """(bc config, env config) of a DAgger run: the env with the student's full term layout (union_terms; else
     the task's own: the chain's student is a getup policy), the toy preset's env sizes, --config applied; the
     batch shape checked."""
-    from training import envs
-    from training.overrides import apply_overrides
     cfg, env_cfg = bc_config(preset), envs.default_config(task)
     if union_terms:
         env_cfg.obs_terms = [list(t) for t in obsdef.TERMS_UNION]
     if preset == "toy":
-        from training.configs import TOY_ENV_OVERRIDES
         env_cfg.update({k: v for k, v in TOY_ENV_OVERRIDES.items() if k in env_cfg})
     apply_overrides({"bc": cfg, "env": env_cfg}, overrides)
     if num_envs is not None:
@@ -166,7 +175,6 @@ def dagger_configs(task: str, preset: str, overrides: Sequence[str], num_envs: i
 
 def _newest_params(run_dir: Path, params):
     """(params as numpy, phases done): bc.train's, or after a stop the newest checkpoint's."""
-    import jax
     done = checkpoints.list_checkpoints(run_dir)
     if params is None:
         if not done:
@@ -178,8 +186,6 @@ def _newest_params(run_dir: Path, params):
 def _dagger_env(task: str, env_cfg, teacher: dict):
     """(env, the env brax bc trains in: Playground's wrapper with what the teacher switches on in the observation:
     the waist height, or the chain's stage)."""
-    from mujoco_playground import wrapper
-    from training import envs
     env = envs.make(task, config=env_cfg)
     wrapped = wrapper.wrap_for_brax_training(env, episode_length=int(env_cfg.episode_length), full_reset=True)
     return env, teacher_observation(teacher)(wrapped, env)
@@ -206,8 +212,6 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
     and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
     continue from that run's (STATE_FILE), so a campaign goes on across sessions."""
-    import tqdm
-    from brax.training.agents.bc import networks as bc_networks
 
     checkpoints.jax_setup()
     t_start = time.monotonic()
@@ -219,7 +223,6 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     run_dir.mkdir(parents=True, exist_ok=True)
     cfg, env_cfg = dagger_configs(task, preset, overrides, num_envs, union_terms=teacher_kind(teacher) == STITCHED)
 
-    from training.train import default_backend
     env_cfg.backend = backend or default_backend()
     env, wrapped = _dagger_env(task, env_cfg, teacher)
     teacher_fn = load_teacher(teacher, env.obs_terms, env.manifest_fields()["action_scale"], cfg.tanh_squash)
@@ -261,7 +264,6 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
                  minutes=provenance["minutes"], stopped_by_max_minutes=stopped, finished=True)
     rule = export_student(params, env, artifact, name, cfg.tanh_squash, trained, provenance)
     if ship and not stopped:
-        from training.export import ship_artifact
         ship_artifact(artifact, {"task": f"distill ({task} env)"})
     return DistillResult(run_dir, artifact, phases, rule, minutes)
 
@@ -270,7 +272,6 @@ def _train_bc(cfg, env, teacher, network_factory, progress_fn, seed: int, episod
               restore) -> tuple[object, bool]:
     """brax bc's DAgger loop with the run's settings, checkpointing under `ckpt_root`, from `restore` (a
     checkpoint or None); (its params, or None when --max-minutes stopped it, and whether it was stopped)."""
-    from brax.training.agents.bc import train as bc
     try:
         _, params, _ = bc.train(
             demo_length=cfg.demo_length, teacher_inference_fn=teacher,
@@ -293,8 +294,6 @@ def export_phase(run_dir, phase: int, name: str, like=None) -> Path:
     seed's DAgger-400 / DAgger-1000 students of Fig. 5.1 as checkpoints of one longer run. (Not the same as
     a run of that length: brax bc resets the envs at each evaluation, every dagger_steps / (num_evals − 1)
     phases, so a shorter run resets more often.)"""
-    from common.artifact import read_artifact
-    from training.export import export_brax_ppo
     run_dir = Path(run_dir)
     ckpt = checkpoints.kept_checkpoint(run_dir, phase, f"phase {phase}")
     at = prior_progress(ckpt)    # the campaign's phases and env steps at this checkpoint

@@ -1,13 +1,14 @@
-"""Which PPOExtension (ppo_extension.py) a run gets, and what it starts from: RL from the imitation policy
+"""Which PPOExtension (core/extension.py) a run gets, and what it starts from: RL from the imitation policy
 (imitation/finetune.py) where its config or its start (a DAgger learner's artifact) asks for it, the student's
-fine-tune (student_finetune.py) where its config or checkpoint does, else plain PPO."""
+fine-tune (distill/finetune.py) where its config or checkpoint does, else plain PPO."""
 from __future__ import annotations
 
 from pathlib import Path
 
-from training import checkpoints, student_finetune
+from training.core import checkpoints
+from training.core.extension import PPOExtension
+from training.distill import finetune as student_finetune
 from training.imitation import finetune
-from training.ppo_extension import PPOExtension
 
 is_artifact = finetune.is_artifact
 

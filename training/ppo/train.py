@@ -1,7 +1,7 @@
 """PPO training runs (brax ppo.train on the MJX envs of training/envs), resumable and time-boxed.
 
     python -m training train joystick --steps 200_000_000 --out runs/joystick --max-minutes 9 [--resume]
-(a policy that ships comes from a recipe: `python -m training recipe NAME`, training/recipe_runner.py)
+(a policy that ships comes from a recipe: `python -m training recipe NAME`, training/recipes/runner.py)
 
 One call trains until the target env-step count or until --max-minutes would be overrun by the next
 epoch, checkpointing after every epoch (brax's `policy_params_fn` hook: params arrive on the host there,
@@ -16,15 +16,26 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
+import jax
+import numpy as np
+import tqdm
+from brax.training import checkpoint as brax_checkpoint
+from brax.training.agents.ppo import train as ppo
 from ml_collections import config_dict
 
 from common.artifact import read_artifact
-from training import checkpoints, curves, extensions, migration, ppo_networks
-from training.configs import build_configs
-from training import export
-from training.export import export_brax_ppo, exported_as_trained, exported_policy, run_provenance
-from training.overrides import apply_overrides
-from training.ppo_networks import ACTIVATION
+from training import envs
+from training.core import checkpoints
+from training.core import curves
+from training.core import networks as ppo_networks
+from training.core.backend import default_backend
+from training.core.networks import ACTIVATION
+from training.core.overrides import apply_overrides
+from training.export import brax as export
+from training.export.brax import export_brax_ppo, exported_as_trained, exported_policy, run_provenance
+from training.ppo import extensions
+from training.ppo import migration
+from training.ppo.configs import build_configs
 
 @dataclass
 class TrainResult:
@@ -54,23 +65,14 @@ def _randomization(cfg, env=None, seed: int = 0):
     (the same function, applied on the host) and brax gets None."""
     if env is not None and getattr(env, "backend", "mjx") == "cpu":
         if cfg.domain_randomization:
-            from training import envs
             env.randomize_on_host(envs.domain_randomize, seed)
         return None
     if not cfg.domain_randomization:
         return None
-    from training import envs
     return envs.domain_randomize
 
 
-def default_backend() -> str:
-    """mjx where JAX sees a GPU, else the CPU backend (MuJoCo C on all cores)."""
-    import jax
-    return "mjx" if any(d.platform == "gpu" for d in jax.devices()) else "cpu"
-
-
 def make_env(task: str, env_cfg: config_dict.ConfigDict):
-    from training import envs
     if task not in envs.TASKS:
         raise ValueError(f"task: {task!r} is not one of {envs.TASKS}")
     return envs.make(task, config=env_cfg)
@@ -174,7 +176,6 @@ class _Epochs:
     state after every epoch (a call killed mid-run still says what made it), and the --max-minutes stop."""
 
     def __init__(self, run: _Run, env, net_cfg, command: str, max_minutes, progress: bool, t_start: float):
-        import tqdm
         self.run, self.net_cfg, self.max_minutes, self.t_start = run, net_cfg, max_minutes, t_start
         self.offset = int(run.state["env_steps"])
         self.phase_offset = self.offset   # env steps before the running ppo.train call (which counts from 0)
@@ -243,7 +244,6 @@ class _Epochs:
 
 def _run_ppo(run: _Run, env, epochs: _Epochs, num_steps: int, network_factory, seed: int) -> None:
     """One brax ppo.train call of num_steps from the newest params (the warm-up and PPO proper are one each)."""
-    from brax.training.agents.ppo import train as ppo
     cfg, latest = run.ppo_cfg, epochs.latest
     epochs.phase_offset = latest["steps"]
     ppo.train(
@@ -268,7 +268,6 @@ def _run_ppo(run: _Run, env, epochs: _Epochs, num_steps: int, network_factory, s
 def _train_phases(run: _Run, env, epochs: _Epochs, seed: int) -> bool:
     """The critic-only warm-up, then PPO proper, inside the extension's loss term; True when --max-minutes
     stopped the call."""
-    from brax.training import checkpoint as brax_checkpoint
     factory = ppo_networks.network_factory(run.ppo_cfg)
     epochs.net_cfg = brax_checkpoint.network_config(
         observation_size={k: tuple(v) for k, v in env.observation_size.items()},
@@ -295,7 +294,7 @@ def train(task: str, out, steps: int | None = None, num_envs: int | None = None,
           backend: str | None = None, recipe: dict | None = None,
           advance_at: tuple[str, float] | None = None, end_at: int | None = None) -> TrainResult:
     """One PPO run (or a call that resumes one). `recipe` ({"name", "stage", "sha256"}) is recorded in the run
-    state and the artifact's provenance when a recipe runs it (training/recipe_runner.py). `advance_at`
+    state and the artifact's provenance when a recipe runs it (training/recipes/runner.py). `advance_at`
     (metric, value): the run is complete at the first evaluation with the metric at or above the value (a
     backplay stage ends once success from its starts has risen). `end_at` (env steps): the run is complete at
     its first checkpoint at or after it (kept whatever follows), trained on the schedule of its target steps."""
@@ -369,8 +368,6 @@ def export_checkpoint(run_dir, env_steps, name: str, like=None) -> Path:
     steps. A campaign screens its checkpoints and keeps the best one (e.g. the cheapest getup that still stands).
     Several env_steps: the mean of their policies' parameters (weight averaging along the run, which smooths the
     update-to-update noise of a policy whose success flips on small changes), the newest's normaliser."""
-    import jax
-    import numpy as np
     run_dir = Path(run_dir)
     steps = sorted(int(n) for n in np.atleast_1d(env_steps))
     state = checkpoints.load_run_state(run_dir)

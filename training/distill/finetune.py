@@ -3,12 +3,12 @@ own outcomes): PPO on the unified env's "skills" reward (training/envs/unified.p
 DAgger weights, plus a behaviour-cloning term toward the stitched teacher's labels that decays, so the student
 keeps both skills while PPO changes what the teacher does badly (the seam at the waist switch).
 
-Policy. The student acts with its mean (output rule `linear`, no tanh squash: distill.py), so PPO samples
+Policy. The student acts with its mean (output rule `linear`, no tanh squash: distill/dagger.py), so PPO samples
 around it with brax's "normal" distribution, a state-independent learned std (ppo.init_noise_std at the
 start, in action units: 2 rad per unit on most joints). The DAgger net's hidden layers become the PPO policy's
-MLP and its last layer's loc half the mean layer; the critic starts fresh (ppo.value_warmup_steps: train.py).
+MLP and its last layer's loc half the mean layer; the critic starts fresh (ppo.value_warmup_steps: ppo/train.py).
 BC term, added to brax's PPO loss:
-    mean over the batch of w_i(n) · Σ_joints (tanh(μ) − tanh(label))²      (brax bc's own loss, distill.py)
+    mean over the batch of w_i(n) · Σ_joints (tanh(μ) − tanh(label))²      (brax bc's own loss, distill/dagger.py)
     w_i(n) = teacher.bc_weight · max(0, 1 − n / teacher.bc_decay_steps)
 with n the env steps of this fine-tune, read from the observation normaliser's sample count (one sample per
 env step; the only step counter brax hands its loss) minus the count it started from (the run state's
@@ -17,29 +17,33 @@ env step; the only step counter brax hands its loss) minus the count it started 
 while PPO alone learns to balance in front of it (training/LESSONS.md). They are told apart by the unified
 env's "wall_course" metric, which brax hands the loss summed over the episode so far.
 The teacher reads what it switches on (the privileged waist height, or the keyframe chain's stage): the env is
-wrapped in training/teacher.py's teacher_observation.
-The trainer reaches all this through one PPOExtension (ppo_extension.py): `extension(ppo_cfg, restored)`.
+wrapped in training/distill/teacher.py's teacher_observation.
+The trainer reaches all this through one PPOExtension (core/extension.py): `extension(ppo_cfg, restored)`.
 """
 from __future__ import annotations
 
 import contextlib
 
+import jax.numpy as jnp
 import numpy as np
+from brax.training.agents.ppo import losses as ppo_losses
+from ml_collections import config_dict
 
 from common import observation as obsdef
-from training.export import NORMAL
-from training.ppo_extension import PPOExtension
+from training.core.extension import PPOExtension
+from training.distill.teacher import load_teacher
+from training.distill.teacher import teacher_observation
+from training.export.brax import NORMAL
 
 
-# the keys that make a PPO stage this fine-tune: a toy run keeps them (recipe_runner.py), as it keeps the learner
+# the keys that make a PPO stage this fine-tune: a toy run keeps them (recipes/runner.py), as it keeps the learner
 LEARNER_KEYS = ("ppo.teacher.", "ppo.policy_distribution", "ppo.init_noise_std")
 
 
 def teacher_config():
     """The PPO config's `teacher` group: the teacher's experts (getup + joystick: the stitched teacher; roll + rise +
-    stand: the keyframe getup's chain; training/teacher.py) and the decaying BC term toward its labels (bc_weight
+    stand: the keyframe getup's chain; training/distill/teacher.py) and the decaying BC term toward its labels (bc_weight
     0 = none; bc_hold_in_course: no decay in wall-course episodes)."""
-    from ml_collections import config_dict
     return config_dict.create(getup="", joystick="", roll="", rise="", stand="", bc_weight=0.0, bc_decay_steps=0,
                               bc_hold_in_course=False)
 
@@ -100,7 +104,6 @@ def sample_count(normalizer, xp=np):
 
 def bc_weight(env_steps, weight: float, decay_steps: int):
     """w(n) = weight · max(0, 1 − n / decay_steps) (decay_steps 0: constant)."""
-    import jax.numpy as jnp
     if decay_steps <= 0:
         return jnp.float32(weight)
     return weight * jnp.maximum(0.0, 1.0 - env_steps / float(decay_steps))
@@ -109,7 +112,6 @@ def bc_weight(env_steps, weight: float, decay_steps: int):
 def sample_weights(decayed, in_course, weight: float):
     """Per-sample BC weights with teacher.bc_hold_in_course (module docstring): `weight` where in_course (bool
     per sample, or False: none), `decayed` elsewhere."""
-    import jax.numpy as jnp
     return jnp.where(in_course, jnp.float32(weight), decayed)
 
 
@@ -141,7 +143,6 @@ class StudentFinetune(PPOExtension):
         wrap = super().wrap_env_fn(env, full_reset)
         if not uses_teacher(self._cfg):
             return wrap
-        from training.teacher import teacher_observation
         observe = teacher_observation(teacher_roles(self._cfg))
         return lambda inner, **kw: observe(wrap(inner, **kw), env)
 
@@ -163,9 +164,6 @@ def teacher_term(ppo_cfg, env, count_start: float):
     if not uses_teacher(ppo_cfg):
         yield
         return
-    import jax.numpy as jnp
-    from brax.training.agents.ppo import losses as ppo_losses
-    from training.teacher import load_teacher
     t = ppo_cfg.teacher
     teacher = load_teacher(teacher_roles(ppo_cfg), env.obs_terms, env.manifest_fields()["action_scale"],
                            student_tanh_squash=False)
