@@ -10,7 +10,8 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
   stages, DAgger rounds rolled out by the PPO policy so far join the same campaign (dagger_*), and the PPO
   stages after them read them.
 - stage 0, the roll (task getup_roll, ours): from the back or side onto the front, where the rise is reliable;
-  then with the side starts weighted up (roll_side).
+  then with the side starts weighted up (roll_side); then the rise again, from where the roll hands over
+  (rise_rolled).
 - stage 2, the stand from the kneel (task getup_stand) along a reverse curriculum of starts up the lunge.
 - the chain roll → rise → stand, latched at common/events.keyframe_stage's hand-overs, distilled into one
   network by DAgger (`chain`), then the seed's gated full task (fallen / kneeling / standing starts 0.4 / 0.4 /
@@ -54,6 +55,10 @@ ROLL = {"ppo.policy_std_scale": 0.5, "env.fallen.bank_starts": 512, "env.fallen.
         "env.fallen.side_weights": [0, 1, 1]}
 # the side starts (a twentieth of the bank) are where the chain's roll fails: weighted four times
 ROLL_SIDE = {**ROLL, "env.fallen.side_weights": [0, 1, 4]}
+# the rise from where the roll hands it over as well as from face-down falls: in the chain the rise only ever
+# starts face down, and its on-back misses are rises that fail from the roll's hand-over (period 3)
+RISE_ROLLED = {**RISE_BEST, "env.rolled_starts.prob": 0.3, "env.rolled_starts.roll_policy": "@getup_keyframe/roll_side",
+               "env.fallen.side_weights": [1, 0, 0]}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
 # the chain the one network learns from: each stage's newest artifact
 CHAIN = {"roll": "@getup_keyframe/roll_side", "rise": "@getup_keyframe/rise_best", "stand": "@getup_keyframe/stand"}
@@ -93,6 +98,7 @@ RECIPE = Recipe(
               config=RISE_BEST),
         Stage("roll", task="getup_roll", steps=2_007_040, config=ROLL),
         Stage("roll_side", task="getup_roll", steps=1_515_520, init="roll", config=ROLL_SIDE),
+        Stage("rise_rolled", task="getup_kneel", steps=6_062_080, init="rise_best", config=RISE_ROLLED),
         Stage("stand_path", task="getup_stand", steps=27_095_040, config=STAND),
         Stage("stand_swing", task="getup_stand", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),

@@ -9,10 +9,12 @@ are LANDINGS: each a module's bank of where the joystick expert, pushed or walke
   fallen.py         seeded fallen states after the runtime's PREPARE ramp (every getup task's fallen starts)
   kneeling_path.py  the stand task's reverse curriculum along standing → half kneel → kneel
   demos.py          states along the planner's rises to the kneel (the kneel task's backplay)
+  rolled.py         where the keyframe chain's roll hands over to the face-down rise (the kneel task's)
   knockdown.py      the joystick expert knocked over by a velocity push, mid-fall
   push.py           the loop's push test (a torso impulse), mid-fall; the unified env's torso shove
   wall_approach.py  the low-wall course's approaches, and where the joystick expert falls over a wall
   handover.py       the getup expert's rise at the waist switch (the joystick env's hand-over starts)
+  policy_rollout.py where a policy's rollouts first meet a hand-over condition (handover's and rolled's banks)
   landings.py       the joystick rollouts to a fall that knockdown, push and wall_approach share
   bank.py           what every bank shares: read-only float32 rows, a robot's state moved about the floor
 """
@@ -45,6 +47,8 @@ SOURCES: tuple[StartSource, ...] = (
                 "knockdown_starts", "joystick_policy"),
     StartSource(("getup_kneel",), "demo_starts", "training.envs.starts.demos", "demo_config", "demo_starts",
                 "folder"),
+    StartSource(("getup_kneel",), "rolled_starts", "training.envs.starts.rolled", "rolled_config", "rolled_starts",
+                "roll_policy"),
     StartSource(("joystick",), "handover", "training.envs.starts.handover", "handover_config", "", "getup_policy"),
     StartSource(("unified",), "walls", "training.envs.starts.wall_approach", "walls_config"),
 )
