@@ -20,6 +20,7 @@ from training.core.backend import default_backend
 from training.distill import dagger as distill
 from training.distill.finetune import LEARNER_KEYS
 from training.envs import starts
+from training.envs.policy_files import CHECKPOINT_DIR
 from training.export import untrained
 from training.export.brax import ship_artifact
 from training.imitation import campaign as imitation
@@ -134,13 +135,15 @@ def export_newest(run_dir) -> Path:
 
 def resolve_ref(value, root: Path, shipped: bool = False):
     """A `@RECIPE/STAGE` reference → the artifact that stage exported into `root` (with `shipped`: that
-    recipe's shipped policy instead); other values unchanged."""
+    recipe's shipped policy instead, or before it ships the stage's kept campaign run); other values unchanged."""
     if not (isinstance(value, str) and value.startswith(R.REF_PREFIX)):
         return value
     name, _, stage_name = value[1:].partition("/")
     recipe = R.load(name)
     if shipped:
-        return str(checkpoints.policy_dir(recipe.policy) / f"{recipe.policy}.safetensors")
+        policy = checkpoints.policy_dir(recipe.policy) / f"{recipe.policy}.safetensors"
+        kept = CAMPAIGNS_ROOT / name / stage_name
+        return str(kept if not policy.exists() and (kept / CHECKPOINT_DIR).is_dir() else policy)
     stage = recipe.stage(stage_name)
     dirs = stage_dirs(root, recipe, stage)
     path = ended_artifact(dirs[-1], recipe, stage) if dirs else None
@@ -214,7 +217,8 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
     command = (f"python -m training recipe {recipe.name} --stage {s.name}"
                f"{' --toy' if toy else ''} (recipe sha256 {provenance['sha256'][:12]})")
     # a toy stage's landing banks roll the policies its config names, which must be trained experts (a toy
-    # one never rises or falls as a bank needs): there a reference stands for that recipe's shipped policy
+    # one never rises, rolls or falls as a bank needs): there a reference stands for that recipe's shipped policy
+    # (or its kept campaign run before it ships)
     config = {k: resolve_ref(v, root, shipped=toy) for k, v in s.config.items()}
     if s.kind == "ppo":   # a PPO stage's teacher is its behaviour-cloning term's (training/distill/finetune.py)
         config.update({f"ppo.teacher.{k}": resolve_ref(v, root) for k, v in s.teacher.items()})
