@@ -1,8 +1,8 @@
 """The project's Booster T1 MuJoCo model: loading, keyframes, the shared PD gain set, spawn states.
 
 Everything that needs the robot model (HIL simulator, MJX envs, tests) goes through this module, so the
-joint order (messages/contract.json), the gains (custom numerics in t1.xml) and the spawn states are the
-same everywhere.
+joint order and ranges (messages/contract.json), the gains (custom numerics in t1.xml) and the spawn states
+are the same everywhere.
 """
 from __future__ import annotations
 
@@ -67,9 +67,22 @@ def _actuator_ids(model: mujoco.MjModel) -> np.ndarray:
     return np.array(ids)
 
 
+def robot_spec() -> mujoco.MjSpec:
+    """The robot file (robot + floor) as an MjSpec, with each joint's range from the contract (t1.xml leaves
+    them out: the contract is the one source for the model and the motors' soft stops)."""
+    spec = mujoco.MjSpec.from_file(str(MODEL_PATH))
+    for name, (lo, hi) in zip(contract.JOINT_NAMES, contract.JOINT_RANGES_RAD):
+        joint = spec.joint(name)
+        if joint is None:
+            raise ValueError(f"{MODEL_PATH}: no joint {name!r} (messages/contract.json names it)")
+        joint.range = [lo, hi]
+        joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+    return spec
+
+
 def load_model() -> mujoco.MjModel:
-    """The bare robot file (robot + floor), without any scenario."""
-    return mujoco.MjModel.from_xml_path(str(MODEL_PATH))
+    """The bare robot model (robot + floor), without any scenario."""
+    return robot_spec().compile()
 
 
 def keyframe_qpos(model: mujoco.MjModel, name: str) -> np.ndarray:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from common.model import MODEL_PATH
+from common.model import robot_spec
 
 SCENARIOS = ("flat", "walls", "puddles", "pushes", "tall_wall")
 
@@ -141,7 +141,7 @@ def build_spec(name: str, seed: int = 0) -> tuple[mujoco.MjSpec, ScenarioInfo]:
     """The uncompiled spec (for callers that add more, e.g. test objects) and its ScenarioInfo."""
     if name not in SCENARIOS:
         raise ValueError(f"unknown scenario {name!r}; valid: {', '.join(SCENARIOS)}")
-    spec = mujoco.MjSpec.from_file(str(MODEL_PATH))
+    spec = robot_spec()
     pushes: list = []
     if name == "flat":
         description = "flat floor, μ 0.6"

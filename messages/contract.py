@@ -1,4 +1,4 @@
-"""Joint order, channel names, the default LCM URL, the loop and policy rates and the heights every layer
+"""Joint order and ranges, channel names, the default LCM URL, the loop and policy rates and the heights every layer
 shares (fallen, standing, the kneel gate, the composite's waist switch), read from messages/contract.json (the
 one source; C++ gets the same values in a header generated at build time)."""
 from __future__ import annotations
@@ -12,6 +12,11 @@ _DATA = json.loads((Path(__file__).with_name("contract.json")).read_text())
 
 NUM_JOINTS: int = _DATA["num_joints"]
 JOINT_NAMES: tuple[str, ...] = tuple(_DATA["joints"])
+# Each joint's position range [rad] (lower, upper), joint order: the model's limits and the motors' soft stops.
+assert list(_DATA["joint_ranges_rad"]) == list(JOINT_NAMES), \
+    "contract.json: joint_ranges_rad must name every joint, in the joints' order"
+JOINT_RANGES_RAD: tuple[tuple[float, float], ...] = tuple(
+    (float(lo), float(hi)) for lo, hi in _DATA["joint_ranges_rad"].values())
 CHANNELS: dict[str, str] = dict(_DATA["channels"])
 # channel name -> LCM type name (messages/t1/<type>.lcm), e.g. "T1_IMU" -> "imu_t"
 CHANNEL_TYPES: dict[str, str] = {CHANNELS[key]: type_name for key, type_name in _DATA["channel_types"].items()}
@@ -49,6 +54,7 @@ CH_SIM_STATUS = CHANNELS["sim_status"]
 CH_RUN_INFO = CHANNELS["run_info"]
 
 assert len(JOINT_NAMES) == NUM_JOINTS, "contract.json: joints list length differs from num_joints"
+assert all(lo < hi for lo, hi in JOINT_RANGES_RAD), "contract.json: each joint range is (lower, upper), lower < upper"
 assert set(_DATA["channel_types"]) == set(CHANNELS), "contract.json: channel_types must name every channel"
 assert POLICY_DECIMATION >= 1 and LOOP_PERIOD_S > 0, "contract.json: loop_period_s > 0, policy_decimation >= 1"
 assert 0 < FALLEN_TRUNK_HEIGHT_M < KNEEL_GATE_HEIGHT_M < STANDING_TRUNK_THRESHOLD_M \

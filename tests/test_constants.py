@@ -1,6 +1,7 @@
-"""Each shared constant has one definition: the loop and policy rates and the heights (fallen, standing, the
-kneel gate, the waist switch, the getup reward's standing targets) live in messages/contract.json, and the
-Python packages read them through messages/contract.py. This scans the packages' sources (their AST) for a
+"""Each shared constant has one definition: the loop and policy rates, the heights (fallen, standing, the
+kneel gate, the waist switch, the getup reward's standing targets) and the joint ranges live in
+messages/contract.json, and the Python packages read them through messages/contract.py (C and C++ through the
+headers generated from it). This scans the packages' sources (their AST) for a
 second definition: a name or config key that speaks of one of these quantities given one of their values as
 a literal, and the names retired because they meant different things in different modules."""
 from __future__ import annotations
@@ -10,6 +11,7 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from messages import contract
@@ -126,3 +128,26 @@ def test_the_runtime_reads_its_rates_from_the_contract():
     assert '#include "t1_contract.hpp"' in header
     for name, source in (("kLoopDtS", "t1::kLoopPeriodS"), ("kPolicyDecimation", "t1::kPolicyDecimation")):
         assert re.search(rf"constexpr\s+\w+\s+{name}\s*=\s*{re.escape(source)}\s*;", header), f"{name} is not {source}"
+
+
+def test_the_joint_ranges_have_one_source():
+    """The joint ranges live in contract.json only: t1.xml's joints carry no range (common/model.py applies the
+    contract's), and every row of the firmware's motor table names the generated header's bounds, no literal."""
+    xml = (ROOT / "common" / "models" / "t1.xml").read_text()
+    assert not re.findall(r"<joint\b[^>]*\brange=", xml), "t1.xml: a joint range written again (contract.json has them)"
+    header = (ROOT / "firmware_like" / "include" / "t1_motor_protocol.h").read_text()
+    table = header[header.index("#define T1_MOTOR_TABLE(X)"):header.index("extern const t1_motor_info_t")]
+    rows = re.findall(r'X\(\d+, "(\w+)", \w+, [0-9.]+f,\s*\\?\s*(\w+), (\w+),', table)
+    assert [r[0] for r in rows] == list(contract.JOINT_NAMES)
+    assert all(lo == f"T1_Q_MIN_RAD_{n}" and hi == f"T1_Q_MAX_RAD_{n}" for n, lo, hi in rows), rows
+
+
+def test_the_model_and_the_motors_take_the_contracts_ranges():
+    from common import model as t1model
+    from sim_hil import firmware as fw
+    ranges = np.asarray(contract.JOINT_RANGES_RAD)
+    model = t1model.load_model()
+    np.testing.assert_array_equal(t1model.joint_ranges(model), ranges)
+    assert model.jnt_limited[1:].all()
+    np.testing.assert_array_equal(fw.Q_MIN, ranges[:, 0].astype(np.float32))
+    np.testing.assert_array_equal(fw.Q_MAX, ranges[:, 1].astype(np.float32))

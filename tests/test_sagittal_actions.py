@@ -25,8 +25,7 @@ def test_each_pitch_value_drives_both_sides_and_nothing_else():
 
 def test_the_kneel_is_in_the_sagittal_space():
     """The kneel keyframe differs from home only in mirrored pitch joints: the reduced policy can reach it."""
-    import mujoco
-    model = mujoco.MjModel.from_xml_path(str(t1model.MODEL_PATH))
+    model = t1model.load_model()
     delta = t1model.kneel_pose(model) - t1model.default_pose(model)
     m = sagittal.expansion()
     reduced = np.linalg.lstsq(m, delta, rcond=None)[0]

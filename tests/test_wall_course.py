@@ -25,10 +25,10 @@ def _wall_xs(mj: mujoco.MjModel) -> list[float]:
 
 
 def test_training_course_is_the_evaluations_moved_down_x():
-    spec = mujoco.MjSpec.from_file(str(scenarios.MODEL_PATH))
+    spec = scenarios.robot_spec()
     wall_course.add_to_spec(spec, wall_course.config())
     train = spec.compile()
-    evaluation = mujoco.MjSpec.from_file(str(scenarios.MODEL_PATH))
+    evaluation = scenarios.robot_spec()
     scenarios.add_low_walls(evaluation)
     ev = evaluation.compile()
     shift = wall_course.FIRST_WALL_X_M - scenarios.WALL_FIRST_X_M

@@ -108,6 +108,8 @@
 
 #include <stdint.h>
 
+#include "t1_joint_ranges.h" /* generated from messages/contract.json */
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -203,33 +205,58 @@ typedef struct {
 /*
  * The per-motor table, joint order, as an X-macro so this header is the only place it is written:
  *   X(index, name, class, torque_limit [N·m], q_min [rad], q_max [rad], d_safe [N·m·s/rad], bus)
+ * q_min / q_max: the joint's range from messages/contract.json (joint_ranges_rad), through the build's generated
+ * t1_joint_ranges.h: one source for these soft stops and the MuJoCo model's joint limits.
  * d_safe = torque limit / URDF velocity limit (§6): head 7/12.56, arm 18/18.84, waist 30/10.88,
  * hip pitch 45/12.5, hip roll & yaw 30/10.9, knee 60/11.7, ankle pitch 20/18.8, ankle roll 15/12.4.
  */
-#define T1_MOTOR_TABLE(X)                                                          \
-  X(0, "AAHead_yaw", T1_CLASS_HEAD, 7.0f, -1.57f, 1.57f, 0.56f, T1_BUS_HEAD_WAIST)  \
-  X(1, "Head_pitch", T1_CLASS_HEAD, 7.0f, -0.35f, 1.22f, 0.56f, T1_BUS_HEAD_WAIST)  \
-  X(2, "Left_Shoulder_Pitch", T1_CLASS_ARM, 18.0f, -3.31f, 1.22f, 0.96f, T1_BUS_ARMS) \
-  X(3, "Left_Shoulder_Roll", T1_CLASS_ARM, 18.0f, -1.74f, 1.57f, 0.96f, T1_BUS_ARMS)  \
-  X(4, "Left_Elbow_Pitch", T1_CLASS_ARM, 18.0f, -2.27f, 2.27f, 0.96f, T1_BUS_ARMS)    \
-  X(5, "Left_Elbow_Yaw", T1_CLASS_ARM, 18.0f, -2.44f, 0.0f, 0.96f, T1_BUS_ARMS)       \
-  X(6, "Right_Shoulder_Pitch", T1_CLASS_ARM, 18.0f, -3.31f, 1.22f, 0.96f, T1_BUS_ARMS) \
-  X(7, "Right_Shoulder_Roll", T1_CLASS_ARM, 18.0f, -1.57f, 1.74f, 0.96f, T1_BUS_ARMS)  \
-  X(8, "Right_Elbow_Pitch", T1_CLASS_ARM, 18.0f, -2.27f, 2.27f, 0.96f, T1_BUS_ARMS)    \
-  X(9, "Right_Elbow_Yaw", T1_CLASS_ARM, 18.0f, 0.0f, 2.44f, 0.96f, T1_BUS_ARMS)        \
-  X(10, "Waist", T1_CLASS_WAIST, 30.0f, -1.57f, 1.57f, 2.76f, T1_BUS_HEAD_WAIST)      \
-  X(11, "Left_Hip_Pitch", T1_CLASS_HIP, 45.0f, -1.8f, 1.57f, 3.60f, T1_BUS_LEFT_LEG)   \
-  X(12, "Left_Hip_Roll", T1_CLASS_HIP, 30.0f, -0.2f, 1.57f, 2.75f, T1_BUS_LEFT_LEG)    \
-  X(13, "Left_Hip_Yaw", T1_CLASS_HIP, 30.0f, -1.0f, 1.0f, 2.75f, T1_BUS_LEFT_LEG)      \
-  X(14, "Left_Knee_Pitch", T1_CLASS_KNEE, 60.0f, 0.0f, 2.34f, 5.13f, T1_BUS_LEFT_LEG)  \
-  X(15, "Left_Ankle_Pitch", T1_CLASS_ANKLE, 20.0f, -0.87f, 0.35f, 1.06f, T1_BUS_LEFT_LEG) \
-  X(16, "Left_Ankle_Roll", T1_CLASS_ANKLE, 15.0f, -0.44f, 0.44f, 1.21f, T1_BUS_LEFT_LEG)  \
-  X(17, "Right_Hip_Pitch", T1_CLASS_HIP, 45.0f, -1.8f, 1.57f, 3.60f, T1_BUS_RIGHT_LEG)  \
-  X(18, "Right_Hip_Roll", T1_CLASS_HIP, 30.0f, -1.57f, 0.2f, 2.75f, T1_BUS_RIGHT_LEG)   \
-  X(19, "Right_Hip_Yaw", T1_CLASS_HIP, 30.0f, -1.0f, 1.0f, 2.75f, T1_BUS_RIGHT_LEG)     \
-  X(20, "Right_Knee_Pitch", T1_CLASS_KNEE, 60.0f, 0.0f, 2.34f, 5.13f, T1_BUS_RIGHT_LEG) \
-  X(21, "Right_Ankle_Pitch", T1_CLASS_ANKLE, 20.0f, -0.87f, 0.35f, 1.06f, T1_BUS_RIGHT_LEG) \
-  X(22, "Right_Ankle_Roll", T1_CLASS_ANKLE, 15.0f, -0.44f, 0.44f, 1.21f, T1_BUS_RIGHT_LEG)
+#define T1_MOTOR_TABLE(X)                                                                                \
+  X(0, "AAHead_yaw", T1_CLASS_HEAD, 7.0f,                                                                \
+    T1_Q_MIN_RAD_AAHead_yaw, T1_Q_MAX_RAD_AAHead_yaw, 0.56f, T1_BUS_HEAD_WAIST)                          \
+  X(1, "Head_pitch", T1_CLASS_HEAD, 7.0f,                                                                \
+    T1_Q_MIN_RAD_Head_pitch, T1_Q_MAX_RAD_Head_pitch, 0.56f, T1_BUS_HEAD_WAIST)                          \
+  X(2, "Left_Shoulder_Pitch", T1_CLASS_ARM, 18.0f,                                                       \
+    T1_Q_MIN_RAD_Left_Shoulder_Pitch, T1_Q_MAX_RAD_Left_Shoulder_Pitch, 0.96f, T1_BUS_ARMS)              \
+  X(3, "Left_Shoulder_Roll", T1_CLASS_ARM, 18.0f,                                                        \
+    T1_Q_MIN_RAD_Left_Shoulder_Roll, T1_Q_MAX_RAD_Left_Shoulder_Roll, 0.96f, T1_BUS_ARMS)                \
+  X(4, "Left_Elbow_Pitch", T1_CLASS_ARM, 18.0f,                                                          \
+    T1_Q_MIN_RAD_Left_Elbow_Pitch, T1_Q_MAX_RAD_Left_Elbow_Pitch, 0.96f, T1_BUS_ARMS)                    \
+  X(5, "Left_Elbow_Yaw", T1_CLASS_ARM, 18.0f,                                                            \
+    T1_Q_MIN_RAD_Left_Elbow_Yaw, T1_Q_MAX_RAD_Left_Elbow_Yaw, 0.96f, T1_BUS_ARMS)                        \
+  X(6, "Right_Shoulder_Pitch", T1_CLASS_ARM, 18.0f,                                                      \
+    T1_Q_MIN_RAD_Right_Shoulder_Pitch, T1_Q_MAX_RAD_Right_Shoulder_Pitch, 0.96f, T1_BUS_ARMS)            \
+  X(7, "Right_Shoulder_Roll", T1_CLASS_ARM, 18.0f,                                                       \
+    T1_Q_MIN_RAD_Right_Shoulder_Roll, T1_Q_MAX_RAD_Right_Shoulder_Roll, 0.96f, T1_BUS_ARMS)              \
+  X(8, "Right_Elbow_Pitch", T1_CLASS_ARM, 18.0f,                                                         \
+    T1_Q_MIN_RAD_Right_Elbow_Pitch, T1_Q_MAX_RAD_Right_Elbow_Pitch, 0.96f, T1_BUS_ARMS)                  \
+  X(9, "Right_Elbow_Yaw", T1_CLASS_ARM, 18.0f,                                                           \
+    T1_Q_MIN_RAD_Right_Elbow_Yaw, T1_Q_MAX_RAD_Right_Elbow_Yaw, 0.96f, T1_BUS_ARMS)                      \
+  X(10, "Waist", T1_CLASS_WAIST, 30.0f,                                                                  \
+    T1_Q_MIN_RAD_Waist, T1_Q_MAX_RAD_Waist, 2.76f, T1_BUS_HEAD_WAIST)                                    \
+  X(11, "Left_Hip_Pitch", T1_CLASS_HIP, 45.0f,                                                           \
+    T1_Q_MIN_RAD_Left_Hip_Pitch, T1_Q_MAX_RAD_Left_Hip_Pitch, 3.60f, T1_BUS_LEFT_LEG)                    \
+  X(12, "Left_Hip_Roll", T1_CLASS_HIP, 30.0f,                                                            \
+    T1_Q_MIN_RAD_Left_Hip_Roll, T1_Q_MAX_RAD_Left_Hip_Roll, 2.75f, T1_BUS_LEFT_LEG)                      \
+  X(13, "Left_Hip_Yaw", T1_CLASS_HIP, 30.0f,                                                             \
+    T1_Q_MIN_RAD_Left_Hip_Yaw, T1_Q_MAX_RAD_Left_Hip_Yaw, 2.75f, T1_BUS_LEFT_LEG)                        \
+  X(14, "Left_Knee_Pitch", T1_CLASS_KNEE, 60.0f,                                                         \
+    T1_Q_MIN_RAD_Left_Knee_Pitch, T1_Q_MAX_RAD_Left_Knee_Pitch, 5.13f, T1_BUS_LEFT_LEG)                  \
+  X(15, "Left_Ankle_Pitch", T1_CLASS_ANKLE, 20.0f,                                                       \
+    T1_Q_MIN_RAD_Left_Ankle_Pitch, T1_Q_MAX_RAD_Left_Ankle_Pitch, 1.06f, T1_BUS_LEFT_LEG)                \
+  X(16, "Left_Ankle_Roll", T1_CLASS_ANKLE, 15.0f,                                                        \
+    T1_Q_MIN_RAD_Left_Ankle_Roll, T1_Q_MAX_RAD_Left_Ankle_Roll, 1.21f, T1_BUS_LEFT_LEG)                  \
+  X(17, "Right_Hip_Pitch", T1_CLASS_HIP, 45.0f,                                                          \
+    T1_Q_MIN_RAD_Right_Hip_Pitch, T1_Q_MAX_RAD_Right_Hip_Pitch, 3.60f, T1_BUS_RIGHT_LEG)                 \
+  X(18, "Right_Hip_Roll", T1_CLASS_HIP, 30.0f,                                                           \
+    T1_Q_MIN_RAD_Right_Hip_Roll, T1_Q_MAX_RAD_Right_Hip_Roll, 2.75f, T1_BUS_RIGHT_LEG)                   \
+  X(19, "Right_Hip_Yaw", T1_CLASS_HIP, 30.0f,                                                            \
+    T1_Q_MIN_RAD_Right_Hip_Yaw, T1_Q_MAX_RAD_Right_Hip_Yaw, 2.75f, T1_BUS_RIGHT_LEG)                     \
+  X(20, "Right_Knee_Pitch", T1_CLASS_KNEE, 60.0f,                                                        \
+    T1_Q_MIN_RAD_Right_Knee_Pitch, T1_Q_MAX_RAD_Right_Knee_Pitch, 5.13f, T1_BUS_RIGHT_LEG)               \
+  X(21, "Right_Ankle_Pitch", T1_CLASS_ANKLE, 20.0f,                                                      \
+    T1_Q_MIN_RAD_Right_Ankle_Pitch, T1_Q_MAX_RAD_Right_Ankle_Pitch, 1.06f, T1_BUS_RIGHT_LEG)             \
+  X(22, "Right_Ankle_Roll", T1_CLASS_ANKLE, 15.0f,                                                       \
+    T1_Q_MIN_RAD_Right_Ankle_Roll, T1_Q_MAX_RAD_Right_Ankle_Roll, 1.21f, T1_BUS_RIGHT_LEG)
 
 extern const t1_motor_info_t T1_MOTORS[T1_NUM_MOTORS];       /* joint order */
 extern const t1_class_range_t T1_CLASS_RANGES[T1_NUM_CLASSES]; /* indexed by t1_motor_class_t */

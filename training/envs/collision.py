@@ -78,7 +78,7 @@ def reachable_body_pairs(num_samples: int = PAIR_SEARCH_SAMPLES, margin: float =
 
 def _candidate_body_pairs(mj: mujoco.MjModel) -> set:
     """Robot body pairs MuJoCo would test (contype/conaffinity, excludes and parent filter applied)."""
-    mj_all = mujoco.MjModel.from_xml_path(str(t1model.MODEL_PATH))
+    mj_all = t1model.load_model()
     data = mujoco.MjData(mj_all)
     robot = t1model.robot_geom_mask(mj_all)
     mj_all.geom_margin[robot] = 10.0  # everything "touches": enumerates every pair that passes filtering
@@ -121,7 +121,7 @@ def build_spec(variant: str, max_contacts: int = t1model.MJX_NCONMAX,
     """The MjSpec of `build_model` (for backends that add elements before compiling)."""
     if variant not in VARIANTS:
         raise ValueError(f"collision variant {variant!r} unknown; valid: {', '.join(VARIANTS)}")
-    spec = mujoco.MjSpec.from_file(str(t1model.MODEL_PATH))
+    spec = t1model.robot_spec()
     if variant == "feet_only":
         for g in _robot_geoms(spec):
             if g.name not in FOOT_GEOMS:

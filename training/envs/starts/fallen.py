@@ -108,7 +108,7 @@ def _prepared(num: int, seed: int, prepare_s: float, supervisor: tuple[float, fl
 def backend_model(kp: np.ndarray, kd: np.ndarray) -> mujoco.MjModel:
     """sim_hil's robot with the CPU backend's motor callback and the PD gains kp [N·m/rad], kd [N·m·s/rad]."""
 
-    spec = mujoco.MjSpec.from_file(str(t1model.MODEL_PATH))
+    spec = t1model.robot_spec()
     cpu_backend.add_backend_elements(spec, collision.FOOT_GEOMS, base.FLOOR_GEOM)
     mj = spec.compile()
     mj.actuator_biasprm[:, base.KP_SLOT] = kp
