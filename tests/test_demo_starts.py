@@ -81,10 +81,12 @@ def test_bad_folders_and_settings_are_named(tmp_path):
         envs.make("getup_kneel", config_overrides={"fallen.bank_starts": 2, "demo_starts.prob": 0.5})
 
 
-def test_the_kneel_task_starts_its_fallen_episodes_from_the_demonstrations(tmp_path):
+@pytest.mark.parametrize("task", ["getup_kneel", "getup"])
+def test_the_task_starts_its_fallen_episodes_from_the_demonstrations(tmp_path, task):
+    """The kneel task (its backplay) and the full task (the keyframe chain's distillation) alike."""
     folder = tmp_path / "demos"
     shutil.copytree(demos.REPO_ROOT / DEMOS, folder)
-    env = envs.make("getup_kneel", config_overrides={
+    env = envs.make(task, config_overrides={"start_probs": [1.0, 0.0, 0.0],
         "backend": "cpu", "fallen.bank_starts": 2, "demo_starts.prob": 1.0,
         "demo_starts.folder": str(folder), "demo_starts.bank_starts": 8})
     qpos, qvel = demos.demo_bank(str(folder), 0.5, 8, int(env._config.demo_starts.seed))

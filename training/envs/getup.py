@@ -3,7 +3,8 @@
 that step the standing's with its bonuses (getup_rewards.py). The gate is per step, as written: a gate latched
 until the trunk is down pays a policy that meets it once and then tilts.
 Ours, off by default: `knockdown_starts` (starts/knockdown.py) replaces a share of the fallen starts by the
-joystick expert's landings after a push. The evaluations (`python -m training evaluate`) build this task for its
+joystick expert's landings after a push; `demo_starts` (starts/demos.py) by states along the planner's rises to
+the kneel, where a student distilled from the keyframe chain learns the rise's last stretch to the gate. The evaluations (`python -m training evaluate`) build this task for its
 fallen starts and physics.
 """
 from __future__ import annotations
@@ -18,7 +19,7 @@ def default_config() -> config_dict.ConfigDict:
     cfg = getup_base.base_config()
     cfg.start_probs = [0.4, 0.4, 0.2]      # (fallen, kneeling, standing), §4.5
     cfg.reward = config_dict.create(scales=config_dict.create(height=1.0, pose=1.0, energy=0.0))
-    starts.add_config_groups(cfg, "getup")   # fallen starts, knockdown landings
+    starts.add_config_groups(cfg, "getup")   # fallen starts, knockdown landings, demonstration states
     return cfg
 
 

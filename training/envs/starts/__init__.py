@@ -8,7 +8,8 @@ are LANDINGS: each a module's bank of where the joystick expert, pushed or walke
 
   fallen.py         seeded fallen states after the runtime's PREPARE ramp (every getup task's fallen starts)
   kneeling_path.py  the stand task's reverse curriculum along standing → half kneel → kneel
-  demos.py          states along the planner's rises to the kneel (the kneel task's backplay)
+  demos.py          states along the planner's rises to the kneel (the kneel task's backplay; the full task's
+                    distillation reads them too)
   rolled.py         where the keyframe chain's roll hands over to the face-down rise (the kneel task's)
   knockdown.py      the joystick expert knocked over by a velocity push, mid-fall
   push.py           the loop's push test (a torso impulse), mid-fall; the unified env's torso shove
@@ -45,7 +46,7 @@ SOURCES: tuple[StartSource, ...] = (
     StartSource(("getup_stand",), "reverse_curriculum", "training.envs.starts.kneeling_path", "path_config"),
     StartSource(("getup",), "knockdown_starts", "training.envs.starts.knockdown", "knockdown_config",
                 "knockdown_starts", "joystick_policy"),
-    StartSource(("getup_kneel",), "demo_starts", "training.envs.starts.demos", "demo_config", "demo_starts",
+    StartSource(("getup_kneel", "getup"), "demo_starts", "training.envs.starts.demos", "demo_config", "demo_starts",
                 "folder"),
     StartSource(("getup_kneel",), "rolled_starts", "training.envs.starts.rolled", "rolled_config", "rolled_starts",
                 "roll_policy"),
