@@ -11,6 +11,7 @@ from common import events
 from common import model as t1model
 from training import envs
 from training.envs.starts import rolled
+from training.envs.starts.policy_rollout import first_hits
 
 ROLL = sorted(Path("training/campaigns/getup_keyframe/roll_side/checkpoints").glob("*"))[-1]
 BANK_STARTS = 6
@@ -41,3 +42,10 @@ def test_rolled_starts_lie_face_down_and_still_and_repeat_per_seed():
     rolled.rolled_bank.cache_clear()
     again = rolled.rolled_bank(envs.make, str(ROLL), BANK_STARTS, SEED, 2.0)
     np.testing.assert_array_equal(again[0], qpos)
+
+
+@pytest.mark.slow
+def test_a_policy_that_never_hands_over_is_named_with_the_condition():
+    env = envs.make("getup_roll", config_overrides={"backend": "cpu", "fallen.bank_starts": 2})
+    with pytest.raises(ValueError, match="none of 2 rollouts reached the trunk in orbit within 0.1 s"):
+        first_hits(env, str(ROLL), lambda info: info["trunk_height"] > 100.0, "the trunk in orbit", 2, 0, 0.1)

@@ -19,12 +19,12 @@ class HandoverStates(NamedTuple):
     joint_targets: np.ndarray   # (n, 23) the policy's last joint targets [rad]
 
 
-def first_hits(env, policy: str, hit: Callable[[dict], jax.Array], num_starts: int, seed: int,
+def first_hits(env, policy: str, hit: Callable[[dict], jax.Array], condition: str, num_starts: int, seed: int,
                max_s: float) -> HandoverStates:
     """The state at the first control step at which `hit(state.info)` holds, of each of `num_starts` rollouts of
     `policy` (artifact or checkpoint, deterministic: tanh of its mean) in `env` (a getup env on the CPU backend,
     its resets keyed from `seed`); rollouts that do not hit within `max_s` [s] are left out, identical states (a
-    start drawn twice) kept once. Raises if none hits."""
+    start drawn twice) kept once. Raises, naming `condition` (what `hit` tests), if none hits."""
     expert = load_expert(policy)
     if tuple(map(tuple, env.obs_terms)) != expert.obs_terms:
         raise ValueError(f"{policy}: observation terms {expert.obs_terms} are not the env's {env.obs_terms}")
@@ -50,7 +50,8 @@ def first_hits(env, policy: str, hit: Callable[[dict], jax.Array], num_starts: i
         if found.all():
             break
     if not found.any():
-        raise ValueError(f"{policy}: no rollout of {num_starts} met the hand-over in {max_s} s")
+        raise ValueError(f"{policy}: none of {num_starts} rollouts reached {condition} within {max_s} s: not a "
+                         "trained expert for this hand-over")
     _, keep = np.unique(qpos[found].round(9), axis=0, return_index=True)
     keep = np.sort(keep)
     return HandoverStates(qpos[found][keep].astype(np.float32), qvel[found][keep].astype(np.float32),

@@ -38,7 +38,8 @@ def rolled_bank(make_env, roll_policy: str, num_starts: int, seed: int,
     env = make_env("getup_roll", config_overrides={
         "backend": "cpu", "start_probs": [1.0, 0.0, 0.0], "fallen.bank_starts": num_starts, "fallen.seed": seed,
         "fallen.prepare_s": prepare_s, "fallen.side_weights": [0, 1, 1], "obs_noise_scale": 0.0})
-    states = first_hits(env, roll_policy, lambda info: info["rolled"], num_starts, seed, MAX_ROLL_S)
+    states = first_hits(env, roll_policy, lambda info: info["rolled"], "face down and still (the rise's hand-over)",
+                        num_starts, seed, MAX_ROLL_S)
     bank = states.qpos, states.qvel
     for array in bank:
         array.flags.writeable = False
