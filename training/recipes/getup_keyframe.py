@@ -61,7 +61,7 @@ RISE_ROLLED = {**RISE_BEST, "env.rolled_starts.prob": 0.3, "env.rolled_starts.ro
                "env.fallen.side_weights": [1, 0, 0]}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
 # the chain the one network learns from: each stage's newest artifact
-CHAIN = {"roll": "@getup_keyframe/roll_side", "rise": "@getup_keyframe/rise_best", "stand": "@getup_keyframe/stand"}
+CHAIN = {"roll": "@getup_keyframe/roll_side", "rise": "@getup_keyframe/rise_rolled", "stand": "@getup_keyframe/stand"}
 # the full task's starts (getup's default 0.4 / 0.4 / 0.2), fallen ones from a bank far from the evaluation's seeds
 STARTS = {"env.fallen.bank_starts": 1024, "env.fallen.seed": 3_000_000}
 # PPO around the distilled mean (no tanh) at the rise's small noise, with a BC term toward the chain that decays:
