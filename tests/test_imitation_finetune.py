@@ -170,3 +170,15 @@ def test_an_imitation_stage_is_complete_at_its_rounds_and_kept_whole_in_the_camp
     assert kept in recipe_runner.save_campaign("getup_keyframe", root, tmp_path / "campaigns")
     assert (kept / "data" / "round_03.npz").read_bytes() == b"newer labels"
     assert json.loads((kept / imitation_config.STATE).read_text()) == more
+
+
+def test_a_new_run_names_the_campaign_its_start_reads():
+    """A fine-tune of a PPO run that read its DAgger campaign through its own start names that campaign in its
+    config, so its kept run state resumes on a clone without the start; a named campaign is left alone."""
+    cfg = configs.ppo_config("getup_kneel", "cpu")
+    cfg.imitation.update(demos="training/campaigns/getup_keyframe/demos", bc_weight=3.0, campaign="")
+    finetune.pin_campaign(cfg, "training/campaigns/getup_keyframe/rise_best/checkpoints/000001515520")
+    assert cfg.imitation.campaign == "training/campaigns/getup_keyframe/dagger"
+    cfg.imitation.campaign = "elsewhere"
+    finetune.pin_campaign(cfg, "training/campaigns/getup_keyframe/rise_best/checkpoints/000001515520")
+    assert cfg.imitation.campaign == "elsewhere"

@@ -106,6 +106,13 @@ def _campaign_of(init) -> Path:
     return repo_path(named) if named else _campaign_of(state.get("init"))
 
 
+def pin_campaign(ppo_cfg, init) -> None:
+    """A new run whose BC term reads the DAgger campaign of what it starts from names that campaign in its own
+    config: its run state then resumes where its init is not kept (a campaign keeps only each stage's newest)."""
+    if uses_imitation(ppo_cfg) and ppo_cfg.imitation.demos and not ppo_cfg.imitation.campaign:
+        ppo_cfg.imitation.campaign = checkpoints.repo_relative(_campaign_of(init))
+
+
 def planner_pairs(ppo_cfg, init, action_map: dict) -> tuple[np.ndarray, np.ndarray]:
     """(observations, label actions) of the DAgger campaign's aggregate: the demonstrations and every round it
     stored, labels through the getup action map ({"default_pose", "action_scale"} [rad]); `init`: the path the

@@ -11,6 +11,7 @@ from training.distill import finetune as student_finetune
 from training.imitation import finetune
 
 is_artifact = finetune.is_artifact
+pin_campaign = finetune.pin_campaign
 
 
 def init_path(path: Path) -> str:

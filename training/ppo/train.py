@@ -151,6 +151,7 @@ def _new_run(task: str, run_dir: Path, *, steps, overrides, preset, from_checkpo
         init = extensions.init_path(Path(from_checkpoint) if extensions.is_artifact(from_checkpoint)
                                     else checkpoints.resolve_checkpoint(from_checkpoint))
     restored = extensions.load_init(init)
+    extensions.pin_campaign(ppo_cfg, init)
     state = {"task": task, "name": name or task, "preset": preset, "seed": seed,
              "ppo_config": ppo_cfg.to_dict(), "env_config": env_cfg.to_dict(), "init": init,
              "target_steps": int(steps if steps is not None else ppo_cfg.num_timesteps),
