@@ -5,12 +5,17 @@ from __future__ import annotations
 import functools
 
 import jax
+import numpy as np
 from brax.training import distribution
 from brax.training import networks
+from brax.training import types
+from brax.training.acme import running_statistics
 from brax.training.agents.ppo import networks as brax_ppo_networks
 from brax.training.types import identity_observation_preprocessor
 
 from training.envs.policy_files import ACTIVATION  # noqa: F401 (the networks' activation, brax's default)
+
+NORMALIZER_COUNT = 2 ** 32   # samples a held normaliser counts (float32 reads it to 512: the BC decay's step)
 
 
 def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observations_fn=None,
@@ -58,3 +63,13 @@ def frozen_policy_factory(factory):
             apply=lambda processor, params, *a, **k: policy.apply(processor, jax.lax.stop_gradient(params), *a, **k))
         return nets.replace(policy_network=frozen)
     return make
+
+
+def held_normalizer(stats: dict, count: int):
+    """brax's running statistics at given {observation key: (mean, std)}, counted `count` times: a count that
+    large (NORMALIZER_COUNT) holds them, as a network trained on them needs, against the updates of its new run."""
+    return running_statistics.RunningStatisticsState(
+        count=types.UInt64(hi=np.uint32(count >> 32), lo=np.uint32(count & 0xFFFFFFFF)),
+        mean={k: np.asarray(m, np.float32) for k, (m, _) in stats.items()},
+        summed_variance={k: np.square(np.asarray(s, np.float32)) * count for k, (_, s) in stats.items()},
+        std={k: np.asarray(s, np.float32) for k, (_, s) in stats.items()})

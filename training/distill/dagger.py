@@ -39,7 +39,7 @@ from training import envs
 from training.core import checkpoints
 from training.core import curves
 from training.core.backend import default_backend
-from training.core.networks import ACTIVATION
+from training.core.networks import ACTIVATION, NORMALIZER_COUNT, held_normalizer
 from training.core.overrides import apply_overrides
 from training.core.overrides import TOY_ENV_OVERRIDES
 from training.distill.teacher import STITCHED, STUDENT_OBS_KEY, load_teacher, teacher_kind, teacher_observation
@@ -173,6 +173,32 @@ def dagger_configs(task: str, preset: str, overrides: Sequence[str], num_envs: i
     return cfg, env_cfg
 
 
+def expert_start(artifact, cfg, env, wrapped) -> tuple:
+    """(held normaliser, brax bc policy params) with which a student starts as the expert `artifact` acts: its
+    layers and observation statistics, the statistics held (NORMALIZER_COUNT), so that the expert's behaviour is
+    where the DAgger fit starts and stays where the teacher is that expert. The expert must be brax's tanh-normal
+    policy on the student's observation layout, action map and hidden sizes, and the student tanh-squashed."""
+    layers, mean, std, manifest = read_artifact(artifact)
+    if manifest["output_rule"] != "tanh_normal" or not cfg.tanh_squash:
+        raise ValueError(f"{artifact}: a student starts from an expert only as brax's tanh-normal policy (output "
+                         f"rule {manifest['output_rule']!r}, bc.tanh_squash {cfg.tanh_squash}; give bc.tanh_squash=True)")
+    if [list(t) for t in manifest["obs_terms"]] != [list(t) for t in env.obs_terms]:
+        raise ValueError(f"{artifact}: its observation terms {manifest['obs_terms']} are not the student's "
+                         f"{[list(t) for t in env.obs_terms]}")
+    if not np.allclose(np.broadcast_to(manifest["action_scale"], (obsdef.NUM_JOINTS,)),
+                       np.broadcast_to(env.manifest_fields()["action_scale"], (obsdef.NUM_JOINTS,))):
+        raise ValueError(f"{artifact}: its action scale is not the student env's")
+    sizes = [w.shape[0] for w, _ in layers]
+    if sizes != [*cfg.policy_hidden_layer_sizes, 2 * obsdef.NUM_JOINTS]:
+        raise ValueError(f"{artifact}: its layers {sizes} are not the student's "
+                         f"{[*cfg.policy_hidden_layer_sizes, 2 * obsdef.NUM_JOINTS]} (bc.policy_hidden_layer_sizes)")
+    shapes = jax.eval_shape(wrapped.reset, jax.random.split(jax.random.PRNGKey(0), 1)).obs
+    stats = {k: (mean, std) if k == STUDENT_OBS_KEY else (np.zeros(v.shape[-1]), np.ones(v.shape[-1]))
+             for k, v in shapes.items()}
+    params = {f"hidden_{i}": {"kernel": np.ascontiguousarray(w.T), "bias": b} for i, (w, b) in enumerate(layers)}
+    return held_normalizer(stats, NORMALIZER_COUNT), {"params": params}
+
+
 def _newest_params(run_dir: Path, params):
     """(params as numpy, phases done): bc.train's, or after a stop the newest checkpoint's."""
     done = checkpoints.list_checkpoints(run_dir)
@@ -206,16 +232,20 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
             preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
             command: str = "", progress: bool = True, max_minutes: float | None = None,
             name: str = "student", backend: str | None = None, from_checkpoint=None,
-            recipe: dict | None = None) -> DistillResult:
+            recipe: dict | None = None, init_artifact=None) -> DistillResult:
     """One DAgger run from `teacher` ({role: artifact}: getup + joystick, the stitched teacher; roll + rise +
     stand, the keyframe getup's chain); with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
     student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
     and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
-    continue from that run's (STATE_FILE), so a campaign goes on across sessions."""
+    continue from that run's (STATE_FILE), so a campaign goes on across sessions. With `init_artifact` (an expert
+    of the teacher) the student starts as that expert (expert_start)."""
 
     checkpoints.jax_setup()
     t_start = time.monotonic()
     run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
+    if from_checkpoint is not None and init_artifact is not None:
+        raise ValueError("distill: a student goes on from a DAgger checkpoint (--from) or starts as an expert "
+                         "(--init), not both")
     if checkpoints.list_checkpoints(run_dir):
         raise FileExistsError(f"{run_dir}: already holds DAgger checkpoints; give a new --out "
                               f"(continue a run with --from {run_dir})")
@@ -225,6 +255,7 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
 
     env_cfg.backend = backend or default_backend()
     env, wrapped = _dagger_env(task, env_cfg, teacher)
+    start = None if init_artifact is None else expert_start(init_artifact, cfg, env, wrapped)
     teacher_fn = load_teacher(teacher, env.obs_terms, env.manifest_fields()["action_scale"], cfg.tanh_squash)
     episode_length = int(env_cfg.episode_length)
     factory = functools.partial(bc_networks.make_bc_networks,
@@ -248,7 +279,7 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     _write_state(run_dir, before, phase_env_steps, before["phases"], before["steps"], artifact=f"{name}.safetensors",
                  command=command or "unknown", date=checkpoints.utc_now(), finished=False)
     params, stopped = _train_bc(cfg, wrapped, teacher_fn, factory, progress_fn, seed, episode_length,
-                                (run_dir / checkpoints.CHECKPOINT_DIR).resolve(), before["checkpoint"])
+                                (run_dir / checkpoints.CHECKPOINT_DIR).resolve(), before["checkpoint"], start)
     bar.close()
     log.close()
     curves.plot_curves(log.csv_path, run_dir / curves.PNG_NAME, title=f"{name} (DAgger)")
@@ -256,7 +287,8 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     minutes = (time.monotonic() - t_start) / 60.0
     provenance = {**_provenance(before, phases, phase_env_steps, minutes, command), "preset": preset,
                   "backend": env_cfg.backend, "teacher": {k: str(v) for k, v in teacher.items()},
-                  "stopped_by_max_minutes": stopped, **({"recipe": recipe} if recipe else {})}
+                  "stopped_by_max_minutes": stopped, **({"recipe": recipe} if recipe else {}),
+                  **({"init": str(init_artifact)} if init_artifact is not None else {})}
     artifact = run_dir / f"{name}.safetensors"
     trained = provenance["dagger_phases"] > 0 and preset != "toy"
     _write_state(run_dir, before, phase_env_steps, provenance["dagger_phases"], provenance["steps"],
@@ -269,9 +301,10 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
 
 
 def _train_bc(cfg, env, teacher, network_factory, progress_fn, seed: int, episode_length: int, ckpt_root: Path,
-              restore) -> tuple[object, bool]:
+              restore, start=None) -> tuple[object, bool]:
     """brax bc's DAgger loop with the run's settings, checkpointing under `ckpt_root`, from `restore` (a
-    checkpoint or None); (its params, or None when --max-minutes stopped it, and whether it was stopped)."""
+    checkpoint or None) or `start` ((normaliser, policy params) or None); (its params, or None when
+    --max-minutes stopped it, and whether it was stopped)."""
     try:
         _, params, _ = bc.train(
             demo_length=cfg.demo_length, teacher_inference_fn=teacher,
@@ -281,7 +314,8 @@ def _train_bc(cfg, env, teacher, network_factory, progress_fn, seed: int, episod
             scramble_time=cfg.scramble_time or episode_length, network_factory=network_factory,
             progress_fn=progress_fn, seed=seed, learning_rate=cfg.learning_rate, dagger_steps=cfg.dagger_steps,
             dagger_beta_fn=beta_schedule(cfg.beta_teacher_phases, cfg.beta_floor, cfg.beta_decay_phases), num_evals=cfg.num_evals,
-            reset=cfg.reset, save_checkpoint_path=str(ckpt_root), restore_checkpoint_path=restore)
+            reset=cfg.reset, save_checkpoint_path=str(ckpt_root), restore_checkpoint_path=restore,
+            restore_params=start)
     except _Stop:
         return None, True
     return params, False

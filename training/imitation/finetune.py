@@ -24,13 +24,12 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from brax.training import types
-from brax.training.acme import running_statistics
 from brax.training.agents.ppo import losses as ppo_losses
 
 from training.core import checkpoints
 from training.core.checkpoints import repo_path
 from training.core.extension import PPOExtension
+from training.core.networks import NORMALIZER_COUNT, held_normalizer
 from training.distill.finetune import bc_weight, sample_count
 from training.imitation import config as campaign_files, dataset
 from training.imitation.learner import artifact_params
@@ -38,7 +37,6 @@ from training.imitation.learner import targets_to_labels
 
 # the keys that make a PPO stage this fine-tune: a toy run keeps them (recipes/runner.py)
 LEARNER_KEYS = ("ppo.imitation.",)
-NORMALIZER_COUNT = 2 ** 32   # samples the held normaliser counts (float32 reads it to 512: the BC decay's step)
 MIN_STD = 1e-3            # brax NormalTanhDistribution's min_std: scale = softplus(raw) + MIN_STD
 
 
@@ -81,11 +79,7 @@ def normalizer_state(mean: np.ndarray, std: np.ndarray, count: int, observation_
     stats = {"state": (mean, std),
              "privileged_state": (np.concatenate([mean, np.zeros(extra, np.float32)]),
                                   np.concatenate([std, np.ones(extra, np.float32)]))}
-    return running_statistics.RunningStatisticsState(
-        count=types.UInt64(hi=np.uint32(count >> 32), lo=np.uint32(count & 0xFFFFFFFF)),
-        mean={k: m for k, (m, _) in stats.items()},
-        summed_variance={k: np.square(s) * count for k, (_, s) in stats.items()},
-        std={k: s for k, (_, s) in stats.items()})
+    return held_normalizer(stats, count)
 
 
 def _campaign_of(init) -> Path:
