@@ -163,11 +163,12 @@ def at_kneel_gate_height(trunk_height, xp=np):
     return KNEEL_GATE_HEIGHT_M - xp.minimum(trunk_height, KNEEL_GATE_HEIGHT_M) < KNEEL_GATE_HEIGHT_TOL_M
 
 
-def kneel_gate(trunk_height, up_z, xp=np):
+def kneel_gate(trunk_height, up_z, xp=np, up_error_max: float = KNEEL_GATE_UP_ERROR):
     """The seed's kneel gate (§4.8) per sample: at its height and ‖u − e_z‖ = √(2 − 2·u_z) < 0.01, from trunk
-    height [m] and up_z. xp: numpy or jax.numpy, as common/observation.py's functions."""
+    height [m] and up_z. xp: numpy or jax.numpy, as common/observation.py's functions. up_error_max: a looser
+    upright condition (a distillation's hand-over of labels), the gate's own by default."""
     up_error = xp.sqrt(xp.maximum(2.0 - 2.0 * up_z, 0.0))
-    return at_kneel_gate_height(trunk_height, xp) & (up_error < KNEEL_GATE_UP_ERROR)
+    return at_kneel_gate_height(trunk_height, xp) & (up_error < up_error_max)
 
 
 def kneel_gate_mask(trunk_height, up_z) -> np.ndarray:
@@ -212,17 +213,19 @@ KEYFRAME_STAGES = ("roll", "rise", "stand")   # the keyframe getup's chain, in o
 KEYFRAME_START = -1                            # keyframe_stage's `stage` at an episode's first sample
 
 
-def keyframe_stage(stage, forward_z, trunk_height, up_z, ang_speed_rad_s, xp=np):
+def keyframe_stage(stage, forward_z, trunk_height, up_z, ang_speed_rad_s, xp=np,
+                   handover_up_error: float = KNEEL_GATE_UP_ERROR):
     """The chain stage (KEYFRAME_STAGES index) that acts at this sample, from the one that acted at the last: roll
     until rolled_face_down, rise until §4.8's gate (back to roll if it tipped the robot onto its back), stand
     until the trunk is down (then roll again). At KEYFRAME_START the trunk's height picks the first: lying, roll
-    (the rise if already face down); above the fallen height, the rise; standing, stand. xp: numpy or jax.numpy."""
+    (the rise if already face down); above the fallen height, the rise; standing, stand. xp: numpy or jax.numpy.
+    handover_up_error: the rise hands over at the gate with this upright condition (kneel_gate's up_error_max)."""
     roll_, rise_, stand_ = range(len(KEYFRAME_STAGES))
     h = xp.asarray(trunk_height)
     first = xp.where(h < FALLEN_TRUNK_HEIGHT_M, roll_, xp.where(h < STANDING_TRUNK_THRESHOLD_M, rise_, stand_))
     stage = xp.where(xp.asarray(stage) == KEYFRAME_START, first, stage)
     roll = xp.where(rolled_face_down(forward_z, h, ang_speed_rad_s, xp), rise_, roll_)
-    rise = xp.where(kneel_gate(h, up_z, xp), stand_,
+    rise = xp.where(kneel_gate(h, up_z, xp, handover_up_error), stand_,
                     xp.where(lying_on_back(forward_z, h, ang_speed_rad_s, xp), roll_, rise_))
     stand = xp.where(h < FALLEN_TRUNK_HEIGHT_M, roll_, stand_)
     return xp.where(stage == roll_, roll, xp.where(stage == rise_, rise, stand)).astype(xp.int32)

@@ -100,3 +100,7 @@ def test_keyframe_stage_reads_the_same_under_numpy():
                                 np.array([0.2, 0.2, 0.2, 0.4, 0.3]), np.array([0.0, 0.0, 0.0, 1.0, 0.9]),
                                 np.zeros(5))
     np.testing.assert_array_equal(got, [rise, roll, roll, stand, roll])
+    # a rise 1° off upright at the gate's height: the gate (0.57°) holds it, a looser hand-over passes it on
+    tilted = (np.array([rise]), np.array([0.0]), np.array([0.4]), np.array([np.cos(np.radians(1.0))]), np.zeros(1))
+    assert events.keyframe_stage(*tilted) == rise
+    assert events.keyframe_stage(*tilted, handover_up_error=0.03) == stand

@@ -123,7 +123,8 @@ def test_the_kneel_rise_starts_from_the_dagger_learner_with_the_bc_term(toy_root
     assert "| env steps |" in (run / kneel_report.REPORT).read_text()
     fine = json.loads((toy_root / "getup_keyframe" / "rise_fine" / checkpoints.RUN_STATE).read_text())
     assert Path(fine["init"]).is_relative_to(run)                       # rise's newest checkpoint
-    assert fine["ppo_config"]["imitation"]["campaign"] == ""              # its data: rise's campaign
+    # its data: rise's campaign, named in its own config (it resumes where rise's checkpoint is not kept)
+    assert Path(fine["ppo_config"]["imitation"]["campaign"]).resolve() == dagger.resolve()
 
 
 @pytest.mark.slow

@@ -120,7 +120,7 @@ def test_the_teacher_is_the_stitched_one_or_the_keyframe_chain():
     from training.distill.teacher import KeyframeStageObservation, WaistObservation, teacher_observation
     chain = _ppo_cfg(getup="", joystick="", roll="r", rise="s", stand="t")
     assert F.teacher_roles(chain) == {"roll": "r", "rise": "s", "stand": "t"}
-    assert teacher_observation(F.teacher_roles(chain)) is KeyframeStageObservation
+    assert teacher_observation(F.teacher_roles(chain)).func is KeyframeStageObservation
     assert teacher_observation(F.teacher_roles(_ppo_cfg())) is WaistObservation
     with pytest.raises(ValueError, match="a teacher is getup"):        # roles of both kinds at once
         teacher_observation(F.teacher_roles(_ppo_cfg(roll="r")))

@@ -33,6 +33,7 @@ from brax.training.agents.bc import train as bc
 from ml_collections import config_dict
 from mujoco_playground import wrapper
 
+from common import events
 from common import observation as obsdef
 from common.artifact import read_artifact
 from training import envs
@@ -59,7 +60,10 @@ def bc_config(preset: str = "gpu") -> config_dict.ConfigDict:
         num_evals=11,  # the initial evaluation + the seed's 10
         num_eval_envs=128, eval_length_factor=1.15,  # × the env's episode length (Table 5.2: 1150 of 1000)
         scramble_time=0,  # 0: the env's episode length (Table 5.2: 1000)
-        reset=True, tanh_squash=False, policy_hidden_layer_sizes=(512, 256, 128))
+        reset=True, tanh_squash=False, policy_hidden_layer_sizes=(512, 256, 128),
+        # the chain teacher's rise → stand hand-over of labels: §4.8's gate (0.01); looser, a memoryless student
+        # that cannot see the latch gets one label where the kneel is still (common/events.keyframe_stage)
+        handover_up_error=events.KNEEL_GATE_UP_ERROR)
     if preset == "toy":
         cfg.update(dict(num_envs=8, demo_length=2, batch_size=8, dagger_steps=4, num_evals=0, num_eval_envs=4,
                         epochs=1, policy_hidden_layer_sizes=(16, 16)))
@@ -209,12 +213,12 @@ def _newest_params(run_dir: Path, params):
     return jax.tree.map(np.asarray, tuple(params)), int(done[-1].name) if done else 0
 
 
-def _dagger_env(task: str, env_cfg, teacher: dict):
+def _dagger_env(task: str, env_cfg, teacher: dict, handover_up_error: float):
     """(env, the env brax bc trains in: Playground's wrapper with what the teacher switches on in the observation:
     the waist height, or the chain's stage)."""
     env = envs.make(task, config=env_cfg)
     wrapped = wrapper.wrap_for_brax_training(env, episode_length=int(env_cfg.episode_length), full_reset=True)
-    return env, teacher_observation(teacher)(wrapped, env)
+    return env, teacher_observation(teacher, handover_up_error)(wrapped, env)
 
 
 def _provenance(before: dict, phases: int, phase_env_steps: int, minutes: float, command: str) -> dict:
@@ -254,7 +258,7 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     cfg, env_cfg = dagger_configs(task, preset, overrides, num_envs, union_terms=teacher_kind(teacher) == STITCHED)
 
     env_cfg.backend = backend or default_backend()
-    env, wrapped = _dagger_env(task, env_cfg, teacher)
+    env, wrapped = _dagger_env(task, env_cfg, teacher, float(cfg.handover_up_error))
     start = None if init_artifact is None else expert_start(init_artifact, cfg, env, wrapped)
     teacher_fn = load_teacher(teacher, env.obs_terms, env.manifest_fields()["action_scale"], cfg.tanh_squash)
     episode_length = int(env_cfg.episode_length)

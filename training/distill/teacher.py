@@ -8,6 +8,7 @@ WAIST_OBS_KEY (training/distill/dagger.py); the student's network reads only "st
 """
 from __future__ import annotations
 
+import functools
 from typing import Sequence
 
 import jax
@@ -52,15 +53,17 @@ class WaistObservation:
 class KeyframeStageObservation:
     """Wraps a brax-training-wrapped (batched) getup env: adds obs[STAGE_OBS_KEY] = the keyframe chain's stage
     (B, 1) (common/events.keyframe_stage: roll → rise → stand, latched), advanced from the last step's stage by
-    the physics data after each step; an episode's first stage is the start rule's, also after an auto-reset."""
+    the physics data after each step; an episode's first stage is the start rule's, also after an auto-reset.
+    handover_up_error: the rise's hand-over to the stand (keyframe_stage's; §4.8's gate by default)."""
 
-    def __init__(self, wrapped, base_env):
+    def __init__(self, wrapped, base_env, handover_up_error: float = events.KNEEL_GATE_UP_ERROR):
         self._env = wrapped
 
         def stage_after(stage, data):
             r = base_env.body_readings(data)
             spin = jnp.linalg.norm(base_env.sensor(data, "gyro"))
-            return events.keyframe_stage(stage, base_env.forward_z(data), r["trunk_height"], r["up_z"], spin, jnp)
+            return events.keyframe_stage(stage, base_env.forward_z(data), r["trunk_height"], r["up_z"], spin, jnp,
+                                         handover_up_error)
 
         self._stage_after = jax.vmap(stage_after)
 
@@ -180,9 +183,12 @@ def load_teacher(roles: dict, student_terms: Sequence, student_action_scale, stu
     return make_chain_teacher(experts, student_terms, student_action_scale, student_tanh_squash=student_tanh_squash)
 
 
-def teacher_observation(roles: dict):
-    """The wrapper that puts what the teacher of these roles switches on into the observation."""
-    return WaistObservation if teacher_kind(roles) == STITCHED else KeyframeStageObservation
+def teacher_observation(roles: dict, handover_up_error: float = events.KNEEL_GATE_UP_ERROR):
+    """The wrapper (wrapped env, base env) → env that puts what the teacher of these roles switches on into the
+    observation; the chain's rise hands over to the stand at handover_up_error (keyframe_stage)."""
+    if teacher_kind(roles) == STITCHED:
+        return WaistObservation
+    return functools.partial(KeyframeStageObservation, handover_up_error=handover_up_error)
 
 
 def check_teacher(getup_path, joystick_path, num_envs: int = 16, seed: int = 0, steps: int = 50,
