@@ -86,6 +86,19 @@ def test_the_acting_member_commands_and_the_idle_ones_read_the_applied_targets()
     np.testing.assert_allclose(np.asarray(next_own)[ChainPolicy.ROLL], idle, atol=1e-5)
 
 
+def test_a_chain_may_hand_over_at_a_looser_upright_condition():
+    """The rise of a chain loaded with a hand-over up error passes a trunk 1° off upright at the gate's height to
+    the stand; §4.8's gate (the default) keeps it in the rise. Only a chain has a hand-over."""
+    one_degree = _body(events.KNEEL_GATE_HEIGHT_M, math.cos(math.radians(1.0)))
+    rise = np.int32(ChainPolicy.RISE)
+    assert int(load_policy(SPEC).next_stage(rise, _state(UPRIGHT), one_degree)) == ChainPolicy.RISE
+    assert int(load_policy(SPEC, 0.03).next_stage(rise, _state(UPRIGHT), one_degree)) == ChainPolicy.STAND
+    with pytest.raises(ValueError, match="a chain's"):
+        load_policy(MEMBER, 0.03)
+    with pytest.raises(ValueError, match="in \\(0, 2\\]"):
+        load_policy(SPEC, 0.0)
+
+
 def test_a_bad_chain_spec_is_named():
     with pytest.raises(ValueError, match="ROLL.safetensors,RISE.safetensors,STAND.safetensors"):
         load_policy(f"chain:{MEMBER},{MEMBER}")

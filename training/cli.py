@@ -128,8 +128,8 @@ def _cmd_evaluate(args, command: str) -> int:
             raise ValueError("--baseline: the joystick evaluation takes one policy")
         if args.starts != "fallen":
             raise ValueError("--starts: the joystick evaluation starts standing")
-        if args.target_noise:
-            raise ValueError("--target-noise: the getup evaluation only")
+        if args.target_noise or args.handover_up_error is not None:
+            raise ValueError("--target-noise, --handover-up-error: the getup evaluation only")
         from training.evaluation import joystick as evaluate_joystick   # lazy: keeps JAX out of --help
         report = evaluate_joystick.evaluate(args.policy, out, episodes=args.seeds, seconds=seconds,
                                             first_seed=args.first_seed, command=command, backend=args.backend)
@@ -138,7 +138,8 @@ def _cmd_evaluate(args, command: str) -> int:
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
                                    command=command, backend=args.backend, starts=args.starts,
-                                   start_joystick=args.start_joystick, target_noise_rad=args.target_noise)
+                                   start_joystick=args.start_joystick, target_noise_rad=args.target_noise,
+                                   handover_up_error=args.handover_up_error)
     print(report.read_text())
     return 0
 
@@ -270,6 +271,9 @@ def _add_evaluate(sub) -> None:
     p.add_argument("--target-noise", type=float, default=0.0, metavar="RAD",
                    help="getup, CPU backend: N(0, RAD²) on every joint target each tick (seeded by --first-seed), "
                    "as PPO's sampled actions: does the behaviour survive the training rollouts' noise")
+    p.add_argument("--handover-up-error", type=float, metavar="E",
+                   help="a chain:ROLL,RISE,STAND policy's rise hands over to the stand at ‖u − e_z‖ < E "
+                        "(default: §4.8's gate, 0.01)")
     p.add_argument("--out", help="folder for the report (default: out/eval_<task>)")
     p.add_argument("--backend", choices=BACKEND_CHOICES, help=BACKEND_HELP)
     p.set_defaults(func=_cmd_evaluate)

@@ -145,16 +145,19 @@ class ChainPolicy:
     (it switches on the trunk's height, which only the simulation knows). Each member reads its own last action,
     the idle ones the applied targets in their map (as CompositePolicy); the carry is (own actions (3, 23), stage)."""
     members: tuple[ArtifactPolicy, ArtifactPolicy, ArtifactPolicy]
+    handover_up_error: float = events.KNEEL_GATE_UP_ERROR   # the rise → stand hand-over (keyframe_stage's)
 
     PREFIX = "chain:"
     ROLL, RISE, STAND = range(len(events.KEYFRAME_STAGES))
 
     @classmethod
-    def load(cls, spec: str) -> "ChainPolicy":
+    def load(cls, spec: str, handover_up_error: float = events.KNEEL_GATE_UP_ERROR) -> "ChainPolicy":
         parts = [p.strip() for p in str(spec)[len(cls.PREFIX):].split(",")]
         if len(parts) != 3 or not all(parts):
             raise ValueError(f"{spec!r}: a chain is {cls.PREFIX}ROLL.safetensors,RISE.safetensors,STAND.safetensors")
-        return cls(tuple(ArtifactPolicy.load(p) for p in parts))
+        if not 0 < handover_up_error <= 2:
+            raise ValueError(f"handover up error {handover_up_error}: ‖u − e_z‖ of an upright trunk, in (0, 2]")
+        return cls(tuple(ArtifactPolicy.load(p) for p in parts), float(handover_up_error))
 
     @property
     def path(self) -> str:
@@ -185,7 +188,8 @@ class ChainPolicy:
     def next_stage(self, stage, obs_state: obsdef.ObservationState, body: dict):
         """The stage that acts this tick, from the one that acted the last (common/events.keyframe_stage)."""
         return events.keyframe_stage(stage, events.forward_z_from_quat(obs_state.imu_quat, jnp), body["trunk_height"],
-                                     body["up_z"], jnp.linalg.norm(obs_state.gyro, axis=-1), jnp)
+                                     body["up_z"], jnp.linalg.norm(obs_state.gyro, axis=-1), jnp,
+                                     self.handover_up_error)
 
     def act(self, params, obs_state: obsdef.ObservationState, body: dict):
         own, stage = obs_state.last_action
@@ -198,10 +202,13 @@ class ChainPolicy:
         return (next_own, stage), q_target
 
 
-def load_policy(spec) -> ArtifactPolicy | CompositePolicy | ChainPolicy:
-    """An artifact path, GETUP,UPRIGHT for the runtime's composite of two, or chain:ROLL,RISE,STAND."""
+def load_policy(spec, handover_up_error: float | None = None) -> ArtifactPolicy | CompositePolicy | ChainPolicy:
+    """An artifact path, GETUP,UPRIGHT for the runtime's composite of two, or chain:ROLL,RISE,STAND (its rise
+    hands over to the stand at handover_up_error; None: §4.8's gate)."""
     if str(spec).startswith(ChainPolicy.PREFIX):
-        return ChainPolicy.load(spec)
+        return ChainPolicy.load(spec, *(() if handover_up_error is None else (handover_up_error,)))
+    if handover_up_error is not None:
+        raise ValueError(f"{spec!r}: a hand-over up error is a chain's (chain:ROLL,RISE,STAND)")
     return CompositePolicy.load(spec) if "," in str(spec) else ArtifactPolicy.load(spec)
 
 

@@ -345,12 +345,14 @@ def kneel_figures(artifact, out, seeds: int, seconds: float, command: str, seen_
 
 def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 32, seconds: float = 10.0,
              first_seed: int = 0, command: str = "", backend: str | None = None, starts: str = "fallen",
-             start_joystick: str | None = None, target_noise_rad: float = 0.0) -> Path:
+             start_joystick: str | None = None, target_noise_rad: float = 0.0,
+             handover_up_error: float | None = None) -> Path:
     """Run the evaluation; returns the path of report.md. starts="knockdown": instead of fallen starts, the
     states where `start_joystick`, knocked over from `seeds` standing starts (bank seed `first_seed`),
     hands over to the getup policy mid-fall (training/envs/starts/); the ones it caught are left out.
     starts="wall": the same after `start_joystick` walked into the low-wall course from `seeds` approaches
-    (the getup env then has the course in its world); starts="push": after the loop's push test shoved it."""
+    (the getup env then has the course in its world); starts="push": after the loop's push test shoved it.
+    handover_up_error: a chain policy's rise → stand hand-over (load_policy)."""
     checkpoints.jax_setup()
     if task != "getup":
         raise ValueError(f"--task {task!r}: only the getup evaluation exists so far")
@@ -366,7 +368,8 @@ def evaluate(policy_path, out, baseline=None, task: str = "getup", seeds: int = 
         qpos, qvel = env.fallen_starts(seeds, first_seed)   # the loop's: after the runtime's PREPARE
     else:
         qpos, qvel = landing_bank(starts)(envs.make, env, str(start_joystick), seeds, first_seed)
-    policies = {role: load_policy(path) for role, path in (("policy", policy_path), ("baseline", baseline))
+    policies = {role: load_policy(path, handover_up_error if role == "policy" else None)
+                for role, path in (("policy", policy_path), ("baseline", baseline))
                 if path is not None}   # both checked before either runs
     for policy in policies.values():
         policy.check_env(env)
