@@ -75,8 +75,15 @@ def test_end_at_is_a_ppo_stages_checkpoint_within_its_steps():
         R.Recipe("x", "x", "", (R.Stage("a", task="getup", steps=100, end_at=200),))
     with pytest.raises(ValueError, match="end_at is a PPO stage's checkpoint"):
         R.Recipe("x", "x", "", (R.Stage("a", kind="imitation", steps=3, end_at=2),))
-    with pytest.raises(ValueError, match="init_artifact is a PPO stage's with an init"):
+    with pytest.raises(ValueError, match="init_artifact is a PPO or distill stage's with an init"):
         R.Recipe("x", "x", "", (R.Stage("a", task="getup", steps=100, init_artifact=True),))
+    with pytest.raises(ValueError, match="init_artifact is a PPO or distill stage's with an init"):
+        R.Recipe("x", "x", "", (R.Stage("a", task="getup", steps=100),
+                                R.Stage("b", kind="imitation", steps=1, init="a", init_artifact=True)))
+    chain = {"roll": "@r/a", "rise": "@r/b", "stand": "@r/c"}   # a student that starts as an expert of its chain
+    R.Recipe("x", "x", "", (R.Stage("a", task="getup", steps=100),
+                            R.Stage("b", kind="distill", task="getup", steps=10, init="a", init_artifact=True,
+                                    teacher=chain)))
 
 
 def test_the_campaigns_rise_best_is_complete_at_its_end_checkpoint():
