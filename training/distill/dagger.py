@@ -44,6 +44,7 @@ from training.core.networks import ACTIVATION, NORMALIZER_COUNT, held_normalizer
 from training.core.overrides import apply_overrides
 from training.core.overrides import TOY_ENV_OVERRIDES
 from training.distill.teacher import STITCHED, STUDENT_OBS_KEY, load_teacher, teacher_kind, teacher_observation
+from training.envs.policy_files import artifact_params
 from training.export.brax import export_brax_ppo
 from training.export.brax import ship_artifact
 
@@ -182,7 +183,7 @@ def expert_start(artifact, cfg, env, wrapped) -> tuple:
     layers and observation statistics, the statistics held (NORMALIZER_COUNT), so that the expert's behaviour is
     where the DAgger fit starts and stays where the teacher is that expert. The expert must be brax's tanh-normal
     policy on the student's observation layout, action map and hidden sizes, and the student tanh-squashed."""
-    layers, mean, std, manifest = read_artifact(artifact)
+    params, mean, std, manifest = artifact_params(artifact)
     if manifest["output_rule"] != "tanh_normal" or not cfg.tanh_squash:
         raise ValueError(f"{artifact}: a student starts from an expert only as brax's tanh-normal policy (output "
                          f"rule {manifest['output_rule']!r}, bc.tanh_squash {cfg.tanh_squash}; give bc.tanh_squash=True)")
@@ -192,15 +193,14 @@ def expert_start(artifact, cfg, env, wrapped) -> tuple:
     if not np.allclose(np.broadcast_to(manifest["action_scale"], (obsdef.NUM_JOINTS,)),
                        np.broadcast_to(env.manifest_fields()["action_scale"], (obsdef.NUM_JOINTS,))):
         raise ValueError(f"{artifact}: its action scale is not the student env's")
-    sizes = [w.shape[0] for w, _ in layers]
+    sizes = [layer["kernel"].shape[1] for layer in params["params"].values()]
     if sizes != [*cfg.policy_hidden_layer_sizes, 2 * obsdef.NUM_JOINTS]:
         raise ValueError(f"{artifact}: its layers {sizes} are not the student's "
                          f"{[*cfg.policy_hidden_layer_sizes, 2 * obsdef.NUM_JOINTS]} (bc.policy_hidden_layer_sizes)")
     shapes = jax.eval_shape(wrapped.reset, jax.random.split(jax.random.PRNGKey(0), 1)).obs
     stats = {k: (mean, std) if k == STUDENT_OBS_KEY else (np.zeros(v.shape[-1]), np.ones(v.shape[-1]))
              for k, v in shapes.items()}
-    params = {f"hidden_{i}": {"kernel": np.ascontiguousarray(w.T), "bias": b} for i, (w, b) in enumerate(layers)}
-    return held_normalizer(stats, NORMALIZER_COUNT), {"params": params}
+    return held_normalizer(stats, NORMALIZER_COUNT), params
 
 
 def _newest_params(run_dir: Path, params):

@@ -9,6 +9,8 @@ from typing import Any, Mapping
 import numpy as np
 from brax.training import checkpoint as brax_checkpoint
 
+from common.artifact import read_artifact
+
 RUN_STATE = "run_state.json"
 CHECKPOINT_DIR = "checkpoints"
 ACTIVATION = "swish"  # brax's PPO/BC default (flax linen.swish); the artifact's activation must match
@@ -38,6 +40,14 @@ def resolve_checkpoint(path) -> Path:
 def load_checkpoint(path) -> list:
     """[normalizer_state, policy_params, (value_params)] as numpy trees (brax checkpoint.load)."""
     return brax_checkpoint.load(resolve_checkpoint(path).resolve())
+
+
+def artifact_params(artifact: Path) -> tuple[dict, np.ndarray, np.ndarray, dict]:
+    """(brax policy params, observation mean, std, manifest) of an artifact of `export` (its layers are brax's,
+    the scale half included): brax_policy_layers inverted."""
+    layers, mean, std, manifest = read_artifact(Path(artifact))
+    params = {f"hidden_{i}": {"kernel": np.ascontiguousarray(w.T), "bias": b} for i, (w, b) in enumerate(layers)}
+    return {"params": params}, np.asarray(mean, np.float32), np.asarray(std, np.float32), manifest
 
 
 def brax_policy_layers(policy_params: Mapping[str, Any]) -> list[tuple[np.ndarray, np.ndarray]]:

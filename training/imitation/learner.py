@@ -17,9 +17,8 @@ import numpy as np
 import optax
 
 from common import observation as obsdef
-from common.artifact import read_artifact
 from training.core.networks import ppo_networks_with_std_scale
-from training.envs.policy_files import ACTIVATION, brax_policy_layers
+from training.envs.policy_files import ACTIVATION, artifact_params, brax_policy_layers
 from training.export.brax import export_brax_ppo
 
 STD_FLOOR = 1e-3         # the normaliser's smallest std (a joint that never moved in the data)
@@ -68,14 +67,6 @@ def new_learner(obs: np.ndarray, hidden: list[int], seed: int, env_fields: dict,
                    default_pose=np.asarray(env_fields["default_pose"], np.float64),
                    action_scale=np.broadcast_to(np.asarray(env_fields["action_scale"], np.float64), (len(lo),)),
                    lo=np.asarray(lo), hi=np.asarray(hi))
-
-
-def artifact_params(artifact: Path) -> tuple[dict, np.ndarray, np.ndarray, dict]:
-    """(brax policy params, observation mean, std, manifest) of an artifact of `export` (its layers are brax's,
-    the scale half included)."""
-    layers, mean, std, manifest = read_artifact(Path(artifact))
-    params = {f"hidden_{i}": {"kernel": np.ascontiguousarray(w.T), "bias": b} for i, (w, b) in enumerate(layers)}
-    return {"params": params}, np.asarray(mean, np.float32), np.asarray(std, np.float32), manifest
 
 
 def load_learner(artifact: Path, like: Learner) -> Learner:
