@@ -97,11 +97,13 @@ class Run:
         self.watch.robot = self.robot
         # the robot's side at SCHED_FIFO, as on the robot: the attack is timed by the wall clock, and a test run
         # beside others (make test -n 2 on 2 cores) must not starve the loop past the motors' 50 ms watchdog
-        sim_args = ["--clock", "realtime", "--rt", "--spawn", "standing", "--lcm-url", url] + (["--dds"] if dds else [])
+        # (LCM only: over DDS a SCHED_FIFO side once kept the runtime from POLICY, Cyclone's threads starved)
+        rt = [] if dds else ["--rt"]
+        sim_args = ["--clock", "realtime", *rt, "--spawn", "standing", "--lcm-url", url] + (["--dds"] if dds else [])
         self.sim = start_sim(*sim_args, run_key=self.run_key)
         self.watch.until(lambda: self.watch.sim is not None, "the sim's first status", [self.sim])
         link = ["--transport", "dds"] if dds else []
-        self.runtime = start_runtime(STUDENT, "--clock", "realtime", "--rt", "--rt-cpu", "-1", "--autostart",
+        self.runtime = start_runtime(STUDENT, "--clock", "realtime", *rt, *(["--rt-cpu", "-1"] if rt else []), "--autostart",
                                      "--prepare-s", "1", "--lcm-url", url, *link, run_key=self.run_key)
         self.watch.until(lambda: self.watch.status is not None and self.watch.status.mode_name == "POLICY",
                          "the runtime in POLICY", [self.sim, self.runtime])
