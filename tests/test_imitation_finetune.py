@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from training.core import networks
 from training.ppo import configs
 
 from training.recipes import base as R
@@ -67,7 +68,7 @@ def test_the_artifact_becomes_the_ppo_policy_it_is_with_one_sampling_std(learner
     x = {"state": obs[:256], "privileged_state": np.zeros((256, 91), np.float32)}
     logits = np.asarray(net.policy_network.apply(params[0], params[1], x))
     np.testing.assert_allclose(np.tanh(logits[:, :23]), fitted.actions(obs[:256]), atol=2e-5)
-    std = np.log1p(np.exp(logits[:, 23:])) + finetune.MIN_STD
+    std = np.log1p(np.exp(logits[:, 23:])) + networks.MIN_STD
     np.testing.assert_allclose(std, cfg.init_noise_std, rtol=1e-5)
 
 

@@ -16,6 +16,7 @@ from brax.training.types import identity_observation_preprocessor
 from training.envs.policy_files import ACTIVATION  # noqa: F401 (the networks' activation, brax's default)
 
 NORMALIZER_COUNT = 2 ** 32   # samples a held normaliser counts (float32 reads it to 512: the BC decay's step)
+MIN_STD = 1e-3            # brax NormalTanhDistribution's min_std: scale = softplus(raw) + MIN_STD
 
 
 def ppo_networks_with_std_scale(observation_size, action_size, preprocess_observations_fn=None,
@@ -73,3 +74,16 @@ def held_normalizer(stats: dict, count: int):
         mean={k: np.asarray(m, np.float32) for k, (m, _) in stats.items()},
         summed_variance={k: np.square(np.asarray(s, np.float32)) * count for k, (_, s) in stats.items()},
         std={k: np.asarray(s, np.float32) for k, (_, s) in stats.items()})
+
+
+def tanh_normal_policy(layers: dict, init_std: float) -> dict:
+    """A brax tanh-normal policy MLP fitted by behaviour cloning (its scale half never trained) as a PPO policy's
+    first params: the layers as they are, the last layer's scale half giving the pre-tanh std init_std everywhere."""
+    if not init_std > MIN_STD:
+        raise ValueError(f"ppo.init_noise_std must be > {MIN_STD} (the sampling std), got {init_std}")
+    inner = {k: {n: np.array(v) for n, v in layer.items()} for k, layer in layers["params"].items()}
+    last = inner[f"hidden_{len(inner) - 1}"]
+    half = last["bias"].shape[0] // 2
+    last["kernel"][:, half:] = 0.0
+    last["bias"][half:] = np.log(np.expm1(init_std - MIN_STD))
+    return {"params": inner}

@@ -29,7 +29,7 @@ from brax.training.agents.ppo import losses as ppo_losses
 from training.core import checkpoints
 from training.core.checkpoints import repo_path
 from training.core.extension import PPOExtension
-from training.core.networks import NORMALIZER_COUNT, held_normalizer
+from training.core.networks import NORMALIZER_COUNT, held_normalizer, tanh_normal_policy
 from training.envs.policy_files import artifact_params
 from training.distill.finetune import bc_weight, sample_count
 from training.imitation import config as campaign_files, dataset
@@ -37,7 +37,6 @@ from training.imitation.learner import targets_to_labels
 
 # the keys that make a PPO stage this fine-tune: a toy run keeps them (recipes/runner.py)
 LEARNER_KEYS = ("ppo.imitation.",)
-MIN_STD = 1e-3            # brax NormalTanhDistribution's min_std: scale = softplus(raw) + MIN_STD
 
 
 def uses_imitation(ppo_cfg) -> bool:
@@ -55,18 +54,6 @@ def read_learner(path) -> dict:
         raise ValueError(f"{path}: a fine-tune from an artifact needs brax's tanh-normal policy, "
                          f"not output rule {manifest.get('output_rule')!r}")
     return {"path": str(path), "layers": layers, "mean": mean, "std": std}
-
-
-def policy_params(layers: dict, init_std: float) -> dict:
-    """The learner's layers with the last layer's scale half giving the pre-tanh std init_std everywhere."""
-    if not init_std > MIN_STD:
-        raise ValueError(f"ppo.init_noise_std must be > {MIN_STD} (the sampling std), got {init_std}")
-    inner = {k: {n: np.array(v) for n, v in layer.items()} for k, layer in layers["params"].items()}
-    last = inner[f"hidden_{len(inner) - 1}"]
-    half = last["bias"].shape[0] // 2
-    last["kernel"][:, half:] = 0.0
-    last["bias"][half:] = np.log(np.expm1(init_std - MIN_STD))
-    return {"params": inner}
 
 
 def normalizer_state(mean: np.ndarray, std: np.ndarray, count: int, observation_size: dict):
@@ -148,7 +135,7 @@ class ImitationFinetune(PPOExtension):
         if env is None:
             raise ValueError("a fine-tune from a DAgger artifact needs the task's observation sizes")
         return [normalizer_state(restored["mean"], restored["std"], NORMALIZER_COUNT, env.observation_size),
-                policy_params(restored["layers"], float(self._cfg.init_noise_std)), None]
+                tanh_normal_policy(restored["layers"], float(self._cfg.init_noise_std)), None]
 
     def state_fields(self, params) -> dict:
         return {"bc_count_start": float(sample_count(params[0])) if params else 0.0}
