@@ -4,6 +4,7 @@ start from, what the campaign keeps, and the arguments each round is run with. N
 every recipe is tests/test_recipes.py's)."""
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
@@ -70,9 +71,13 @@ def test_a_run_keeps_its_end_checkpoint_while_it_prunes_the_others(tmp_path, mon
     assert checkpoints.end_checkpoint(tmp_path, 700) is None
 
 
-def test_end_at_is_a_ppo_stages_checkpoint_within_its_steps():
+def test_end_at_is_a_ppo_stages_checkpoint_or_a_distill_stages_phase_within_its_steps():
     with pytest.raises(ValueError, match="end_at is a PPO stage's checkpoint"):
         R.Recipe("x", "x", "", (R.Stage("a", task="getup", steps=100, end_at=200),))
+    chain = {"roll": "@r/a", "rise": "@r/b", "stand": "@r/c"}
+    with pytest.raises(ValueError, match="or a distill stage's phase"):
+        R.Recipe("x", "x", "", (R.Stage("a", kind="distill", task="getup", steps=400, end_at=500, teacher=chain),))
+    R.Recipe("x", "x", "", (R.Stage("a", kind="distill", task="getup", steps=400, end_at=300, teacher=chain),))
     with pytest.raises(ValueError, match="end_at is a PPO stage's checkpoint"):
         R.Recipe("x", "x", "", (R.Stage("a", kind="imitation", steps=3, end_at=2),))
     with pytest.raises(ValueError, match="init_artifact is a PPO or distill stage's with an init"):
@@ -86,14 +91,72 @@ def test_end_at_is_a_ppo_stages_checkpoint_within_its_steps():
                                     teacher=chain)))
 
 
-def test_the_campaigns_rise_best_is_complete_at_its_end_checkpoint():
-    """The kept rise_best (a run of 3.03 M steps) ends at its 1.5 M checkpoint, the one the campaign keeps."""
+def test_the_campaign_keeps_no_stage_that_saving_it_would_drop():
+    """Each stage folder in campaigns/getup_keyframe is still needed: no complete later stage starts from it
+    through its inits, or a config names it (save_campaign's rule). rise_best, say, went once rise_rolled,
+    which started from it, was complete."""
     recipe = R.load("getup_keyframe")
-    rise_best = recipe.stage("rise_best")
-    run = CAMPAIGN / "rise_best"
-    assert rise_best.end_at < rise_best.steps
-    assert recipe_runner.end_checkpoint(run, rise_best) == checkpoints.checkpoint_path(run, rise_best.end_at)
-    assert json.loads((run / checkpoints.RUN_STATE).read_text())["calls"][-1]["to_steps"] == rise_best.steps
+    for folder in sorted(p for p in CAMPAIGN.iterdir() if p.is_dir() and p.name != "demos"):
+        stage = recipe.stage(folder.name.split(".")[0])
+        assert not recipe_runner.droppable(CAMPAIGN.parent, recipe, stage), f"{folder.name} is superseded"
+    assert recipe_runner.droppable(CAMPAIGN.parent, recipe, recipe.stage("rise_best"))
+
+
+def _distill_run(root: Path, recipe: str, stage: str, phases: list[int], state: dict) -> Path:
+    run = root / recipe / stage
+    for n in phases:
+        checkpoints.checkpoint_path(run, n).mkdir(parents=True)
+    (run / recipe_runner.DISTILL_STATE).write_text(json.dumps(state))
+    return run
+
+
+def test_a_distill_stage_ends_at_its_phase_and_the_next_stage_starts_from_there(tmp_path, monkeypatch):
+    """A distill stage's run stops, finished, at end_at (dagger.distill's end_at); a run stopped by --max-minutes
+    before it goes on to the same phase of the campaign; the next stage starts from the run's newest checkpoint."""
+    from training.distill import dagger
+    chain = {"roll": "r", "rise": "s", "stand": "t"}
+    recipe = R.Recipe("r", "r", "", (R.Stage("d", kind="distill", task="getup", steps=400, end_at=300, teacher=chain,
+                                             config={"bc.num_evals": 5}),
+                                     R.Stage("e", kind="distill", task="getup", steps=10, init="d", teacher=chain)))
+    calls = []
+
+    def distill(teacher, out, **kw):
+        if kw["end_at"] is not None:      # the run checkpoints its end phase
+            dagger.check_end_at(kw["end_at"], dagger.dagger_configs("getup", "gpu", kw["overrides"], None, False)[0])
+        calls.append((Path(out).name, kw))
+    monkeypatch.setattr(dagger, "distill", distill)
+    run = functools.partial(recipe_runner._run_stage, recipe, recipe.stage("d"), tmp_path, max_minutes=None,
+                            backend="cpu", progress=False, provenance={"sha256": "0" * 64})
+    run(resume=False, toy=False)
+    assert calls[-1][1]["end_at"] == 300 and "bc.dagger_steps=400" in calls[-1][1]["overrides"]
+    run(resume=False, toy=True)
+    assert calls[-1][1]["end_at"] is None                 # a toy run's few phases end at their last
+    _distill_run(tmp_path, "r", "d", [0, 100], {"phases": 100, "finished": True, "stopped_by_max_minutes": True})
+    run(resume=True, toy=False)                           # stopped at phase 100: 200 more, of 300 left
+    assert calls[-1][0] == "d.2" and calls[-1][1]["end_at"] == 200 and "bc.dagger_steps=300" in calls[-1][1]["overrides"]
+    assert not recipe_runner.stage_complete(tmp_path, recipe, recipe.stage("d"))
+    _distill_run(tmp_path, "r", "d.2", [0, 200], {"phases": 300, "finished": True, "end_at": 200})
+    assert recipe_runner.stage_complete(tmp_path, recipe, recipe.stage("d"))
+    assert recipe_runner._init_path("d", recipe, tmp_path) == tmp_path / "r" / "d.2"
+
+
+def test_a_distill_run_ends_only_at_a_phase_it_checkpoints():
+    from training.distill import dagger
+    cfg = dagger.dagger_configs("getup", "gpu", ["bc.dagger_steps=400", "bc.num_evals=5"], None,
+                                union_terms=False)[0]
+    dagger.check_end_at(300, cfg)
+    for bad in (250, 0, 500):
+        with pytest.raises(ValueError, match=f"end_at {bad} is not a checkpointed phase .*multiple of 100"):
+            dagger.check_end_at(bad, cfg)
+
+
+def test_the_campaigns_chain_student_keeps_its_end_phase_and_the_full_task_starts_from_it():
+    recipe = R.load("getup_keyframe")
+    assert recipe_runner.stage_complete(CAMPAIGN.parent, recipe, recipe.stage("chain_student"))
+    from training.distill import dagger
+    start = recipe_runner._init_path("chain_student", recipe, CAMPAIGN.parent)     # its run went to phase 400
+    assert [p.name for p in checkpoints.list_checkpoints(start)] == [f"{recipe.stage('chain_student').end_at:012d}"]
+    assert dagger.prior_progress(start)["phases"] == 1400                          # of the campaign
 
 
 # ---------------------------------------------------------------- imitation stages between PPO stages

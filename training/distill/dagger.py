@@ -49,6 +49,9 @@ from training.export.brax import export_brax_ppo
 from training.export.brax import ship_artifact
 
 DEFAULT_TASK = "unified"  # the whole walk–fall–getup task (training/envs/unified.py); cli.py repeats it
+# what the learner and its teacher are (its output rule, the chain's hand-over): a toy run keeps them
+# (recipes/runner.py), as it keeps its sizes and rates at the toy preset's
+LEARNER_KEYS = ("bc.tanh_squash", "bc.handover_up_error")
 
 
 def bc_config(preset: str = "gpu") -> config_dict.ConfigDict:
@@ -83,7 +86,11 @@ class DistillResult:
 
 
 class _Stop(Exception):
-    pass
+    """--max-minutes: the run stops at its last checkpoint, unfinished."""
+
+
+class _Ended(Exception):
+    """end_at: the run ends, finished, at the checkpoint of that phase."""
 
 
 STATE_FILE = "distill_state.json"   # a run's totals: phases and env steps, from which run it went on
@@ -236,13 +243,15 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
             preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
             command: str = "", progress: bool = True, max_minutes: float | None = None,
             name: str = "student", backend: str | None = None, from_checkpoint=None,
-            recipe: dict | None = None, init_artifact=None) -> DistillResult:
+            recipe: dict | None = None, init_artifact=None, end_at: int | None = None) -> DistillResult:
     """One DAgger run from `teacher` ({role: artifact}: getup + joystick, the stitched teacher; roll + rise +
     stand, the keyframe getup's chain); with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
     student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
     and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
     continue from that run's (STATE_FILE), so a campaign goes on across sessions. With `init_artifact` (an expert
-    of the teacher) the student starts as that expert (expert_start)."""
+    of the teacher) the student starts as that expert (expert_start). With `end_at` (a phase of this run with a
+    checkpoint: a multiple of dagger_steps / (num_evals − 1)) the run ends there, finished, on the schedule of its
+    dagger_steps (β, evaluation resets): a campaign's best phase as its end."""
 
     checkpoints.jax_setup()
     t_start = time.monotonic()
@@ -257,6 +266,7 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     run_dir.mkdir(parents=True, exist_ok=True)
     cfg, env_cfg = dagger_configs(task, preset, overrides, num_envs, union_terms=teacher_kind(teacher) == STITCHED)
 
+    check_end_at(end_at, cfg)
     env_cfg.backend = backend or default_backend()
     env, wrapped = _dagger_env(task, env_cfg, teacher, float(cfg.handover_up_error))
     start = None if init_artifact is None else expert_start(init_artifact, cfg, env, wrapped)
@@ -276,6 +286,8 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
         bar.update(max(0, step - bar.n))
         if "SPS" in recorded:
             bar.set_postfix(samples_per_s=f"{recorded['SPS']:,.0f}", refresh=False)
+        if end_at is not None and step >= end_at:
+            raise _Ended()
         if max_minutes is not None and step > 0 and time.monotonic() - t_start > 60.0 * max_minutes:
             raise _Stop()
 
@@ -297,7 +309,8 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     trained = provenance["dagger_phases"] > 0 and preset != "toy"
     _write_state(run_dir, before, phase_env_steps, provenance["dagger_phases"], provenance["steps"],
                  artifact=artifact.name, command=provenance["command"], date=provenance["date"],
-                 minutes=provenance["minutes"], stopped_by_max_minutes=stopped, finished=True)
+                 minutes=provenance["minutes"], stopped_by_max_minutes=stopped, finished=True,
+                 **({"end_at": int(end_at)} if end_at is not None else {}))
     rule = export_student(params, env, artifact, name, cfg.tanh_squash, trained, provenance)
     if ship and not stopped:
         ship_artifact(artifact, {"task": f"distill ({task} env)"})
@@ -322,7 +335,19 @@ def _train_bc(cfg, env, teacher, network_factory, progress_fn, seed: int, episod
             restore_params=start)
     except _Stop:
         return None, True
+    except _Ended:
+        return None, False
     return params, False
+
+
+def check_end_at(end_at: int | None, cfg) -> None:
+    """end_at must name a phase the run checkpoints (distill's docstring)."""
+    if end_at is None:
+        return
+    every = cfg.dagger_steps // max(cfg.num_evals - 1, 1)
+    if not 0 < int(end_at) <= cfg.dagger_steps or int(end_at) % every:
+        raise ValueError(f"distill: end_at {end_at} is not a checkpointed phase of this run (a multiple of "
+                         f"{every} up to bc.dagger_steps {cfg.dagger_steps})")
 
 
 def export_phase(run_dir, phase: int, name: str, like=None) -> Path:

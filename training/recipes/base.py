@@ -11,7 +11,8 @@ references in a stage (`teacher`, or config values) are paths under policies/ or
 artifact that stage exported.
 
 A PPO stage with `end_at` ends at its kept checkpoint at that many env steps (its run may go further): that
-checkpoint is what a later stage starts from and what the stage exports. An imitation stage that `continues`
+checkpoint is what a later stage starts from and what the stage exports. A distill stage with `end_at` ends,
+finished, at that DAgger phase (on the schedule of its `steps` phases). An imitation stage that `continues`
 another appends its rounds to that stage's campaign folder (DAgger aggregates every round); with `policy`, each of
 its rounds is rolled out by that stage's artifact (and refitted from it), with `lying`, from fallen starts lying
 that way only.
@@ -47,7 +48,8 @@ class Stage:
     # ppo: (metric, value): the stage is complete at its first evaluation with the metric at or above the value
     # (backplay: the start moves back along the demonstrations once success from it has risen); steps cap it
     advance_at: tuple[str, float] | None = None
-    # ppo: env steps of the kept checkpoint the stage ends at (≤ steps: the run's schedule stays that of `steps`)
+    # ppo: env steps of the kept checkpoint the stage ends at; distill: the phase it ends at (≤ steps: the run's
+    # schedule stays that of `steps`)
     end_at: int | None = None
     # ppo: start from init's exported artifact (a fresh critic, the sampling std of ppo.init_noise_std) in place
     # of its checkpoint; distill: the student starts as init's artifact (an expert of the teacher)
@@ -82,9 +84,10 @@ class Recipe:
                 raise ValueError(f"recipe {self.name}, stage {s.name}: init {s.init!r} is not an earlier stage")
             if s.advance_at is not None and (s.kind != "ppo" or len(s.advance_at) != 2):
                 raise ValueError(f"recipe {self.name}, stage {s.name}: advance_at is a PPO stage's (metric, value)")
-            if s.end_at is not None and (s.kind != "ppo" or not 0 < int(s.end_at) <= int(s.steps)):
+            if s.end_at is not None and (s.kind not in ("ppo", "distill") or not 0 < int(s.end_at) <= int(s.steps)):
                 raise ValueError(f"recipe {self.name}, stage {s.name}: end_at is a PPO stage's checkpoint, in env "
-                                 f"steps within its {s.steps:,}, got {s.end_at!r}")
+                                 f"steps within its {s.steps:,}, or a distill stage's phase within its phases, "
+                                 f"got {s.end_at!r}")
             if s.init_artifact and (s.kind not in ("ppo", "distill") or s.init is None):
                 raise ValueError(f"recipe {self.name}, stage {s.name}: init_artifact is a PPO or distill stage's "
                                  "with an init")

@@ -14,9 +14,11 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
   (rise_rolled).
 - stage 2, the stand from the kneel (task getup_stand) along a reverse curriculum of starts up the lunge.
 - the chain roll → rise → stand, latched at common/events.keyframe_stage's hand-overs, distilled into one
-  network by DAgger (`chain`), then the seed's gated full task (fallen / kneeling / standing starts 0.4 / 0.4 /
-  0.2) from it with a decaying BC term toward the chain, then the energy (§4.7) and observation-noise (§4.6)
-  fine-tunes.
+  network by DAgger: a student that starts as the rise itself (chain_rise: a fit from scratch never got the
+  rise's precision), then with the labels handed over to the stand at a looser upright bound the memoryless
+  student can see (chain_handover, chain_loose, chain_student: at the gate itself it parks in the kneel); then
+  the seed's gated full task (fallen / kneeling / standing starts 0.4 / 0.4 / 0.2) from it with a decaying BC term
+  toward the chain at the gate (`full`), then the energy (§4.7) and observation-noise (§4.6) fine-tunes.
 The runtime's target rule R6 is in every stage.
 """
 from training.recipes.base import Recipe, Stage
@@ -64,10 +66,14 @@ STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.
 CHAIN = {"roll": "@getup_keyframe/roll_side", "rise": "@getup_keyframe/rise_rolled", "stand": "@getup_keyframe/stand"}
 # the full task's starts (getup's default 0.4 / 0.4 / 0.2), fallen ones from a bank far from the evaluation's seeds
 STARTS = {"env.fallen.bank_starts": 1024, "env.fallen.seed": 3_000_000}
-# PPO around the distilled mean (no tanh) at the rise's small noise, with a BC term toward the chain that decays:
-# full-task fine-tunes without one unlearned the stand-up within 1–4 M steps (LESSONS)
-FULL = {**STARTS, "ppo.policy_distribution": "normal", "ppo.init_noise_std": 0.015, "ppo.entropy_cost": 0.0,
-        "ppo.learning_rate": 1e-4, "ppo.teacher.bc_weight": 1.0, "ppo.teacher.bc_decay_steps": 30_000_000}
+# DAgger toward the chain for a student that starts as one of its tanh-normal experts: its output rule, a step
+# small enough to keep the expert it starts as, β falling to a floor that keeps the chain's states in every phase
+CHAIN_DAGGER = {**STARTS, "bc.tanh_squash": True, "bc.learning_rate": 1e-4, "bc.num_evals": 7,
+                "bc.beta_floor": 0.3, "bc.beta_decay_phases": 100}
+# PPO from the tanh-normal student at the rise's small noise and step, with a BC term toward the chain (hand-over
+# at §4.8's gate) that decays: full-task fine-tunes without one unlearned the stand-up within 1–4 M steps (LESSONS)
+FULL = {**STARTS, "ppo.policy_distribution": "tanh_normal", "ppo.init_noise_std": 0.015, "ppo.entropy_cost": 0.0,
+        "ppo.learning_rate": 3e-5, "ppo.teacher.bc_weight": 3.0, "ppo.teacher.bc_decay_steps": 20_000_000}
 ENERGY = {**FULL, "env.reward.scales.energy": -0.01}
 
 RECIPE = Recipe(
@@ -103,9 +109,18 @@ RECIPE = Recipe(
         Stage("stand_swing", task="getup_stand", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
         Stage("stand", task="getup_stand", steps=7_024_640, init="stand_swing", config=STAND),
-        Stage("chain", kind="distill", task="getup", steps=1000, envs=1024, teacher=CHAIN, config=STARTS),
-        Stage("full", task="getup", steps=30_000_000, init="chain", teacher=CHAIN,
-              config={**FULL, "ppo.value_warmup_steps": 1_500_000}),
+        # the student starts as the rise; hand-over at the gate (periods 4–5 of the one network)
+        Stage("chain_rise", kind="distill", task="getup", steps=600, end_at=300, envs=1024, init="rise_rolled",
+              init_artifact=True, teacher=CHAIN, config={**CHAIN_DAGGER, "bc.beta_decay_phases": 300}),
+        Stage("chain_handover", kind="distill", task="getup", steps=600, end_at=200, envs=1024, init="chain_rise",
+              teacher=CHAIN, config={**CHAIN_DAGGER, "bc.handover_up_error": 0.03}),
+        Stage("chain_loose", kind="distill", task="getup", steps=600, envs=1024, init="chain_handover",
+              teacher=CHAIN, config={**CHAIN_DAGGER, "bc.handover_up_error": 0.05}),
+        # its phase 300 stood most (its phases swing: brax bc fits the newest phase's data only)
+        Stage("chain_student", kind="distill", task="getup", steps=400, end_at=300, envs=1024, init="chain_loose",
+              teacher=CHAIN, config={**CHAIN_DAGGER, "bc.num_evals": 5, "bc.handover_up_error": 0.05}),
+        Stage("full", task="getup", steps=30_000_000, init="chain_student", teacher=CHAIN,
+              config={**FULL, "ppo.value_warmup_steps": 500_000}),
         Stage("energy", task="getup", steps=10_000_000, init="full", teacher=CHAIN,
               config={**ENERGY, "ppo.value_warmup_steps": 500_000}),
         Stage("noise", task="getup", steps=10_000_000, init="energy", teacher=CHAIN,

@@ -18,6 +18,7 @@ from common.artifact import read_artifact
 from training.core import checkpoints
 from training.core.backend import default_backend
 from training.distill import dagger as distill
+from training.distill.dagger import LEARNER_KEYS as DISTILL_KEYS
 from training.distill.finetune import LEARNER_KEYS
 from training.envs import starts
 from training.envs.policy_files import CHECKPOINT_DIR
@@ -82,7 +83,7 @@ def _init_path(init: str, recipe: R.Recipe, root: Path) -> Path:
     recipe, stage = _stage_of(init, recipe)
     if stage.kind == "imitation":
         return stage_artifact(run_dir, recipe, stage)
-    if stage.end_at is not None:
+    if stage.kind == "ppo" and stage.end_at is not None:   # a distill stage stops at its end: its newest
         ended = end_checkpoint(run_dir, stage)
         if ended is None:
             raise FileNotFoundError(f"{init}: {run_dir} has no checkpoint at its end_at ({stage.end_at:,} env "
@@ -157,12 +158,13 @@ def resolve_ref(value, root: Path, shipped: bool = False):
 
 def _overrides(config: dict, toy: bool) -> list[str]:
     """A stage's config diff as `key=value`; at toy size the PPO/DAgger sizes and rates stay the toy preset's
-    (what the learner is, the fine-tune's LEARNER_KEYS, stays the stage's) and the start banks are small."""
+    (what the learner is, the fine-tunes' and DAgger's LEARNER_KEYS, stays the stage's) and the start banks are
+    small."""
     if not toy:
         return [f"{k}={v!r}" for k, v in config.items()]
     banked = tuple(f"env.{s.group}" for s in starts.SOURCES if {"prob", "bank_starts"} <= set(s.functions()[0]()))
     out = [f"{k}={TOY_BANK_STARTS if k.endswith('.bank_starts') else v!r}" for k, v in config.items()
-           if (k.startswith(LEARNER_KEYS + IMITATION_KEYS) or not k.startswith(("ppo.", "bc.")))
+           if (k.startswith(LEARNER_KEYS + DISTILL_KEYS + IMITATION_KEYS) or not k.startswith(("ppo.", "bc.")))
            and k not in TOY_ALL_ROUNDS]
     for k, v in config.items():
         if k.endswith(".prob") and isinstance(v, float) and v > 0 and k[:-len(".prob")] in banked:
@@ -252,15 +254,19 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         return
     teacher = {k: resolve_ref(v, root) for k, v in s.teacher.items()}
     phases = 0 if toy else int(s.steps)
+    ends = None if toy or s.end_at is None else int(s.end_at)   # a toy run's few phases end at their last
     if dirs:   # a stopped DAgger stage goes on from its newest checkpoint into the next directory
         if not resume:
             raise FileExistsError(f"{dirs[-1]} holds an unfinished DAgger stage {s.name}: pass --resume to go on")
         start, done_phases = dirs[-1], _json(dirs[-1] / DISTILL_STATE).get("phases", 0)
         before = _json(init / DISTILL_STATE).get("phases", 0) if init and not s.init_artifact else 0
         phases = max(phases - (int(done_phases) - int(before)), 1)
-        evals = int(s.config.get("bc.num_evals", 11)) - 1
+        ends = None if ends is None else ends - (int(done_phases) - int(before))
+        evals = math.gcd(phases, int(s.config.get("bc.num_evals", 11)) - 1)
+        if ends is not None:      # a checkpoint at the end phase too
+            evals = phases // math.gcd(phases // evals, ends)
         overrides = [o for o in overrides if not o.startswith(("bc.dagger_steps=", "bc.num_evals="))]
-        overrides += [f"bc.num_evals={math.gcd(phases, evals) + 1}"]
+        overrides += [f"bc.num_evals={evals + 1}"]
         out = root / recipe.name / f"{s.name}.{len(dirs) + 1}"
     else:
         start, out = None if s.init_artifact else init, root / recipe.name / s.name
@@ -270,7 +276,7 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
                     overrides=overrides, preset="toy" if toy else "gpu", num_envs=None if toy else s.envs,
                     command=command, progress=progress, max_minutes=max_minutes, name=name, backend=backend,
                     from_checkpoint=start, recipe=provenance,
-                    init_artifact=init if s.init_artifact and not dirs else None)
+                    init_artifact=init if s.init_artifact and not dirs else None, end_at=ends)
 
 
 def _run_rounds(recipe: R.Recipe, s: R.Stage, root: Path, overrides: list[str], *, resume: bool,
@@ -312,7 +318,7 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
     for s in recipe.stages:
         if s.continues is not None:     # its rounds are in the folder of the stage it continues, saved with it
             continue
-        drop = superseded(root, recipe, s) and not referenced(recipe, s) and s.kind != "imitation"
+        drop = droppable(root, recipe, s)
         for run_dir in stage_dirs(root, recipe, s):
             dest = campaigns / name / run_dir.name
             if s.kind == "imitation" and _rounds(dest) > _rounds(run_dir):
@@ -339,6 +345,11 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
                 shutil.copytree(chosen, dest / checkpoints.CHECKPOINT_DIR / chosen.name)
             saved.append(dest)
     return saved
+
+
+def droppable(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
+    """Whether a campaign drops `stage`: superseded and read by nothing (an imitation stage's data are kept)."""
+    return stage.kind != "imitation" and superseded(root, recipe, stage) and not referenced(recipe, stage)
 
 
 def restore_campaign(recipe: R.Recipe, stage: R.Stage, root: Path, campaigns: Path = CAMPAIGNS_ROOT) -> None:
