@@ -158,6 +158,16 @@ def test_the_teacher_is_the_stitched_one_or_the_keyframe_chain():
         teacher_observation(F.teacher_roles(_ppo_cfg(roll="r")))
 
 
+def test_the_chains_hand_over_to_the_stand_is_the_gate_unless_configured(monkeypatch):
+    from common import events
+    seen = []
+    monkeypatch.setattr(F, "teacher_observation", lambda roles, up_error: seen.append(up_error) or (lambda e, b: e))
+    for extra in ({}, {"handover_up_error": 0.05}):
+        cfg = _ppo_cfg(getup="", joystick="", roll="r", rise="s", stand="t", **extra)
+        F.StudentFinetune(cfg).wrap_env_fn(None, full_reset=False)
+    assert seen == [events.KNEEL_GATE_UP_ERROR, 0.05]
+
+
 @pytest.fixture(scope="module")
 def skills_env():
     from training import envs

@@ -35,6 +35,7 @@ import numpy as np
 from brax.training.agents.ppo import losses as ppo_losses
 from ml_collections import config_dict
 
+from common import events
 from common import observation as obsdef
 from training.core.extension import PPOExtension
 from training.core.networks import tanh_normal_policy
@@ -49,9 +50,11 @@ LEARNER_KEYS = ("ppo.teacher.", "ppo.policy_distribution", "ppo.init_noise_std")
 
 def teacher_config():
     """The PPO config's `teacher` group: the teacher's experts (getup + joystick: the stitched teacher; roll + rise +
-    stand: the keyframe getup's chain; training/distill/teacher.py) and the decaying BC term toward its labels (bc_weight
-    0 = none; bc_hold_in_course: no decay in wall-course episodes)."""
-    return config_dict.create(getup="", joystick="", roll="", rise="", stand="", bc_weight=0.0, bc_decay_steps=0,
+    stand: the keyframe getup's chain, its rise handing over to the stand at handover_up_error, §4.8's gate's own
+    bound by default; training/distill/teacher.py) and the decaying BC term toward its labels (bc_weight 0 = none;
+    bc_hold_in_course: no decay in wall-course episodes)."""
+    return config_dict.create(getup="", joystick="", roll="", rise="", stand="",
+                              handover_up_error=events.KNEEL_GATE_UP_ERROR, bc_weight=0.0, bc_decay_steps=0,
                               bc_hold_in_course=False)
 
 
@@ -149,7 +152,7 @@ class StudentFinetune(PPOExtension):
         wrap = super().wrap_env_fn(env, full_reset)
         if not uses_teacher(self._cfg):
             return wrap
-        observe = teacher_observation(teacher_roles(self._cfg))
+        observe = teacher_observation(teacher_roles(self._cfg), float(self._cfg.teacher.handover_up_error))
         return lambda inner, **kw: observe(wrap(inner, **kw), env)
 
     def loss_term(self, env, state: dict):
