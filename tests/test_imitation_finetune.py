@@ -178,8 +178,8 @@ def test_a_new_run_names_the_campaign_its_start_reads():
     config, so its kept run state resumes on a clone without the start; a named campaign is left alone."""
     cfg = configs.ppo_config("getup_kneel", "cpu")
     cfg.imitation.update(demos="training/campaigns/getup_keyframe/demos", bc_weight=3.0, campaign="")
-    finetune.pin_campaign(cfg, "training/campaigns/getup_keyframe/rise_best/checkpoints/000001515520")
+    finetune.pin_campaign(cfg, "training/campaigns/getup_keyframe/rise_rolled/checkpoints/000006164480")
     assert cfg.imitation.campaign == "training/campaigns/getup_keyframe/dagger"
     cfg.imitation.campaign = "elsewhere"
-    finetune.pin_campaign(cfg, "training/campaigns/getup_keyframe/rise_best/checkpoints/000001515520")
+    finetune.pin_campaign(cfg, "training/campaigns/getup_keyframe/rise_rolled/checkpoints/000006164480")
     assert cfg.imitation.campaign == "elsewhere"

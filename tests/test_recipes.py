@@ -283,11 +283,26 @@ def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(
     first_open = next(s.name for s in recipe.stages if not recipe_runner.stage_complete(tmp_path, recipe, s)
                       and not recipe_runner.superseded(tmp_path, recipe, s))
     assert (tmp_path / "getup_keyframe" / "dagger" / "data").is_dir() and "dagger" not in ran
-    assert ran == [first_open] and (tmp_path / "getup_keyframe" / "rise_best").is_dir()
+    assert ran == [first_open] and (tmp_path / "getup_keyframe" / "rise_rolled").is_dir()
     names = [s.name for s in recipe.stages]
-    assert names.index(first_open) > names.index("rise_best")   # stage 1's last stage is complete in the campaign
+    assert names.index(first_open) > names.index("rise_rolled")   # the chain's rise is complete in the campaign
     # a later stage reads a restored stage's artifact: the campaign keeps no export, so its newest checkpoint is one
-    artifact = Path(recipe_runner.resolve_ref("@getup_keyframe/rise_best", tmp_path))
+    artifact = Path(recipe_runner.resolve_ref("@getup_keyframe/rise_rolled", tmp_path))
     manifest = read_artifact(artifact)[3]
-    assert artifact.parent == tmp_path / "getup_keyframe" / "rise_best" and manifest["trained"]
+    assert artifact.parent == tmp_path / "getup_keyframe" / "rise_rolled" and manifest["trained"]
     assert manifest["provenance"]["steps"] == checkpoints.checkpoint_steps(artifact.parent)
+
+
+def test_a_kept_run_state_names_other_stages_by_their_kept_runs(tmp_path):
+    """A setting that names another stage's file under runs/ (a start bank's policy) names that stage's kept run
+    in the campaign, repository-relative: runs/ is not on another clone; settings outside runs/ stay."""
+    runs, kept = tmp_path / "runs" / "getup_keyframe", checkpoints.REPO_ROOT / "training" / "campaigns" / "x"
+    state = tmp_path / "run_state.json"
+    state.write_text(json.dumps({"env_config": {"rolled_starts": {"roll_policy": f"{runs}/roll_side/a.safetensors"},
+                                                "upright": "policies/joystick/joystick.safetensors"},
+                                 "init": f"{runs}/rise/checkpoints/000000000010"}))
+    recipe_runner._refer_to_campaign(state, runs, kept)
+    saved = json.loads(state.read_text())
+    assert saved["env_config"]["rolled_starts"]["roll_policy"] == "training/campaigns/x/roll_side"
+    assert saved["env_config"]["upright"] == "policies/joystick/joystick.safetensors"
+    assert saved["init"] == f"{runs}/rise/checkpoints/000000000010"      # provenance, as it ran

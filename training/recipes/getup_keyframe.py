@@ -18,7 +18,7 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
   rise's precision), then with the labels handed over to the stand at a looser upright bound the memoryless
   student can see (chain_handover, chain_loose, chain_student: at the gate itself it parks in the kneel); then
   the seed's gated full task (fallen / kneeling / standing starts 0.4 / 0.4 / 0.2) from it with a decaying BC term
-  toward the chain at the gate (`full`), then the energy (§4.7) and observation-noise (§4.6) fine-tunes.
+  toward the chain it was distilled from (`full`), then the energy (§4.7) and observation-noise (§4.6) fine-tunes.
 The runtime's target rule R6 is in every stage.
 """
 from training.recipes.base import Recipe, Stage
@@ -70,10 +70,13 @@ STARTS = {"env.fallen.bank_starts": 1024, "env.fallen.seed": 3_000_000}
 # small enough to keep the expert it starts as, β falling to a floor that keeps the chain's states in every phase
 CHAIN_DAGGER = {**STARTS, "bc.tanh_squash": True, "bc.learning_rate": 1e-4, "bc.num_evals": 7,
                 "bc.beta_floor": 0.3, "bc.beta_decay_phases": 100}
-# PPO from the tanh-normal student at the rise's small noise and step, with a BC term toward the chain (hand-over
-# at §4.8's gate) that decays: full-task fine-tunes without one unlearned the stand-up within 1–4 M steps (LESSONS)
+# PPO from the tanh-normal student at the rise's small noise and step, with a BC term toward the chain that
+# decays: full-task fine-tunes without one unlearned the stand-up within 1–4 M steps (LESSONS). Its labels hand
+# over at the student's own 2.9° (toward the gate's labels, which the student cannot copy, it unlearned the
+# stand-up too: period 6a); §4.8's gated reward alone moves it toward the gate
 FULL = {**STARTS, "ppo.policy_distribution": "tanh_normal", "ppo.init_noise_std": 0.015, "ppo.entropy_cost": 0.0,
-        "ppo.learning_rate": 3e-5, "ppo.teacher.bc_weight": 3.0, "ppo.teacher.bc_decay_steps": 20_000_000}
+        "ppo.learning_rate": 3e-5, "ppo.teacher.bc_weight": 3.0, "ppo.teacher.bc_decay_steps": 20_000_000,
+        "ppo.teacher.handover_up_error": 0.05}
 ENERGY = {**FULL, "env.reward.scales.energy": -0.01}
 
 RECIPE = Recipe(

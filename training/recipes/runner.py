@@ -9,6 +9,7 @@ checkpoint, run state and curve of each stage; nothing else from runs/ is tracke
 """
 from __future__ import annotations
 
+import json
 import math
 import shutil
 import time
@@ -223,7 +224,8 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
     # (or its kept campaign run before it ships)
     config = {k: resolve_ref(v, root, shipped=toy) for k, v in s.config.items()}
     if s.kind == "ppo":   # a PPO stage's teacher is its behaviour-cloning term's (training/distill/finetune.py)
-        config.update({f"ppo.teacher.{k}": resolve_ref(v, root) for k, v in s.teacher.items()})
+        config.update({f"ppo.teacher.{k}": checkpoints.repo_relative(resolve_ref(v, root))
+                       for k, v in s.teacher.items()})   # its run state then reads the same on any clone
     overrides = _overrides(config, toy)
     name = artifact_name(recipe, s)
     if s.kind == "random_init":
@@ -338,6 +340,8 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
             for f in (checkpoints.RUN_STATE, DISTILL_STATE, *CURVE_FILES, *REPORT_FILES):
                 if (run_dir / f).exists():
                     shutil.copy2(run_dir / f, dest / f)
+            if (dest / checkpoints.RUN_STATE).exists():
+                _refer_to_campaign(dest / checkpoints.RUN_STATE, root / name, campaigns / name)
             kept = checkpoints.list_checkpoints(run_dir)
             ended = end_checkpoint(run_dir, s) if s.kind == "ppo" else None
             if ended is not None or kept:     # the checkpoint the stage ended at, else its newest
@@ -345,6 +349,23 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
                 shutil.copytree(chosen, dest / checkpoints.CHECKPOINT_DIR / chosen.name)
             saved.append(dest)
     return saved
+
+
+def _refer_to_campaign(run_state: Path, runs: Path, kept: Path) -> None:
+    """A kept run state's settings that name a file of another stage's run (runs/NAME/<stage>/…: a start bank's
+    policy) name that stage's kept run instead (repository-relative): runs/ is not on another clone."""
+    def point(value):
+        if isinstance(value, dict):
+            return {k: point(v) for k, v in value.items()}
+        if isinstance(value, list):
+            return [point(v) for v in value]
+        if isinstance(value, str) and value.startswith(f"{runs.resolve()}/"):
+            stage_dir = Path(value).relative_to(runs.resolve()).parts[0]
+            return checkpoints.repo_relative(kept / stage_dir)
+        return value
+    state = json.loads(run_state.read_text())
+    state = {k: point(v) if k in ("env_config", "ppo_config") else v for k, v in state.items()}
+    run_state.write_text(json.dumps(state, indent=1, sort_keys=True, default=str) + "\n")
 
 
 def droppable(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
