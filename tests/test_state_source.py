@@ -1,4 +1,4 @@
-"""The runtime believes only its robot, tried as an outside program would: sim_hil (realtime, standing) and
+"""The runtime believes only its robot, tried as an outside program would: sim_hil (standing) and
 t1-runtime (the student in POLICY) started as the launcher starts them, with the run's robot key, while a
 second program publishes state on the live group: lcm-logplayer replaying the run's own recorded frames, a
 second sim_hil (another run's key), a forged stream 100 000 ahead of the robot's with a 70 degree pitch, a
@@ -95,16 +95,18 @@ class Run:
         self.capture = LogCapture(self.log, url, RunInfo(run_name="state_source", producer="test", clock="realtime"))
         self.watch = Watch(url)
         self.watch.robot = self.robot
-        # the robot's side at SCHED_FIFO, as on the robot: the attack is timed by the wall clock, and a test run
-        # beside others (make test -n 2 on 2 cores) must not starve the loop past the motors' 50 ms watchdog
-        # (LCM only: over DDS a SCHED_FIFO side once kept the runtime from POLICY, Cyclone's threads starved)
-        rt = [] if dds else ["--rt"]
-        sim_args = ["--clock", "realtime", *rt, "--spawn", "standing", "--lcm-url", url] + (["--dds"] if dds else [])
+        # over LCM in lockstep: each tick answers the robot's own state, so a loaded host (make test -n 2 on 2
+        # cores, SCHED_FIFO refused) cannot starve the loop past the motors' 50 ms watchdog (a fault no forged
+        # state caused); what is tried is which state the runtime believes, and the attack still runs on the
+        # wall clock beside it. Over DDS realtime (its lockstep waits on the state topic the forger writes to)
+        clock = ["--clock", "realtime" if dds else "lockstep"]
+        sim_args = [*clock, "--spawn", "standing", "--lcm-url", url] + (["--dds"] if dds else [])
         self.sim = start_sim(*sim_args, run_key=self.run_key)
-        self.watch.until(lambda: self.watch.sim is not None, "the sim's first status", [self.sim])
+        if dds:    # (a lockstep sim reports once the runtime answers it)
+            self.watch.until(lambda: self.watch.sim is not None, "the sim's first status", [self.sim])
         link = ["--transport", "dds"] if dds else []
-        self.runtime = start_runtime(STUDENT, "--clock", "realtime", *rt, *(["--rt-cpu", "-1"] if rt else []), "--autostart",
-                                     "--prepare-s", "1", "--lcm-url", url, *link, run_key=self.run_key)
+        self.runtime = start_runtime(STUDENT, *clock, "--autostart", "--prepare-s", "1", "--lcm-url", url, *link,
+                                     run_key=self.run_key)
         self.watch.until(lambda: self.watch.status is not None and self.watch.status.mode_name == "POLICY",
                          "the runtime in POLICY", [self.sim, self.runtime])
         self.watch.pump(SETTLE_S)
