@@ -231,6 +231,19 @@ def test_the_kneel_s_upright_term_slopes_to_the_gate_at_its_height(kneel_env):
     assert 0.0 < upright[2] < 0.05 and upright[3] == 0.0
 
 
+def test_the_full_task_s_upright_term_is_the_kneel_s_and_pays_a_standing_robot_too(full_env, kneel_env):
+    """reward.scales.upright in the full task (ours; 0 = the seed): the kneel task's slope, which a standing trunk
+    (above the gate's height) earns as well: what leads a robot standing a degree or two off vertical to the gate."""
+    assert full_env.config.reward.scales.upright == 0.0
+    for deg, h in ((0.0, 0.40), (1.0, 0.40), (1.0, 0.65), (0.0, 0.39)):
+        info = _info(h, _tilted(deg), gate=jnp.asarray(False))
+        full, kneel = (float(e._reward_terms(_state(e), info)["upright"]) for e in (full_env, kneel_env))
+        assert full == pytest.approx(kneel, rel=1e-6), (deg, h)
+    standing = float(full_env._reward_terms(_state(full_env), _info(0.65, _tilted(1.0), gate=jnp.asarray(False)))
+                     ["upright"])
+    assert 0.1 < standing < 1.0 / np.e
+
+
 def test_start_probabilities_per_task(full_env, kneel_env, stand_env):
     assert full_env.start_probabilities() == pytest.approx([0.4, 0.4, 0.2])
     assert stand_env.start_probabilities() == [0.0, 1.0, 0.0]
