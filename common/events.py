@@ -176,6 +176,13 @@ def kneel_gate_mask(trunk_height, up_z) -> np.ndarray:
     return kneel_gate(np.asarray(trunk_height, dtype=np.float64), np.asarray(up_z, dtype=np.float64))
 
 
+def gate_while_standing(trunk_height, up_z) -> float:
+    """The share of the standing samples at which §4.8's gate holds (nan if none stands): where the full task's
+    per-step gate pays a standing robot the standing rewards rather than the kneel's."""
+    standing = standing_mask(trunk_height, up_z)
+    return float(kneel_gate_mask(trunk_height, up_z)[standing].mean()) if standing.any() else math.nan
+
+
 def kneeling_posture(q, xp=np, knee_min_rad: float = KNEEL_KNEE_MIN_RAD, hip_min_rad: float = KNEEL_HIP_MIN_RAD):
     """Per sample: the double kneel, from joint angles q [..., 23] in contract order [rad]. xp: numpy or jax.numpy."""
     knees = [contract.joint_index(n) for n in KNEE_PITCHES]

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from common.events import (EventThresholds, GetupEvents, getup_events, kneel_gate_mask, reached_kneel,
-                           standing_mask, through_kneel_gate, up_z_from_quat)
+from common.events import (EventThresholds, GetupEvents, gate_while_standing, getup_events, kneel_gate_mask,
+                           reached_kneel, standing_mask, through_kneel_gate, up_z_from_quat)
 
 DT_S = 0.02                 # 50 Hz series: the events must not depend on the tick rate
 STAND_M, KNEEL_M, LIE_M = 0.66, 0.45, 0.15
@@ -176,6 +176,13 @@ def test_kneel_gate_by_hand():
     h = np.array([0.3951, 0.3949, 0.67, 0.67, 0.67])
     up = np.array([1.0, 1.0, 1.0, UP_Z_TILT_0_5_DEG, UP_Z_TILT_0_6_DEG])
     assert kneel_gate_mask(h, up).tolist() == [True, False, True, True, False]
+
+
+def test_the_gate_while_standing_is_its_share_of_the_standing_samples():
+    h = np.array([0.2, 0.67, 0.67, 0.67, 0.67])
+    up = np.array([1.0, 1.0, UP_Z_TILT_0_5_DEG, UP_Z_TILT_0_6_DEG, UP_Z_TILT_0_6_DEG])
+    assert gate_while_standing(h, up) == pytest.approx(0.5)           # 2 of the 4 standing samples; lying not counted
+    assert math.isnan(gate_while_standing(h[:1], up[:1]))
 
 
 def test_through_kneel_gate_before_the_stand_up():

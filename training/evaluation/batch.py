@@ -152,6 +152,7 @@ def episode_row(t, readings, series) -> dict:
         "failed_after_switch": ev.failed_after_switch,
         "through_kneel_gate": math.nan if gate is None else float(gate),
         "reached_kneel": float(reached_kneel(readings[:, 0], readings[:, 1])),
+        "gate_while_standing": events.gate_while_standing(readings[:, 0], readings[:, 1]),
         **kneel_row(readings, ctrl_dt),
         "peak_trunk_m": float(readings[:, 0].max()),
         "energy_J": float(series["energy_J"].sum()),
@@ -205,7 +206,7 @@ def summarize(rows: list[dict]) -> dict:
             "kneeled": mean("kneeled"),
             "kneeled_face_down": mean("kneeled", _lies("face_down")),
             "kneeled_face_up": mean("kneeled", _lies("on_back")),
-            "kneel_held": mean("kneel_held"),
+            "kneel_held": mean("kneel_held"), "gate_while_standing": mean("gate_while_standing"),
             **{k: mean(k) for k in EFFORT_KEYS}}
 
 
@@ -229,6 +230,8 @@ ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attem
         ("… from starts lying face down", "kneeled_face_down", "{:.3f}"),
         ("… from starts lying on the back", "kneeled_face_up", "{:.3f}"),
         (f"… held ≥ {events.KNEEL_HOLD_S:g} s (share of those that met it)", "kneel_held", "{:.2f}"),
+        ("§4.8's gate while standing (share of standing ticks; the full task's standing rewards)",
+         "gate_while_standing", "{:.3f}"),
         ("energy Σ\\|τ·q̇\\|·dt [J]", "energy_J", "{:.1f}"),
         ("energy until the first stand-up [J] (episodes that stood)", "energy_to_stand_J", "{:.1f}"),
         ("max energy in one physics step [J]", "max_energy_J", "{:.2f}"),
