@@ -1,8 +1,8 @@
 """The getup tasks step as recorded: seeded resets and steps of each task on the CPU backend, in the settings the
 recipes use (the kneel's backplay with demonstration starts, the sagittal action space, the gate and slope
 rewards; the kneel from kneeling starts; the stand task's reverse curriculum; the full task with the energy
-term and observation noise; the baseline with standing starts), give the rewards, observations, ends and metrics
-of tests/golden/getup_task_steps.npz. The file was written when each getup stage got a task of its own, after
+term, the upright slope and observation noise; the baseline with standing starts), give the rewards,
+observations, ends and metrics of tests/golden/getup_task_steps.npz. The file was written when each getup stage got a task of its own, after
 checking these steps against the one getup env they replaced (equal but for the split of its kneel Height Reward
 into terms, and the stand task's per-step critic gate). A deliberate change of a task rewrites it:
 
@@ -27,7 +27,8 @@ CASES = {
     "kneel_from_kneeling": ("getup_kneel", {"fallen.bank_starts": 2, "start_probs": [0.5, 0.5, 0.0],
                                             "reward.scales.gate": 1.0, "reward.scales.upright": 1.0}, True),
     "stand_curriculum": ("getup_stand", {"reverse_curriculum.max_progress": 2.0, "reward.scales.energy": -0.01}, True),
-    "full": ("getup", {"fallen.bank_starts": 2, "reward.scales.energy": -0.01, "obs_noise_scale": 1.0}, True),
+    "full": ("getup", {"fallen.bank_starts": 2, "reward.scales.energy": -0.01, "reward.scales.upright": 1.0,
+                       "obs_noise_scale": 1.0}, True),
     "baseline": ("getup_baseline", {"fallen.bank_starts": 2, "start_probs": [0.8, 0.0, 0.2],
                                     "reward.scales.energy": -0.01}, False),
 }
