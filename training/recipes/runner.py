@@ -352,16 +352,17 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
 
 
 def _refer_to_campaign(run_state: Path, runs: Path, kept: Path) -> None:
-    """A kept run state's settings that name a file of another stage's run (runs/NAME/<stage>/…: a start bank's
-    policy) name that stage's kept run instead (repository-relative): runs/ is not on another clone."""
+    """A kept run state's settings that name a file of another stage's run (runs/NAME/<stage>/…, absolute or
+    repository-relative: a start bank's policy, a teacher) name that stage's kept run instead (repository-relative):
+    runs/ is not on another clone."""
     def point(value):
         if isinstance(value, dict):
             return {k: point(v) for k, v in value.items()}
         if isinstance(value, list):
             return [point(v) for v in value]
-        if isinstance(value, str) and value.startswith(f"{runs.resolve()}/"):
-            stage_dir = Path(value).relative_to(runs.resolve()).parts[0]
-            return checkpoints.repo_relative(kept / stage_dir)
+        path = checkpoints.repo_path(value).resolve() if isinstance(value, str) and value else None
+        if path is not None and path.is_relative_to(runs.resolve()) and path != runs.resolve():
+            return checkpoints.repo_relative(kept / path.relative_to(runs.resolve()).parts[0])
         return value
     state = json.loads(run_state.read_text())
     state = {k: point(v) if k in ("env_config", "ppo_config") else v for k, v in state.items()}
