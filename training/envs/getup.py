@@ -6,9 +6,9 @@ Ours, off by default: `knockdown_starts` (starts/knockdown.py) replaces a share 
 joystick expert's landings after a push; `demo_starts` (starts/demos.py) by states along the planner's rises to
 the kneel, where a student distilled from the keyframe chain learns the rise's last stretch to the gate;
 `reward.scales.upright`, the kneel task's slope toward the gate's tilt at its height (getup_rewards.
-upright_at_gate_height): a policy sampled at the rise's small noise stands 2° or more off vertical, where the gate
-(and with it the standing rewards) is off, and finds the last degrees by this slope. The evaluations
-(`python -m training evaluate`) build this task for its fallen starts and physics.
+upright_at_gate_height), which a standing trunk earns too: a stand a degree or two off vertical meets no gate,
+and so earns the kneel's rewards, not the standing ones. The evaluations (`python -m training evaluate`) build this
+task for its fallen starts and physics.
 """
 from __future__ import annotations
 
