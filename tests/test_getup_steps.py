@@ -1,8 +1,9 @@
 """The getup tasks step as recorded: seeded resets and steps of each task on the CPU backend, in the settings the
 recipes use (the kneel's backplay with demonstration starts, the sagittal action space, the gate and slope
 rewards; the kneel from kneeling starts; the stand task's reverse curriculum; the full task with the energy
-term, the upright slope and observation noise; the baseline with standing starts), give the rewards,
-observations, ends and metrics of tests/golden/getup_task_steps.npz. The file was written when each getup stage got a task of its own, after
+term and observation noise, and its upright slope, which no recipe sets, so that the term is held too; the
+baseline with standing starts), give the rewards, observations, ends and metrics of
+tests/golden/getup_task_steps.npz. The file was written when each getup stage got a task of its own, after
 checking these steps against the one getup env they replaced (equal but for the split of its kneel Height Reward
 into terms, and the stand task's per-step critic gate). A deliberate change of a task rewrites it:
 
