@@ -40,6 +40,12 @@ static_assert(gains_within(kPrepareKp, T1_KP_MAX) && gains_within(kPrepareKd, T1
 bool commanding(Mode m) { return m == Mode::kPrepare || m == Mode::kPolicy; }
 // The point of [lo, hi] nearest to x; an empty interval (lo > hi) is never passed in.
 float nearest_in(float x, float lo, float hi) { return std::min(std::max(x, lo), hi); }
+// [lo, hi] narrowed to [a, b] as far as it reaches: past it, only its end nearest to [a, b] is left.
+void narrow(float& lo, float& hi, float a, float b) {
+  if (b < lo) hi = lo;
+  else if (a > hi) lo = hi;
+  else lo = std::max(lo, a), hi = std::min(hi, b);
+}
 }  // namespace
 
 Supervisor::Supervisor(const SafetyConfig& config) : cfg_(config) {
@@ -138,16 +144,15 @@ void Supervisor::enter(Mode mode, const StateView& state) {
   set_info(text);
 }
 
-bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) {
-  (void)artifact;
+bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& /*artifact*/) {
   entered_policy_ = false;
   warning_bits_ &= ~(fault_bit::kImuHold | fault_bit::kJointHold | fault_bit::kSimStatusHold | fault_bit::kMotorWarning | fault_bit::kMotorOverLimit |
                      fault_bit::kTargetClamped | fault_bit::kRateLimited | fault_bit::kTorqueClamped);
   const double imu_age = s.have_imu ? s.now_s - s.imu_time_s : kNever;
   const double joint_age = s.have_joint ? s.now_s - s.joint_time_s : kNever;
   const double sim_age = !s.needs_sim_status ? 0.0 : s.have_sim_status ? s.now_s - s.sim_status_time_s : kNever;
-  const bool imu_fresh = imu_age <= cfg_.hold_age_s, joint_fresh = joint_age <= cfg_.hold_age_s;
-  const bool sim_fresh = sim_age <= cfg_.hold_age_s;
+  const bool imu_fresh = imu_age <= cfg_.hold_age_s, joint_fresh = joint_age <= cfg_.hold_age_s,
+             sim_fresh = sim_age <= cfg_.hold_age_s;
   if (!imu_fresh) warning_bits_ |= fault_bit::kImuHold;
   if (!joint_fresh) warning_bits_ |= fault_bit::kJointHold;
   if (!sim_fresh) warning_bits_ |= fault_bit::kSimStatusHold;
@@ -163,15 +168,10 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
   char watch_why[144] = "";
   const int watched = watch_motors(s, &watch_bit, watch_why, sizeof(watch_why));  // rules R8, R9, R10
 
-  bool motor_fault = false;
-  int motor_index = -1;
-  for (std::size_t i = 0; s.have_joint && i < kJoints; ++i) {
+  int motor_index = -1;  // the first motor whose status is a fault
+  for (std::size_t i = 0; s.have_joint && i < kJoints && motor_index < 0; ++i) {
     if (s.motor_status[i] & kMotorInfoMask) warning_bits_ |= fault_bit::kMotorOverLimit;
-    if (s.motor_status[i] & kMotorFaultMask) {
-      motor_fault = true;
-      motor_index = static_cast<int>(i);
-      break;
-    }
+    if (s.motor_status[i] & kMotorFaultMask) motor_index = static_cast<int>(i);
   }
 
   if (mode_ != Mode::kPassive && mode_ != Mode::kFault) {
@@ -187,7 +187,7 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
       std::snprintf(why, sizeof(why), "sim_status_t stale: age %.1f ms > %.1f ms (composite mode: sim --status-rate 500)",
                     sim_age * 1e3, cfg_.fault_age_s * 1e3);
       fault(fault_bit::kSimStatusStale, why);
-    } else if (motor_fault) {
+    } else if (motor_index >= 0) {
       std::snprintf(why, sizeof(why), "motor %d (%s) status 0x%x", motor_index, T1_MOTORS[motor_index].name,
                     static_cast<unsigned>(s.motor_status[motor_index]));
       // In DAMPING the command already equals the firmware's own fault reaction: warn, but block PREPARE.
@@ -212,7 +212,7 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& artifact) 
         break;
       case Mode::kPrepare:
         if (!fresh) set_info("set_mode prepare refused: state not fresh");
-        else if (motor_fault) set_info("set_mode prepare refused: motor fault bits set");
+        else if (motor_index >= 0) set_info("set_mode prepare refused: motor fault bits set");
         else if (watched >= 0) std::snprintf(last_info_.data(), last_info_.size(), "set_mode prepare refused: %s", watch_why);
         else if (mode_ == Mode::kPassive) set_info("set_mode prepare refused: go to DAMPING first");
         else enter(Mode::kPrepare, s);
@@ -343,15 +343,11 @@ void Supervisor::clamp_targets(const StateView& s, const JointArray& kps, const 
       const float t_lo = s.q[i] + (kd * s.dq[i] - m.torque_limit_nm) / kp;
       const float t_hi = s.q[i] + (kd * s.dq[i] + m.torque_limit_nm) / kp;
       if (wanted < t_lo || wanted > t_hi || t_hi < lo || t_lo > hi) warning_bits_ |= fault_bit::kTorqueClamped;
-      if (t_hi < lo) hi = lo;             // unreachable within the rate: the nearest rate-allowed point
-      else if (t_lo > hi) lo = hi;
-      else lo = std::max(lo, t_lo), hi = std::min(hi, t_hi);
+      narrow(lo, hi, t_lo, t_hi);         // unreachable within the rate: the nearest rate-allowed point
     }
     // 3. Range, as far as reachable.
     if (wanted < range_lo || wanted > range_hi) warning_bits_ |= fault_bit::kTargetClamped;
-    if (range_hi < lo) hi = lo;
-    else if (range_lo > hi) lo = hi;
-    else lo = std::max(lo, range_lo), hi = std::min(hi, range_hi);
+    narrow(lo, hi, range_lo, range_hi);
     const float t = nearest_in(wanted, lo, hi);
     if (have_last_target_ && std::fabs(wanted - last_target_[i]) > cfg_.max_target_step_rad)
       warning_bits_ |= fault_bit::kRateLimited;
@@ -367,16 +363,10 @@ void Supervisor::finish_tick(const StateView& s, const PolicyArtifact& a, const 
     out.tau_ff[i] = 0.0f;
     out.q_des[i] = s.have_joint && std::isfinite(s.q[i]) ? s.q[i] : 0.0f;
   }
-  if (mode_ == Mode::kPassive) {
-    for (std::size_t i = 0; i < kJoints; ++i) out.kp[i] = out.kd[i] = 0.0f;
-    have_last_target_ = false;
-    remember_command(out);
-    return;
-  }
-  if (!commanding(mode_)) {  // DAMPING and FAULT: kp 0, the firmware's safe damping
+  if (!commanding(mode_)) {  // PASSIVE: kp = kd = 0; DAMPING and FAULT: kp 0, the firmware's safe damping
     for (std::size_t i = 0; i < kJoints; ++i) {
       out.kp[i] = 0.0f;
-      out.kd[i] = T1_MOTORS[i].d_safe_nms;
+      out.kd[i] = mode_ == Mode::kPassive ? 0.0f : T1_MOTORS[i].d_safe_nms;
     }
     have_last_target_ = false;
     remember_command(out);
