@@ -153,7 +153,6 @@ def test_an_unknown_key_is_refused_by_name():
 
 
 CAMPAIGN_RUNS = sorted(p.parent for p in CAMPAIGN_STATES)
-TOY_BANK_STARTS = 4
 
 
 @pytest.mark.slow
@@ -164,6 +163,7 @@ def test_every_stored_campaign_resumes_on_today_s_code(tmp_path, stored):
     import shutil
     from common.artifact import read_artifact
     from training.ppo import train
+    from training.recipes.runner import TOY_BANK_STARTS
     run = tmp_path / stored.name
     shutil.copytree(stored, run)
     state = json.loads((run / "run_state.json").read_text())
