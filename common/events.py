@@ -53,8 +53,11 @@ ATTEMPT_RISE_M = 0.15
 # H − min(h, H) < 0.005 m (H the contract's kneel_gate_height_m, 0.4 m) and ‖u − e_z‖ < 0.01, u the
 # trunk's up vector, so ‖u − e_z‖ = √(2 − 2·u_z).
 KNEEL_GATE_HEIGHT_M = contract.KNEEL_GATE_HEIGHT_M   # the Trunk origin's [m]
-KNEEL_GATE_HEIGHT_TOL_M = 0.005
-KNEEL_GATE_UP_ERROR = 0.01
+KNEEL_GATE_HEIGHT_TOL_M = contract.KNEEL_GATE_HEIGHT_TOL_M
+KNEEL_GATE_UP_ERROR = contract.KNEEL_GATE_UP_ERROR
+# The kneel band (ours): the gate's height with ‖u − e_z‖ < 0.05 (≈ 2.9°), the rise → stand hand-over a real IMU and a
+# memoryless student can resolve (the chain may hand over at either; kneel_gate's up_error_max).
+KNEEL_BAND_UP_ERROR = contract.KNEEL_BAND_UP_ERROR
 # The kneeling posture stage 1 must meet the gate in (ours: the gate alone is also met by a crouch or a half kneel):
 # both knees at least this flexed and neither hip more flexed than this (a half kneel's forward hip is near
 # −1.5 rad) [rad]; the kneel keyframe has knees 1.9, hips −0.2.

@@ -35,6 +35,11 @@ NOMINAL_STANDING_TRUNK_HEIGHT_M: float = float(_DATA["nominal_standing_trunk_hei
 STANDING_TARGET_TRUNK_M: float = float(_DATA["standing_target_trunk_m"])   # getup Height Reward's targets after
 STANDING_TARGET_WAIST_M: float = float(_DATA["standing_target_waist_m"])   # the kneel gate
 KNEEL_GATE_HEIGHT_M: float = float(_DATA["kneel_gate_height_m"])    # the kneel gate's Trunk height
+# The rise → stand hand-overs (contract.json "_kneel_comment"): the gate's height tolerance [m] and the upright
+# bounds ‖u − e_z‖ of §4.8's gate and of the looser kneel band.
+KNEEL_GATE_HEIGHT_TOL_M: float = float(_DATA["kneel_gate_height_tol_m"])
+KNEEL_GATE_UP_ERROR: float = float(_DATA["kneel_gate_up_error"])
+KNEEL_BAND_UP_ERROR: float = float(_DATA["kneel_band_up_error"])
 # The composite's switch [m]: getup member below this Waist height, upright member at or above it.
 WAIST_SWITCH_HEIGHT_M: float = float(_DATA["waist_switch_height_m"])
 # Who may command (messages/auth.py): the channels whose messages are signed, the approval context, the key size.
@@ -59,6 +64,8 @@ assert set(_DATA["channel_types"]) == set(CHANNELS), "contract.json: channel_typ
 assert POLICY_DECIMATION >= 1 and LOOP_PERIOD_S > 0, "contract.json: loop_period_s > 0, policy_decimation >= 1"
 assert 0 < FALLEN_TRUNK_HEIGHT_M < KNEEL_GATE_HEIGHT_M < STANDING_TRUNK_THRESHOLD_M \
     < NOMINAL_STANDING_TRUNK_HEIGHT_M, "contract.json: heights must order fallen < kneel gate < standing < nominal"
+assert 0 < KNEEL_GATE_UP_ERROR < KNEEL_BAND_UP_ERROR < 2 and KNEEL_GATE_HEIGHT_TOL_M > 0, \
+    "contract.json: 0 < kneel_gate_up_error < kneel_band_up_error < 2, kneel_gate_height_tol_m > 0"
 
 
 def lcm_url() -> str:

@@ -5,7 +5,8 @@ to the full task (§4.8, getup.py): without a gate they pay standing-like joint 
 Ours: an episode ends when the robot leaves the kneel downward (trunk below fall_trunk_height_m, or up_z below
 fall_up_z), because stage 2's Pose pays straight legs in any posture, lying or leaning back included. Off by
 default: the reverse curriculum (`reverse_curriculum`, starts/kneeling_path.py) draws starts along a path from
-standing to the kneel.
+standing to the kneel; `rise_kneels` (starts/rise_kneels.py) starts a share of episodes where the chain's rise hands
+over, at the kneel band or §4.8's gate, with the rise's velocities.
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from ml_collections import config_dict
 from messages import contract
 from training.envs import getup_base, starts
 from training.envs import getup_rewards as G
-from training.envs.starts import kneeling_path
+from training.envs.starts import kneeling_path, rise_kneels
 
 
 def default_config() -> config_dict.ConfigDict:
@@ -46,6 +47,15 @@ class GetupStand(getup_base.GetupTask):
             bank = kneeling_path.path_bank(self._mj_model, np.asarray(self._home_qpos), np.asarray(self._kneel_qpos),
                                            rc.left_leg_waypoints, int(rc.bank_size))
             self._path_bank = jnp.asarray(bank[rows], jnp.float32)
+        kneels = self._config.rise_kneels
+        if not 0.0 <= kneels.prob <= 1.0:
+            raise ValueError(f"rise_kneels.prob must be in [0, 1], got {kneels.prob}")
+        self._kneel_bank = None
+        if kneels.prob > 0:
+            if not kneels.rise_policy:
+                raise ValueError("rise_kneels.prob > 0 needs rise_kneels.rise_policy")
+            bank = rise_kneels.rise_kneels_bank(make_env, kneels, float(self._config.fallen.prepare_s))
+            self._kneel_bank = tuple(jnp.asarray(x, jnp.float32) for x in bank)
 
     def _reward_terms(self, data, info) -> dict[str, jax.Array]:
         return {"height": self.height_orientation(info, self._standing_targets),
@@ -57,7 +67,18 @@ class GetupStand(getup_base.GetupTask):
         return (info["trunk_height"] < cfg.fall_trunk_height_m) | (info["up_z"] < cfg.fall_up_z)
 
     def _start_state(self, rng):
-        """With the reverse curriculum on, a start drawn along the start path or at the kneel."""
+        """With the reverse curriculum on, a start drawn along the start path or at the kneel; with rise_kneels on,
+        that share of starts where the rise hands over (counted as kneeling, its bank row kept)."""
+        k_path, k_use, k_idx = jax.random.split(rng, 3)
+        qpos, qvel, kind, row = self._path_start(k_path)
+        if self._kneel_bank is None:
+            return qpos, qvel, kind, row
+        use = jax.random.uniform(k_use) < self._config.rise_kneels.prob
+        idx = jax.random.randint(k_idx, (), 0, self._kneel_bank[0].shape[0])
+        return (jnp.where(use, self._kneel_bank[0][idx], qpos), jnp.where(use, self._kneel_bank[1][idx], qvel),
+                jnp.where(use, 1, kind).astype(jnp.int32), jnp.where(use, idx, row).astype(jnp.int32))
+
+    def _path_start(self, rng):
         if self._path_bank is None:
             return super()._start_state(rng)
         k_kneel, k_idx = jax.random.split(rng)

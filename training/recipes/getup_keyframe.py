@@ -62,6 +62,13 @@ ROLL_SIDE = {**ROLL, "env.fallen.side_weights": [0, 1, 4]}
 RISE_ROLLED = {**RISE_BEST, "env.rolled_starts.prob": 0.3, "env.rolled_starts.roll_policy": "@getup_keyframe/roll_side",
                "env.fallen.side_weights": [1, 0, 0]}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
+# half the stand's starts where the chain's rise hands over (the kneel band's first tick, or §4.8's gate's), with
+# the rise's velocities: the stand fell from 2.9° kneels it had never started from (a hand-over at the band: 0.86)
+STAND_BAND = {**STAND, "env.rise_kneels.prob": 0.5, "env.rise_kneels.rise_policy": "@getup_keyframe/rise_rolled",
+              "env.rise_kneels.roll_policy": "@getup_keyframe/roll_side"}
+# the seed's last step (§4.7): the energy cost Σ|q̇·τ/τmax| after height and pose, at the weight that quieted the
+# baseline's hops; a critic warm-up first (the return gained a term)
+ENERGY_COST = {"env.reward.scales.energy": -0.01, "ppo.value_warmup_steps": 300_000}
 # the chain the one network learns from: each stage's newest artifact
 CHAIN = {"roll": "@getup_keyframe/roll_side", "rise": "@getup_keyframe/rise_rolled", "stand": "@getup_keyframe/stand"}
 # the full task's starts (getup's default 0.4 / 0.4 / 0.2), fallen ones from a bank far from the evaluation's seeds
@@ -113,6 +120,13 @@ RECIPE = Recipe(
         Stage("stand_swing", task="getup_stand", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
         Stage("stand", task="getup_stand", steps=7_024_640, init="stand_swing", config=STAND),
+        Stage("stand_band", task="getup_stand", steps=4_014_080, init="stand", config=STAND_BAND),
+        # the energy fine-tune of each member, stand first (612 W while standing still), then the rise and the roll
+        Stage("stand_energy", task="getup_stand", steps=3_010_560, init="stand_band",
+              config={**STAND_BAND, **ENERGY_COST}),
+        Stage("rise_energy", task="getup_kneel", steps=3_010_560, init="rise_rolled",
+              config={**RISE_ROLLED, **ENERGY_COST}),
+        Stage("roll_energy", task="getup_roll", steps=1_505_280, init="roll_side", config={**ROLL_SIDE, **ENERGY_COST}),
         # the student starts as the rise; hand-over at the gate (periods 4–5 of the one network)
         Stage("chain_rise", kind="distill", task="getup", steps=600, end_at=300, envs=1024, init="rise_rolled",
               init_artifact=True, teacher=CHAIN, config={**CHAIN_DAGGER, "bc.beta_decay_phases": 300}),
