@@ -261,18 +261,21 @@ def reached_kneel(trunk_height, up_z, th: EventThresholds = EventThresholds()) -
     return bool(np.any(kneel_gate_mask(h, u) & ~standing_mask(h, u, th)))
 
 
-def through_kneel_gate(t, trunk_height, up_z, events: GetupEvents,
-                       th: EventThresholds = EventThresholds()) -> bool | None:
+def through_kneel_gate(t, trunk_height, up_z, events: GetupEvents, th: EventThresholds = EventThresholds(),
+                       kneeling=None, up_error_max: float = KNEEL_GATE_UP_ERROR) -> bool | None:
     """Whether the trunk met the kneel gate on its way up: at a sample that does not count as standing,
     between the start of the first down phase and its stand-up (a keyframe getup rises through the kneel;
     any upright stand meets the gate, so standing samples do not count). None when it never
-    stood up from that phase."""
+    stood up from that phase. With `kneeling` (per sample, kneeling_posture), only in the kneeling posture;
+    up_error_max: the gate's upright bound (KNEEL_BAND_UP_ERROR: through the kneel band)."""
     if math.isnan(events.time_to_stand_s):
         return None
     t, h, u = (np.asarray(x, dtype=np.float64) for x in (t, trunk_height, up_z))
     first_down = t[0] if h[0] < th.fallen_trunk_height_m else events.fall_times_s[0]
     rising = (t >= first_down) & (t < first_down + events.time_to_stand_s) & ~standing_mask(h, u, th)
-    return bool(np.any(kneel_gate_mask(h[rising], u[rising])))
+    if kneeling is not None:
+        rising &= np.asarray(kneeling, bool)
+    return bool(np.any(kneel_gate(h[rising], u[rising], np, up_error_max)))
 
 
 def _stand_up_onsets(t: np.ndarray, standing: np.ndarray, hold_s: float) -> np.ndarray:

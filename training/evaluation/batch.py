@@ -34,14 +34,14 @@ from mujoco.mjx._src import support
 from common import events
 from common import model as t1model
 from common import observation as obsdef
-from common.events import getup_events, reached_kneel, through_kneel_gate
+from common.events import getup_events, reached_kneel
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 from training import envs
 from training.core import plots
 from training.core import checkpoints
 from training.core.backend import default_backend
 from training.envs.starts import landing_bank
-from training.evaluation import table_4_3
+from training.evaluation import kneel_rows, table_4_3
 from training.evaluation.artifact_policy import ArtifactPolicy, ChainPolicy, CompositePolicy, load_policy
 from training.evaluation.cpu import cpu_rollout
 
@@ -138,11 +138,9 @@ def episode_row(t, readings, series) -> dict:
     """One episode's metrics from its readings (T + 1, 3 or 4: trunk height, up_z, waist height[, kneeling
     posture]) at times t [s] and its per-tick effort series (T,). energy_to_stand_J counts the ticks before the
     first stand-up only (nan if it never stood): the energy of getting up, which the whole episode's energy_J
-    mixes with the standing that follows it under the upright policy. Without the posture the kneel's figures
-    are nan."""
+    mixes with the standing that follows it under the upright policy. The kneel's figures: kneel_rows.kneel_row."""
     ev = getup_events(t, readings[:, 0], readings[:, 1], waist_height=readings[:, 2],
                       switch_height_m=WAIST_SWITCH_HEIGHT_M)
-    gate = through_kneel_gate(t, readings[:, 0], readings[:, 1], ev)
     stood = not math.isnan(ev.time_to_stand_s)
     stand_tick = int(np.searchsorted(t, t[0] + ev.time_to_stand_s - 1e-9)) if stood else 0
     ctrl_dt = float(t[1] - t[0])
@@ -150,10 +148,9 @@ def episode_row(t, readings, series) -> dict:
         "success": ev.success, "time_to_stand_s": ev.time_to_stand_s, "attempts": ev.attempts,
         "falls": ev.falls, "down_phases": ev.falls + int(ev.started_down),
         "failed_after_switch": ev.failed_after_switch,
-        "through_kneel_gate": math.nan if gate is None else float(gate),
         "reached_kneel": float(reached_kneel(readings[:, 0], readings[:, 1])),
         "gate_while_standing": events.gate_while_standing(readings[:, 0], readings[:, 1]),
-        **kneel_row(readings, ctrl_dt),
+        **kneel_rows.kneel_row(t, readings, ev, series["energy_J"]),
         "peak_trunk_m": float(readings[:, 0].max()),
         "energy_J": float(series["energy_J"].sum()),
         "energy_to_stand_J": float(series["energy_J"][:stand_tick].sum()) if stood else math.nan,
@@ -165,16 +162,6 @@ def episode_row(t, readings, series) -> dict:
         "max_contact_force_N": float(series["contact_force_N"].max()),
         "mean_contact_force_N": float(series["contact_force_N"].mean()),
         "z_contact_impulse_Ns": float(series["contact_force_z_N"].sum() * ctrl_dt)}
-
-
-def kneel_row(readings, ctrl_dt: float) -> dict:
-    """kneel_hold_s: the longest hold of §4.8's gate in the kneeling posture [s] (common/events.py);
-    kneeled: whether it met it at all; kneel_held: whether it held KNEEL_HOLD_S (nan where it never met it)."""
-    if readings.shape[1] < 4:
-        return {"kneel_hold_s": math.nan, "kneeled": math.nan, "kneel_held": math.nan}
-    hold = events.kneel_hold_s(readings[:, 0], readings[:, 1], readings[:, 3] > 0.5, ctrl_dt)
-    return {"kneel_hold_s": hold, "kneeled": float(hold > 0),
-            "kneel_held": float(hold >= events.KNEEL_HOLD_S - 1e-9) if hold > 0 else math.nan}
 
 
 EFFORT_KEYS = ("energy_J", "energy_to_stand_J", "max_energy_J", "max_torque_Nm", "total_torque_Nms",
@@ -190,6 +177,10 @@ def summarize(rows: list[dict]) -> dict:
     def mean(key, where=None):
         vals = [r[key] for r in rows if (where is None or where(r)) and not math.isnan(r[key])]
         return float(np.mean(vals)) if vals else math.nan
+
+    def median(key):
+        vals = [r[key] for r in rows if not math.isnan(r[key])]
+        return float(np.median(vals)) if vals else math.nan
     # the down phases: a start lying down (every fallen start) and each fall during the episode (a bank's
     # mid-fall start is down only once it lands: that landing is one of its falls)
     falls_total = max(1, sum(r["down_phases"] for r in rows))
@@ -199,7 +190,9 @@ def summarize(rows: list[dict]) -> dict:
             "max_attempts": max(r["attempts"] for r in rows),
             "failed_after_switch_per_episode": float(np.mean([r["failed_after_switch"] for r in rows])),
             "never_rose": float(np.mean([r["attempts"] == 0 and not r["success"] for r in rows])),
-            "time_to_stand_s": mean("time_to_stand_s"), "through_kneel_gate": mean("through_kneel_gate"),
+            "time_to_stand_s": mean("time_to_stand_s"), "median_time_to_stand_s": median("time_to_stand_s"),
+            "through_kneel_gate": mean("through_kneel_gate"), "through_kneel_band": mean("through_kneel_band"),
+            "standing_power_W": median("standing_power_W"),
             "reached_kneel": mean("reached_kneel"),
             "reached_kneel_face_down": mean("reached_kneel", _lies("face_down")),
             "reached_kneel_face_up": mean("reached_kneel", _lies("on_back")),
@@ -221,7 +214,13 @@ ROWS = (("success rate", "success_rate", "{:.2f}"), ("attempts per fall", "attem
          "failed_after_switch_per_episode", "{:.2f}"),
         ("lay without a rise to the end (share)", "never_rose", "{:.3f}"),
         ("time to stand [s]", "time_to_stand_s", "{:.2f}"),
-        ("through the kneel gate before standing (share of those that stood)", "through_kneel_gate", "{:.2f}"),
+        ("median time to stand [s]", "median_time_to_stand_s", "{:.2f}"),
+        ("through §4.8's kneel gate before standing (in the kneeling posture; share of those that stood)",
+         "through_kneel_gate", "{:.2f}"),
+        ("through the kneel band before standing (in the kneeling posture; share of those that stood)",
+         "through_kneel_band", "{:.2f}"),
+        (f"power while standing, median over episodes standing ≥ {kneel_rows.STANDING_POWER_MIN_S:g} s [W]",
+         "standing_power_W", "{:.0f}"),
         ("reached the kneel: the gate met while not standing (share of episodes; stage 1's aim)", "reached_kneel",
          "{:.2f}"),
         ("… from starts lying face down (trunk's forward axis pointing down)", "reached_kneel_face_down", "{:.2f}"),
@@ -288,6 +287,8 @@ def markdown_report(results: dict, meta: dict) -> str:
         lines += ["", f"Energy until the first stand-up, paired by seed over the {both} seeds where both stood: "
                   f"policy / baseline = {_fmt('{:.2f}', ratio)} (the getup's own energy: the whole-episode "
                   "energy above also counts the standing after it)."]
+    if not from_bank:
+        lines += ["", *kneel_rows.side_table(results, summarize, _fmt)]
     lines += ["", f"Command: `{meta['command']}`", ""]
     return "\n".join(lines)
 
