@@ -66,13 +66,13 @@ KNEEL_HIP_MIN_RAD = -0.6
 KNEEL_HOLD_S = 1.0          # stage 1's kneel counts as held once the gate has held this long in the posture
 # How a fallen start lies, from the world z of the trunk's forward (x) axis (common.model.trunk_forward_z): below
 # −FACING_Z face down, above +FACING_Z on the back, else on its side.
-FACING_Z = 0.5
+FACING_Z = contract.LYING_FACING_Z
 LYING_SIDES = ("face_down", "on_back", "side")
 # The roll's hand-over to the face-down rise (the keyframe getup's chain roll → rise → stand): lying (trunk below
 # the fallen height), turned face down well past the lying-side rule's edge (forward z below −ROLLED_FORWARD_Z)
 # and no longer tumbling (trunk angular speed below ROLLED_MAX_ANG_SPEED_RAD_S), as the rise's face-down starts lie.
-ROLLED_FORWARD_Z = 0.8
-ROLLED_MAX_ANG_SPEED_RAD_S = 1.0
+ROLLED_FORWARD_Z = contract.ROLLED_FORWARD_Z
+ROLLED_MAX_ANG_SPEED_RAD_S = contract.ROLLED_MAX_ANG_SPEED_RAD_S
 KNEE_PITCHES = ("Left_Knee_Pitch", "Right_Knee_Pitch")
 HIP_PITCHES = ("Left_Hip_Pitch", "Right_Hip_Pitch")
 

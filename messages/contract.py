@@ -40,6 +40,11 @@ KNEEL_GATE_HEIGHT_M: float = float(_DATA["kneel_gate_height_m"])    # the kneel 
 KNEEL_GATE_HEIGHT_TOL_M: float = float(_DATA["kneel_gate_height_tol_m"])
 KNEEL_GATE_UP_ERROR: float = float(_DATA["kneel_gate_up_error"])
 KNEEL_BAND_UP_ERROR: float = float(_DATA["kneel_band_up_error"])
+# The chain's other hand-overs (contract.json "_lying_comment"): the lying-side rule's bound on the Trunk's forward
+# z, the roll's face-down bound and the Trunk's angular speed below which a lying robot is still [rad/s].
+LYING_FACING_Z: float = float(_DATA["lying_facing_z"])
+ROLLED_FORWARD_Z: float = float(_DATA["rolled_forward_z"])
+ROLLED_MAX_ANG_SPEED_RAD_S: float = float(_DATA["rolled_max_ang_speed_rad_s"])
 # The composite's switch [m]: getup member below this Waist height, upright member at or above it.
 WAIST_SWITCH_HEIGHT_M: float = float(_DATA["waist_switch_height_m"])
 # Who may command (messages/auth.py): the channels whose messages are signed, the approval context, the key size.

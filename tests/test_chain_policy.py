@@ -1,12 +1,14 @@
 """The keyframe getup's latched chain (training/evaluation/artifact_policy.py ChainPolicy): roll → rise → stand, switched by
 common/events' hand-over rules, and those rules themselves."""
+import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from common import events
+from common import events, keyframe_chain
 from common import observation as obsdef
 from training.evaluation.artifact_policy import ChainPolicy, load_policy
 
@@ -117,3 +119,39 @@ def test_keyframe_stage_reads_the_same_under_numpy():
     tilted = (np.array([rise]), np.array([0.0]), np.array([0.4]), np.array([np.cos(np.radians(1.0))]), np.zeros(1))
     assert events.keyframe_stage(*tilted) == rise
     assert events.keyframe_stage(*tilted, handover_up_error=0.03) == stand
+
+
+def _chain_folder(folder: Path, handover="kneel_band") -> Path:
+    for stage in events.KEYFRAME_STAGES:
+        (folder / f"{stage}.safetensors").write_bytes(MEMBER.read_bytes())
+    keyframe_chain.write(folder, {s: f"{s}.safetensors" for s in events.KEYFRAME_STAGES}, handover)
+    return folder
+
+
+def test_a_shipped_chain_s_folder_loads_with_its_manifest_s_hand_over(tmp_path):
+    chain = load_policy(_chain_folder(tmp_path))
+    assert isinstance(chain, ChainPolicy) and chain.handover_up_error == events.KNEEL_BAND_UP_ERROR
+    assert [m.path.name for m in chain.members] == [f"{s}.safetensors" for s in events.KEYFRAME_STAGES]
+    assert load_policy(tmp_path, events.KNEEL_GATE_UP_ERROR).handover_up_error == events.KNEEL_GATE_UP_ERROR
+    assert "0.05" in chain.describe()
+
+
+@pytest.mark.parametrize("spoil, named", [
+    (lambda d: d.pop("handover"), "handover must be one of kneel_gate, kneel_band"),
+    (lambda d: d["stages"].pop("rise"), "stages must name exactly roll, rise, stand"),
+    (lambda d: d["stages"].update(stand="../stand.safetensors"), "stages.stand must be a file name"),
+    (lambda d: d["stages"].update(stand="absent.safetensors"), "stages.stand:"),
+    (lambda d: d.update(format="t1-keyframe-chain/0"), "format must be"),
+])
+def test_a_chain_manifest_that_cannot_run_is_refused_by_what_is_wrong(tmp_path, spoil, named):
+    folder = _chain_folder(tmp_path)
+    data = json.loads((folder / keyframe_chain.MANIFEST).read_text())
+    spoil(data)
+    (folder / keyframe_chain.MANIFEST).write_text(json.dumps(data))
+    with pytest.raises(keyframe_chain.ChainError, match=re.escape(named)):
+        load_policy(folder)
+
+
+def test_a_folder_that_is_no_chain_is_named_as_a_folder(tmp_path):
+    with pytest.raises(ValueError, match="a folder, not a policy artifact"):
+        load_policy(tmp_path)

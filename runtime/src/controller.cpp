@@ -19,7 +19,10 @@ constexpr const char* kApprovalsFileName = "approvals";  // the approvals file's
 }  // namespace
 
 PolicyStore make_policy_store(const ControllerOptions& o) {
-  std::string dir = o.policy_dir.empty() ? std::filesystem::path(o.policy_path).parent_path().string() : o.policy_dir;
+  // a chain's folder holds its members: it is their policy folder
+  const std::string own = is_chain_folder(o.policy_path) ? o.policy_path
+                                                         : std::filesystem::path(o.policy_path).parent_path().string();
+  std::string dir = o.policy_dir.empty() ? own : o.policy_dir;
   if (dir.empty()) dir = ".";
   const std::string approvals = o.approvals_path.empty() ? dir + "/" + kApprovalsFileName : o.approvals_path;
   return PolicyStore(dir, o.auth == AuthMode::kSigned ? o.keys : nullptr, approvals);
@@ -27,13 +30,36 @@ PolicyStore make_policy_store(const ControllerOptions& o) {
 
 Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial,
                        std::unique_ptr<PolicyEngine> upright)
-    : opt_(options), supervisor_(options.safety), store_(make_policy_store(options)), engine_(std::move(initial)),
-      upright_(std::move(upright)) {
+    : opt_(options), supervisor_(options.safety), store_(make_policy_store(options)), engine_(std::move(initial)) {
+  active_ = engine_.get();
+  if (upright) {
+    check_composite_pair(engine_->artifact(), upright->artifact());  // throws before any thread
+    rule_ = SwitchRule::kWaist;
+    others_.push_back(std::move(upright));
+    members_ = {engine_.get(), others_[0].get()};
+    // PREPARE ramps to the upright member's pose (a stand); it runs first unless the waist is low.
+    active_ = others_[0].get();
+  }
+  init_common();
+}
+
+Controller::Controller(const ControllerOptions& options, std::array<std::unique_ptr<PolicyEngine>, kChainStages> chain,
+                       float handover_up_error)
+    : opt_(options), supervisor_(options.safety), store_(make_policy_store(options)), engine_(std::move(chain[0])),
+      rule_(SwitchRule::kKeyframe), handover_up_error_(handover_up_error) {
+  members_ = {engine_.get()};
+  for (std::size_t i = 1; i < kChainStages; ++i) {
+    check_composite_pair(engine_->artifact(), chain[i]->artifact());  // one gain set: throws before any thread
+    members_.push_back(chain[i].get());
+    others_.push_back(std::move(chain[i]));
+  }
+  // PREPARE ramps to the stand's pose; the Trunk's height picks the first stage once POLICY starts.
+  active_ = members_[static_cast<std::size_t>(ChainStage::kStand)];
+  init_common();
+}
+
+void Controller::init_common() {
   supervisor_.set_autostart(opt_.autostart);  // the ladder and the operator's precedence: safety rule R1
-  if (upright_) check_composite_pair(engine_->artifact(), upright_->artifact());  // throws before any thread
-  // Composite: PREPARE ramps to the upright member's pose (a stand); it runs first unless the waist is low.
-  active_ = upright_ ? upright_.get() : engine_.get();
-  member_ = CompositeMember::kUpright;
   current_path_ = opt_.policy_path;
   for (std::string* s : {&status_.mode_name, &status_.policy_name, &status_.policy_hash, &status_.clock,
                          &status_.last_fault, &status_.info, &status_.command_auth, &status_.state_auth,
@@ -66,7 +92,7 @@ bool Controller::open(std::string* error) {
   if (robot_key) std::snprintf(describe, sizeof(describe), "signed (robot key, %zu senders)", opt_.robot_keys->size());
   else std::snprintf(describe, sizeof(describe), "unauthenticated (no --robot-key)");
   state_auth_.set_description(describe);
-  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, &auth_, error, composite(),
+  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, &auth_, error, switched(),
                        state_on_lcm(opt_.robot_link), &state_auth_))
     return false;
   link_ = open_robot_link(opt_.robot_link, opt_.dds_domain_id, opt_.clock, &supervisor_, &transport_, error,
@@ -119,10 +145,11 @@ void Controller::reload_worker() {
     lock.unlock();
     std::unique_ptr<PolicyEngine> engine;
     std::string message;
-    if (upright_) {
-      // A reload would have to swap one member and re-check the pair's gains against the other while it
-      // runs; composite runs are evaluation runs, so they are restarted with both files instead.
-      message = "reload REJECTED, old policies kept: hot reload is not supported in composite mode";
+    if (switched()) {
+      // A reload would have to swap one member and re-check the gains against the others while it runs;
+      // switched runs are evaluation runs, so they are restarted with all their files instead.
+      message = std::string("reload REJECTED, old policies kept: hot reload is not supported in ") +
+                (chain() ? "chain" : "composite") + " mode";
     } else try {
       // load_policy: a name inside the policy folder, approved content only; SIGHUP (a local signal): the
       // current file, approved again when the runtime has a key (the file may have been replaced).
@@ -148,7 +175,7 @@ void Controller::adopt_ready_policy() {
   std::unique_lock<std::mutex> lock(reload_mutex_, std::try_to_lock);
   if (!lock.owns_lock()) return;  // never block the tick: try again at the next policy tick
   std::swap(engine_, ready_);
-  active_ = engine_.get();  // single-policy mode only (composite mode never has a ready policy)
+  active_ = engine_.get();  // single-policy mode only (a switched mode never has a ready policy)
   retired_ = std::move(ready_);
   ready_flag_.store(false);
   message_changed_.store(true);
@@ -170,10 +197,11 @@ StateView Controller::state_view(double now_s) const {
   s.q = transport_.joint.msg.q;
   s.dq = transport_.joint.msg.dq;
   s.motor_status = transport_.joint.msg.motor_status;
-  s.needs_sim_status = composite();
+  s.needs_sim_status = switched();
   s.have_sim_status = transport_.sim_status.have;
   s.sim_status_time_s = transport_.sim_status.stamp_s;
   s.waist_height_m = transport_.sim_status.msg.waist_height;
+  s.trunk_height_m = transport_.sim_status.msg.trunk_height;
   return s;
 }
 
@@ -202,17 +230,17 @@ void Controller::tick(double now_s) {
   bool policy_ran = false;
   if (supervisor_.entered_policy()) {
     engine_->reset();
-    if (upright_) upright_->reset();
+    for (auto& other : others_) other->reset();
+    stage_ = ChainStage::kStart;
     policy_phase_ = 0;
   }
   if (may_run_policy && policy_phase_ % kPolicyDecimation == 0) {
     adopt_ready_policy();
-    if (upright_) select_member(s.waist_height_m);
+    if (switched()) select_member(s);
     const auto result = active_->step(s.quat, s.gyro, command_vel_, s.q, s.dq);
-    if (upright_ && result == PolicyEngine::Result::kOk) {
-      PolicyEngine& idle = active_ == upright_.get() ? *engine_ : *upright_;
-      idle.follow(active_->q_target(), command_vel_);
-    }
+    if (switched() && result == PolicyEngine::Result::kOk)
+      for (PolicyEngine* idle : members_)
+        if (idle != active_) idle->follow(active_->q_target(), command_vel_);
     if (result == PolicyEngine::Result::kNonFiniteObs) supervisor_.fault(fault_bit::kNonFiniteObs, "non-finite observation");
     if (result == PolicyEngine::Result::kNonFiniteAction) supervisor_.fault(fault_bit::kNonFiniteAction, "non-finite action");
     ++policy_ticks_;
@@ -248,20 +276,29 @@ void Controller::publish_policy_telemetry(double now_s) {
   transport_.publish(t1::CH_ACTION, action_msg_);
 }
 
-void Controller::select_member(float waist_height_m) {
-  const CompositeMember next = t1rt::select_member(waist_height_m);
-  if (next != member_) ++member_switches_;
-  member_ = next;
-  active_ = next == CompositeMember::kGetup ? engine_.get() : upright_.get();
+void Controller::select_member(const StateView& s) {
+  PolicyEngine* next;
+  if (rule_ == SwitchRule::kWaist) {
+    member_ = t1rt::select_member(s.waist_height_m);
+    next = members_[static_cast<std::size_t>(member_)];
+  } else {
+    stage_ = next_stage(stage_, trunk_readings(s.quat, s.gyro, s.trunk_height_m), handover_up_error_);
+    next = members_[static_cast<std::size_t>(stage_)];
+  }
+  if (next != active_) ++member_switches_;
+  active_ = next;
 }
 
 void Controller::post_live_line() {
   LiveLine line{};
   std::snprintf(line.mode, sizeof(line.mode), "%s", status_.mode_name.c_str());
   std::snprintf(line.last_fault, sizeof(line.last_fault), "%s", status_.last_fault.c_str());
-  if (upright_)  // composite mode: say it runs on a privileged sim signal, and which member acts
+  if (composite())  // switched modes: say they run on a privileged sim signal, and which member acts
     std::snprintf(line.composite, sizeof(line.composite), "COMPOSITE(sim waist %.2f m -> %-7s) ",
                   transport_.sim_status.msg.waist_height, member_name(member_));
+  else if (chain())
+    std::snprintf(line.composite, sizeof(line.composite), "CHAIN(sim trunk %.2f m -> %-5s) ",
+                  transport_.sim_status.msg.trunk_height, stage_name(stage_));
   line.unauthenticated = auth_.mode() == AuthMode::kUnauthenticated;
   line.ticks = ticks_;
   line.policy_ticks = policy_ticks_;

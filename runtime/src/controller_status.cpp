@@ -20,15 +20,21 @@ void assign_bounded(std::string& dst, const char* src) {
 
 void Controller::format_policy_identity() {
   const PolicyArtifact& a = engine_->artifact();
-  if (!upright_) {
+  if (composite()) {
+    const PolicyArtifact& u = members_[1]->artifact();
+    std::snprintf(policy_name_, sizeof(policy_name_), "composite[getup=%s,upright=%s] active=%s", a.name.c_str(),
+                  u.name.c_str(), member_name(member_));
+    std::snprintf(policy_hash_, sizeof(policy_hash_), "%.32s+%.32s", a.content_hash.c_str(), u.content_hash.c_str());
+  } else if (chain()) {
+    const PolicyArtifact &rise = members_[1]->artifact(), &stand = members_[2]->artifact();
+    std::snprintf(policy_name_, sizeof(policy_name_), "chain[roll=%.60s,rise=%.60s,stand=%.60s] active=%s",
+                  a.name.c_str(), rise.name.c_str(), stand.name.c_str(), stage_name(stage_));
+    std::snprintf(policy_hash_, sizeof(policy_hash_), "%.32s+%.32s+%.32s", a.content_hash.c_str(),
+                  rise.content_hash.c_str(), stand.content_hash.c_str());
+  } else {
     std::snprintf(policy_name_, sizeof(policy_name_), "%s", a.name.c_str());
     std::snprintf(policy_hash_, sizeof(policy_hash_), "%s", a.content_hash.c_str());
-    return;
   }
-  const PolicyArtifact& u = upright_->artifact();
-  std::snprintf(policy_name_, sizeof(policy_name_), "composite[getup=%s,upright=%s] active=%s", a.name.c_str(),
-                u.name.c_str(), member_name(member_));
-  std::snprintf(policy_hash_, sizeof(policy_hash_), "%.32s+%.32s", a.content_hash.c_str(), u.content_hash.c_str());
 }
 
 void Controller::publish_status(double now_s) {
@@ -76,10 +82,15 @@ void Controller::publish_status(double now_s) {
     }
   }
   char composite_info[160] = {0};
-  if (upright_)
+  if (composite())
     std::snprintf(composite_info, sizeof(composite_info), "composite: waist %.3f m from T1_SIM_STATUS (privileged sim "
                   "signal), getup below %.2f m, active %s, switches %lld | ", transport_.sim_status.msg.waist_height,
                   kGetupSwitchWaistHeightM, member_name(member_), static_cast<long long>(member_switches_));
+  else if (chain())
+    std::snprintf(composite_info, sizeof(composite_info), "chain: trunk %.3f m from T1_SIM_STATUS (privileged sim "
+                  "signal), rise hands over at |u - e_z| < %.2f, active %s, switches %lld | ",
+                  transport_.sim_status.msg.trunk_height, handover_up_error_, stage_name(stage_),
+                  static_cast<long long>(member_switches_));
   // Who may command next to the mode: "commands unauthenticated" on a bench runtime, the last refusal.
   const char* bench = auth_.mode() == AuthMode::kUnauthenticated ? " | commands unauthenticated" : "";
   const char* refusal = auth_.last_refusal();

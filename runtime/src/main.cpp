@@ -47,7 +47,10 @@ bool write_histogram(FILE* f, t1rt::PeriodicTask& task) {
 void usage(FILE* out) {
   std::fprintf(out,
       "usage: t1-runtime --policy PATH [--policy-upright PATH] [options]\n"
-      "  --policy PATH          policy artifact (*.safetensors, policies/ARTIFACT.md); required\n"
+      "  --policy PATH          policy artifact (*.safetensors, policies/ARTIFACT.md); required. A keyframe chain's\n"
+      "                         folder (chain.json: roll, rise, stand; policies/getup_keyframe): chain mode (sim only),\n"
+      "                         switched by the Trunk's height from T1_SIM_STATUS (run the sim with --status-rate\n"
+      "                         500); one gain set; no hot reload\n"
       "  --policy-upright PATH  composite mode (sim only): --policy is the getup member, run while the waist is\n"
       "                         below 0.5 m, PATH the upright/joystick member; waist height comes from\n"
       "                         T1_SIM_STATUS (privileged simulator signal; run the sim with --status-rate 500);\n"
@@ -206,6 +209,14 @@ int main(int argc, char** argv) {
   }
 
   std::unique_ptr<t1rt::PolicyEngine> engine, upright;
+  std::array<std::unique_ptr<t1rt::PolicyEngine>, t1rt::kChainStages> chain;
+  t1rt::ChainFile chain_file;
+  const bool chain_mode = t1rt::is_chain_folder(opt.policy_path);
+  if (chain_mode && !opt.upright_policy_path.empty()) {
+    std::fprintf(stderr, "t1-runtime: --policy-upright pairs a getup artifact, not a keyframe chain's folder (%s)\n",
+                 opt.policy_path.c_str());
+    return kExitUsage;
+  }
   std::string loading = opt.policy_path;
   try {
     const t1rt::PolicyStore store = t1rt::make_policy_store(opt);
@@ -214,7 +225,16 @@ int main(int argc, char** argv) {
     auto load = [&](const std::string& path) {
       return std::make_unique<t1rt::PolicyEngine>(store.checks_approval() ? store.load_path(path) : t1rt::load_artifact(path));
     };
-    engine = load(opt.policy_path);
+    if (chain_mode) {
+      chain_file = t1rt::read_chain_file(opt.policy_path);
+      for (std::size_t i = 0; i < t1rt::kChainStages; ++i) {
+        loading = chain_file.members[i];
+        chain[i] = load(chain_file.members[i]);
+        if (i > 0) t1rt::check_composite_pair(chain[0]->artifact(), chain[i]->artifact());
+      }
+    } else {
+      engine = load(opt.policy_path);
+    }
     if (!opt.upright_policy_path.empty()) {
       loading = opt.upright_policy_path;
       upright = load(opt.upright_policy_path);
@@ -228,12 +248,19 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "t1-runtime: bad policy artifact %s: %s\n", loading.c_str(), e.what());
     return kExitBadArtifact;
   }
-  for (const t1rt::PolicyEngine* p : {engine.get(), upright.get()}) {
-    if (!p) continue;
+  std::vector<std::pair<std::string, const t1rt::PolicyEngine*>> members;
+  if (chain_mode)
+    for (std::size_t i = 0; i < t1rt::kChainStages; ++i)
+      members.emplace_back(std::string(t1rt::stage_name(static_cast<t1rt::ChainStage>(i))) + " member: ", chain[i].get());
+  else if (upright)
+    members = {{"getup member: ", engine.get()}, {"upright member: ", upright.get()}};
+  else
+    members = {{"", engine.get()}};
+  for (const auto& [label, p] : members) {
     const auto& art = p->artifact();
     std::fprintf(stderr, "t1-runtime: %spolicy '%s' hash %.12s trained=%s obs %d layers %zu (MLP kernel %s); clock %s; "
                  "LCM %s; robot link %s\n",
-                 !upright ? "" : p == engine.get() ? "getup member: " : "upright member: ", art.name.c_str(),
+                 label.c_str(), art.name.c_str(),
                  art.content_hash.c_str(), art.trained ? "true" : "false", art.obs_size, art.layers.size(), p->mlp_variant(),
                  t1rt::clock_name(opt.clock), opt.lcm_url.c_str(),
                  t1rt::robot_link_description(opt.robot_link));
@@ -247,8 +274,14 @@ int main(int argc, char** argv) {
   if (upright)
     std::fprintf(stderr, "t1-runtime: COMPOSITE mode: getup below waist %.2f m, else upright; waist height from "
                  "T1_SIM_STATUS (privileged simulator signal, not available on a robot)\n", t1rt::kGetupSwitchWaistHeightM);
+  if (chain_mode)
+    std::fprintf(stderr, "t1-runtime: CHAIN mode: roll -> rise -> stand, the rise hands over at %s (|u - e_z| < %.2f); "
+                 "Trunk height from T1_SIM_STATUS (privileged simulator signal, not available on a robot)\n",
+                 chain_file.handover.c_str(), chain_file.handover_up_error);
 
-  t1rt::Controller controller(opt, std::move(engine), std::move(upright));
+  t1rt::Controller controller = chain_mode
+      ? t1rt::Controller(opt, std::move(chain), chain_file.handover_up_error)
+      : t1rt::Controller(opt, std::move(engine), std::move(upright));
   std::string error;
   if (!controller.open(&error)) { std::fprintf(stderr, "t1-runtime: transport init failed: %s\n", error.c_str()); return kExitLcm; }
 

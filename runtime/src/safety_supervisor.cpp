@@ -156,8 +156,8 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& /*artifact
   if (!imu_fresh) warning_bits_ |= fault_bit::kImuHold;
   if (!joint_fresh) warning_bits_ |= fault_bit::kJointHold;
   if (!sim_fresh) warning_bits_ |= fault_bit::kSimStatusHold;
-  if (s.needs_sim_status && s.have_sim_status && !std::isfinite(s.waist_height_m))
-    fault(fault_bit::kNonFiniteSimStatus, "non-finite waist_height in sim_status_t (composite mode)");
+  if (s.needs_sim_status && s.have_sim_status && !(std::isfinite(s.waist_height_m) && std::isfinite(s.trunk_height_m)))
+    fault(fault_bit::kNonFiniteSimStatus, "non-finite waist_height or trunk_height in sim_status_t (switched mode)");
 
   // Non-finite state is a sensor failure whatever the mode.
   if ((s.have_imu && (!all_finite(s.quat, 4) || !all_finite(s.gyro, 3))) ||
@@ -184,7 +184,7 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& /*artifact
       std::snprintf(why, sizeof(why), "joint_state_t stale: age %.1f ms > %.1f ms", joint_age * 1e3, cfg_.fault_age_s * 1e3);
       fault(fault_bit::kJointStale, why);
     } else if (sim_age > cfg_.fault_age_s) {
-      std::snprintf(why, sizeof(why), "sim_status_t stale: age %.1f ms > %.1f ms (composite mode: sim --status-rate 500)",
+      std::snprintf(why, sizeof(why), "sim_status_t stale: age %.1f ms > %.1f ms (switched mode: sim --status-rate 500)",
                     sim_age * 1e3, cfg_.fault_age_s * 1e3);
       fault(fault_bit::kSimStatusStale, why);
     } else if (motor_index >= 0) {

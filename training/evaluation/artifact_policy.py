@@ -1,7 +1,7 @@
 """The policy artifacts as the batch evaluations run them, in jax: one artifact (ArtifactPolicy, the file the
 runtime runs, through common/observation.py) or the runtime's composite of two (CompositePolicy,
 `--policy GETUP,UPRIGHT`, the seed's chapter-6 baseline) or the keyframe getup's latched chain of three
-(ChainPolicy, `chain:ROLL,RISE,STAND`). Used by training/evaluation/batch.py (getup) and
+(ChainPolicy, `chain:ROLL,RISE,STAND` or a shipped chain's folder, common/keyframe_chain.py). Used by training/evaluation/batch.py (getup) and
 training/evaluation/joystick.py (walking)."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from common import events
+from common import events, keyframe_chain
 from common import observation as obsdef
 from common.artifact import read_artifact
 from messages.contract import WAIST_SWITCH_HEIGHT_M
@@ -151,8 +151,16 @@ class ChainPolicy:
     ROLL, RISE, STAND = range(len(events.KEYFRAME_STAGES))
 
     @classmethod
-    def load(cls, spec: str, handover_up_error: float = events.KNEEL_GATE_UP_ERROR) -> "ChainPolicy":
-        parts = [p.strip() for p in str(spec)[len(cls.PREFIX):].split(",")]
+    def load(cls, spec: str, handover_up_error: float | None = None) -> "ChainPolicy":
+        """`chain:ROLL,RISE,STAND` (hand-over at handover_up_error; None: §4.8's gate) or a chain's folder (its
+        manifest's hand-over unless handover_up_error says otherwise)."""
+        if keyframe_chain.is_chain(spec):
+            chain = keyframe_chain.read(spec)
+            parts = [str(p) for p in chain.members]
+            handover_up_error = chain.handover_up_error if handover_up_error is None else handover_up_error
+        else:
+            parts = [p.strip() for p in str(spec)[len(cls.PREFIX):].split(",")]
+        handover_up_error = events.KNEEL_GATE_UP_ERROR if handover_up_error is None else handover_up_error
         if len(parts) != 3 or not all(parts):
             raise ValueError(f"{spec!r}: a chain is {cls.PREFIX}ROLL.safetensors,RISE.safetensors,STAND.safetensors")
         if not 0 < handover_up_error <= 2:
@@ -180,7 +188,8 @@ class ChainPolicy:
         return tuple(m.params for m in self.members)
 
     def describe(self) -> str:
-        return "chain roll → rise → stand: " + "; ".join(m.describe() for m in self.members)
+        return (f"chain roll → rise → stand (the rise hands over at ‖u − e_z‖ < {self.handover_up_error:g}): "
+                + "; ".join(m.describe() for m in self.members))
 
     def initial_last_action(self):
         return (np.zeros((3, obsdef.NUM_JOINTS), np.float32), np.int32(events.KEYFRAME_START))
@@ -203,12 +212,16 @@ class ChainPolicy:
 
 
 def load_policy(spec, handover_up_error: float | None = None) -> ArtifactPolicy | CompositePolicy | ChainPolicy:
-    """An artifact path, GETUP,UPRIGHT for the runtime's composite of two, or chain:ROLL,RISE,STAND (its rise
-    hands over to the stand at handover_up_error; None: §4.8's gate)."""
-    if str(spec).startswith(ChainPolicy.PREFIX):
-        return ChainPolicy.load(spec, *(() if handover_up_error is None else (handover_up_error,)))
+    """An artifact path, GETUP,UPRIGHT for the runtime's composite of two, or a chain: chain:ROLL,RISE,STAND or a
+    shipped chain's folder (its rise hands over to the stand at handover_up_error; None: §4.8's gate, or the
+    folder's manifest's hand-over)."""
+    if str(spec).startswith(ChainPolicy.PREFIX) or keyframe_chain.is_chain(spec):
+        return ChainPolicy.load(spec, handover_up_error)
     if handover_up_error is not None:
-        raise ValueError(f"{spec!r}: a hand-over up error is a chain's (chain:ROLL,RISE,STAND)")
+        raise ValueError(f"{spec!r}: a hand-over up error is a chain's (chain:ROLL,RISE,STAND or a chain's folder)")
+    if Path(spec).is_dir():
+        raise ValueError(f"{spec}: a folder, not a policy artifact (nor a keyframe chain: no "
+                         f"{keyframe_chain.MANIFEST})")
     return CompositePolicy.load(spec) if "," in str(spec) else ArtifactPolicy.load(spec)
 
 

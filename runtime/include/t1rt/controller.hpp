@@ -15,6 +15,7 @@
 #include "t1rt/command_auth.hpp"
 #include "t1rt/composite.hpp"
 #include "t1rt/handover.hpp"
+#include "t1rt/keyframe_chain.hpp"
 #include "t1rt/periodic_task.hpp"
 #include "t1rt/policy.hpp"
 #include "t1rt/policy_store.hpp"
@@ -26,7 +27,7 @@ namespace t1rt {
 
 
 struct ControllerOptions {
-  std::string policy_path;          // the single policy; in composite mode the getup member
+  std::string policy_path;          // the single policy; in composite mode the getup member; a chain's folder
   std::string upright_policy_path;  // non-empty: composite mode (composite.hpp), the upright member
   std::string lcm_url;          // resolved (resolve_lcm_url)
   RobotLinkKind robot_link = RobotLinkKind::kLcm;  // which link faces the robot (robot_link.hpp)
@@ -59,6 +60,10 @@ class Controller {
   // when the pair does not share one gain set (check_composite_pair).
   Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial_policy,
              std::unique_ptr<PolicyEngine> upright_policy = nullptr);
+  // Chain mode (keyframe_chain.hpp): the members in ChainStage order, the rise → stand hand-over's upright bound.
+  // Throws ArtifactError when they do not share one gain set.
+  Controller(const ControllerOptions& options, std::array<std::unique_ptr<PolicyEngine>, kChainStages> chain,
+             float handover_up_error);
   ~Controller();
 
   bool open(std::string* error);  // the LCM transport and the robot link; false on failure
@@ -75,10 +80,13 @@ class Controller {
   static void notify_sighup();                   // async-signal-safe
 
   Supervisor& supervisor() { return supervisor_; }
-  PolicyEngine& policy() { return *engine_; }            // composite mode: the getup member
+  PolicyEngine& policy() { return *engine_; }            // composite mode: the getup member; chain: the roll
   PolicyEngine& active_policy() { return *active_; }     // the one whose targets are commanded
-  bool composite() const { return upright_ != nullptr; }
+  bool composite() const { return rule_ == SwitchRule::kWaist; }
+  bool chain() const { return rule_ == SwitchRule::kKeyframe; }
+  bool switched() const { return rule_ != SwitchRule::kNone; }   // on a privileged sim signal (T1_SIM_STATUS)
   CompositeMember member() const { return member_; }
+  ChainStage chain_stage() const { return stage_; }
   int64_t member_switches() const { return member_switches_; }
   PeriodicTask& task() { return task_; }
   LcmTransport& transport() { return transport_; }
@@ -102,7 +110,8 @@ class Controller {
   void live_line_worker(); // its own thread: prints the newest snapshot at 5 Hz
   void reload_worker();
   StateView state_view(double now_s) const;
-  void select_member(float waist_height_m);
+  void select_member(const StateView& s);
+  void init_common();   // what both constructors do last: reserves, the reload worker
   void format_policy_identity();
 
   ControllerOptions opt_;
@@ -116,9 +125,16 @@ class Controller {
   std::unique_ptr<RobotLink> link_;  // the robot's state in, joint commands out (LCM or DDS)
   PeriodicTask task_;
   std::unique_ptr<PolicyEngine> engine_;
-  std::unique_ptr<PolicyEngine> upright_;    // composite mode only; never reloaded
-  PolicyEngine* active_ = nullptr;           // engine_ or upright_
+  // Switched modes (never reloaded): the members after engine_ (composite: the upright; chain: rise, stand), all
+  // members in their rule's order (composite: getup, upright; chain: roll, rise, stand), which rule switches them.
+  enum class SwitchRule { kNone, kWaist, kKeyframe };
+  std::vector<std::unique_ptr<PolicyEngine>> others_;
+  std::vector<PolicyEngine*> members_;
+  SwitchRule rule_ = SwitchRule::kNone;
+  PolicyEngine* active_ = nullptr;           // one of members_, or engine_
   CompositeMember member_ = CompositeMember::kUpright;
+  ChainStage stage_ = ChainStage::kStart;
+  float handover_up_error_ = t1::kKneelGateUpError;
   int64_t member_switches_ = 0;
   char policy_name_[256] = {0}, policy_hash_[160] = {0};  // status strings, formatted off the hot path
   t1::joint_command_t command_{};
@@ -133,7 +149,7 @@ class Controller {
   struct LiveLine {
     char mode[16];
     char last_fault[64];
-    char composite[64];  // empty unless composite mode
+    char composite[64];  // empty unless a switched mode
     bool unauthenticated;  // --unauthenticated: the line says so
     int64_t ticks, policy_ticks, overruns;
     float lateness_p99_us, compute_p99_us, imu_age_ms, joint_age_ms;

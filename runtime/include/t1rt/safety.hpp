@@ -200,12 +200,13 @@ struct StateView {
   const float* q = nullptr;              // 23 [rad]
   const float* dq = nullptr;             // 23 [rad/s]
   const int32_t* motor_status = nullptr; // 23 firmware bits + host NO_REPLY (t1_motor_protocol.h §7)
-  // Composite mode only (needs_sim_status): the privileged waist height from T1_SIM_STATUS, which picks
-  // the policy. Its age follows the same hold / FAULT rules as the IMU and the joint state.
+  // Composite and chain modes only (needs_sim_status): the privileged waist and Trunk heights from
+  // T1_SIM_STATUS, which pick the member. Its age follows the same hold / FAULT rules as the IMU and the joint state.
   bool needs_sim_status = false;
   bool have_sim_status = false;
   double sim_status_time_s = 0.0;
   float waist_height_m = 0.0f;            // [m]
+  float trunk_height_m = 0.0f;            // [m]
 };
 
 class Supervisor {
