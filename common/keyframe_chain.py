@@ -43,6 +43,11 @@ def is_chain(path) -> bool:
     return Path(path).is_dir() and (Path(path) / MANIFEST).is_file()
 
 
+def artifact_files(policy) -> list[Path]:
+    """The artifact files a --policy runs: a chain folder's members (read: checked), else `policy` itself."""
+    return list(read(policy).members) if is_chain(policy) else [Path(policy)]
+
+
 def read(folder) -> KeyframeChain:
     """The chain in `folder`; raises ChainError naming the folder and what is missing or malformed."""
     folder = Path(folder)

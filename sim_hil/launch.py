@@ -9,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+from common import keyframe_chain
 from messages.auth import RunKey
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,7 +40,7 @@ def _value_of(args: tuple[str, ...], flag: str) -> str | None:
 def start_runtime(policy: Path, *args: str, output=None, sign: bool = True, run_key: RunKey | None = None) -> subprocess.Popen:
     """`t1-runtime --policy POLICY --quiet ARGS`, commanded by this run only: unless ARGS carry --key or
     --unauthenticated, a fresh key of this run (messages.auth.RunKey: a private temporary folder) is made,
-    the run's policies (POLICY, --policy-upright) approved under it, and --key, --approvals and --policy-dir
+    the run's policies (POLICY or a chain folder's members, --policy-upright) approved under it, and --key, --approvals and --policy-dir
     (ARGS' own, else the policies' common folder) added. The process's run_key signs what the caller sends
     (run_key.signer(); None when ARGS chose) and approves what it loads; stop() removes it. output: a file
     for stdout and stderr (default: pipes the caller reads). sign=False adds nothing: the runtime then takes
@@ -52,7 +53,8 @@ def start_runtime(policy: Path, *args: str, output=None, sign: bool = True, run_
     if given is not None and "--robot-key" not in args:
         auth_args = ["--robot-key", str(given.robot_key_path)]
     if sign and "--key" not in args and "--unauthenticated" not in args:
-        policies = [Path(policy)] + ([Path(u)] if (u := _value_of(args, "--policy-upright")) else [])
+        policies = keyframe_chain.artifact_files(policy) + ([Path(u)] if (u := _value_of(args, "--policy-upright"))
+                                                            else [])
         folder = _value_of(args, "--policy-dir") or os.path.commonpath([str(p.resolve().parent) for p in policies])
         run_key = given or RunKey()
         run_key.approve(*policies)
@@ -75,7 +77,7 @@ def wait_until_listening(runtime: subprocess.Popen) -> None:
         if not line:
             raise RuntimeError(f"t1-runtime exited before listening: {''.join(lines)}")
         lines.append(line)
-        if line.startswith("t1-runtime: policy '") or "COMPOSITE mode" in line:
+        if line.startswith("t1-runtime: policy '") or "COMPOSITE mode" in line or "CHAIN mode" in line:
             break
     time.sleep(RUNTIME_OPEN_MARGIN_S)
 

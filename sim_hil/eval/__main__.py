@@ -18,12 +18,14 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import replace
 from pathlib import Path
 
+from common import keyframe_chain
 from sim_hil.eval.plans import PLANS
 from sim_hil.eval.trial import Controller, init_worker, run_job, trial_log_name
 
 ROOT = Path(__file__).resolve().parents[2]
 MAX_JOBS = 2            # the machine has 2 cores: at most 2 sim+runtime pairs
 EXIT_OK, EXIT_USAGE, EXIT_FAILED = 0, 2, 1
+DEFAULT_LABEL = "student"
 
 
 def distilled_from(student: Path) -> str:
@@ -42,8 +44,10 @@ def parse_args(argv):
     ap = argparse.ArgumentParser(prog="python -m sim_hil.eval", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scenario", choices=sorted(PLANS))
-    ap.add_argument("--policy", type=Path, required=True, help="student artifact (*.safetensors)")
-    ap.add_argument("--label", default="student", help="name of --policy in the report (e.g. joystick)")
+    ap.add_argument("--policy", type=Path, required=True,
+                    help="student artifact (*.safetensors), or a keyframe chain's folder (chain.json)")
+    ap.add_argument("--label", default=DEFAULT_LABEL,
+                    help="name of --policy in the report (e.g. joystick; a chain: its folder's name)")
     ap.add_argument("--baseline", default="", help="GETUP,JOYSTICK artifacts of the baseline composite")
     ap.add_argument("--teacher", default="", help="GETUP,JOYSTICK artifacts of the stitched teacher (experts); "
                     "fig5.1's default: the teacher the student's provenance names")
@@ -73,6 +77,8 @@ def parse_args(argv):
             args.teacher = distilled_from(args.policy)
         except ValueError as e:
             ap.error(str(e))
+    if args.label == DEFAULT_LABEL and keyframe_chain.is_chain(args.policy):
+        args.label = args.policy.resolve().name       # a shipped chain by its folder's name (getup_keyframe)
     controllers = [Controller(args.label, args.policy)]
     for flag, label in (("baseline", "baseline"), ("teacher", "teacher")):
         value = getattr(args, flag)
@@ -84,7 +90,7 @@ def parse_args(argv):
         controllers.append(Controller(label, Path(parts[0]), Path(parts[1])))
     for c in controllers:
         for p in (c.policy, c.upright):
-            if p is not None and not p.is_file():
+            if p is not None and not (p.is_file() or keyframe_chain.is_chain(p)):
                 ap.error(f"policy artifact {p} does not exist")
     args.out = args.out or ROOT / "out" / "eval" / args.scenario
     return args, plan, controllers

@@ -16,6 +16,7 @@ from sim_hil.eval.plans import COMMON_ROWS, Plan
 from common.seed_figures import SEED_FIGURES, SEED_TRIAL_TABLES, seed_cells, seed_columns
 from sim_hil.eval.trial import Controller, TrialResult
 from sim_hil.plots import plot_heights_and_velocity
+from common import keyframe_chain
 from common.artifact import read_artifact
 
 
@@ -23,7 +24,8 @@ def trained_flags(controllers: list[Controller]) -> dict[str, bool]:
     """'<label>' (and '<label> upright' for a composite) -> manifest "trained"."""
     flags = {}
     for c in controllers:
-        flags[c.label if not c.upright else f"{c.label} getup"] = bool(read_artifact(c.policy)[3]["trained"])
+        flags[c.label if not c.upright else f"{c.label} getup"] = all(
+            bool(read_artifact(p)[3]["trained"]) for p in keyframe_chain.artifact_files(c.policy))
         if c.upright:
             flags[f"{c.label} joystick"] = bool(read_artifact(c.upright)[3]["trained"])
     return flags
@@ -57,7 +59,9 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
              trained_line(flags), ""]
     for c in controllers:
         members = (f"getup `{c.policy}` + joystick `{c.upright}` (composite, switched at waist "
-                   f"{contract.WAIST_SWITCH_HEIGHT_M:g} m)" if c.upright else f"`{c.policy}`")
+                   f"{contract.WAIST_SWITCH_HEIGHT_M:g} m)" if c.upright else
+                   f"`{c.policy}` (keyframe chain roll → rise → stand, switched on the sim's Trunk height)"
+                   if keyframe_chain.is_chain(c.policy) else f"`{c.policy}`")
         lines.append(f"- **{c.label}**: {members}")
     lines += ["", f"Command: `{command}`  ",
               f"{trials} seeded trial(s) per policy, {seconds:g} s of sim time each, "

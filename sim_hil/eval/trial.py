@@ -171,9 +171,12 @@ def _yaw_command(spec: TrialSpec, data) -> float:
 
 def _start_log(spec: TrialSpec, controller: Controller, runtime_args: list[str], lcm_url: str):
     from sim_hil.lcmlog.capture import LogCapture, RunInfo
+    from common import keyframe_chain
     from common.artifact import read_artifact
     info = RunInfo(run_name=Path(spec.log).stem, producer=f"eval:{spec.scenario}", clock=spec.clock,
-                   policy_path=str(controller.policy), policy_hash=read_artifact(controller.policy)[3]["content_hash"],
+                   policy_path=str(controller.policy),
+                   policy_hash="+".join(read_artifact(p)[3]["content_hash"]
+                                        for p in keyframe_chain.artifact_files(controller.policy)),
                    runtime_args=runtime_args,
                    sim_args=["--scenario", spec.scenario, "--spawn", spec.spawn, "--seed", str(spec.seed),
                              "--clock", spec.clock, "--faults", spec.faults])
