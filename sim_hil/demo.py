@@ -4,8 +4,9 @@ sequence, a live status line, then a video and a plot of trunk height, waist hei
 The student is the first shipped of POLICIES: policies/student/ (distilled from a stitched getup + joystick
 teacher), else the untrained placeholder; the demo says which it runs and which teacher a student was
 distilled from. No shipped student meets the seed's targets yet (policies/student/CARD.md), so the trained
-experts follow one by one: the student's getup expert (its teacher's, else the baseline) alone from the same
-fallen start, then the joystick expert walking the script from a standing start."""
+experts follow one by one: the keyframe getup (policies/getup_keyframe/, a chain: roll, kneel, stand) from an
+on-back start, with the kneel marked in its plot (else the student's getup expert from the same fallen start),
+then the joystick expert walking the script from a standing start."""
 from __future__ import annotations
 
 import argparse
@@ -14,8 +15,10 @@ import time
 from pathlib import Path
 
 import lcm
-from t1 import controller_status_t, joystick_t, sim_status_t
+import numpy as np
+from t1 import controller_status_t, imu_t, joint_state_t, joystick_t, sim_status_t
 
+from common import events, keyframe_chain
 from messages import contract
 from messages.auth import RunKey
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop, stop_cleanly_on_sigterm
@@ -27,7 +30,10 @@ POLICIES = (ROOT / "policies" / "student" / "student.safetensors",
             ROOT / "policies" / "student_untrained" / "student_untrained.safetensors")
 JOYSTICK_EXPERT = ROOT / "policies" / "joystick" / "joystick.safetensors"
 BASELINE_GETUP = ROOT / "policies" / "getup_baseline" / "getup_baseline.safetensors"
-FALLEN_SPAWN, STANDING_SPAWN = "fallen:62", "standing"
+KEYFRAME_GETUP = ROOT / "policies" / "getup_keyframe"     # a chain's folder (common/keyframe_chain.py)
+# fallen:62 lies face down, fallen:58 on its back (common/model.fallen_state)
+FALLEN_SPAWN, ON_BACK_SPAWN, STANDING_SPAWN = "fallen:62", "fallen:58", "standing"
+STATUS_RATE_HZ = 50.0           # T1_SIM_STATUS for the plot; a chain's runtime reads it every loop tick
 # (start time [s], vx [m/s], vy [m/s], yaw rate [rad/s]): stand still while getting up, walk, turn, stop.
 JOYSTICK_SCRIPT = ((0.0, 0.0, 0.0, 0.0), (6.0, 0.4, 0.0, 0.0), (12.0, 0.3, 0.0, 0.5), (15.0, 0.0, 0.0, 0.0))
 JOYSTICK_RATE_HZ = 50.0
@@ -65,7 +71,12 @@ def main(argv=None) -> int:
         print("demo: NOTE the policy is untrained — this run shows the plumbing (sim, bus, runtime, safety), "
               "not a skill. Train and ship policies/student/student.safetensors (training/README.md).")
     getup = _teacher_getup(policy)
-    if code == 0 and _trained(getup):
+    if code == 0 and keyframe_chain.is_chain(KEYFRAME_GETUP) and _trained(KEYFRAME_GETUP):
+        print(f"\ndemo: next — the keyframe getup ({KEYFRAME_GETUP.relative_to(ROOT)}/CARD.md) from an on-back start: "
+              "it rolls face down, rises to a kneel, stands up and stands still; it does not walk. The plot marks "
+              "the kneel")
+        code = run(KEYFRAME_GETUP, ON_BACK_SPAWN, args.seconds, args.out, "demo_keyframe", log=not args.no_log)
+    elif code == 0 and _trained(getup):
         print(f"\ndemo: next — the trained getup expert {getup.parent.name} ({getup.parent.relative_to(ROOT)}/CARD.md), same fallen "
               "start. It gets up and stands; it does not walk (it ignores the joystick)")
         code = run(getup, args.spawn, args.seconds, args.out, "demo_getup", log=not args.no_log)
@@ -100,15 +111,18 @@ def describe_student(manifest: dict) -> str | None:
             f"{prov['steps'] / 1e6:.2f} M env steps")
 
 
-def _trained(artifact: Path) -> bool:
-    return artifact.exists() and bool(read_artifact(artifact)[3]["trained"])
+def _trained(policy: Path) -> bool:
+    """An artifact, or every member of a chain's folder, exists and is trained."""
+    return policy.exists() and all(bool(read_artifact(p)[3]["trained"]) for p in keyframe_chain.artifact_files(policy))
 
 
 def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: bool) -> int:
-    """One realtime run of `policy` from `spawn` under the joystick script; OUT/NAME.mp4, NAME_plot.png,
-    NAME.lcmlog. Returns 0, or 1 when the simulator or the runtime failed."""
-    manifest = read_artifact(policy)[3]
-    trained = bool(manifest["trained"])
+    """One realtime run of `policy` (an artifact or a chain's folder) from `spawn` under the joystick script;
+    OUT/NAME.mp4, NAME_plot.png, NAME.lcmlog. Returns 0, or 1 when the simulator or the runtime failed."""
+    chain = keyframe_chain.is_chain(policy)
+    manifests = [read_artifact(p)[3] for p in keyframe_chain.artifact_files(policy)]
+    manifest = manifests[0]
+    trained = all(bool(m["trained"]) for m in manifests)
     banner = "trained" if trained else "UNTRAINED (random-init placeholder: expect flailing, not getting up)"
     print(f"demo: policy {policy.relative_to(ROOT) if policy.is_relative_to(ROOT) else policy} — {banner}")
     student = describe_student(manifest)
@@ -117,7 +131,7 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
     out.mkdir(parents=True, exist_ok=True)
     video = out / f"{name}.mp4"
     lc = lcm.LCM(contract.lcm_url())
-    series = {"t": [], "trunk": [], "waist": [], "vx": []}
+    series = {"t": [], "trunk": [], "waist": [], "vx": [], "kneel": []}
     last: dict[str, object] = {}
 
     def on_sim(_c, d):
@@ -126,8 +140,11 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
         for key, value in (("t", s.utime * 1e-6), ("trunk", s.trunk_height), ("waist", s.waist_height),
                            ("vx", s.forward_velocity)):
             series[key].append(value)
+        series["kneel"].append(_kneeling(s.trunk_height, last.get("imu"), last.get("joints")))
 
     lc.subscribe(contract.CH_SIM_STATUS, on_sim)
+    lc.subscribe(contract.CH_IMU, lambda _c, d: last.update(imu=imu_t.decode(d)))
+    lc.subscribe(contract.CH_JOINT_STATE, lambda _c, d: last.update(joints=joint_state_t.decode(d)))
     modes: list[tuple[float, str]] = []      # (sim time [s], the runtime's mode) at each status
 
     def on_status(_c, d):
@@ -137,12 +154,14 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
 
     lc.subscribe(contract.CH_CONTROLLER_STATUS, on_status)
     sim_args = ["--clock", "realtime", "--spawn", spawn, "--duration", str(seconds),
-                "--status-rate", "50", "--record", str(video), *VIEWER_ARGS]
+                "--status-rate", f"{1.0 / contract.LOOP_PERIOD_S if chain else STATUS_RATE_HZ:g}", "--record",
+                str(video), *VIEWER_ARGS]
     runtime_args = ["--clock", "realtime", "--autostart"]
     capture = None if not log else LogCapture(
         out / f"{name}.lcmlog", contract.lcm_url(),
         RunInfo(run_name=name, producer="demo", clock="realtime", policy_path=str(policy),
-                policy_hash=manifest["content_hash"], runtime_args=runtime_args, sim_args=sim_args))
+                policy_hash="+".join(m["content_hash"] for m in manifests), runtime_args=runtime_args,
+                sim_args=sim_args))
     run_key = RunKey()                                  # this run's keys: the operator's and the robot's
     sim = start_sim(*sim_args, run_key=run_key)         # signs its state with the robot key
     runtime = start_runtime(policy, *runtime_args, run_key=run_key)   # takes only that state; the script signs
@@ -197,6 +216,16 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
     if capture is not None:
         print(f"demo: log   {capture.path} (make replay LOG={capture.path}; make plot-log LOG={capture.path})")
     return 0
+
+
+def _kneeling(trunk_height_m: float, imu, joints) -> bool:
+    """The kneel band met in the kneeling posture (common/events), from the sim's Trunk height and the robot's
+    latest IMU orientation and joint angles (False before both have arrived)."""
+    if imu is None or joints is None:
+        return False
+    up_z = float(events.up_z_from_quat(np.asarray(imu.quat)))
+    return bool(events.kneel_gate(trunk_height_m, up_z, np, events.KNEEL_BAND_UP_ERROR)
+                and events.kneeling_posture(np.asarray(joints.q)))
 
 
 if __name__ == "__main__":

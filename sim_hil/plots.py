@@ -30,15 +30,21 @@ def mode_spans(modes: list[tuple[float, str]], t_end: float) -> list[tuple[float
 def plot_heights_and_velocity(series: dict[str, dict[str, list[float]]], path: Path, title: str,
                               command_vx: list[tuple[float, float]] | None = None,
                               side_by_side: bool = False, modes: list[tuple[float, str]] | None = None) -> Path:
-    """series: label -> {"t": [s], "trunk": [m], "waist": [m], "vx": [m/s]}: one line per label in one column,
-    or (side_by_side, as the seed's Fig. 5.1) one column per label on shared axes. modes: (sim time [s], the
-    runtime's mode) samples, shaded as PREPARE / POLICY / FAULT / DAMPING behind every axis."""
+    """series: label -> {"t": [s], "trunk": [m], "waist": [m], "vx": [m/s][, "kneel": [bool]]}: one line per label
+    in one column, or (side_by_side, as the seed's Fig. 5.1) one column per label on shared axes; where a series
+    has "kneel" (the kneel band met in the kneeling posture, common/events), those samples are marked on its trunk
+    line. modes: (sim time [s], the runtime's mode) samples, shaded as PREPARE / POLICY / FAULT / DAMPING behind
+    every axis."""
     columns = len(series) if side_by_side and series else 1
     fig, grid = plt.subplots(3, columns, figsize=(4 * columns + 2 if columns > 1 else 8, 7), sharex=True,
                              sharey="row", squeeze=False)
     for col, (label, s) in enumerate(series.items()):
         axes = grid[:, col if side_by_side else 0]
         axes[0].plot(s["t"], s["trunk"], label=label)
+        kneel = [(t, h) for t, h, k in zip(s["t"], s["trunk"], s.get("kneel", ())) if k]
+        if kneel:
+            axes[0].plot(*zip(*kneel), ls="none", marker="o", ms=3, color="tab:purple",
+                         label="kneeling, ≤ 2.9° off vertical (the kneel band)")
         axes[1].plot(s["t"], s["waist"], label=label)
         axes[2].plot(s["t"], s["vx"], label=label)
         if side_by_side:
