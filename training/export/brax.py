@@ -84,12 +84,24 @@ def exported_as_trained(steps: int, preset: str) -> bool:
     return steps > 0 and preset != "toy"
 
 
-def ship_artifact(artifact: Path, state: dict, policies_root=checkpoints.POLICIES_ROOT) -> Path:
-    """Copy the artifact to policies/<name>/<name>.safetensors and append its provenance row to that folder's
-    CARD.md (created from the card template for a new policy)."""
+def ship_chain(policy: str, members: Mapping[str, Path], handover: str, state: dict,
+               policies_root=checkpoints.POLICIES_ROOT) -> Path:
+    """Ship a keyframe chain (common/keyframe_chain.py) as policies/<policy>/: each member artifact (role →
+    artifact) beside the others, under its own name, a provenance row each in that folder's CARD.md, and the
+    chain's manifest naming them and the rise → stand hand-over. Returns the folder."""
+    from common import keyframe_chain
+    folder = checkpoints.policy_dir(policy, policies_root)
+    files = {role: ship_artifact(path, state, policies_root, folder).name for role, path in members.items()}
+    keyframe_chain.write(folder, files, handover)
+    return folder
+
+
+def ship_artifact(artifact: Path, state: dict, policies_root=checkpoints.POLICIES_ROOT, folder: Path | None = None) -> Path:
+    """Copy the artifact to policies/<name>/<name>.safetensors (into `folder` where given: a chain's member) and
+    append its provenance row to that folder's CARD.md (created from the card template for a new policy)."""
     manifest = read_artifact(artifact)[3]
     prov = manifest["provenance"]
-    folder = checkpoints.policy_dir(manifest["name"], policies_root)
+    folder = Path(folder) if folder is not None else checkpoints.policy_dir(manifest["name"], policies_root)
     folder.mkdir(parents=True, exist_ok=True)
     shipped = folder / f"{manifest['name']}.safetensors"
     if shipped.resolve() != Path(artifact).resolve():

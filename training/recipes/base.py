@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-from common.events import LYING_SIDES
+from common.events import KEYFRAME_STAGES, LYING_SIDES
+from common.keyframe_chain import HANDOVERS
 
 KINDS = ("ppo", "distill", "imitation", "random_init")
 REF_PREFIX = "@"
@@ -72,9 +73,17 @@ class Recipe:
     policy: str                    # the artifact's name: policies/<policy>/<policy>.safetensors
     summary: str
     stages: tuple[Stage, ...]
+    # a keyframe chain (common/keyframe_chain.py) ships instead: role (roll, rise, stand) → the stage whose artifact
+    # is that member, and the rise → stand hand-over by name; the policy is then the folder policies/<policy>/
+    chain: Mapping[str, str] = field(default_factory=dict)
+    handover: str = ""
 
     def __post_init__(self):
         names = [s.name for s in self.stages]
+        if self.chain and (set(self.chain) != set(KEYFRAME_STAGES) or not set(self.chain.values()) <= set(names)
+                           or self.handover not in HANDOVERS):
+            raise ValueError(f"recipe {self.name}: a chain names a stage of this recipe for each of "
+                             f"{', '.join(KEYFRAME_STAGES)} and a hand-over of {', '.join(HANDOVERS)}")
         if len(set(names)) != len(names):
             raise ValueError(f"recipe {self.name}: stage names repeat: {names}")
         for i, s in enumerate(self.stages):

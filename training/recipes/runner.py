@@ -24,7 +24,7 @@ from training.distill.finetune import LEARNER_KEYS
 from training.envs import starts
 from training.envs.policy_files import CHECKPOINT_DIR
 from training.export import untrained
-from training.export.brax import ship_artifact
+from training.export.brax import ship_artifact, ship_chain
 from training.imitation import campaign as imitation
 from training.imitation.finetune import LEARNER_KEYS as IMITATION_KEYS
 from training.ppo import kneel_report
@@ -206,7 +206,12 @@ def run(name: str, *, stage: str | None = None, root: Path = RUNS_ROOT, resume: 
             return False
     final = recipe.stages[-1]
     complete = stage_complete(root, recipe, final)
-    if complete and ship:
+    if complete and ship and recipe.chain:
+        members = {role: ended_artifact(stage_dirs(root, recipe, recipe.stage(s))[-1], recipe, recipe.stage(s))
+                   for role, s in recipe.chain.items()}
+        folder = ship_chain(recipe.policy, members, recipe.handover, {"task": f"recipe {name}"})
+        print(f"recipe {name}: shipped the chain {folder}")
+    elif complete and ship:
         artifact = ended_artifact(stage_dirs(root, recipe, final)[-1], recipe, final)
         print(f"recipe {name}: shipped {ship_artifact(artifact, {'task': f'recipe {name}'})}")
     return complete
