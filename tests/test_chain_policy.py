@@ -155,3 +155,15 @@ def test_a_chain_manifest_that_cannot_run_is_refused_by_what_is_wrong(tmp_path, 
 def test_a_folder_that_is_no_chain_is_named_as_a_folder(tmp_path):
     with pytest.raises(ValueError, match="a folder, not a policy artifact"):
         load_policy(tmp_path)
+
+
+def test_a_chain_below_the_waist_switch_and_an_upright_member_above_it(tmp_path):
+    """`CHAIN_FOLDER,UPRIGHT`: the chain acts below the composite's switch, the upright member above; idle, the
+    chain's members read the applied targets and its stage goes on by its rule."""
+    from training.evaluation.artifact_policy import CompositePolicy
+    composite = load_policy(f"{_chain_folder(tmp_path)},{MEMBER}")
+    assert isinstance(composite, CompositePolicy) and isinstance(composite.getup, ChainPolicy)
+    state = _state(UPRIGHT)._replace(last_action=composite.initial_last_action())
+    (chain_carry, _), _ = composite.act(composite.params, state, _body(0.66, 1.0))   # waist 0.56 m: upright acts
+    own, stage = chain_carry
+    assert int(stage) == ChainPolicy.STAND and np.asarray(own).shape == (3, obsdef.NUM_JOINTS)

@@ -40,7 +40,7 @@ def _body(waist_m):
 
 
 def _pair_state(obs_state, own_getup, own_upright):
-    return obs_state._replace(last_action=np.stack([own_getup, own_upright]))
+    return obs_state._replace(last_action=(own_getup, own_upright))
 
 
 def test_composite_acts_with_the_member_the_waist_height_selects():
@@ -63,13 +63,13 @@ def test_each_member_reads_its_own_last_action_and_the_idle_one_the_applied_targ
     """As the runtime's `follow` and the stitched teacher: the acting member keeps its action, the idle one
     reads the applied joint targets in its own map, clipped to ±1."""
     composite = load_policy(f"{GETUP},{UPRIGHT}")
-    assert composite.initial_last_action().shape == (2, obsdef.NUM_JOINTS)
+    assert [np.shape(c) for c in composite.initial_last_action()] == [(obsdef.NUM_JOINTS,)] * 2
     obs_state = _obs_state(np.random.default_rng(1))
     state = _pair_state(obs_state, obs_state.last_action, obs_state.last_action)
     for waist, acting, idle in ((0.3, 0, 1), (0.7, 1, 0)):
         members = (composite.getup, composite.upright)
         next_own, q_target = composite.act(composite.params, state, _body(waist))
-        next_own, q_target = np.asarray(next_own), np.asarray(q_target)
+        next_own, q_target = [np.asarray(c) for c in next_own], np.asarray(q_target)
         a, _ = members[acting].act(composite.params[acting], obs_state._replace(last_action=obs_state.last_action),
                                    _body(waist))
         np.testing.assert_allclose(next_own[acting], np.asarray(a), rtol=1e-6, atol=1e-6)

@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -70,6 +71,11 @@ class ArtifactPolicy:
         pose, scale = (jnp.asarray(self.manifest[k], jnp.float32) for k in ("default_pose", "action_scale"))
         return obsdef.targets_to_action(pose, scale, q_target, jnp)
 
+    def follow(self, carry, q_target):
+        """The carry of this policy idle in a composite: the applied targets as its last action."""
+        del carry
+        return self.in_own_map(q_target)
+
     def act(self, params, obs_state: obsdef.ObservationState, body: dict):
         """One env's tick in jax: (action = the next tick's last action, joint targets [rad]); `body`, the env's
         body_readings (trunk and waist height [m], up_z), is for the policies that switch on them."""
@@ -85,8 +91,10 @@ class CompositePolicy:
     chapter-6 baseline): the getup member acts while the waist is below the switch height (0.5 m, the
     stitched teacher's), else the upright (joystick) member, each through its own action map. Each member
     reads its own last action: the acting one its action, the idle one the applied joint targets in its
-    map, clipped (runtime/src/policy.cpp `follow`, as the teacher); the rollout carries both, (2, 23)."""
-    getup: ArtifactPolicy
+    map, clipped (runtime/src/policy.cpp `follow`, as the teacher); the rollout carries both members' carries.
+    The getup member may be a keyframe chain (`CHAIN_FOLDER,UPRIGHT`): the chain below the switch, the upright
+    member above it, as a teacher that kneels would switch."""
+    getup: "ArtifactPolicy | ChainPolicy"
     upright: ArtifactPolicy
 
     # the upright member maps actions around its own pose and scale; it shares the env's motor law only
@@ -96,8 +104,10 @@ class CompositePolicy:
     def load(cls, spec: str) -> "CompositePolicy":
         parts = [p.strip() for p in str(spec).split(",")]
         if len(parts) != 2 or not all(parts):
-            raise ValueError(f"{spec!r}: a composite is GETUP.safetensors,UPRIGHT.safetensors")
-        return cls(ArtifactPolicy.load(parts[0]), ArtifactPolicy.load(parts[1]))
+            raise ValueError(f"{spec!r}: a composite is GETUP.safetensors,UPRIGHT.safetensors (GETUP may be a "
+                             "keyframe chain's folder)")
+        getup = ChainPolicy.load(parts[0]) if keyframe_chain.is_chain(parts[0]) else ArtifactPolicy.load(parts[0])
+        return cls(getup, ArtifactPolicy.load(parts[1]))
 
     @property
     def path(self) -> str:
@@ -123,18 +133,18 @@ class CompositePolicy:
         return (f"composite (getup below waist {WAIST_SWITCH_HEIGHT_M} m, upright above): getup "
                 f"{self.getup.describe()}; upright {self.upright.describe()}")
 
-    def initial_last_action(self) -> np.ndarray:
-        return np.zeros((2, obsdef.NUM_JOINTS), np.float32)     # [getup member's, upright member's]
+    def initial_last_action(self):
+        return (self.getup.initial_last_action(), self.upright.initial_last_action())   # (getup's, upright's)
 
     def act(self, params, obs_state: obsdef.ObservationState, body: dict):
-        own = obs_state.last_action
-        a_g, q_g = self.getup.act(params[0], obs_state._replace(last_action=own[..., 0, :]), body)
-        a_u, q_u = self.upright.act(params[1], obs_state._replace(last_action=own[..., 1, :]), body)
+        own_g, own_u = obs_state.last_action
+        c_g, q_g = self.getup.act(params[0], obs_state._replace(last_action=own_g), body)
+        a_u, q_u = self.upright.act(params[1], obs_state._replace(last_action=own_u), body)
         use_getup = body["waist_height"] < WAIST_SWITCH_HEIGHT_M
         q_target = jnp.where(use_getup, q_g, q_u)
-        next_own = jnp.stack([jnp.where(use_getup, a_g, self.getup.in_own_map(q_target)),
-                              jnp.where(use_getup, self.upright.in_own_map(q_target), a_u)], axis=-2)
-        return next_own, q_target
+        next_g = jax.tree.map(lambda acted, idle: jnp.where(use_getup, acted, idle), c_g,
+                              self.getup.follow(c_g, q_target))
+        return (next_g, jnp.where(use_getup, self.upright.in_own_map(q_target), a_u)), q_target
 
 
 @dataclass(frozen=True)
@@ -193,6 +203,11 @@ class ChainPolicy:
 
     def initial_last_action(self):
         return (np.zeros((3, obsdef.NUM_JOINTS), np.float32), np.int32(events.KEYFRAME_START))
+
+    def follow(self, carry, q_target):
+        """The carry of this chain idle in a composite: every member reads the applied targets; the stage goes on
+        as its rule said this tick."""
+        return jnp.stack([m.in_own_map(q_target) for m in self.members], axis=-2), carry[1]
 
     def next_stage(self, stage, obs_state: obsdef.ObservationState, body: dict):
         """The stage that acts this tick, from the one that acted the last (common/events.keyframe_stage)."""
