@@ -7,7 +7,11 @@ import rerun.blueprint as rrb
 
 from sim_hil.lcmlog.plot import DEFAULT_JOINTS
 from sim_hil.rerun_view.record import EVENTS, joint_entity
-from sim_hil.rerun_view.robot import GEOMS_PATH
+from sim_hil.rerun_view.robot import GEOMS_PATH, TRUNK_GEOM
+
+# the 3-D camera: in front and to the right of a standing robot, looking at its waist [m]; it follows the trunk
+EYE_POSITION_M = (1.3, -1.3, 0.9)
+EYE_TARGET_M = (0.0, 0.0, 0.45)
 
 
 def blueprint(joints=DEFAULT_JOINTS) -> rrb.Blueprint:
@@ -16,7 +20,10 @@ def blueprint(joints=DEFAULT_JOINTS) -> rrb.Blueprint:
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Vertical(
-                rrb.Spatial3DView(name="robot", origin="/", contents=f"{GEOMS_PATH}/**"),
+                rrb.Spatial3DView(name="robot", origin="/", contents=f"{GEOMS_PATH}/**",
+                                  eye_controls=rrb.EyeControls3D(position=EYE_POSITION_M, look_target=EYE_TARGET_M,
+                                                                 eye_up=(0, 0, 1),
+                                                                 tracking_entity=f"{GEOMS_PATH}/{TRUNK_GEOM}")),
                 rrb.TextLogView(name="mode, faults, refusals", origin=EVENTS),
                 row_shares=[3, 1]),
             rrb.Vertical(

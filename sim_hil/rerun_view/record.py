@@ -7,7 +7,10 @@ one row per message of their channel; the runtime's mode, faults and refusals, c
 simulator's injected faults become text events in `runtime/events` when they change."""
 from __future__ import annotations
 
+import re
 from collections import Counter
+from functools import lru_cache
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -39,6 +42,23 @@ JOINT_SIGNALS = {"q": (contract.CH_JOINT_STATE, "q"), "q_des": (contract.CH_JOIN
                  "tau_est": (contract.CH_JOINT_STATE, "tau_est")}
 REFUSAL_FIELDS = tuple(f for f in controller_status_t.__slots__ if "refused_" in f)
 IDENTITY_QUAT = (1.0, 0.0, 0.0, 0.0)
+# the supervisor's fault and warning bits are named in one place, the runtime's header
+SAFETY_HEADER = Path(__file__).resolve().parents[2] / "runtime" / "include" / "t1rt" / "safety.hpp"
+
+
+@lru_cache(maxsize=1)
+def _bit_names() -> dict[int, str]:
+    try:
+        text = SAFETY_HEADER.read_text()
+    except OSError:
+        return {}
+    return {int(bit): name for name, bit in re.findall(r"int32_t k(\w+) = 1 << (\d+);", text)}
+
+
+def fault_text(bits: int) -> str:
+    """`bits` as the header's names, e.g. "TargetClamped, RateLimited" (unnamed bits as numbers)."""
+    names = _bit_names()
+    return ", ".join(names.get(b, f"bit {b}") for b in range(32) if bits >> b & 1)
 
 
 def joint_entity(name: str, leaf: str) -> str:
@@ -73,7 +93,6 @@ class RunRecorder:
         self.rows = Counter()      # entity -> rows written (the tests compare them with the log's counts)
         for path, (_, _, names) in SERIES.items():
             rec.log(path, rr.SeriesLines(names=list(names)), static=True)
-        rec.log(EVENTS, rr.TextLog("recording started"), static=True)
 
     def times(self, stamps_us) -> list:
         stamps = np.asarray(stamps_us, np.int64)
@@ -162,8 +181,10 @@ class RunRecorder:
         if prev is None or msg.mode_name != prev.mode_name:
             out.append((stamp, f"mode {prev.mode_name if prev else 'start'} → {msg.mode_name}", "INFO"))
         if (msg.fault_bits, msg.last_fault) != ((prev.fault_bits, prev.last_fault) if prev else (0, "")):
-            text = f"fault bits {msg.fault_bits:#x}: {msg.last_fault}" if msg.fault_bits else "faults cleared"
-            out.append((stamp, text, "ERROR" if msg.fault_bits else "INFO"))
+            latched = msg.fault_bits & controller_status_t.LATCHED_FAULT_MASK
+            text = (f"supervisor {'fault' if latched else 'warning'}: {fault_text(msg.fault_bits)}"
+                    f"{'; ' + msg.last_fault if msg.last_fault else ''}" if msg.fault_bits else "faults cleared")
+            out.append((stamp, text, "ERROR" if latched else "WARN" if msg.fault_bits else "INFO"))
         for field in REFUSAL_FIELDS:
             grew = getattr(msg, field) - (getattr(prev, field) if prev else 0)
             if grew > 0:

@@ -44,7 +44,7 @@ class RobotGeoms:
                 shape = rr.Boxes3D(half_sizes=[size[:3]], colors=[rgba], fill_mode=solid, **label)
             elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:   # MuJoCo: centred on z, half-length size[1]
                 shape = rr.Capsules3D(lengths=[2 * size[1]], radii=[size[0]], translations=[[0, 0, -size[1]]],
-                                      colors=[rgba], **label)
+                                      colors=[rgba], fill_mode=solid, **label)
             elif kind == mujoco.mjtGeom.mjGEOM_SPHERE:
                 shape = rr.Ellipsoids3D(half_sizes=[[size[0]] * 3], colors=[rgba], fill_mode=solid, **label)
             else:
