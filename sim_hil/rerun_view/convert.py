@@ -18,14 +18,15 @@ from sim_hil.rerun_view.robot import RobotGeoms
 APPLICATION_ID = "t1_run"
 
 
-def convert(log: ProjectLog, out: Path) -> dict[str, int]:
-    """Write `out`; returns rows per entity (robot/geoms: poses per geom)."""
+def convert(log: ProjectLog, out: Path, with_robot: bool = True) -> dict[str, int]:
+    """Write `out`; returns rows per entity (robot/geoms: poses per geom). with_robot=False leaves the 3-D robot
+    out (the empty scene a picture of the view is compared with)."""
     disable_analytics()
     out.parent.mkdir(parents=True, exist_ok=True)
     rec = rr.RecordingStream(APPLICATION_ID, send_properties=False)
     rec.save(out, default_blueprint=blueprint())
     rec.send_recording_name(log.path.name)
-    recorder = RunRecorder(rec, RobotGeoms(), sim_clock(log))
+    recorder = RunRecorder(rec, RobotGeoms() if with_robot else None, sim_clock(log))
     problems = log.problems.messages(log.path)
     if problems:
         rec.send_columns(EVENTS, indexes=recorder.times([log.events[0].timestamp_us] * len(problems)),
