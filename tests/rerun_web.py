@@ -23,7 +23,7 @@ WIDTH, HEIGHT = 1280, 800
 SERVE_TIMEOUT_S = 60.0
 POLL_S = 1.0                      # between screenshots while waiting for the view
 PIXEL_DIFF = 0.1                  # a pixel differs when a channel differs by more than this (of full scale)
-ROBOT_MIN_SHARE = 0.03            # share of the 3-D view's pixels the robot must change against the empty scene
+ROBOT_MIN_SHARE = 0.01            # share of the 3-D view's pixels the robot must change against the empty scene
 PLOTS_MIN_SHARE = 0.003           # share of coloured pixels in the plot column: the plots are drawn
 
 
@@ -94,12 +94,19 @@ def screenshot_when(rrd: Path, ready, timeout_s: float) -> tuple[np.ndarray, byt
             browser.close()
 
 
+def loaded(img: np.ndarray) -> bool:
+    """The recording is on screen: its plots are drawn (a loading viewer is one dark, grey page)."""
+    return coloured_share(plot_column(img)) > PLOTS_MIN_SHARE
+
+
 def robot_screenshot(full: Path, empty: Path, timeout_s: float):
-    """(empty scene, robot scene, robot PNG bytes, share of the 3-D view the robot changed)."""
-    empty_img, _ = screenshot_when(empty, lambda img: coloured_share(plot_column(img)) > PLOTS_MIN_SHARE, timeout_s)
+    """(empty scene, robot scene, both PNGs, share of the 3-D view the robot changed): each taken once its
+    recording is on screen, the robot's once its 3-D view also differs from the empty scene's."""
+    empty_img, empty_png = screenshot_when(empty, loaded, timeout_s)
     robot_img, png = screenshot_when(
-        full, lambda img: differing_share(view_3d(img), view_3d(empty_img)) > ROBOT_MIN_SHARE, timeout_s)
-    return empty_img, robot_img, png, differing_share(view_3d(robot_img), view_3d(empty_img))
+        full, lambda img: loaded(img) and differing_share(view_3d(img), view_3d(empty_img)) > ROBOT_MIN_SHARE,
+        timeout_s)
+    return empty_img, robot_img, (empty_png, png), differing_share(view_3d(robot_img), view_3d(empty_img))
 
 
 if __name__ == "__main__":
@@ -108,7 +115,7 @@ if __name__ == "__main__":
     from sim_hil.rerun_view.convert import convert
     empty = out.with_suffix(".empty.rrd")
     convert(open_log(rrd.with_suffix(".lcmlog")), empty, with_robot=False)
-    *_, png, share = robot_screenshot(rrd, empty, 300)
+    *_, (_, png), share = robot_screenshot(rrd, empty, 300)
     out.write_bytes(png)
     empty.unlink()
     print(f"{out}: the robot changes {share:.1%} of the 3-D view")

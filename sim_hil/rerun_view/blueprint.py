@@ -10,7 +10,7 @@ from sim_hil.rerun_view.record import EVENTS, joint_entity
 from sim_hil.rerun_view.robot import GEOMS_PATH, TRUNK_GEOM
 
 # the 3-D camera: in front and to the right of a standing robot, looking at its waist [m]; it follows the trunk
-EYE_POSITION_M = (1.3, -1.3, 0.9)
+EYE_POSITION_M = (1.6, -1.6, 1.0)
 EYE_TARGET_M = (0.0, 0.0, 0.45)
 
 
