@@ -156,10 +156,18 @@ def rerun_cmd(log, out: Path) -> int:
     return EXIT_OK
 
 
+def _decoded_channels(command: str):
+    """The channels a command reads (None: all): a recording shows neither observations nor actions."""
+    if command != "rerun":
+        return None
+    from sim_hil.rerun_view.record import CHANNELS_SHOWN
+    return CHANNELS_SHOWN
+
+
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     try:
-        log = open_log(args.log)
+        log = open_log(args.log, _decoded_channels(args.command))
     except (OSError, ValueError) as exc:
         print(f"sim_hil.lcmlog: {exc}", file=sys.stderr)
         return EXIT_USAGE

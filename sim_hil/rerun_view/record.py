@@ -40,6 +40,10 @@ SERIES = {
 # per joint: entity leaf -> (channel, field)
 JOINT_SIGNALS = {"q": (contract.CH_JOINT_STATE, "q"), "q_des": (contract.CH_JOINT_CMD, "q_des"),
                  "tau_est": (contract.CH_JOINT_STATE, "tau_est")}
+# what the recording is made of (a log is decoded on these alone)
+CHANNELS_SHOWN = frozenset({contract.CH_RUN_INFO, contract.CH_RUNTIME_CMD, contract.CH_CONTROLLER_STATUS,
+                            contract.CH_SIM_STATUS, contract.CH_IMU, contract.CH_JOINT_STATE, contract.CH_JOINT_CMD,
+                            contract.CH_JOYSTICK})
 REFUSAL_FIELDS = tuple(f for f in controller_status_t.__slots__ if "refused_" in f)
 IDENTITY_QUAT = (1.0, 0.0, 0.0, 0.0)
 # the supervisor's fault and warning bits are named in one place, the runtime's header

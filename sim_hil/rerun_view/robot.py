@@ -52,25 +52,37 @@ class RobotGeoms:
             rec.log(self.entity(k), shape, static=True)
 
     def poses(self, trunk_pos: np.ndarray, trunk_quat: np.ndarray, q: np.ndarray):
-        """World positions (N, G, 3) [m] and rotation matrices (N, G, 3, 3) of the geoms for N rows of trunk
-        position (N, 3) [m], orientation (N, 4) (w x y z) and joint angles (N, 23) [rad]."""
-        n = len(q)
+        """World positions (N, G, 3) [m] and orientations (N, G, 4) (x y z w, Rerun's order) of the geoms for N
+        rows of trunk position (N, 3) [m], orientation (N, 4) (w x y z) and joint angles (N, 23) [rad]."""
+        n, bodies = len(q), self.model.geom_bodyid[self.ids]
         pos = np.empty((n, len(self.ids), 3))
-        mat = np.empty((n, len(self.ids), 3, 3))
+        body_quat = np.empty((n, len(self.ids), 4))
         qpos = self.data.qpos
         for i in range(n):
             qpos[0:3], qpos[3:7] = trunk_pos[i], trunk_quat[i]
             qpos[ROOT_QPOS:ROOT_QPOS + contract.NUM_JOINTS] = q[i]
             mujoco.mj_kinematics(self.model, self.data)
             pos[i] = self.data.geom_xpos[self.ids]
-            mat[i] = self.data.geom_xmat[self.ids].reshape(-1, 3, 3)
-        return pos, mat
+            body_quat[i] = self.data.xquat[bodies]
+        return pos, _wxyz_to_xyzw(_quat_mul(body_quat, self.model.geom_quat[self.ids]))
 
     def send_poses(self, rec: rr.RecordingStream, times: list, trunk_pos, trunk_quat, q) -> None:
         """One Transform3D per row and geom, on the given time columns."""
         if len(q) == 0:
             return
-        pos, mat = self.poses(np.asarray(trunk_pos, float), np.asarray(trunk_quat, float), np.asarray(q, float))
+        pos, quat = self.poses(np.asarray(trunk_pos, float), np.asarray(trunk_quat, float), np.asarray(q, float))
         for k in range(len(self.ids)):
             rec.send_columns(self.entity(k), indexes=times,
-                             columns=rr.Transform3D.columns(translation=pos[:, k], mat3x3=mat[:, k]))
+                             columns=rr.Transform3D.columns(translation=pos[:, k], quaternion=quat[:, k]))
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of (..., 4) quaternions, w x y z."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.broadcast_to(b, a.shape), -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+
+
+def _wxyz_to_xyzw(quat: np.ndarray) -> np.ndarray:
+    return quat[..., [1, 2, 3, 0]]
