@@ -144,10 +144,18 @@ def replay_cmd(log, policy: str, out: Path | None) -> int:
     return EXIT_OK if comparison.identical else EXIT_DIFFERS
 
 
-def rerun_cmd(log, out: Path) -> int:
-    from sim_hil.rerun_view.convert import convert
+def rerun_cmd(path: Path, out: Path | None) -> int:
+    from sim_hil.rerun_view.convert import convert, read_for_recording
     try:
-        rows = convert(log, out)
+        log, batch = read_for_recording(path)
+    except (OSError, ValueError) as exc:
+        print(f"sim_hil.lcmlog: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    for problem in log.problems.messages(log.path):
+        print(f"sim_hil.lcmlog: {problem}", file=sys.stderr)
+    out = out or log.path.with_suffix(".rrd")
+    try:
+        rows = convert(log, out, batch=batch)
     except (OSError, RuntimeError) as exc:
         print(f"sim_hil.lcmlog rerun: {exc}", file=sys.stderr)
         return EXIT_FAILED
@@ -156,18 +164,12 @@ def rerun_cmd(log, out: Path) -> int:
     return EXIT_OK
 
 
-def _decoded_channels(command: str):
-    """The channels a command reads (None: all): a recording shows neither observations nor actions."""
-    if command != "rerun":
-        return None
-    from sim_hil.rerun_view.record import CHANNELS_SHOWN
-    return CHANNELS_SHOWN
-
-
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    if args.command == "rerun":       # reads the log its own way (the busy channels column-wise)
+        return rerun_cmd(args.log, args.out)
     try:
-        log = open_log(args.log, _decoded_channels(args.command))
+        log = open_log(args.log)
     except (OSError, ValueError) as exc:
         print(f"sim_hil.lcmlog: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -186,8 +188,6 @@ def main(argv=None) -> int:
         return EXIT_OK
     if args.command == "spy":
         return spy(log, args.speed)
-    if args.command == "rerun":
-        return rerun_cmd(log, args.out or log.path.with_suffix(".rrd"))
     return replay_cmd(log, args.policy, args.out)
 
 

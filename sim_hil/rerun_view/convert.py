@@ -7,18 +7,40 @@ from pathlib import Path
 
 import rerun as rr
 
-from messages import contract
-from sim_hil.lcmlog.eventlog import ProjectLog
+from sim_hil.lcmlog.eventlog import ProjectLog, open_log
 from sim_hil.lcmlog.plot import sim_clock
 from sim_hil.rerun_view.analytics import disable_analytics
 from sim_hil.rerun_view.blueprint import blueprint
-from sim_hil.rerun_view.record import EVENTS, RunRecorder
+from sim_hil.rerun_view.columns import channel_columns
+from sim_hil.rerun_view.record import CHANNELS_SHOWN, EVENT_CHANNELS, EVENTS, RunRecorder
 from sim_hil.rerun_view.robot import RobotGeoms
 
 APPLICATION_ID = "t1_run"
+# the busy channels, decoded a channel at a time (columns.py)
+COLUMN_CHANNELS = CHANNELS_SHOWN - set(EVENT_CHANNELS)
 
 
-def convert(log: ProjectLog, out: Path, with_robot: bool = True) -> dict[str, int]:
+def read_for_recording(path) -> tuple[ProjectLog, dict]:
+    """The log (its problems named by the project's reader) and the batch to record. The busy channels come
+    as columns; if one of them is damaged or of another version, the reader decodes it message by message."""
+    log = open_log(path, CHANNELS_SHOWN - COLUMN_CHANNELS)
+    batch = {}
+    for channel in COLUMN_CHANNELS:
+        columns = channel_columns(log.events, channel)
+        if columns is None and any(ev.channel == channel for ev in log.events):
+            log = open_log(path, CHANNELS_SHOWN)
+            return log, _messages(log)
+        if columns is not None:
+            batch[channel] = columns
+    return log, {**_messages(log), **batch}
+
+
+def _messages(log: ProjectLog) -> dict:
+    return {ch: [(ev.timestamp_us, msg) for ev, msg in entries] for ch, entries in log.messages.items()
+            if ch in CHANNELS_SHOWN}
+
+
+def convert(log: ProjectLog, out: Path, with_robot: bool = True, batch: dict | None = None) -> dict[str, int]:
     """Write `out`; returns rows per entity (robot/geoms: poses per geom). with_robot=False leaves the 3-D robot
     out (the empty scene a picture of the view is compared with)."""
     disable_analytics()
@@ -33,8 +55,7 @@ def convert(log: ProjectLog, out: Path, with_robot: bool = True) -> dict[str, in
                          columns=rr.TextLog.columns(text=[f"log: {p}" for p in problems],
                                                     level=["WARN"] * len(problems)))
         recorder.rows[EVENTS] += len(problems)
-    recorder.write({ch: [(ev.timestamp_us, msg) for ev, msg in entries] for ch, entries in log.messages.items()
-                    if ch in contract.CHANNELS.values()})
+    recorder.write(_messages(log) if batch is None else batch)
     rec.flush()
     rec.disconnect()
     return dict(recorder.rows)

@@ -18,6 +18,7 @@ import rerun as rr
 from t1 import controller_status_t
 
 from messages import contract
+from sim_hil.rerun_view.columns import Columns
 from sim_hil.rerun_view.robot import POSE_FROM_IMU, POSE_FROM_SIM, RobotGeoms
 
 TIMELINE = "log_time"
@@ -44,6 +45,8 @@ JOINT_SIGNALS = {"q": (contract.CH_JOINT_STATE, "q"), "q_des": (contract.CH_JOIN
 CHANNELS_SHOWN = frozenset({contract.CH_RUN_INFO, contract.CH_RUNTIME_CMD, contract.CH_CONTROLLER_STATUS,
                             contract.CH_SIM_STATUS, contract.CH_IMU, contract.CH_JOINT_STATE, contract.CH_JOINT_CMD,
                             contract.CH_JOYSTICK})
+# channels whose messages become text events (low rate: read message by message)
+EVENT_CHANNELS = (contract.CH_RUN_INFO, contract.CH_RUNTIME_CMD, contract.CH_CONTROLLER_STATUS, contract.CH_SIM_STATUS)
 REFUSAL_FIELDS = tuple(f for f in controller_status_t.__slots__ if "refused_" in f)
 IDENTITY_QUAT = (1.0, 0.0, 0.0, 0.0)
 # the supervisor's fault and warning bits are named in one place, the runtime's header
@@ -69,8 +72,16 @@ def joint_entity(name: str, leaf: str) -> str:
     return f"joints/{name}/{leaf}"
 
 
-def _field(msg, spec) -> float:
-    return getattr(msg, spec[0])[spec[1]] if isinstance(spec, tuple) else getattr(msg, spec)
+def stamps_of(entries) -> np.ndarray:
+    """Receive stamps [us] of a channel's entries: [(stamp, message), ...] or Columns (columns.py)."""
+    return entries.stamps if isinstance(entries, Columns) else np.array([s for s, _ in entries], np.int64)
+
+
+def values_of(entries, spec) -> np.ndarray:
+    """One field per row (float); spec: a field name or (field, index) for one element of an array field."""
+    name, index = spec if isinstance(spec, tuple) else (spec, None)
+    column = entries[name] if isinstance(entries, Columns) else np.array([getattr(m, name) for _, m in entries], float)
+    return column if index is None else column[:, index]
 
 
 def _held(prev, stamps: np.ndarray, values: np.ndarray, at: np.ndarray, default) -> np.ndarray:
@@ -109,22 +120,20 @@ class RunRecorder:
         self.rec.send_columns(path, indexes=self.times(stamps), columns=rr.Scalars.columns(scalars=values))
         self.rows[path] += len(stamps)
 
-    def write(self, batch: dict[str, list]) -> None:
+    def write(self, batch: dict) -> None:
+        """batch: channel -> [(stamp, message), ...] in time order, or Columns for the busy channels."""
         events: list[tuple[int, str, str]] = []
-        for channel in (contract.CH_RUN_INFO, contract.CH_RUNTIME_CMD, contract.CH_CONTROLLER_STATUS,
-                        contract.CH_SIM_STATUS):
+        for channel in EVENT_CHANNELS:
             for stamp, msg in batch.get(channel, ()):
                 events += self._events(channel, stamp, msg)
         for path, (channel, fields, _) in SERIES.items():
             entries = batch.get(channel, ())
-            if entries:
-                self._send(path, [s for s, _ in entries],
-                           np.array([[_field(m, f) for f in fields] for _, m in entries], float))
+            if len(entries):
+                self._send(path, stamps_of(entries), np.column_stack([values_of(entries, f) for f in fields]))
         for leaf, (channel, field) in JOINT_SIGNALS.items():
             entries = batch.get(channel, ())
-            if entries:
-                stamps = [s for s, _ in entries]
-                values = np.array([getattr(m, field) for _, m in entries], float)
+            if len(entries):
+                stamps, values = stamps_of(entries), values_of(entries, field)
                 for j, name in enumerate(contract.JOINT_NAMES):
                     self._send(joint_entity(name, leaf), stamps, values[:, j])
         events += self._motor_events(batch.get(contract.CH_JOINT_STATE, ()))
@@ -138,32 +147,36 @@ class RunRecorder:
     def _pose(self, batch: dict[str, list]) -> None:
         imu, sim = batch.get(contract.CH_IMU, []), batch.get(contract.CH_SIM_STATUS, [])
         states = batch.get(contract.CH_JOINT_STATE, [])
-        from_sim = bool(sim) or self._base is not None
+        from_sim = len(sim) > 0 or self._base is not None
         if self.robot is not None and (self._pose_note is None or (from_sim and self._pose_note != POSE_FROM_SIM)):
             self._pose_note = POSE_FROM_SIM if from_sim else POSE_FROM_IMU
             self.robot.log_shapes(self.rec, self._pose_note)
-        if self.robot is not None and states:
-            at = np.array([s for s, _ in states], np.int64)
-            quat = _held(self._imu, np.array([s for s, _ in imu], np.int64),
-                         np.array([m.quat for _, m in imu], float), at, IDENTITY_QUAT)
+        imu_quat = values_of(imu, "quat") if len(imu) else np.zeros((0, 4))
+        base_pos = values_of(sim, "base_pos") if len(sim) else np.zeros((0, 3))
+        if self.robot is not None and len(states):
+            at = stamps_of(states)
+            quat = _held(self._imu, stamps_of(imu), imu_quat, at, IDENTITY_QUAT)
             standing = (0.0, 0.0, contract.NOMINAL_STANDING_TRUNK_HEIGHT_M)
-            pos = _held(self._base, np.array([s for s, _ in sim], np.int64),
-                        np.array([m.base_pos for _, m in sim], float), at, standing)
-            self.robot.send_poses(self.rec, self.times(at), pos, quat, [m.q for _, m in states])
+            pos = _held(self._base, stamps_of(sim), base_pos, at, standing)
+            self.robot.send_poses(self.rec, self.times(at), pos, quat, values_of(states, "q"))
             self.rows["robot/geoms"] += len(states)
-        if imu:
-            self._imu = (imu[-1][0], np.asarray(imu[-1][1].quat, float))
-        if sim:
-            self._base = (sim[-1][0], np.asarray(sim[-1][1].base_pos, float))
+        if len(imu):
+            self._imu = (stamps_of(imu)[-1], imu_quat[-1])
+        if len(sim):
+            self._base = (stamps_of(sim)[-1], base_pos[-1])
 
-    def _motor_events(self, states: list) -> list[tuple[int, str, str]]:
-        out = []
-        for stamp, msg in states:
-            status = tuple(msg.motor_status)
-            if status != (self._motor or (0,) * contract.NUM_JOINTS):
-                bad = [f"{contract.JOINT_NAMES[j]} {bits:#x}" for j, bits in enumerate(status) if bits]
-                out.append((stamp, f"motor status: {', '.join(bad) or 'all clear'}", "WARN" if bad else "INFO"))
-            self._motor = status
+    def _motor_events(self, states) -> list[tuple[int, str, str]]:
+        """An event where any motor's status bits change (the first row against all clear)."""
+        if not len(states):
+            return []
+        status = values_of(states, "motor_status").astype(np.int64)
+        before = np.vstack([self._motor if self._motor is not None else np.zeros(contract.NUM_JOINTS, np.int64),
+                            status[:-1]])
+        stamps, out = stamps_of(states), []
+        for i in np.flatnonzero((status != before).any(axis=1)):
+            bad = [f"{contract.JOINT_NAMES[j]} {bits:#x}" for j, bits in enumerate(status[i]) if bits]
+            out.append((int(stamps[i]), f"motor status: {', '.join(bad) or 'all clear'}", "WARN" if bad else "INFO"))
+        self._motor = status[-1]
         return out
 
     def _events(self, channel: str, stamp: int, msg) -> list[tuple[int, str, str]]:

@@ -10,6 +10,7 @@ piped into a Rerun viewer serving on loopback, as tools/rerun_live runs them). P
 from __future__ import annotations
 
 import argparse
+import resource
 import subprocess
 import sys
 import time
@@ -78,16 +79,20 @@ def main(argv=None) -> None:
     print(f"\n== Rerun: converting a {args.seconds:g} s log, and the live view's cost to the runtime loop ==")
     with tempfile.TemporaryDirectory() as tmp:
         plain = run(args.seconds, Path(tmp) / "plain.lcmlog", live=False)
+        cpu_before = resource.getrusage(resource.RUSAGE_CHILDREN)
         start = time.perf_counter()
         done = subprocess.run([sys.executable, "-m", "sim_hil.lcmlog", "rerun", str(Path(tmp) / "plain.lcmlog"),
                                "-o", str(Path(tmp) / "plain.rrd")], cwd=ROOT, env=_env(), capture_output=True, text=True)
         convert_s = time.perf_counter() - start
+        cpu_after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        convert_cpu_s = (cpu_after.ru_utime - cpu_before.ru_utime) + (cpu_after.ru_stime - cpu_before.ru_stime)
         if done.returncode != 0:
             raise RuntimeError(f"sim_hil.lcmlog rerun failed: {done.stderr[-800:]}")
         live = run(args.seconds, Path(tmp) / "live.lcmlog", live=True)
     share = convert_s / args.seconds
-    print(f"convert {args.seconds:g} s log ({plain['states']} states): {convert_s:.2f} s = {share:.3f} of the run "
-          f"({share / TARGET_CONVERT_SHARE:.2f}× the {TARGET_CONVERT_SHARE:.0%} target)")
+    print(f"convert {args.seconds:g} s log ({plain['states']} states): {convert_s:.2f} s wall = {share:.3f} of the run "
+          f"({share / TARGET_CONVERT_SHARE:.2f}× the {TARGET_CONVERT_SHARE:.0%} target); CPU {convert_cpu_s:.2f} s = "
+          f"{convert_cpu_s / args.seconds:.3f} (wall above CPU: the other processes on these cores)")
     print(f"{'runtime wake-up lateness [us]':<32}{'p50':>9}{'p99':>9}{'max':>9}{'overruns':>10}{'samples':>9}")
     for name, r in (("without the live view", plain), ("with the live view", live)):
         print(f"{name:<32}{r['p50']:>9.1f}{r['p99']:>9.1f}{r['max']:>9.1f}{r['overruns']:>10}{r['samples']:>9}")
