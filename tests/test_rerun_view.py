@@ -157,3 +157,32 @@ def test_live_bridge_streams_the_runs_entities(tmp_path, netns):
     states = rows["/" + joint_entity("Left_Knee_Pitch", "q")]
     assert states > 0 and rows["/robot/geoms/trunk"] == states and rows["/trunk/height"] > 0
     assert np.all(np.diff(times["/robot/geoms/trunk"][TIMELINE]) >= 0)
+
+
+def test_rerun_live_serves_the_run_on_loopback_only(tmp_path, netns):
+    """tools/rerun_live (make demo|teleop|sim VIEW=rerun): while the run goes, the web viewer answers on
+    127.0.0.1 and nothing of Rerun's listens on another address; the wrapper ends with the run (no terminal)."""
+    import time
+    import urllib.request
+    web, grpc = rerun_web.free_port(), rerun_web.free_port()
+    env = dict(_env(), RERUN_WEB_PORT=str(web), RERUN_GRPC_PORT=str(grpc))
+    live = subprocess.Popen([str(ROOT / "tools" / "rerun_live"), sys.executable, "-m", "sim_hil", "--quiet", "--no-log",
+                             "--spawn", "standing", "--clock", "realtime", "--duration", "20"], cwd=ROOT, env=env,
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            try:
+                page = urllib.request.urlopen(f"http://127.0.0.1:{web}/", timeout=2).read()
+                break
+            except OSError:
+                assert live.poll() is None and time.monotonic() < deadline, live.communicate()[1][-2000:]
+                time.sleep(0.2)
+        assert page
+        listening = subprocess.run(["ss", "-ltnH"], capture_output=True, text=True).stdout
+        ours = [line.split()[3] for line in listening.splitlines() if line.split()[3].endswith((f":{web}", f":{grpc}"))]
+        assert ours and all(addr.startswith("127.0.0.1:") for addr in ours), listening
+    finally:
+        _, err = live.communicate(timeout=180)
+    assert live.returncode == 0, err[-2000:]
+    assert f"http://127.0.0.1:{web}/" in err

@@ -1,12 +1,13 @@
 """`python -m sim_hil.rerun_view.live`: the project's LCM group as a live Rerun stream, the same entities and
 blueprint as a converted log (record.py). A process of its own that only subscribes, like the logger: the
-runtime's loop and the simulator never wait for it. It runs inside the project namespace (it needs the LCM
+runtime's loop and the simulator never wait for it, and it runs niced below them. It runs inside the project namespace (it needs the LCM
 group) and writes the stream to stdout, which tools/rerun_live pipes to a viewer outside the namespace
 that listens on the machine's loopback only; --save writes an .rrd instead. SIGINT/SIGTERM: the last
 batch is flushed, then it exits 0."""
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import time
@@ -27,6 +28,7 @@ from sim_hil.rerun_view.robot import RobotGeoms
 FLUSH_S = 0.1        # batch period [s]: the view lags the run by about this much
 HANDLE_MS = 20       # LCM wait per loop turn [ms]
 MAX_WAIT_FAILURES = 50   # LCM waits failing in a row before the bridge gives up
+NICE = 10                # the bridge yields the CPU to the runtime and the simulator (make bench: Rerun rows)
 
 
 def main(argv=None) -> int:
@@ -39,6 +41,7 @@ def main(argv=None) -> int:
         print("sim_hil.rerun_view.live: stdout is a terminal: pipe it to a viewer (tools/rerun_live) or use --save",
               file=sys.stderr)
         return 2
+    os.nice(NICE)
     disable_analytics()
     rec = rr.RecordingStream(APPLICATION_ID, send_properties=False)
     if args.save is not None:

@@ -24,6 +24,7 @@ from sim_hil.launch import ROOT, _env, start_runtime, start_sim, stop, wait_unti
 from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.lcmlog.eventlog import open_log
 from sim_hil.rerun_view.analytics import rerun_cli
+from sim_hil.rerun_view.live import NICE as LIVE_NICE
 
 POLICY = ROOT / "policies" / "student" / "student.safetensors"
 TARGET_CONVERT_SHARE = 0.10        # conversion time / run duration
@@ -39,7 +40,7 @@ def _free_port() -> int:
 
 def _live_view():
     """The viewer (loopback) reading the bridge's stream through a pipe; returns both, the bridge subscribed."""
-    viewer = subprocess.Popen([rerun_cli(), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port",
+    viewer = subprocess.Popen(["nice", "-n", str(LIVE_NICE), rerun_cli(), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port",
                                str(_free_port()), "--port", str(_free_port()), "-"], stdin=subprocess.PIPE,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     bridge = subprocess.Popen([sys.executable, "-m", "sim_hil.rerun_view.live", "--name", "bench"], cwd=ROOT,
