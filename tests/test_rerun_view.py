@@ -186,3 +186,20 @@ def test_rerun_live_serves_the_run_on_loopback_only(tmp_path, netns):
         _, err = live.communicate(timeout=180)
     assert live.returncode == 0, err[-2000:]
     assert f"http://127.0.0.1:{web}/" in err
+
+
+def test_a_log_without_simulator_status_says_the_pose_is_the_imus(demo_log, tmp_path):
+    """A real robot's log has no T1_SIM_STATUS: the robot is still drawn for every state, upright at the
+    standing height, oriented by the IMU, and the trunk's label says where its pose comes from."""
+    from sim_hil.rerun_view.robot import POSE_FROM_IMU
+    robot_log = write_events(tmp_path / "robot.lcmlog", [ev for ev in read_events(demo_log, LogProblems())
+                                                         if ev.channel != contract.CH_SIM_STATUS])
+    done = _run("-m", "sim_hil.lcmlog", "rerun", str(robot_log), "-o", str(tmp_path / "robot.rrd"))
+    assert done.returncode == 0, done.stderr
+    rows, _, _ = read_back(tmp_path / "robot.rrd")
+    assert rows["/robot/geoms/trunk"] == len(open_log(robot_log).messages[contract.CH_JOINT_STATE])
+    labels = [label for chunk in rrc.RrdReader(tmp_path / "robot.rrd").store().stream()
+              if chunk.entity_path == "/robot/geoms/trunk" and chunk.is_static
+              for name in chunk.to_record_batch().schema.names if name.endswith(":labels")
+              for label in chunk.to_record_batch().column(name).to_pylist()]
+    assert [POSE_FROM_IMU] in labels, labels
