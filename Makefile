@@ -19,7 +19,11 @@ export PYOPENGL_PLATFORM ?= osmesa
 # Simulator arguments for `make sim`, e.g. make sim SIM_ARGS="--spawn fallen:3 --clock lockstep"
 SIM_ARGS ?= --scenario flat --spawn standing --clock realtime
 
-.PHONY: all setup build test test-fast sim spy spy-dds demo teleop bench bench-env bench-train bench-soak clean replay plot-log
+.PHONY: all setup build test test-fast sim spy spy-dds demo teleop bench bench-env bench-train bench-soak clean replay plot-log view-log
+
+# VIEW=rerun on demo, teleop and sim: a live Rerun view of the run (tools/rerun_live; README: Runs in Rerun)
+VIEW ?=
+IN_NETNS = $(if $(filter rerun,$(VIEW)),$(ROOT)/tools/rerun_live,$(if $(VIEW),$(error VIEW=$(VIEW): the one live view is VIEW=rerun),$(NETNS)))
 
 all: build
 
@@ -43,7 +47,7 @@ test-fast: build
 
 # Writes an LCM log of the run to out/sim/ (SIM_ARGS="--no-log" to skip, "--log PATH" to name it).
 sim: build
-	$(NETNS) $(PY) -m sim_hil $(SIM_ARGS) $(if $(VIEWER),--viewer)
+	$(IN_NETNS) $(PY) -m sim_hil $(SIM_ARGS) $(if $(VIEWER),--viewer)
 
 # lcm-spy decoding every project type, in the same kind of namespace (start the sim inside it too:
 # `make spy` launches a sim in the background so there is traffic to look at).
@@ -58,24 +62,30 @@ spy-dds: build
 	  $(VENV)/bin/cyclonedds ls; timeout 3 $(VENV)/bin/cyclonedds subscribe rt/low_state; kill %1'
 
 demo: build
-	$(NETNS) $(PY) -m sim_hil.demo $(DEMO_ARGS) $(if $(VIEWER),--viewer)
+	$(IN_NETNS) $(PY) -m sim_hil.demo $(DEMO_ARGS) $(if $(VIEWER),--viewer)
 
 # Drive the T1 yourself: a realtime sim, t1-runtime and the teleop (gamepad, else this terminal's keys) in one
 # namespace. TELEOP_ARGS="--policy policies/joystick/joystick.safetensors" picks the policy.
 teleop: build
-	$(NETNS) $(PY) -m sim_hil.teleop --with-sim $(TELEOP_ARGS)
+	$(IN_NETNS) $(PY) -m sim_hil.teleop --with-sim $(TELEOP_ARGS)
 
 # LCM logs (every demo, sim and eval trial writes one; sim_hil/lcmlog):
 #   make replay LOG=out/demo/demo.lcmlog                  play it into lcm-spy (xvfb-run without a display)
 #   make replay LOG=… POLICY=policies/x/x.safetensors     re-run t1-runtime on the logged states, lockstep,
 #                                                          and compare its commands (POLICY=logged: the log's own)
 #   make plot-log LOG=… [JOINTS=Left_Knee_Pitch,Waist]    PNG next to the log
+#   make view-log LOG=…                                   LOG as a Rerun recording (.rrd next to it), opened in
+#                                                          the viewer (web viewer on 127.0.0.1 without a display)
 replay: build
 	@test -n "$(LOG)" || { echo "usage: make replay LOG=path.lcmlog [POLICY=artifact|logged]" >&2; exit 2; }
 	$(NETNS) $(PY) -m sim_hil.lcmlog $(if $(POLICY),replay --policy $(POLICY),spy) $(LOG)
 plot-log: build
 	@test -n "$(LOG)" || { echo "usage: make plot-log LOG=path.lcmlog [JOINTS=a,b]" >&2; exit 2; }
 	$(PY) -m sim_hil.lcmlog plot $(LOG) $(if $(JOINTS),--joints $(JOINTS))
+view-log: build
+	@test -n "$(LOG)" || { echo "usage: make view-log LOG=path.lcmlog" >&2; exit 2; }
+	$(PY) -m sim_hil.lcmlog rerun $(LOG) -o $(basename $(LOG)).rrd
+	tools/rerun_viewer $(basename $(LOG)).rrd
 
 # The onnxruntime reference venv (.venv-bench) needs the package registry, so it is installed here, in the
 # machine's own network; the benchmark itself runs in the namespace and only checks it (tools/bench_env.sh).

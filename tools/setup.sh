@@ -14,6 +14,7 @@ APT_PACKAGES=(
   cyclonedds-dev cyclonedds-tools # Cyclone DDS 0.10 C API + idlc (t1-runtime --transport dds), ddsperf
   python3-venv
   linux-libc-dev python3-dev    # evdev (sim_hil.teleop) builds its C extension from source
+  chromium                      # headless: Rerun's web viewer as a person sees it (tests/test_rerun_view.py)
 )
 
 missing=()
@@ -37,4 +38,7 @@ if [[ ! -x .venv/bin/python || ! -f $stamp || "$(cat $stamp)" != "$want" ]]; the
   .venv/bin/pip install -q -r requirements.txt
   echo "$want" > $stamp
 fi
+# Rerun's usage analytics off for this user before anything of Rerun's runs (sim_hil/rerun_view/analytics.py)
+PYTHONPATH=. .venv/bin/python -c 'from sim_hil.rerun_view.analytics import disable_analytics; disable_analytics()'
+
 echo "setup: ok"

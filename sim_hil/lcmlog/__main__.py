@@ -5,6 +5,8 @@
   spy    LOG [--speed S]          play LOG into lcm-spy (inside tools/netns; xvfb-run when there is no display)
   replay LOG [--policy P|logged]  re-run t1-runtime on LOG's states in lockstep, compare its commands with
                                   the logged ones (inside tools/netns); reports next to LOG
+  rerun  LOG [-o RUN.rrd]         a Rerun recording: the robot in 3-D, joints, joystick, mode, faults, timing
+                                  (default: LOG with .rrd; open it with `rerun RUN.rrd` or make view-log)
 A damaged log (truncated, corrupt bytes, unknown channels, another type version) is read as far as it can
 be; each problem is printed. Exit codes: 0 ok, 1 the replay differs from the log, 2 bad arguments or an
 unreadable log, 3 the replay could not run."""
@@ -34,7 +36,7 @@ def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="python -m sim_hil.lcmlog", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="command", required=True)
-    for name in ("info", "plot", "spy", "replay"):
+    for name in ("info", "plot", "spy", "replay", "rerun"):
         p = sub.add_parser(name)
         p.add_argument("log", type=Path)
         if name == "plot":
@@ -45,6 +47,8 @@ def _parser() -> argparse.ArgumentParser:
         if name == "replay":
             p.add_argument("--policy", default="logged", help="artifact to re-run, or 'logged' (the log's own)")
             p.add_argument("--out", type=Path, default=None, help="report stem (default: LOG without suffix)")
+        if name == "rerun":
+            p.add_argument("-o", "--out", type=Path, default=None, help="recording path (default: LOG with .rrd)")
     return ap
 
 
@@ -140,8 +144,30 @@ def replay_cmd(log, policy: str, out: Path | None) -> int:
     return EXIT_OK if comparison.identical else EXIT_DIFFERS
 
 
+def rerun_cmd(path: Path, out: Path | None) -> int:
+    from sim_hil.rerun_view.convert import convert, read_for_recording
+    try:
+        log, batch = read_for_recording(path)
+    except (OSError, ValueError) as exc:
+        print(f"sim_hil.lcmlog: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    for problem in log.problems.messages(log.path):
+        print(f"sim_hil.lcmlog: {problem}", file=sys.stderr)
+    out = out or log.path.with_suffix(".rrd")
+    try:
+        rows = convert(log, out, batch=batch)
+    except (OSError, RuntimeError) as exc:
+        print(f"sim_hil.lcmlog rerun: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    print(f"rerun: {out} ({rows.get('robot/geoms', 0)} robot poses, {len(rows)} entities); open it with "
+          f"`rerun {out}`")
+    return EXIT_OK
+
+
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    if args.command == "rerun":       # reads the log its own way (the busy channels column-wise)
+        return rerun_cmd(args.log, args.out)
     try:
         log = open_log(args.log)
     except (OSError, ValueError) as exc:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 import struct
 from collections import Counter, defaultdict
+from functools import lru_cache
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -91,10 +92,16 @@ def read_events(path: Path, problems: LogProblems) -> list[Event]:
     return events
 
 
+@lru_cache(maxsize=None)
 def lcm_type(channel: str):
     """The generated Python class of a contract channel (None when the channel is not a project one)."""
     name = contract.CHANNEL_TYPES.get(channel)
     return None if name is None else getattr(importlib.import_module(f"t1.{name}"), name)
+
+
+@lru_cache(maxsize=None)
+def _fingerprint(cls) -> int:
+    return struct.unpack(">Q", cls._get_packed_fingerprint())[0]
 
 
 @dataclass
@@ -110,8 +117,9 @@ class ProjectLog:
         return entries[0][1] if entries else None
 
 
-def open_log(path: Path | str) -> ProjectLog:
-    """Read and decode a log; raises only when the file cannot be read at all or holds no event."""
+def open_log(path: Path | str, channels=None) -> ProjectLog:
+    """Read and decode a log; raises only when the file cannot be read at all or holds no event. channels: decode
+    only these project channels (the others' events are kept undecoded, in `events`); default all."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such log file")
@@ -121,11 +129,13 @@ def open_log(path: Path | str) -> ProjectLog:
         raise ValueError(f"{path}: no readable LCM event ({'; '.join(problems.messages(path)) or 'empty file'})")
     decoded: dict[str, list[tuple[Event, object]]] = defaultdict(list)
     for ev in events:
+        if channels is not None and ev.channel in contract.CHANNEL_TYPES and ev.channel not in channels:
+            continue
         cls = lcm_type(ev.channel)
         if cls is None:
             problems.unknown_channels[ev.channel] += 1
             continue
-        expected = struct.unpack(">Q", cls._get_packed_fingerprint())[0]
+        expected = _fingerprint(cls)
         found = struct.unpack(">Q", ev.data[:8])[0] if len(ev.data) >= 8 else None
         data = ev.data
         if found is not None and found != expected:
