@@ -69,10 +69,10 @@ class GetupStand(getup_base.GetupTask):
     def _start_state(self, rng):
         """With the reverse curriculum on, a start drawn along the start path or at the kneel; with rise_kneels on,
         that share of starts where the rise hands over (counted as kneeling, its bank row kept)."""
+        if self._kneel_bank is None:
+            return self._path_start(rng)
         k_path, k_use, k_idx = jax.random.split(rng, 3)
         qpos, qvel, kind, row = self._path_start(k_path)
-        if self._kneel_bank is None:
-            return qpos, qvel, kind, row
         use = jax.random.uniform(k_use) < self._config.rise_kneels.prob
         idx = jax.random.randint(k_idx, (), 0, self._kneel_bank[0].shape[0])
         return (jnp.where(use, self._kneel_bank[0][idx], qpos), jnp.where(use, self._kneel_bank[1][idx], qvel),
