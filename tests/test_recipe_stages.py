@@ -150,15 +150,6 @@ def test_a_distill_run_ends_only_at_a_phase_it_checkpoints():
             dagger.check_end_at(bad, cfg)
 
 
-def test_the_campaigns_chain_student_keeps_its_end_phase_and_the_full_task_starts_from_it():
-    recipe = R.load("getup_keyframe")
-    assert recipe_runner.stage_complete(CAMPAIGN.parent, recipe, recipe.stage("chain_student"))
-    from training.distill import dagger
-    start = recipe_runner._init_path("chain_student", recipe, CAMPAIGN.parent)     # its run went to phase 400
-    assert [p.name for p in checkpoints.list_checkpoints(start)] == [f"{recipe.stage('chain_student').end_at:012d}"]
-    assert dagger.prior_progress(start)["phases"] == 1400                          # of the campaign
-
-
 # ---------------------------------------------------------------- imitation stages between PPO stages
 def test_imitation_stages_continue_one_campaign_and_are_complete_at_their_rounds(tmp_path):
     recipe = R.load("getup_keyframe")
