@@ -218,9 +218,9 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     stand, the keyframe getup's chain); with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
     student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
     and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
-    continue from that run's (STATE_FILE), so a campaign goes on across sessions. With `end_at` (a phase of this run with a
-    checkpoint: a multiple of dagger_steps / (num_evals − 1)) the run ends there, finished, on the schedule of its
-    dagger_steps (β, evaluation resets): a campaign's best phase as its end."""
+    continue from that run's (STATE_FILE), so a campaign goes on across sessions. With `end_at` (a phase of this
+    run with a checkpoint: a multiple of dagger_steps / (num_evals − 1)) the run ends there, finished, on the
+    schedule of its dagger_steps (β, evaluation resets): a campaign's best phase as its end."""
 
     checkpoints.jax_setup()
     t_start = time.monotonic()
