@@ -109,6 +109,18 @@ def test_a_kneel_run_with_the_sag_end_and_tracking_knobs_loads_while_they_are_of
             migration.migrate(bad, envs.default_config("getup_kneel"), "env", "runs/x/run_state.json")
 
 
+def test_a_full_task_run_with_the_upright_term_loads_only_while_it_is_off():
+    """The full task's reward.scales.upright is gone (the kneel task keeps its own): a getup run saved with it at 0
+    loads as today's task, one that set it is refused by the key's name."""
+    saved = envs.default_config("getup").to_dict()
+    saved["reward"]["scales"]["upright"] = 0.0
+    state = {"task": "getup", "preset": "cpu", "ppo_config": {}, "env_config": saved}
+    assert migration.run_configs(state)[1].to_dict() == envs.default_config("getup").to_dict()
+    saved["reward"]["scales"]["upright"] = 1.0
+    with pytest.raises(migration.MigrationError, match=r"env\.reward\.scales\.upright=1\.0"):
+        migration.run_configs(state, "runs/x/run_state.json")
+
+
 def test_a_unified_run_s_getup_energy_weight_becomes_its_energy_scale():
     """The unified env's skills reward weighs the getup expert's terms by reward.getup.scales as the getup tasks'
     reward.scales do: a saved positive reward.getup.energy_weight W becomes scales.energy −W."""

@@ -55,31 +55,14 @@ def test_the_fine_tuned_policy_starts_as_the_student_and_exports_back_to_it():
     np.testing.assert_array_equal(exported["hidden_2"]["kernel"], policy["params"]["hidden_2"]["kernel"][:, :23])
 
 
-def test_a_tanh_squashed_student_starts_as_itself_under_the_tanh_normal_policy():
-    """A student distilled with bc.tanh_squash acts with tanh(loc): under "tanh_normal" its layers stay, the
-    mode is that action and the pre-tanh sampling std is init_noise_std."""
-    bc_nets, normalizer, policy = _student()
-    cfg = _ppo_cfg()
-    cfg.update(dict(policy_distribution="tanh_normal", init_noise_std=0.015))
-    params = F.init_params([normalizer, policy], cfg)
-    assert params[2] is None
-    nets = ppo_networks.network_factory(cfg)(OBS, obsdef.NUM_JOINTS)
-    obs = {k: jax.random.normal(jax.random.PRNGKey(1), (4, *s)) for k, s in OBS.items()}
-    logits = nets.policy_network.apply(normalizer, params[1], obs)
-    loc = bc_nets.policy_network.apply(normalizer, policy, obs)[..., :obsdef.NUM_JOINTS]
-    np.testing.assert_allclose(nets.parametric_action_distribution.mode(logits), np.tanh(loc), rtol=1e-5, atol=1e-6)
-    std = np.log1p(np.exp(np.asarray(logits)[..., obsdef.NUM_JOINTS:])) + ppo_networks.MIN_STD
-    np.testing.assert_allclose(std, 0.015, rtol=1e-4)
-
-
 def test_a_student_checkpoint_needs_a_teacher_and_a_sampling_std():
     _, normalizer, policy = _student()
     cfg = _ppo_cfg()
     cfg.init_noise_std = 0.0
     with pytest.raises(ValueError, match="init_noise_std must be > 0"):
         F.init_params([normalizer, policy], cfg)
-    cfg.policy_distribution = "tanh_normal"
-    with pytest.raises(ValueError, match="init_noise_std must be >"):
+    cfg.update(dict(policy_distribution="tanh_normal", init_noise_std=0.05))   # it would act with tanh(loc)
+    with pytest.raises(ValueError, match="fine-tunes under ppo.policy_distribution='normal'"):
         F.init_params([normalizer, policy], cfg)
     with pytest.raises(ValueError, match="teacher"):
         F.init_params([normalizer, policy], _ppo_cfg(bc_weight=0.0))
@@ -115,10 +98,7 @@ def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
     original = ppo_losses.compute_ppo_loss
     monkeypatch.setattr(teacher_module, "load_expert", lambda path, kind: kind)
 
-    squash = []
-
     def fake_teacher(*_args, **kwargs):
-        squash.append(kwargs["student_tanh_squash"])
         return lambda obs: (None, {"loc": jnp.zeros(obs["state"].shape[:-1] + (obsdef.NUM_JOINTS,))})
     monkeypatch.setattr(teacher_module, "make_teacher", fake_teacher)
 
@@ -133,18 +113,15 @@ def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
     assert ppo_losses.compute_ppo_loss is original
     with F.teacher_term(_ppo_cfg(bc_weight=0.0), Env(), count_start=0.0):
         assert ppo_losses.compute_ppo_loss is original
-    tanh_cfg = _ppo_cfg()
-    tanh_cfg.policy_distribution = "tanh_normal"
-    with F.teacher_term(tanh_cfg, Env(), count_start=0.0):
-        pass
-    assert squash == [False, True]          # labels in the student's output rule: atanh of the action under tanh
 
 
 def test_the_bc_error_compares_the_executed_actions():
-    label = jnp.array([[0.3, -2.0, 1.5]])
-    assert float(F.bc_error(jnp.tanh(label), label, squashed=True)[0]) == pytest.approx(0.0, abs=1e-12)
+    """The label is the teacher's action: a "normal" policy executes its mode (compared through tanh, as brax bc's
+    loss), a tanh-normal one executes its mode tanh(μ) itself."""
+    label = jnp.array([[0.3, -0.9, 0.5]])
+    assert float(F.bc_error(label, label, squashed=True)[0]) == pytest.approx(0.0, abs=1e-12)
     assert float(F.bc_error(label, label, squashed=False)[0]) == pytest.approx(0.0, abs=1e-12)
-    off = F.bc_error(jnp.tanh(label) + 0.1, label, squashed=True)
+    off = F.bc_error(label + 0.1, label, squashed=True)
     assert float(off[0]) == pytest.approx(3 * 0.01, rel=1e-5)
 
 

@@ -24,14 +24,14 @@ def _expert(name, terms, scale, bias):
 def test_each_expert_reaches_the_same_targets_in_the_student_map():
     getup = _expert("getup", obsdef.TERMS_GETUP, 2.0, 0.3)
     joystick = _expert("joystick", obsdef.TERMS_UNION, 0.5, 0.3)
-    teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, 2.0, student_tanh_squash=True)
+    teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, 2.0)
     action, extra = teacher(_obs())
     action, loc = np.asarray(action), np.asarray(extra["loc"])
     np.testing.assert_allclose(2.0 * action[0], 2.0 * np.tanh(0.3), rtol=1e-6)   # getup: its own map
     np.testing.assert_allclose(2.0 * action[1], 0.5 * np.tanh(0.3), rtol=1e-5)   # joystick: same targets
-    np.testing.assert_allclose(np.tanh(loc), action, rtol=1e-5)   # a squashing student acts with tanh(loc)
+    np.testing.assert_array_equal(loc, action)                   # the student acts with loc itself
     with pytest.raises(ValueError, match="exceeds the student's"):
-        make_teacher(getup, joystick, obsdef.TERMS_UNION, 0.5, student_tanh_squash=True)
+        make_teacher(getup, joystick, obsdef.TERMS_UNION, 0.5)
 
 
 def _obs():
@@ -40,20 +40,18 @@ def _obs():
     return {STUDENT_OBS_KEY: obs, WAIST_OBS_KEY: jnp.array([[0.2], [0.6]])}
 
 
-@pytest.mark.parametrize("tanh_squash", [False, True])
-def test_brax_bc_loss_is_least_where_the_student_executes_the_teachers_action(tanh_squash):
+def test_brax_bc_loss_is_least_where_the_student_executes_the_teachers_action():
     """brax bc's loss compares tanh(loc) whatever the output rule. A student without squash (Table 5.2) acts
     with loc, so its minimiser must be the teacher's action itself, also for saturated getup actions."""
     from brax.training.agents.bc.losses import bc_loss
     getup = _expert("getup", obsdef.TERMS_GETUP, 2.0, 1.5)        # tanh(1.5) = 0.905: a large getup target
     joystick = _expert("joystick", obsdef.TERMS_UNION, 0.5, 0.3)
-    teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, 2.0, student_tanh_squash=tanh_squash)
+    teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, 2.0)
     obs = _obs()
     teacher_action, extras = teacher(obs)
 
     def loss_if_student_executes(executed):
-        loc = jnp.arctanh(executed) if tanh_squash else executed   # the loc that makes the student act so
-        make_policy = lambda params: lambda o, key_sample=None: (None, {"loc": loc})
+        make_policy = lambda params: lambda o, key_sample=None: (None, {"loc": executed})   # it acts with loc
         return float(bc_loss(None, None, {"observations": obs, "teacher_action_extras": extras}, make_policy)[0])
 
     assert loss_if_student_executes(teacher_action) < 1e-8
@@ -72,7 +70,7 @@ def test_each_expert_reads_its_own_previous_action():
     joystick = Expert("joystick", ((probe, np.zeros(2 * N, np.float32)),), np.zeros(size, np.float32),
                       np.ones(size, np.float32), "swish", obsdef.TERMS_UNION, np.full(N, 0.5, np.float32))
     getup = _expert("getup", obsdef.TERMS_GETUP, 2.0, 0.3)     # reads no last action: untouched
-    teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, 2.0, student_tanh_squash=False)
+    teacher = make_teacher(getup, joystick, obsdef.TERMS_UNION, 2.0)
     last_student = np.zeros((2, N), np.float32)
     last_student[1, :2] = (0.1, 0.6)          # the joystick's own 0.4, and a getup target beyond its range
     obs = _obs()
@@ -89,14 +87,14 @@ def test_the_chain_teacher_acts_with_the_stage_s_member():
     from training.distill.teacher import STAGE_OBS_KEY, make_chain_teacher
     members = [_expert(name, obsdef.TERMS_GETUP, 2.0, bias) for name, bias in (("roll", 0.1), ("rise", 0.2),
                                                                                 ("stand", 0.3))]
-    teacher = make_chain_teacher(members, obsdef.TERMS_GETUP, 2.0, student_tanh_squash=False)
+    teacher = make_chain_teacher(members, obsdef.TERMS_GETUP, 2.0)
     obs = {STUDENT_OBS_KEY: jnp.zeros((3, obsdef.observation_size(obsdef.TERMS_GETUP))),
            STAGE_OBS_KEY: jnp.array([[2.0], [0.0], [1.0]])}
     action, extra = teacher(obs)
     np.testing.assert_allclose(np.asarray(action)[:, 0], np.tanh([0.3, 0.1, 0.2]), rtol=1e-6)
     np.testing.assert_allclose(np.asarray(extra["loc"]), np.asarray(action), rtol=1e-6)
     with pytest.raises(ValueError, match="a chain teacher has 3 members"):
-        make_chain_teacher(members[:2], obsdef.TERMS_GETUP, 2.0, student_tanh_squash=False)
+        make_chain_teacher(members[:2], obsdef.TERMS_GETUP, 2.0)
 
 
 def test_distill_names_a_bad_teacher(capsys):

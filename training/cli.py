@@ -59,7 +59,7 @@ def _cmd_distill(args, command: str) -> int:
         teacher, args.out or f"{RUNS_DIR}/{args.name}", task=args.task, overrides=args.config,
         preset="toy" if args.toy else "gpu", seed=args.seed, num_envs=args.envs, ship=args.ship,
         command=command, progress=not args.no_progress, max_minutes=args.max_minutes, backend=args.backend,
-        name=args.name, from_checkpoint=args.from_, init_artifact=args.init, end_at=args.end_at)
+        name=args.name, from_checkpoint=args.from_, end_at=args.end_at)
     print(f"{result.run_dir}: {result.dagger_steps} DAgger phases, artifact {result.artifact} "
           f"(output rule {result.output_rule})")
     return 0
@@ -204,9 +204,6 @@ def _add_distill(sub) -> None:
     p.add_argument("--from", dest="from_", metavar="CHECKPOINT",
                    help="go on from a distill run's checkpoint (or its run directory → the newest) into a new --out; "
                         "the phase count, curve and provenance continue")
-    p.add_argument("--init", metavar="ARTIFACT",
-                   help="the student starts as this expert of the teacher (its layers and held observation "
-                        "statistics; needs --config bc.tanh_squash=True)")
     p.add_argument("--end-at", type=int, metavar="PHASE",
                    help="end the run, finished, at this phase's checkpoint (its schedule stays that of "
                         "bc.dagger_steps)")

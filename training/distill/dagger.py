@@ -12,8 +12,7 @@ hand-overs between them, as the seed's student does; `task` picks another env (e
 
 Export: brax bc's policy network is the PPO policy MLP with a NormalTanhDistribution head (2·23 outputs:
 loc, scale). Without tanh squash (the seed's choice) brax acts with `loc` itself: exported as output rule
-`linear` with the last layer cut to its first 23 rows (the `loc` half). With `bc.tanh_squash=True` the
-action is tanh(loc), the artifact's `tanh_normal` rule, exported unchanged.
+`linear` with the last layer cut to its first 23 rows (the `loc` half).
 """
 from __future__ import annotations
 
@@ -40,18 +39,18 @@ from training import envs
 from training.core import checkpoints
 from training.core import curves
 from training.core.backend import default_backend
-from training.core.networks import ACTIVATION, NORMALIZER_COUNT, held_normalizer
+from training.core.networks import ACTIVATION
 from training.core.overrides import apply_overrides
 from training.core.overrides import TOY_ENV_OVERRIDES
 from training.distill.teacher import STITCHED, STUDENT_OBS_KEY, load_teacher, teacher_kind, teacher_observation
-from training.envs.policy_files import artifact_params
 from training.export.brax import export_brax_ppo
 from training.export.brax import ship_artifact
 
 DEFAULT_TASK = "unified"  # the whole walk–fall–getup task (training/envs/unified.py); cli.py repeats it
-# what the learner and its teacher are (its output rule, the chain's hand-over): a toy run keeps them
-# (recipes/runner.py), as it keeps its sizes and rates at the toy preset's
-LEARNER_KEYS = ("bc.tanh_squash", "bc.handover_up_error")
+# what the learner's teacher is (the chain's hand-over): a toy run keeps it (recipes/runner.py), as it keeps its
+# sizes and rates at the toy preset's
+LEARNER_KEYS = ("bc.handover_up_error",)
+OUTPUT_RULE = "linear"   # the student acts with brax bc's loc, no tanh squash (Table 5.2)
 
 
 def bc_config(preset: str = "gpu") -> config_dict.ConfigDict:
@@ -64,7 +63,7 @@ def bc_config(preset: str = "gpu") -> config_dict.ConfigDict:
         num_evals=11,  # the initial evaluation + the seed's 10
         num_eval_envs=128, eval_length_factor=1.15,  # × the env's episode length (Table 5.2: 1150 of 1000)
         scramble_time=0,  # 0: the env's episode length (Table 5.2: 1000)
-        reset=True, tanh_squash=False, policy_hidden_layer_sizes=(512, 256, 128),
+        reset=True, policy_hidden_layer_sizes=(512, 256, 128),
         # the chain teacher's rise → stand hand-over of labels: §4.8's gate (0.01); looser, a memoryless student
         # that cannot see the latch gets one label where the kneel is still (common/events.keyframe_stage)
         handover_up_error=events.KNEEL_GATE_UP_ERROR)
@@ -151,17 +150,13 @@ def loc_half(policy_params) -> dict:
     return {"params": inner}
 
 
-def export_student(params, env, path, name: str, tanh_squash: bool, trained: bool, provenance: dict) -> str:
-    """brax bc (normalizer, policy) → artifact; returns the output rule written."""
-    policy = params[1]
-    output_rule = "tanh_normal"
-    if not tanh_squash:  # act = loc
-        policy, output_rule = loc_half(policy), "linear"
+def export_student(params, env, path, name: str, trained: bool, provenance: dict) -> str:
+    """brax bc (normalizer, policy) → artifact (act = loc: output rule `linear`); returns the output rule."""
     manifest = dict(env.manifest_fields())
-    manifest.update(name=name, activation=ACTIVATION, output_rule=output_rule, trained=trained,
+    manifest.update(name=name, activation=ACTIVATION, output_rule=OUTPUT_RULE, trained=trained,
                     provenance=provenance)
-    export_brax_ppo((params[0], policy), manifest, path)
-    return output_rule
+    export_brax_ppo((params[0], loc_half(params[1])), manifest, path)
+    return OUTPUT_RULE
 
 
 def dagger_configs(task: str, preset: str, overrides: Sequence[str], num_envs: int | None, union_terms: bool = True):
@@ -183,31 +178,6 @@ def dagger_configs(task: str, preset: str, overrides: Sequence[str], num_envs: i
     if cfg.dagger_steps % evals_after_init:
         raise ValueError(f"dagger_steps {cfg.dagger_steps} must be a multiple of num_evals − 1 = {evals_after_init}")
     return cfg, env_cfg
-
-
-def expert_start(artifact, cfg, env, wrapped) -> tuple:
-    """(held normaliser, brax bc policy params) with which a student starts as the expert `artifact` acts: its
-    layers and observation statistics, the statistics held (NORMALIZER_COUNT), so that the expert's behaviour is
-    where the DAgger fit starts and stays where the teacher is that expert. The expert must be brax's tanh-normal
-    policy on the student's observation layout, action map and hidden sizes, and the student tanh-squashed."""
-    params, mean, std, manifest = artifact_params(artifact)
-    if manifest["output_rule"] != "tanh_normal" or not cfg.tanh_squash:
-        raise ValueError(f"{artifact}: a student starts from an expert only as brax's tanh-normal policy (output "
-                         f"rule {manifest['output_rule']!r}, bc.tanh_squash {cfg.tanh_squash}; give bc.tanh_squash=True)")
-    if [list(t) for t in manifest["obs_terms"]] != [list(t) for t in env.obs_terms]:
-        raise ValueError(f"{artifact}: its observation terms {manifest['obs_terms']} are not the student's "
-                         f"{[list(t) for t in env.obs_terms]}")
-    if not np.allclose(np.broadcast_to(manifest["action_scale"], (obsdef.NUM_JOINTS,)),
-                       np.broadcast_to(env.manifest_fields()["action_scale"], (obsdef.NUM_JOINTS,))):
-        raise ValueError(f"{artifact}: its action scale is not the student env's")
-    sizes = [layer["kernel"].shape[1] for layer in params["params"].values()]
-    if sizes != [*cfg.policy_hidden_layer_sizes, 2 * obsdef.NUM_JOINTS]:
-        raise ValueError(f"{artifact}: its layers {sizes} are not the student's "
-                         f"{[*cfg.policy_hidden_layer_sizes, 2 * obsdef.NUM_JOINTS]} (bc.policy_hidden_layer_sizes)")
-    shapes = jax.eval_shape(wrapped.reset, jax.random.split(jax.random.PRNGKey(0), 1)).obs
-    stats = {k: (mean, std) if k == STUDENT_OBS_KEY else (np.zeros(v.shape[-1]), np.ones(v.shape[-1]))
-             for k, v in shapes.items()}
-    return held_normalizer(stats, NORMALIZER_COUNT), params
 
 
 def _newest_params(run_dir: Path, params):
@@ -243,22 +213,18 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
             preset: str = "gpu", seed: int = 0, num_envs: int | None = None, ship: bool = False,
             command: str = "", progress: bool = True, max_minutes: float | None = None,
             name: str = "student", backend: str | None = None, from_checkpoint=None,
-            recipe: dict | None = None, init_artifact=None, end_at: int | None = None) -> DistillResult:
+            recipe: dict | None = None, end_at: int | None = None) -> DistillResult:
     """One DAgger run from `teacher` ({role: artifact}: getup + joystick, the stitched teacher; roll + rise +
     stand, the keyframe getup's chain); with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
     student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
     and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
-    continue from that run's (STATE_FILE), so a campaign goes on across sessions. With `init_artifact` (an expert
-    of the teacher) the student starts as that expert (expert_start). With `end_at` (a phase of this run with a
-    checkpoint: a multiple of dagger_steps / (num_evals − 1)) the run ends there, finished, on the schedule of its
-    dagger_steps (β, evaluation resets): a campaign's best phase as its end."""
+    continue from that run's (STATE_FILE), so a campaign goes on across sessions. With `end_at` (a phase of this
+    run with a checkpoint: a multiple of dagger_steps / (num_evals − 1)) the run ends there, finished, on the
+    schedule of its dagger_steps (β, evaluation resets): a campaign's best phase as its end."""
 
     checkpoints.jax_setup()
     t_start = time.monotonic()
     run_dir = Path(out).resolve()  # orbax (GPU machine) refuses relative checkpoint paths
-    if from_checkpoint is not None and init_artifact is not None:
-        raise ValueError("distill: a student goes on from a DAgger checkpoint (--from) or starts as an expert "
-                         "(--init), not both")
     if checkpoints.list_checkpoints(run_dir):
         raise FileExistsError(f"{run_dir}: already holds DAgger checkpoints; give a new --out "
                               f"(continue a run with --from {run_dir})")
@@ -269,8 +235,7 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     check_end_at(end_at, cfg)
     env_cfg.backend = backend or default_backend()
     env, wrapped = _dagger_env(task, env_cfg, teacher, float(cfg.handover_up_error))
-    start = None if init_artifact is None else expert_start(init_artifact, cfg, env, wrapped)
-    teacher_fn = load_teacher(teacher, env.obs_terms, env.manifest_fields()["action_scale"], cfg.tanh_squash)
+    teacher_fn = load_teacher(teacher, env.obs_terms, env.manifest_fields()["action_scale"])
     episode_length = int(env_cfg.episode_length)
     factory = functools.partial(bc_networks.make_bc_networks,
                                 policy_hidden_layer_sizes=tuple(cfg.policy_hidden_layer_sizes),
@@ -295,7 +260,7 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     _write_state(run_dir, before, phase_env_steps, before["phases"], before["steps"], artifact=f"{name}.safetensors",
                  command=command or "unknown", date=checkpoints.utc_now(), finished=False)
     params, stopped = _train_bc(cfg, wrapped, teacher_fn, factory, progress_fn, seed, episode_length,
-                                (run_dir / checkpoints.CHECKPOINT_DIR).resolve(), before["checkpoint"], start)
+                                (run_dir / checkpoints.CHECKPOINT_DIR).resolve(), before["checkpoint"])
     bar.close()
     log.close()
     curves.plot_curves(log.csv_path, run_dir / curves.PNG_NAME, title=f"{name} (DAgger)")
@@ -303,36 +268,33 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
     minutes = (time.monotonic() - t_start) / 60.0
     provenance = {**_provenance(before, phases, phase_env_steps, minutes, command), "preset": preset,
                   "backend": env_cfg.backend, "teacher": {k: str(v) for k, v in teacher.items()},
-                  "stopped_by_max_minutes": stopped, **({"recipe": recipe} if recipe else {}),
-                  **({"init": str(init_artifact)} if init_artifact is not None else {})}
+                  "stopped_by_max_minutes": stopped, **({"recipe": recipe} if recipe else {})}
     artifact = run_dir / f"{name}.safetensors"
     trained = provenance["dagger_phases"] > 0 and preset != "toy"
     _write_state(run_dir, before, phase_env_steps, provenance["dagger_phases"], provenance["steps"],
                  artifact=artifact.name, command=provenance["command"], date=provenance["date"],
                  minutes=provenance["minutes"], stopped_by_max_minutes=stopped, finished=True,
                  **({"end_at": int(end_at)} if end_at is not None else {}))
-    rule = export_student(params, env, artifact, name, cfg.tanh_squash, trained, provenance)
+    rule = export_student(params, env, artifact, name, trained, provenance)
     if ship and not stopped:
         ship_artifact(artifact, {"task": f"distill ({task} env)"})
     return DistillResult(run_dir, artifact, phases, rule, minutes)
 
 
 def _train_bc(cfg, env, teacher, network_factory, progress_fn, seed: int, episode_length: int, ckpt_root: Path,
-              restore, start=None) -> tuple[object, bool]:
+              restore) -> tuple[object, bool]:
     """brax bc's DAgger loop with the run's settings, checkpointing under `ckpt_root`, from `restore` (a
-    checkpoint or None) or `start` ((normaliser, policy params) or None); (its params, or None when
-    --max-minutes stopped it, and whether it was stopped)."""
+    checkpoint or None); (its params, or None when --max-minutes stopped it, and whether it was stopped)."""
     try:
         _, params, _ = bc.train(
             demo_length=cfg.demo_length, teacher_inference_fn=teacher,
-            normalize_observations=cfg.normalize_observations, epochs=cfg.epochs, tanh_squash=cfg.tanh_squash,
+            normalize_observations=cfg.normalize_observations, epochs=cfg.epochs, tanh_squash=False,
             env=env, num_envs=cfg.num_envs, num_eval_envs=cfg.num_eval_envs,
             eval_length=round(cfg.eval_length_factor * episode_length), batch_size=cfg.batch_size,
             scramble_time=cfg.scramble_time or episode_length, network_factory=network_factory,
             progress_fn=progress_fn, seed=seed, learning_rate=cfg.learning_rate, dagger_steps=cfg.dagger_steps,
             dagger_beta_fn=beta_schedule(cfg.beta_teacher_phases, cfg.beta_floor, cfg.beta_decay_phases), num_evals=cfg.num_evals,
-            reset=cfg.reset, save_checkpoint_path=str(ckpt_root), restore_checkpoint_path=restore,
-            restore_params=start)
+            reset=cfg.reset, save_checkpoint_path=str(ckpt_root), restore_checkpoint_path=restore)
     except _Stop:
         return None, True
     except _Ended:

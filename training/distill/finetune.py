@@ -3,20 +3,18 @@ own outcomes): PPO on the unified env's "skills" reward (training/envs/unified.p
 DAgger weights, plus a behaviour-cloning term toward the stitched teacher's labels that decays, so the student
 keeps both skills while PPO changes what the teacher does badly (the seam at the waist switch).
 
-Policy. A student distilled without tanh (the seed's Table 5.2, output rule `linear`: distill/dagger.py) acts with
-its mean, so PPO samples around it with brax's "normal" distribution (ppo.policy_distribution "normal"), a
+Policy. The student, distilled without tanh (the seed's Table 5.2, output rule `linear`: distill/dagger.py), acts
+with its mean, so PPO samples around it with brax's "normal" distribution (ppo.policy_distribution "normal"), a
 state-independent learned std (ppo.init_noise_std at the start, in action units: 2 rad per unit on most joints);
-the DAgger net's hidden layers become the PPO policy's MLP and its last layer's loc half the mean layer. A student
-distilled with bc.tanh_squash (the keyframe chain's, which starts as one of its tanh-normal experts) is brax's
-tanh-normal policy already: under ppo.policy_distribution "tanh_normal" its layers stay as they are and the scale
-half gives the pre-tanh std init_noise_std (core/networks.tanh_normal_policy). Either way the student's own
-observation normaliser (held where the student started as an expert) comes along, and the critic starts fresh
-(ppo.value_warmup_steps: ppo/train.py).
-BC term, added to brax's PPO loss, on the action the policy executes at its mode (tanh(μ) for tanh-normal):
-    mean over the batch of w_i(n) · Σ_joints (squash(mode) − tanh(label))²      (brax bc's own loss, distill/dagger.py)
+the DAgger net's hidden layers become the PPO policy's MLP and its last layer's loc half the mean layer. The
+student's own observation normaliser comes along, and the critic starts fresh (ppo.value_warmup_steps:
+ppo/train.py).
+BC term, added to brax's PPO loss, on the action the policy executes at its mode:
+    mean over the batch of w_i(n) · e_i                                            (e_i: bc_error)
     w_i(n) = teacher.bc_weight · max(0, 1 − n / teacher.bc_decay_steps)
-with squash = tanh for the "normal" policy (its mode is μ) and the identity for tanh-normal (its mode is tanh(μ)),
-the label in the student's own output rule (teacher.py) and n the env steps of this fine-tune, read from the
+with e_i = Σ_joints (tanh(mode) − tanh(label))² for the "normal" policy (its mode is μ: brax bc's own loss,
+distill/dagger.py) and Σ_joints (mode − label)² for tanh-normal (its mode is tanh(μ), the executed action), the
+label the teacher's action in the student's map (teacher.py) and n the env steps of this fine-tune, read from the
 observation normaliser's sample count (one sample per env step; the only step counter brax hands its loss) minus
 the count it started from (the run state's `bc_count_start`). With teacher.bc_hold_in_course, samples of wall-course episodes keep teacher.bc_weight
 (no decay): there the teacher trips across the wall and gets up beyond, the one way on for a blind policy,
@@ -38,7 +36,6 @@ from ml_collections import config_dict
 from common import events
 from common import observation as obsdef
 from training.core.extension import PPOExtension
-from training.core.networks import tanh_normal_policy
 from training.distill.teacher import load_teacher
 from training.distill.teacher import teacher_observation
 from training.export.brax import NORMAL
@@ -87,8 +84,8 @@ def policy_from_student(student_policy, init_noise_std: float) -> dict:
 
 
 def init_params(restored, ppo_cfg):
-    """A run's first params: a DAgger checkpoint becomes the PPO policy of ppo.policy_distribution (module
-    docstring) with no critic (None: brax initialises it); anything else is returned as it is."""
+    """A run's first params: a DAgger checkpoint becomes the "normal" PPO policy (module docstring) with no critic
+    (None: brax initialises it); anything else is returned as it is."""
     if restored is None or not is_student_checkpoint(restored):
         return restored
     if not uses_teacher(ppo_cfg):
@@ -96,7 +93,8 @@ def init_params(restored, ppo_cfg):
                          ".joystick, or .roll, .rise and .stand; .bc_weight > 0): its observation normaliser also "
                          "reads what the teacher switches on")
     if ppo_cfg.policy_distribution != NORMAL:
-        return [restored[0], tanh_normal_policy(restored[1], float(ppo_cfg.init_noise_std)), None]
+        raise ValueError(f"a DAgger student acts with its mean (output rule linear): it fine-tunes under "
+                         f"ppo.policy_distribution={NORMAL!r}, got {ppo_cfg.policy_distribution!r}")
     if not float(ppo_cfg.init_noise_std) > 0:
         raise ValueError(f"ppo.init_noise_std must be > 0 (the sampling std), got {ppo_cfg.init_noise_std}")
     return [restored[0], policy_from_student(restored[1], float(ppo_cfg.init_noise_std)), None]
@@ -168,8 +166,10 @@ def extension(ppo_cfg, restored=None) -> PPOExtension:
 
 
 def bc_error(mode, label, squashed: bool):
-    """Σ_joints (squash(mode) − tanh(label))² per sample (module docstring); squashed: the mode is tanh(μ) already."""
-    return jnp.sum(jnp.square((mode if squashed else jnp.tanh(mode)) - jnp.tanh(label)), axis=-1)
+    """The BC error per sample (module docstring); squashed: the mode is tanh(μ), the executed action, already."""
+    if squashed:
+        return jnp.sum(jnp.square(mode - label), axis=-1)
+    return jnp.sum(jnp.square(jnp.tanh(mode) - jnp.tanh(label)), axis=-1)
 
 
 @contextlib.contextmanager
@@ -180,8 +180,7 @@ def teacher_term(ppo_cfg, env, count_start: float):
         return
     t = ppo_cfg.teacher
     squashed = ppo_cfg.policy_distribution != NORMAL          # the mode is tanh(μ) already
-    teacher = load_teacher(teacher_roles(ppo_cfg), env.obs_terms, env.manifest_fields()["action_scale"],
-                           student_tanh_squash=squashed)
+    teacher = load_teacher(teacher_roles(ppo_cfg), env.obs_terms, env.manifest_fields()["action_scale"])
     weight, decay = float(t.bc_weight), int(t.bc_decay_steps)
     hold = bool(t.bc_hold_in_course)
     ppo_loss = ppo_losses.compute_ppo_loss

@@ -86,8 +86,7 @@ class KeyframeStageObservation:
         return self._add(nxt, jnp.where(nxt.done > 0, events.KEYFRAME_START, stage))   # an auto-reset: over
 
 
-def switched_teacher(experts: Sequence[Expert], pick, student_terms: Sequence, student_action_scale,
-                     student_tanh_squash: bool):
+def switched_teacher(experts: Sequence[Expert], pick, student_terms: Sequence, student_action_scale):
     """brax-bc teacher: obs dict {"state": student-layout obs, plus what `pick` reads} → (action, {"loc": label})
     in the STUDENT's action map, from experts[pick(obs)] (pick: the acting expert's index, (..., 1)). The experts'
     maps differ (joystick ±0.5 rad around home, getup up to 2 rad): each expert's action is turned into the same
@@ -101,10 +100,9 @@ def switched_teacher(experts: Sequence[Expert], pick, student_terms: Sequence, s
     matters only on the first tick after another expert or the student acted with targets outside the expert's range.
 
     The label is what the student must output to execute a_s. brax bc's loss is
-    ‖tanh(loc_student) − tanh(label)‖² whatever the student's output rule, so it is minimised at
-    loc_student = label. A tanh-squashed student acts with tanh(loc): label = atanh(a_s). A student without
-    squash (the seed's Table 5.2) acts with loc itself: label = a_s. (With atanh(a_s) it would execute
-    atanh(a_s), e.g. 1.47 for a teacher's 0.9, overshooting every large getup target.)"""
+    ‖tanh(loc_student) − tanh(label)‖², minimised at loc_student = label, and the student (no tanh squash, the
+    seed's Table 5.2) acts with loc itself: label = a_s. (With atanh(a_s) it would execute atanh(a_s), e.g. 1.47
+    for a teacher's 0.9, overshooting every large getup target.)"""
     adapters = [TermAdapter(student_terms, e.obs_terms) for e in experts]
     s_student = per_joint(student_action_scale)
     ratios = [e.action_scale / s_student for e in experts]
@@ -122,43 +120,33 @@ def switched_teacher(experts: Sequence[Expert], pick, student_terms: Sequence, s
         own = jnp.clip(obs[..., last_action_at[i]] / jnp.asarray(ratios[i]), -1.0, 1.0)
         return obs.at[..., last_action_at[i]].set(own)
 
-    def in_student_map(i, loc):
-        ratio = jnp.asarray(ratios[i])
-        action = jnp.tanh(loc) * ratio
-        if not student_tanh_squash:
-            return action, action
-        # where the maps agree keep loc exactly (no atanh round trip at saturation)
-        return action, jnp.where(ratio == 1.0, loc, jnp.arctanh(jnp.clip(action, -1 + 1e-6, 1 - 1e-6)))
-
     def teacher(obs, key=None):
         del key  # deterministic experts
         state = obs[STUDENT_OBS_KEY]
         acting = pick(obs)
-        out = [in_student_map(i, e.loc(expert_obs(i, state))) for i, e in enumerate(experts)]
-        action, label = (jnp.select([acting == i for i in range(len(experts))], [o[k] for o in out])
-                         for k in (0, 1))
-        return action, {"loc": label}
+        out = [jnp.tanh(e.loc(expert_obs(i, state))) * jnp.asarray(ratios[i]) for i, e in enumerate(experts)]
+        action = jnp.select([acting == i for i in range(len(experts))], out)
+        return action, {"loc": action}
 
     return teacher
 
 
 def make_teacher(getup: Expert, joystick: Expert, student_terms: Sequence, student_action_scale,
-                 student_tanh_squash: bool, switch_height_m: float = WAIST_SWITCH_HEIGHT_M):
+                 switch_height_m: float = WAIST_SWITCH_HEIGHT_M):
     """The stitched teacher (switched_teacher): the getup expert where obs[WAIST_OBS_KEY] < switch_height_m, else
     the joystick expert."""
     return switched_teacher((getup, joystick), lambda obs: (obs[WAIST_OBS_KEY] >= switch_height_m).astype(int),
-                            student_terms, student_action_scale, student_tanh_squash)
+                            student_terms, student_action_scale)
 
 
-def make_chain_teacher(members: Sequence[Expert], student_terms: Sequence, student_action_scale,
-                       student_tanh_squash: bool):
+def make_chain_teacher(members: Sequence[Expert], student_terms: Sequence, student_action_scale):
     """The keyframe getup's latched chain as the teacher (switched_teacher): roll, rise, stand by
     obs[STAGE_OBS_KEY], the stage KeyframeStageObservation carries (common/events.keyframe_stage)."""
     if len(members) != len(events.KEYFRAME_STAGES):
         raise ValueError(f"a chain teacher has {len(events.KEYFRAME_STAGES)} members "
                          f"({', '.join(events.KEYFRAME_STAGES)}), got {len(members)}")
     return switched_teacher(tuple(members), lambda obs: obs[STAGE_OBS_KEY].astype(int), student_terms,
-                            student_action_scale, student_tanh_squash)
+                            student_action_scale)
 
 
 STITCHED, CHAIN = ("getup", "joystick"), tuple(events.KEYFRAME_STAGES)   # a teacher's roles
@@ -174,13 +162,13 @@ def teacher_kind(roles) -> tuple[str, ...]:
                      f"keyframe getup's chain), got {sorted(roles)}")
 
 
-def load_teacher(roles: dict, student_terms: Sequence, student_action_scale, student_tanh_squash: bool):
+def load_teacher(roles: dict, student_terms: Sequence, student_action_scale):
     """The teacher of {role: expert path} (teacher_kind's roles): make_teacher or make_chain_teacher."""
     kind = teacher_kind(roles)
     experts = [load_expert(roles[role], role) for role in kind]
     if kind == STITCHED:
-        return make_teacher(*experts, student_terms, student_action_scale, student_tanh_squash=student_tanh_squash)
-    return make_chain_teacher(experts, student_terms, student_action_scale, student_tanh_squash=student_tanh_squash)
+        return make_teacher(*experts, student_terms, student_action_scale)
+    return make_chain_teacher(experts, student_terms, student_action_scale)
 
 
 def teacher_observation(roles: dict, handover_up_error: float = events.KNEEL_GATE_UP_ERROR):
@@ -200,8 +188,7 @@ def check_teacher(getup_path, joystick_path, num_envs: int = 16, seed: int = 0, 
     env = envs.make(task, config_overrides=overrides)
     student_terms = obsdef.TERMS_UNION
     to_student = TermAdapter(env.obs_terms, student_terms)
-    teacher = make_teacher(getup, joystick, student_terms, env.manifest_fields()["action_scale"],
-                           student_tanh_squash=False)  # the check executes the action only
+    teacher = make_teacher(getup, joystick, student_terms, env.manifest_fields()["action_scale"])
 
     def act(state):
         obs = {STUDENT_OBS_KEY: to_student(state.obs[STUDENT_OBS_KEY]),

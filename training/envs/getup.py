@@ -4,11 +4,8 @@ that step the standing's with its bonuses (getup_rewards.py). The gate is per st
 until the trunk is down pays a policy that meets it once and then tilts.
 Ours, off by default: `knockdown_starts` (starts/knockdown.py) replaces a share of the fallen starts by the
 joystick expert's landings after a push; `demo_starts` (starts/demos.py) by states along the planner's rises to
-the kneel, where a student distilled from the keyframe chain learns the rise's last stretch to the gate;
-`reward.scales.upright`, the kneel task's slope toward the gate's tilt at its height (getup_rewards.
-upright_at_gate_height), which a standing trunk earns too: a stand a degree or two off vertical meets no gate,
-and so earns the kneel's rewards, not the standing ones. The evaluations (`python -m training evaluate`) build this
-task for its fallen starts and physics.
+the kneel, where a student distilled from the keyframe chain learns the rise's last stretch to the gate.
+The evaluations (`python -m training evaluate`) build this task for its fallen starts and physics.
 """
 from __future__ import annotations
 
@@ -16,13 +13,12 @@ import jax
 from ml_collections import config_dict
 
 from training.envs import getup_base, starts
-from training.envs import getup_rewards as G
 
 
 def default_config() -> config_dict.ConfigDict:
     cfg = getup_base.base_config()
     cfg.start_probs = [0.4, 0.4, 0.2]      # (fallen, kneeling, standing), §4.5
-    cfg.reward = config_dict.create(scales=config_dict.create(height=1.0, pose=1.0, upright=0.0, energy=0.0))
+    cfg.reward = config_dict.create(scales=config_dict.create(height=1.0, pose=1.0, energy=0.0))
     starts.add_config_groups(cfg, "getup")   # fallen starts, knockdown landings, demonstration states
     return cfg
 
@@ -36,5 +32,4 @@ class Getup(getup_base.GetupTask):
 
     def _reward_terms(self, data, info) -> dict[str, jax.Array]:
         height, pose = self.gated_rewards(data.qpos[7:], info, info["gate"])
-        return {"height": height, "pose": pose, "upright": G.upright_at_gate_height(info["trunk_height"], info["up"]),
-                "energy": self.energy_cost(data)}
+        return {"height": height, "pose": pose, "energy": self.energy_cost(data)}

@@ -73,9 +73,11 @@ SPLIT: dict[str, dict[str, dict[str, Any]]] = {
                            "stage2_fall_up_z": "fall_up_z"},
                "removed": {"stage": UNUSED, "start_probs": UNUSED, **dict.fromkeys(_STAGE1_KEYS, UNUSED),
                            "gate_latches": False, "knockdown_starts": {"prob": 0.0}, "demo_starts": {"prob": 0.0}}},
+    # also today's getup runs (no env.stage); reward.scales.upright: the kneel task's slope, once the full task's too
     "full": {"renamed": {},
              "removed": {"stage": UNUSED, **dict.fromkeys(_STAGE1_KEYS + _STAGE2_KEYS, UNUSED),
-                         "reverse_curriculum": UNUSED, "gate_latches": False, "demo_starts": {"prob": 0.0}}},
+                         "reverse_curriculum": UNUSED, "gate_latches": False, "demo_starts": {"prob": 0.0},
+                         "reward.scales.upright": 0.0}},
 }
 
 

@@ -53,7 +53,7 @@ class Stage:
     # schedule stays that of `steps`)
     end_at: int | None = None
     # ppo: start from init's exported artifact (a fresh critic, the sampling std of ppo.init_noise_std) in place
-    # of its checkpoint; distill: the student starts as init's artifact (an expert of the teacher)
+    # of its checkpoint
     init_artifact: bool = False
     # imitation: the earlier imitation stage whose campaign folder this stage's rounds are appended to
     continues: str | None = None
@@ -97,9 +97,8 @@ class Recipe:
                 raise ValueError(f"recipe {self.name}, stage {s.name}: end_at is a PPO stage's checkpoint, in env "
                                  f"steps within its {s.steps:,}, or a distill stage's phase within its phases, "
                                  f"got {s.end_at!r}")
-            if s.init_artifact and (s.kind not in ("ppo", "distill") or s.init is None):
-                raise ValueError(f"recipe {self.name}, stage {s.name}: init_artifact is a PPO or distill stage's "
-                                 "with an init")
+            if s.init_artifact and (s.kind != "ppo" or s.init is None):
+                raise ValueError(f"recipe {self.name}, stage {s.name}: init_artifact is a PPO stage's with an init")
             self._check_rounds(s, names[:i])
             stitched, chain = {"getup", "joystick"}, {"roll", "rise", "stand"}
             if s.kind == "distill" and set(s.teacher) not in (stitched, chain):

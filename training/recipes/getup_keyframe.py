@@ -1,4 +1,4 @@
-"""The seed's keyframe getup (§4.5–4.9) as one network: fallen → (roll →) kneel → stand.
+"""The seed's keyframe getup (§4.5–4.9) as a switched chain of three members: fallen → (roll →) kneel → stand.
 
 Stages (each one line of why below; the runs behind each: training/LESSONS.md, the getup_keyframe rows):
 - stage 1, the rise to the kneel (task getup_kneel): DAgger with the sampling planner as the expert
@@ -12,14 +12,13 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
 - stage 0, the roll (task getup_roll, ours): from the back or side onto the front, where the rise is reliable;
   then with the side starts weighted up (roll_side); then the rise again, from where the roll hands over
   (rise_rolled).
-- stage 2, the stand from the kneel (task getup_stand) along a reverse curriculum of starts up the lunge.
-- the chain roll → rise → stand, latched at common/events.keyframe_stage's hand-overs, distilled into one
-  network by DAgger: a student that starts as the rise itself (chain_rise: a fit from scratch never got the
-  rise's precision), then with the labels handed over to the stand at a looser upright bound the memoryless
-  student can see (chain_handover, chain_loose, chain_student: at the gate itself it parks in the kneel); then
-  the seed's gated full task (fallen / kneeling / standing starts 0.4 / 0.4 / 0.2) from it with a decaying BC term
-  toward the chain it was distilled from (`full`), then the energy (§4.7) and observation-noise (§4.6) fine-tunes.
+- stage 2, the stand from the kneel (task getup_stand) along a reverse curriculum of starts up the lunge, then
+  from the kneels the chain's rise really hands over (stand_band).
+- the seed's energy fine-tune (§4.7) of each member: stand_energy, rise_energy, roll_energy.
 The runtime's target rule R6 is in every stage.
+The members ship as a switched chain, not as one network: policies/getup_keyframe/ holds the three artifacts and
+chain.json (common/keyframe_chain.py), which names them and the rise → stand hand-over; common/events.keyframe_stage
+switches and latches roll → rise → stand, in training's evaluation, the simulator's and the runtime's chain mode.
 """
 from training.recipes.base import Recipe, Stage
 
@@ -69,27 +68,10 @@ STAND_BAND = {**STAND, "env.rise_kneels.prob": 0.5, "env.rise_kneels.rise_policy
 # the seed's last step (§4.7): the energy cost Σ|q̇·τ/τmax| after height and pose, at the weight that quieted the
 # baseline's hops; a critic warm-up first (the return gained a term)
 ENERGY_COST = {"env.reward.scales.energy": -0.01, "ppo.value_warmup_steps": 300_000}
-# the chain the one network learns from: each stage's newest artifact
-CHAIN = {"roll": "@getup_keyframe/roll_side", "rise": "@getup_keyframe/rise_rolled", "stand": "@getup_keyframe/stand"}
-# the full task's starts (getup's default 0.4 / 0.4 / 0.2), fallen ones from a bank far from the evaluation's seeds
-STARTS = {"env.fallen.bank_starts": 1024, "env.fallen.seed": 3_000_000}
-# DAgger toward the chain for a student that starts as one of its tanh-normal experts: its output rule, a step
-# small enough to keep the expert it starts as, β falling to a floor that keeps the chain's states in every phase
-CHAIN_DAGGER = {**STARTS, "bc.tanh_squash": True, "bc.learning_rate": 1e-4, "bc.num_evals": 7,
-                "bc.beta_floor": 0.3, "bc.beta_decay_phases": 100}
-# PPO from the tanh-normal student at the rise's small noise and step, with a BC term toward the chain that
-# decays: full-task fine-tunes without one unlearned the stand-up within 1–4 M steps (LESSONS). Its labels hand
-# over at the student's own 2.9° (toward the gate's labels, which the student cannot copy, it unlearned the
-# stand-up too: period 6a). Still unlearned (periods 7–8): the chain stands 2.3° off vertical (median), where
-# §4.8's per-step gate, and with it the standing rewards, is off at 95 % of its standing ticks
-FULL = {**STARTS, "ppo.policy_distribution": "tanh_normal", "ppo.init_noise_std": 0.015, "ppo.entropy_cost": 0.0,
-        "ppo.learning_rate": 3e-5, "ppo.teacher.bc_weight": 3.0, "ppo.teacher.bc_decay_steps": 20_000_000,
-        "ppo.teacher.handover_up_error": 0.05}
-ENERGY = {**FULL, "env.reward.scales.energy": -0.01}
 
 RECIPE = Recipe(
     name="getup_keyframe", policy="getup_keyframe",
-    summary="the seed's keyframe getup through the kneel as one network (not shipped until it meets its targets)",
+    summary="the seed's keyframe getup through the kneel: roll, rise, stand, shipped as a switched chain",
     stages=(
         Stage("dagger", kind="imitation", steps=7, config=PLANNER),
         # its 1.5 M checkpoint rose most before the rise was lost at that noise (LESSONS: period 2)
@@ -127,20 +109,4 @@ RECIPE = Recipe(
         Stage("rise_energy", task="getup_kneel", steps=3_010_560, init="rise_rolled",
               config={**RISE_ROLLED, **ENERGY_COST}),
         Stage("roll_energy", task="getup_roll", steps=1_505_280, init="roll_side", config={**ROLL_SIDE, **ENERGY_COST}),
-        # the student starts as the rise; hand-over at the gate (periods 4–5 of the one network)
-        Stage("chain_rise", kind="distill", task="getup", steps=600, end_at=300, envs=1024, init="rise_rolled",
-              init_artifact=True, teacher=CHAIN, config={**CHAIN_DAGGER, "bc.beta_decay_phases": 300}),
-        Stage("chain_handover", kind="distill", task="getup", steps=600, end_at=200, envs=1024, init="chain_rise",
-              teacher=CHAIN, config={**CHAIN_DAGGER, "bc.handover_up_error": 0.03}),
-        Stage("chain_loose", kind="distill", task="getup", steps=600, envs=1024, init="chain_handover",
-              teacher=CHAIN, config={**CHAIN_DAGGER, "bc.handover_up_error": 0.05}),
-        # its phase 300 stood most (its phases swing: brax bc fits the newest phase's data only)
-        Stage("chain_student", kind="distill", task="getup", steps=400, end_at=300, envs=1024, init="chain_loose",
-              teacher=CHAIN, config={**CHAIN_DAGGER, "bc.num_evals": 5, "bc.handover_up_error": 0.05}),
-        Stage("full", task="getup", steps=30_000_000, init="chain_student", teacher=CHAIN,
-              config={**FULL, "ppo.value_warmup_steps": 500_000}),
-        Stage("energy", task="getup", steps=10_000_000, init="full", teacher=CHAIN,
-              config={**ENERGY, "ppo.value_warmup_steps": 500_000}),
-        Stage("noise", task="getup", steps=10_000_000, init="energy", teacher=CHAIN,
-              config={**ENERGY, "env.obs_noise_scale": 1.0}),
     ))

@@ -110,7 +110,7 @@ def ended_artifact(run_dir: Path, recipe: R.Recipe, stage: R.Stage) -> Path:
 
 def _policy_path(policy: str, recipe: R.Recipe, root: Path) -> Path:
     """The artifact of the stage `policy` names (at its end): what an imitation stage's rounds are rolled out
-    by, or what a stage with init_artifact starts from."""
+    by, or what a PPO stage with init_artifact starts from."""
     run_dir = _run_dir(policy, recipe, root)
     recipe, stage = _stage_of(policy, recipe)
     return ended_artifact(run_dir, recipe, stage)
@@ -266,7 +266,7 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         if not resume:
             raise FileExistsError(f"{dirs[-1]} holds an unfinished DAgger stage {s.name}: pass --resume to go on")
         start, done_phases = dirs[-1], _json(dirs[-1] / DISTILL_STATE).get("phases", 0)
-        before = _json(init / DISTILL_STATE).get("phases", 0) if init and not s.init_artifact else 0
+        before = _json(init / DISTILL_STATE).get("phases", 0) if init else 0
         phases = max(phases - (int(done_phases) - int(before)), 1)
         ends = None if ends is None else ends - (int(done_phases) - int(before))
         evals = math.gcd(phases, int(s.config.get("bc.num_evals", 11)) - 1)
@@ -276,14 +276,13 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         overrides += [f"bc.num_evals={evals + 1}"]
         out = root / recipe.name / f"{s.name}.{len(dirs) + 1}"
     else:
-        start, out = None if s.init_artifact else init, root / recipe.name / s.name
+        start, out = init, root / recipe.name / s.name
     if phases:
         overrides = [o for o in overrides if not o.startswith("bc.dagger_steps=")] + [f"bc.dagger_steps={phases}"]
     distill.distill(teacher, out, task=s.task or distill.DEFAULT_TASK,
                     overrides=overrides, preset="toy" if toy else "gpu", num_envs=None if toy else s.envs,
                     command=command, progress=progress, max_minutes=max_minutes, name=name, backend=backend,
-                    from_checkpoint=start, recipe=provenance,
-                    init_artifact=init if s.init_artifact and not dirs else None, end_at=ends)
+                    from_checkpoint=start, recipe=provenance, end_at=ends)
 
 
 def _run_rounds(recipe: R.Recipe, s: R.Stage, root: Path, overrides: list[str], *, resume: bool,
