@@ -97,6 +97,23 @@ def test_the_chain_teacher_acts_with_the_stage_s_member():
         make_chain_teacher(members[:2], obsdef.TERMS_GETUP, 2.0)
 
 
+def test_the_kneeling_teacher_is_the_chain_below_the_waist_switch_and_the_joystick_above():
+    """Roll, rise, stand by the stage while the waist is below 0.5 m; the joystick expert at or above it, whatever
+    the stage; the stage and waist wrappers compose for the DAgger env."""
+    from training.distill.teacher import (KNEELING, STAGE_OBS_KEY, WAIST_OBS_KEY, make_kneeling_teacher,
+                                          teacher_kind)
+    members = [_expert(name, obsdef.TERMS_UNION, 2.0, bias) for name, bias in (("roll", 0.1), ("rise", 0.2),
+                                                                                ("stand", 0.3), ("joystick", 0.4))]
+    teacher = make_kneeling_teacher(members, obsdef.TERMS_UNION, 2.0)
+    obs = {STUDENT_OBS_KEY: jnp.zeros((3, obsdef.observation_size(obsdef.TERMS_UNION))),
+           STAGE_OBS_KEY: jnp.array([[1.0], [2.0], [2.0]]), WAIST_OBS_KEY: jnp.array([[0.3], [0.49], [0.5]])}
+    action, _ = teacher(obs)
+    np.testing.assert_allclose(np.asarray(action)[:, 0], np.tanh([0.2, 0.3, 0.4]), rtol=1e-6)
+    assert teacher_kind({r: "x" for r in ("joystick", "stand", "rise", "roll")}) == KNEELING
+    with pytest.raises(ValueError, match="a kneeling teacher has 4 members"):
+        make_kneeling_teacher(members[:3], obsdef.TERMS_UNION, 2.0)
+
+
 def test_distill_names_a_bad_teacher(capsys):
     assert training_cli.main(["distill", "--getup", "g", "--out", "o"]) == 2
     assert "needs both --getup and --joystick" in capsys.readouterr().err

@@ -44,13 +44,14 @@ def _cmd_teacher(args, command: str) -> int:
 def _cmd_distill(args, command: str) -> int:
     from training.distill import dagger as distill   # lazy: keeps JAX out of --help
     from training.distill import teacher as T   # lazy: keeps JAX out of --help
-    if bool(args.chain) == bool(args.getup or args.joystick):
-        raise ValueError("distill: give either --getup and --joystick (the stitched teacher) or --chain ROLL,RISE,STAND")
+    if not (args.chain or args.getup or args.joystick) or (args.chain and args.getup):
+        raise ValueError("distill: give either --getup and --joystick (the stitched teacher), --chain ROLL,RISE,STAND "
+                         "(the keyframe chain), or --chain and --joystick (the chain below the waist switch)")
     if args.chain:
         parts = [p.strip() for p in args.chain.split(",")]
         if len(parts) != len(T.CHAIN) or not all(parts):
             raise ValueError(f"distill: --chain takes {len(T.CHAIN)} artifacts, ROLL,RISE,STAND; got {args.chain!r}")
-        teacher = dict(zip(T.CHAIN, parts))
+        teacher = {**dict(zip(T.CHAIN, parts)), **({"joystick": args.joystick} if args.joystick else {})}
     elif not (args.getup and args.joystick):
         raise ValueError("distill: the stitched teacher needs both --getup and --joystick")
     else:
@@ -186,9 +187,11 @@ def _add_teacher(sub) -> None:
 def _add_distill(sub) -> None:
     p = sub.add_parser("distill", help="DAgger (brax bc) student from the stitched teacher or the keyframe chain")
     p.add_argument("--getup", help="the stitched teacher's getup expert (with --joystick)")
-    p.add_argument("--joystick", help="the stitched teacher's joystick expert (with --getup)")
+    p.add_argument("--joystick", help="the stitched teacher's joystick expert (with --getup, or with --chain: above "
+                                      "the waist switch)")
     p.add_argument("--chain", metavar="ROLL,RISE,STAND",
-                   help="the keyframe getup's latched chain as the teacher (the student: a getup policy; --task getup)")
+                   help="the keyframe getup's latched chain as the teacher (alone: the student is a getup policy, "
+                        "--task getup; with --joystick: the chain below the waist switch, the joystick expert above)")
     p.add_argument("--out", help="run directory; default runs/<name>")
     p.add_argument("--task", choices=TASKS, default="unified",
                    help="env the student is rolled out in (default unified: fallen/kneeling/standing starts, "

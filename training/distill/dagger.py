@@ -42,7 +42,7 @@ from training.core.backend import default_backend
 from training.core.networks import ACTIVATION
 from training.core.overrides import apply_overrides
 from training.core.overrides import TOY_ENV_OVERRIDES
-from training.distill.teacher import STITCHED, STUDENT_OBS_KEY, load_teacher, teacher_kind, teacher_observation
+from training.distill.teacher import CHAIN, STUDENT_OBS_KEY, load_teacher, teacher_kind, teacher_observation
 from training.export.brax import export_brax_ppo
 from training.export.brax import ship_artifact
 
@@ -230,7 +230,7 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
                               f"(continue a run with --from {run_dir})")
     before = prior_progress(from_checkpoint)
     run_dir.mkdir(parents=True, exist_ok=True)
-    cfg, env_cfg = dagger_configs(task, preset, overrides, num_envs, union_terms=teacher_kind(teacher) == STITCHED)
+    cfg, env_cfg = dagger_configs(task, preset, overrides, num_envs, union_terms=teacher_kind(teacher) != CHAIN)
 
     check_end_at(end_at, cfg)
     env_cfg.backend = backend or default_backend()

@@ -149,33 +149,58 @@ def make_chain_teacher(members: Sequence[Expert], student_terms: Sequence, stude
                             student_action_scale)
 
 
-STITCHED, CHAIN = ("getup", "joystick"), tuple(events.KEYFRAME_STAGES)   # a teacher's roles
+def make_kneeling_teacher(members: Sequence[Expert], student_terms: Sequence, student_action_scale,
+                          switch_height_m: float = WAIST_SWITCH_HEIGHT_M):
+    """The stitched teacher with the keyframe chain as its getup (switched_teacher): roll, rise, stand by
+    obs[STAGE_OBS_KEY] while obs[WAIST_OBS_KEY] < switch_height_m, else the joystick expert (members: roll, rise,
+    stand, joystick)."""
+    if len(members) != len(KNEELING):
+        raise ValueError(f"a kneeling teacher has {len(KNEELING)} members ({', '.join(KNEELING)}), got {len(members)}")
+    joystick = len(CHAIN)
+    return switched_teacher(tuple(members), lambda obs: jnp.where(obs[WAIST_OBS_KEY] >= switch_height_m, joystick,
+                                                                  obs[STAGE_OBS_KEY]).astype(int),
+                            student_terms, student_action_scale)
+
+
+# a teacher's roles: the stitched teacher, the keyframe getup's chain, the chain below the waist switch and the
+# joystick expert above it (the kneeling teacher)
+STITCHED, CHAIN = ("getup", "joystick"), tuple(events.KEYFRAME_STAGES)
+KNEELING = (*CHAIN, "joystick")
+KINDS = (STITCHED, CHAIN, KNEELING)
 
 
 def teacher_kind(roles) -> tuple[str, ...]:
-    """STITCHED or CHAIN, from a teacher's roles (the keys of {role: policy} with a policy); a ValueError names
-    any other set."""
-    for kind in (STITCHED, CHAIN):
+    """STITCHED, CHAIN or KNEELING, from a teacher's roles (the keys of {role: policy} with a policy); a ValueError
+    names any other set."""
+    for kind in KINDS:
         if set(roles) == set(kind):
             return kind
-    raise ValueError(f"a teacher is {' + '.join(STITCHED)} (the stitched teacher) or {' + '.join(CHAIN)} (the "
-                     f"keyframe getup's chain), got {sorted(roles)}")
+    raise ValueError(f"a teacher is {' + '.join(STITCHED)} (the stitched teacher), {' + '.join(CHAIN)} (the "
+                     f"keyframe getup's chain) or {' + '.join(KNEELING)} (the chain below the waist switch, the "
+                     f"joystick expert above), got {sorted(roles)}")
 
 
 def load_teacher(roles: dict, student_terms: Sequence, student_action_scale):
-    """The teacher of {role: expert path} (teacher_kind's roles): make_teacher or make_chain_teacher."""
+    """The teacher of {role: expert path} (teacher_kind's roles): make_teacher, make_chain_teacher or
+    make_kneeling_teacher."""
     kind = teacher_kind(roles)
     experts = [load_expert(roles[role], role) for role in kind]
     if kind == STITCHED:
         return make_teacher(*experts, student_terms, student_action_scale)
+    if kind == KNEELING:
+        return make_kneeling_teacher(experts, student_terms, student_action_scale)
     return make_chain_teacher(experts, student_terms, student_action_scale)
 
 
 def teacher_observation(roles: dict, handover_up_error: float = events.KNEEL_GATE_UP_ERROR):
     """The wrapper (wrapped env, base env) → env that puts what the teacher of these roles switches on into the
     observation; the chain's rise hands over to the stand at handover_up_error (keyframe_stage)."""
-    if teacher_kind(roles) == STITCHED:
+    kind = teacher_kind(roles)
+    if kind == STITCHED:
         return WaistObservation
+    if kind == KNEELING:
+        return lambda wrapped, base_env: KeyframeStageObservation(WaistObservation(wrapped, base_env), base_env,
+                                                                  handover_up_error)
     return functools.partial(KeyframeStageObservation, handover_up_error=handover_up_error)
 
 

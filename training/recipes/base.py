@@ -29,6 +29,9 @@ from typing import Any, Mapping
 from common.events import KEYFRAME_STAGES, LYING_SIDES
 from common.keyframe_chain import HANDOVERS
 
+# a stage's teacher roles (training/distill/teacher.py's kinds: stitched, chain, kneeling)
+TEACHERS = ({"getup", "joystick"}, set(KEYFRAME_STAGES), {*KEYFRAME_STAGES, "joystick"})
+
 KINDS = ("ppo", "distill", "imitation", "random_init")
 REF_PREFIX = "@"
 
@@ -100,13 +103,10 @@ class Recipe:
             if s.init_artifact and (s.kind != "ppo" or s.init is None):
                 raise ValueError(f"recipe {self.name}, stage {s.name}: init_artifact is a PPO stage's with an init")
             self._check_rounds(s, names[:i])
-            stitched, chain = {"getup", "joystick"}, {"roll", "rise", "stand"}
-            if s.kind == "distill" and set(s.teacher) not in (stitched, chain):
-                raise ValueError(f"recipe {self.name}, stage {s.name}: a distill stage's teacher is getup and "
-                                 "joystick (the stitched teacher) or roll, rise and stand (the keyframe chain)")
-            if s.kind != "distill" and s.teacher and set(s.teacher) not in (stitched, chain):
-                raise ValueError(f"recipe {self.name}, stage {s.name}: a teacher is getup and joystick or roll, rise "
-                                 "and stand")
+            if (s.teacher or s.kind == "distill") and set(s.teacher) not in TEACHERS:
+                raise ValueError(f"recipe {self.name}, stage {s.name}: a teacher is getup and joystick (the stitched "
+                                 "teacher), roll, rise and stand (the keyframe chain) or roll, rise, stand and "
+                                 "joystick (the chain below the waist switch, the joystick expert above)")
 
     def _check_rounds(self, s: Stage, earlier: list[str]) -> None:
         where = f"recipe {self.name}, stage {s.name}"
