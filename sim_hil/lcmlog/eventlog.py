@@ -113,6 +113,8 @@ class ProjectLog:
 def open_log(path: Path | str) -> ProjectLog:
     """Read and decode a log; raises only when the file cannot be read at all or holds no event."""
     path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"{path}: a folder, not a log file (*.lcmlog)")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such log file")
     problems = LogProblems()
