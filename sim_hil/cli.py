@@ -95,8 +95,8 @@ def main(argv: list[str] | None = None) -> int:
         shim = FastDdsShim()
     try:
         sim = Simulator(cfg)
-    except (ValueError, FaultSpecError) as exc:       # KeyFileError is a ValueError: a refused key file
-        print(f"sim_hil: {exc}", file=sys.stderr)
+    except (ValueError, FaultSpecError, OSError) as exc:   # KeyFileError is a ValueError: a refused key file;
+        print(f"sim_hil: {exc}", file=sys.stderr)           # OSError: --can-log / --record cannot be written
         return EXIT_USAGE
     except RuntimeError as exc:
         print(f"sim_hil: {exc}", file=sys.stderr)

@@ -27,8 +27,8 @@ def _fake(tmp: Path) -> Path:
 
 
 def _log(tmp: Path) -> Path:
-    from tests.test_lcmlog import _events
     from sim_hil.lcmlog.eventlog import write_events
+    from tests.test_lcmlog import _events
     return write_events(tmp / "run.lcmlog", _events())
 
 
@@ -53,7 +53,8 @@ CASES = [
      EXIT_USAGE, "--duration -1"),
     ("teleop-zero-duration", lambda t: [PY, "-m", "sim_hil.teleop", "--keyboard", "--duration", "0"],
      EXIT_USAGE, "--duration 0"),
-    ("runtime-policy-folder", lambda t: [str(BUILD / "runtime" / "t1-runtime"), "--policy", "policies/student_untrained"],
+    ("runtime-policy-folder",
+     lambda t: [str(BUILD / "runtime" / "t1-runtime"), "--policy", "policies/student_untrained"],
      EXIT_BAD_ARTIFACT, "policies/student_untrained' is a folder"),
     ("lcmlog-info-folder", lambda t: [PY, "-m", "sim_hil.lcmlog", "info", "policies"], EXIT_USAGE,
      "policies: a folder"),
