@@ -18,7 +18,7 @@ from sim_hil.eval.trial import STEER_GAIN_PER_S, STEER_MAX_RPS, TrialResult, Tri
 
 # Standing spawns start in the default pose already: a short PREPARE hands the robot to the policy at once
 # (the trial measures the policy; PREPARE itself holds the pose with the T1's stand-up gains, see
-# runtime/include/t1rt/prepare_gains.hpp and tests/test_dds.py).
+# messages/contract.json supervisor.prepare and tests/test_dds.py).
 STANDING_PREPARE_S = 0.1
 # getup: seeded fallen starts (common.model.fallen_state drops the robot from a random pose)
 GETUP_TRIALS = 1000
