@@ -19,7 +19,7 @@ export PYOPENGL_PLATFORM ?= osmesa
 # Simulator arguments for `make sim`, e.g. make sim SIM_ARGS="--spawn fallen:3 --clock lockstep"
 SIM_ARGS ?= --scenario flat --spawn standing --clock realtime
 
-.PHONY: all setup build test test-fast sim spy spy-dds demo teleop bench bench-env bench-train bench-soak clean replay plot-log view-log
+.PHONY: all setup build test test-fast lint sim spy spy-dds demo teleop bench bench-env bench-train bench-soak clean replay plot-log view-log
 
 # VIEW=rerun on demo, teleop and sim: a live Rerun view of the run (tools/rerun_live; README: Runs in Rerun)
 VIEW ?=
@@ -44,6 +44,15 @@ test: build
 test-fast: build
 	$(NETNS) bash -c 'set -e; ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS); \
 	  $(PY) -m pytest -q -n $(JOBS) -m "not slow" tests'
+
+# Style, checked rather than remembered: ruff (ruff.toml) over the Python tree, clang-format (.clang-format) over
+# the C/C++ of runtime/, firmware_like/ and sim_hil/core/; both run, either failing fails the target. Not part of
+# `make test` yet: the tree is formatted once, in its own commit.
+LINT_CXX_DIRS := runtime firmware_like sim_hil/core
+lint: setup
+	@status=0; $(VENV)/bin/ruff check $(ROOT) || status=1; \
+	  find $(LINT_CXX_DIRS) -type f \( -name '*.c' -o -name '*.h' -o -name '*.cpp' -o -name '*.hpp' \) -print0 \
+	    | sort -z | xargs -0 clang-format --dry-run -Werror || status=1; exit $$status
 
 # Writes an LCM log of the run to out/sim/ (SIM_ARGS="--no-log" to skip, "--log PATH" to name it).
 sim: build
@@ -136,6 +145,7 @@ eval-puddle: build
 # gate in the kneeling posture and its hold (20 trials of 10 s: 2 s PREPARE, 8 s to kneel).
 KNEEL_POLICY ?= policies/getup_kneel/getup_kneel.safetensors
 eval-kneel: build
+	@test -f "$(KNEEL_POLICY)" || { echo "make eval-kneel: no kneel policy $(KNEEL_POLICY) (none is shipped yet): name one, KNEEL_POLICY=path.safetensors" >&2; exit 2; }
 	$(NETNS) $(PY) -m sim_hil.eval kneel --policy $(KNEEL_POLICY) --label getup_kneel $(EVAL_ARGS)
 # The seed's whole chapter 6 for EVAL_POLICY beside EVAL_BASELINE, every report under EVAL_OUT: getup over
 # 1000 fallen seeds in the batch (physics only, no LCM: ~15 min on 2 cores) and 20 in the loop, pushes,

@@ -169,6 +169,21 @@ def read_artifact(path):
     return read_artifact_bytes(data)
 
 
+def artifact_problem(path) -> str | None:
+    """None when `path` is a readable, valid policy artifact; else one line that names it and what is wrong
+    (what every command taking a --policy prints before it starts anything)."""
+    p = Path(path)
+    if p.is_dir():
+        return f"{path}: a folder, not an artifact file (*.safetensors)"
+    if not p.exists():
+        return f"{path}: no such file"
+    try:
+        read_artifact(p)
+    except ValueError as e:
+        return f"{path}: not a policy artifact ({e})"
+    return None
+
+
 def validate_artifact_bytes(data: bytes) -> None:
     read_artifact_bytes(data)
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from common.effort import EFFORT_METRICS
+
 # Seed thesis Table 4.3 (§4.9), averaged over 1000 seeds: metric -> (baseline, keyframe). The seed gives no
 # units; the values are printed beside ours as the seed's, not converted.
 SEED_TABLE_4_3: dict[str, tuple[float, float]] = {
@@ -43,18 +45,19 @@ def _t43(metric: str) -> SeedFigure:
     return SeedFigure(f"{keyframe}", f"{baseline}", f"Table 4.3 '{metric}'")
 
 
+_EFFORT_LABEL = {key: label for key, label, _ in EFFORT_METRICS}   # the report rows of Table 4.3's metrics
 _PUSH_F = "Table 6.5; Table 6.6's per-trial lists give means 1.15 and 3.45"
 _PUSH_B = "Table 6.7; std computed from Table 6.8"
 SEED_FIGURES: dict[str, dict[str, SeedFigure]] = {
     "getup": {
         "success rate": SeedFigure("100 %", None, "the project's target (every getup of the seed's ch. 6 succeeded)"),
-        "energy Σ|τ·q̇|·dt [J]": _t43("Average Energy Sum"),
-        "max energy per tick [J]": _t43("Average Max Energy"),
-        "max torque [N·m]": _t43("Average Max Torques"),
-        "total torque Σ|τ|·dt [N·m·s]": _t43("Total Torques"),
-        "max joint acc [rad/s²]": _t43("Average Max Joint Acceleration"),
-        "total joint acc Σ|q̈|·dt [rad/s]": _t43("Total Joint Acceleration"),
-        "contact force mean [N]": _t43("Average Contact Force"),
+        _EFFORT_LABEL["energy_J"]: _t43("Average Energy Sum"),
+        _EFFORT_LABEL["max_energy_J"]: _t43("Average Max Energy"),
+        _EFFORT_LABEL["max_torque_Nm"]: _t43("Average Max Torques"),
+        _EFFORT_LABEL["total_torque_Nms"]: _t43("Total Torques"),
+        _EFFORT_LABEL["max_joint_acc_radps2"]: _t43("Average Max Joint Acceleration"),
+        _EFFORT_LABEL["total_joint_acc_radps"]: _t43("Total Joint Acceleration"),
+        _EFFORT_LABEL["mean_contact_force_N"]: _t43("Average Contact Force"),
     },
     "push": {
         "forward: trials": SeedFigure("20", "20", "Table 6.5"),

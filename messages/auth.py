@@ -28,9 +28,9 @@ approvals file, tag = HMAC-SHA256(key, approval_context + NUL + the file's SHA-2
 word that these bytes may run. Only the key holder can write one, so the file itself needs no protection.
 
   python -m messages.auth new-key FILE [--sender ID]           a fresh key file (mode 0600), one sender
-  python -m messages.auth approve --key FILE --approvals OUT ARTIFACT...    append approvals to OUT
+  tools/t1key approve --key FILE --approvals OUT ARTIFACT...  append approvals to OUT (valid artifacts only)
   python -m messages.auth golden DIR                           write the golden vector
-(tools/t1key runs this module with the project's Python.)
+(tools/t1key runs this CLI through common/t1key.py, which checks an artifact before approving it.)
 """
 from __future__ import annotations
 
@@ -258,7 +258,9 @@ def golden_document() -> dict:
             "approval": {"artifact_sha256_hex": digest.hex(), "sender_id": 7, "tag_hex": approval_tag(key, digest).hex()}}
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, artifact_problem=None) -> int:
+    """The key tools' CLI. `artifact_problem(path)` → None or one line: approve refuses a file that is not a policy
+    artifact (tools/t1key passes common.artifact's, a layer above this one); without it approve is refused."""
     p = argparse.ArgumentParser(prog="python -m messages.auth", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="what", required=True)
     new = sub.add_parser("new-key", help="write a fresh key file (mode 0600) for one sender")
@@ -277,6 +279,11 @@ def main(argv: list[str] | None = None) -> int:
             write_key_file(args.file, [sender])
             print(f"{args.file}: sender {sender.sender_id} (add this line to the runtime's key file)")
         elif args.what == "approve":
+            problems = ["approve: run tools/t1key, which checks each artifact first"] if artifact_problem is None \
+                else [f"approve: {problem}" for problem in map(artifact_problem, args.artifacts) if problem]
+            if problems:
+                print(f"messages.auth: {problems[0]}", file=sys.stderr)
+                return 2
             append_approvals(args.approvals, read_key_file(args.key)[0], args.artifacts)
             print(f"{args.approvals}: approved {len(args.artifacts)} artifact(s)")
         else:

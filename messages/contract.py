@@ -47,6 +47,16 @@ ROLLED_FORWARD_Z: float = float(_DATA["rolled_forward_z"])
 ROLLED_MAX_ANG_SPEED_RAD_S: float = float(_DATA["rolled_max_ang_speed_rad_s"])
 # The composite's switch [m]: getup member below this Waist height, upright member at or above it.
 WAIST_SWITCH_HEIGHT_M: float = float(_DATA["waist_switch_height_m"])
+# The supervisor's behaviour training models (contract.json "supervisor"): PREPARE's ramp [s] and stand-up gains
+# per joint, joint order (kp [N·m/rad], kd [N·m·s/rad]), and rule R6's target rate limit [rad/s] and range fraction.
+_SUPERVISOR = _DATA["supervisor"]
+assert list(_SUPERVISOR["prepare"]["gains"]) == list(JOINT_NAMES), \
+    "contract.json: supervisor.prepare.gains must name every joint, in the joints' order"
+PREPARE_DURATION_S: float = float(_SUPERVISOR["prepare"]["duration_s"])
+PREPARE_KP_NM_PER_RAD: tuple[float, ...] = tuple(float(kp) for kp, _ in _SUPERVISOR["prepare"]["gains"].values())
+PREPARE_KD_NMS_PER_RAD: tuple[float, ...] = tuple(float(kd) for _, kd in _SUPERVISOR["prepare"]["gains"].values())
+R6_MAX_TARGET_SPEED_RPS: float = float(_SUPERVISOR["r6"]["max_target_speed_rps"])
+R6_JOINT_RANGE_FRACTION: float = float(_SUPERVISOR["r6"]["joint_range_fraction"])
 # Who may command (messages/auth.py): the channels whose messages are signed, the approval context, the key size.
 AUTH: dict = {k: v for k, v in _DATA["auth"].items() if not k.startswith("_")}
 # The real T1's DDS interface: domain_id, state_topic, command_topic, cmd_type_serial, motor_mode, motor_weight.

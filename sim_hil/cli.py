@@ -12,6 +12,7 @@ from sim_hil import config
 from sim_hil.motor_bus import INTERFACES
 from sim_hil.faults import FaultSpecError
 from sim_hil.launch import stop_cleanly_on_sigterm
+from sim_hil.wait_notice import WaitNotice
 
 EXIT_OK, EXIT_USAGE, EXIT_RUNTIME = 0, 2, 3
 
@@ -41,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lcm-url", default=None, help="default: $T1_LCM_URL or " + contract.DEFAULT_LCM_URL)
     p.add_argument("--robot-key", metavar="FILE", default=None,
                    help="sign every T1_IMU / T1_JOINT_STATE with this robot key file (messages/auth.py, mode 600; "
-                        "the runtime's --robot-key): a runtime with the key takes state from this robot only"),
+                        "the runtime's --robot-key): a runtime with the key takes state from this robot only")
     p.add_argument("--lockstep-timeout", type=float, default=config.LOCKSTEP_TIMEOUT_S,
                    help="wall seconds to wait for the command answering a state")
     p.add_argument("--status-rate", type=float, default=config.STATUS_RATE_HZ, help="T1_SIM_STATUS rate [Hz]")
@@ -94,8 +95,8 @@ def main(argv: list[str] | None = None) -> int:
         shim = FastDdsShim()
     try:
         sim = Simulator(cfg)
-    except (ValueError, FaultSpecError) as exc:       # KeyFileError is a ValueError: a refused key file
-        print(f"sim_hil: {exc}", file=sys.stderr)
+    except (ValueError, FaultSpecError, OSError) as exc:   # KeyFileError is a ValueError: a refused key file;
+        print(f"sim_hil: {exc}", file=sys.stderr)           # OSError: --can-log / --record cannot be written
         return EXIT_USAGE
     except RuntimeError as exc:
         print(f"sim_hil: {exc}", file=sys.stderr)
@@ -104,11 +105,16 @@ def main(argv: list[str] | None = None) -> int:
     print(f"sim_hil: {cfg.scenario} spawn={cfg.spawn} clock={cfg.clock} physics_dt={cfg.physics_dt_s}s "
           f"link={sim.link.url}" + (f" log={capture.path}" if capture else ""), file=sys.stderr)
     stop_cleanly_on_sigterm()
+    notice = WaitNotice(lambda: sim.awaiting_first_command,
+                        lambda s: f"sim_hil: waiting for {sim.link.command_source} ({s:.0f} s; lockstep holds "
+                                  "state 0 until it is answered: start t1-runtime --clock lockstep)",
+                        config.WAIT_NOTICE_FIRST_S, config.WAIT_NOTICE_PERIOD_S).start()
     try:
         sim.run(None if args.quiet else _status_line)
     except KeyboardInterrupt:
         pass
     finally:
+        notice.stop()
         if shim is not None:
             shim.stop()
         if capture is not None:

@@ -9,6 +9,9 @@ DEFAULT_PHYSICS_DT_S = LOOP_PERIOD_S   # MuJoCo step [s]: one per loop tick unle
 STATUS_RATE_HZ = 10.0           # T1_SIM_STATUS rate (sim time)
 LOCKSTEP_TIMEOUT_S = 0.5        # wall time to wait for the command answering state k before going on
 LOCKSTEP_FIRST_COMMAND_TIMEOUT_S = 30.0   # the client may still be starting: wait longer for the first one
+# A lockstep sim still without its first command says so after WAIT_NOTICE_FIRST_S, then every WAIT_NOTICE_PERIOD_S [s]
+WAIT_NOTICE_FIRST_S = 2.0
+WAIT_NOTICE_PERIOD_S = 10.0
 # a batch of lockstep ticks in one C++ call ends this far [s] before the next fault edge at the latest, so
 # sim time's float rounding never puts the edge's own tick in it
 FAULT_EDGE_MARGIN_S = 1e-9

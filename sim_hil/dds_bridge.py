@@ -77,6 +77,7 @@ class DdsBridge:
         except (RuntimeError, OSError) as exc:
             raise RuntimeError(f"cannot open LCM at '{url}': {exc} (run inside tools/netns)") from exc
         self.url = f"DDS domain {domain_id} ({DDS['state_topic']} out, {DDS['command_topic']} in) + LCM status {url}"
+        self.command_source = f"{DDS['command_topic']} from a controller on DDS domain {domain_id}"
         self.participant = DomainParticipant(domain_id)
         state_topic = Topic(self.participant, DDS["state_topic"], dds_types.LowState)
         cmd_topic = Topic(self.participant, DDS["command_topic"], dds_types.LowCmd)

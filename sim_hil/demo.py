@@ -24,7 +24,7 @@ from messages.auth import RunKey
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop, stop_cleanly_on_sigterm
 from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.plots import plot_heights_and_velocity
-from common.artifact import read_artifact, stitched_teacher
+from common.artifact import artifact_problem, read_artifact, stitched_teacher
 
 POLICIES = (ROOT / "policies" / "student" / "student.safetensors",
             ROOT / "policies" / "student_untrained" / "student_untrained.safetensors")
@@ -60,6 +60,10 @@ def main(argv=None) -> int:
     global VIEWER_ARGS
     VIEWER_ARGS = ["--viewer"] if args.viewer else []
     policy = args.policy or next(p for p in POLICIES if p.exists())
+    problem = artifact_problem(policy)
+    if problem:
+        print(f"demo: --policy {problem}", file=sys.stderr)
+        return 2
     trained = _trained(policy)
     code = run(policy, args.spawn, args.seconds, args.out, "demo", log=not args.no_log)
     if code != 0 or args.policy is not None:

@@ -16,6 +16,7 @@ Only SPDP DATA is touched; nothing is sent outside the namespace's loopback.
 """
 from __future__ import annotations
 
+import argparse
 import socket
 import struct
 import threading
@@ -159,7 +160,9 @@ class FastDdsShim:
         self.tx.close()
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    argparse.ArgumentParser(prog="python -m sim_hil.fastdds_shim", description=__doc__.split("\n\n")[0]
+                            + " Runs until Ctrl-C.").parse_args(argv)
     shim = FastDdsShim()
     print("fastdds_shim: relaying Cyclone SPDP (without PID 0x8007) to Fast DDS participants; Ctrl-C stops")
     try:

@@ -67,6 +67,12 @@ def start_runtime(policy: Path, *args: str, output=None, sign: bool = True, run_
     return proc
 
 
+def runtime_reason(stderr_text: str) -> str:
+    """The runtime's own reason for stopping: the last line it printed (its banner comes first), one line."""
+    lines = [line.strip() for line in stderr_text.replace("\r", "\n").splitlines() if line.strip()]
+    return lines[-1].removeprefix("t1-runtime: ") if lines else "no output"
+
+
 def wait_until_listening(runtime: subprocess.Popen) -> None:
     """A lockstep peer's first state must not go out before the runtime subscribes (it would wait for an
     answer that never comes): wait for the banner the runtime prints just before it opens LCM, plus a
@@ -75,7 +81,7 @@ def wait_until_listening(runtime: subprocess.Popen) -> None:
     while True:
         line = runtime.stderr.readline()
         if not line:
-            raise RuntimeError(f"t1-runtime exited before listening: {''.join(lines)}")
+            raise RuntimeError(f"t1-runtime exited before listening: {runtime_reason(''.join(lines))}")
         lines.append(line)
         if line.startswith("t1-runtime: policy '") or "COMPOSITE mode" in line or "CHAIN mode" in line:
             break

@@ -24,6 +24,7 @@ class LcmBridge:
             raise RuntimeError(f"cannot open LCM at '{url}': {exc} (run inside tools/netns)") from exc
         self.core = tick_core.Link(url)
         self.url = url
+        self.command_source = f"{contract.CH_JOINT_CMD} from a controller on {url}"   # what lockstep waits for
         self._subscribed = False                # Python subscriptions on lc: then poll handles lc too
         self._latest: tuple[int, joint_command_t | None] = (0, None)
 

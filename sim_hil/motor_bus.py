@@ -14,6 +14,7 @@ silently on time. Two carriers of the same frames:
 from __future__ import annotations
 
 from collections import deque
+from pathlib import Path
 
 import can
 import numpy as np
@@ -108,6 +109,8 @@ class CanMotorBus(MotorBus):
         super().__init__(rng)
         self.bus_models = [fwb.BusModel(b) for b in range(len(fw.BUS_NAMES))]
         self.ends = [can_wire.open_pair(interface, b) for b in range(len(fw.BUS_NAMES))]
+        if can_log:
+            Path(can_log).parent.mkdir(parents=True, exist_ok=True)   # like --record's and --log's folders
         self.log = can.Logger(can_log) if can_log else None
         n = fw.NUM_MOTORS
         self._cmd_ids = [fw.cmd_can_id(i) for i in range(n)]

@@ -264,6 +264,11 @@ class Simulator:
             self._rtf_mark = (wall, sim_t)
             self.link.publish_status(self.status_message())
 
+    @property
+    def awaiting_first_command(self) -> bool:
+        """Lockstep and no command taken yet: state 0 waits for a controller to answer it."""
+        return self.cfg.clock == "lockstep" and not self._commanded
+
     def _lockstep_wait_s(self) -> float:
         """The client may still be starting until its first command: wait longer for that one."""
         if not self._commanded:

@@ -98,7 +98,7 @@ def test_the_cli_makes_a_key_and_approves_with_it(tmp_path):
                           capture_output=True, text=True, env=env)
     assert made.returncode == 0 and "sender 12" in made.stdout, made.stderr
     assert auth.read_key_file(key)[0].key.hex() not in made.stdout + made.stderr, "the key was printed"
-    subprocess.run([sys.executable, "-m", "messages.auth", "approve", "--key", str(key), "--approvals", str(approvals),
+    subprocess.run([str(ROOT / "tools" / "t1key"), "approve", "--key", str(key), "--approvals", str(approvals),
                     str(artifact)], check=True, capture_output=True, env=env)
     sender = auth.read_key_file(key)[0]
     digest = auth.file_sha256(artifact)

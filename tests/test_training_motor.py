@@ -1,33 +1,23 @@
 """The deployed runtime's target rule R6 in training (training/envs/motor.py supervised_target for MJX, the
-C control callback of the CPU backend): its constants are the runtime's, its semantics R6's, and the two
-backends compute the same target."""
+C control callback of the CPU backend): its constants are the contract's (messages/contract.json supervisor.r6,
+which the runtime's SafetyConfig reads too), its semantics R6's, and the two backends compute the same target."""
 from __future__ import annotations
-
-import re
 
 import jax.numpy as jnp
 import mujoco
 import numpy as np
 
 from messages import contract
-from sim_hil.launch import ROOT
 from training import envs
 from training.envs import base, motor
 
-SAFETY_HPP = ROOT / "runtime" / "include" / "t1rt" / "safety.hpp"
-RUNTIME_TICK_S = contract.LOOP_PERIOD_S   # the runtime's loop period: max_target_step_rad is per tick
 
-
-def _hpp_float(name: str) -> float:
-    m = re.search(rf"\b{name}\s*=\s*([0-9.eE+-]+)f?;", SAFETY_HPP.read_text())
-    assert m, f"{name} not found in {SAFETY_HPP}"
-    return float(m.group(1))
-
-
-def test_constants_are_the_runtimes():
+def test_training_models_the_contracts_rule():
+    """Training's R6 is the contract's (the runtime's SafetyConfig reads the same): 0.05 rad per 2 ms tick, 95 %."""
     sup = base.base_config().supervisor
-    assert np.isclose(sup.max_target_speed_rps * RUNTIME_TICK_S, _hpp_float("max_target_step_rad"))
-    assert np.isclose(sup.joint_range_fraction, _hpp_float("joint_range_fraction"))
+    assert (sup.max_target_speed_rps, sup.joint_range_fraction) == (contract.R6_MAX_TARGET_SPEED_RPS,
+                                                                    contract.R6_JOINT_RANGE_FRACTION)
+    assert np.isclose(sup.max_target_speed_rps * contract.LOOP_PERIOD_S, 0.05) and sup.joint_range_fraction == 0.95
 
 
 def _r6(wanted, last, q=0.0, dq=0.0, kp=100.0, kd=2.0, tau=10.0, lo=-1.0, hi=1.0, step=0.05):

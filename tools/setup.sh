@@ -15,6 +15,7 @@ APT_PACKAGES=(
   python3-venv
   linux-libc-dev python3-dev    # evdev (sim_hil.teleop) builds its C extension from source
   chromium                      # headless: Rerun's web viewer as a person sees it (tests/test_rerun_view.py)
+  clang-format                  # make lint: the C/C++ style check (.clang-format)
 )
 
 missing=()
@@ -41,4 +42,15 @@ fi
 # Rerun's usage analytics off for this user before anything of Rerun's runs (sim_hil/rerun_view/analytics.py)
 PYTHONPATH=. .venv/bin/python -c 'from sim_hil.rerun_view.analytics import disable_analytics; disable_analytics()'
 
+
+# The checkout and its generated LCM bindings on the venv's import path, so `.venv/bin/python -m sim_hil …`
+# runs from a shell with nothing set by hand. The venv may be shared by several checkouts (a symlinked .venv
+# in git worktrees): the .pth takes the checkout the interpreter was started from (the folder holding
+# sys.prefix, i.e. CHECKOUT/.venv) and falls back to the one that ran this setup last. Its paths go after
+# site-packages, so PYTHONPATH (the Makefile's) still comes first.
+site=$(.venv/bin/python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+fallback=$(pwd -P)
+cat > "$site/t1_checkout.pth" <<PTH
+import os, sys; t1_root = next((r for r in (os.path.dirname(sys.prefix), '$fallback') if os.path.isfile(os.path.join(r, 'messages', 'contract.json'))), None); t1_root and sys.path.extend(p for p in (t1_root, os.path.join(t1_root, 'build', 'gen', 'python')) if p not in sys.path)
+PTH
 echo "setup: ok"

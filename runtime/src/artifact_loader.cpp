@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -33,6 +34,8 @@ struct TensorView {
 [[noreturn]] void fail(const std::string& field, const std::string& problem) { throw ArtifactError(field, problem); }
 
 std::string read_file(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) fail("file", "'" + path + "' is a folder, not an artifact file (*.safetensors)");
   std::ifstream in(path, std::ios::binary);
   if (!in) fail("file", "cannot open '" + path + "'");
   std::ostringstream ss;

@@ -14,6 +14,10 @@ std::atomic<bool> g_sighup{false};
 constexpr std::size_t kStringReserve = Controller::kStatusStringReserve;
 constexpr std::size_t kObsReserve = 1024;     // observation_t vectors: largest obs size without reallocation
 constexpr int64_t kLiveLinePeriodNs = 200'000'000;  // terminal status line at 5 Hz
+// No fresh state for this long: say what the runtime waits for, then again every kNoStateRepeatNs.
+constexpr int64_t kNoStateNoticeNs = 1'000'000'000;
+constexpr int64_t kNoStateRepeatNs = 10'000'000'000;
+constexpr float kNsToS = 1e-9f;
 constexpr double kSToUs = 1e6, kSToMs = 1e3;
 constexpr const char* kApprovalsFileName = "approvals";  // the approvals file's default name in the policy folder
 }  // namespace
@@ -311,14 +315,29 @@ void Controller::post_live_line() {
 }
 
 void Controller::live_line_worker() {
+  // What the loop waits for, named once it has waited kNoStateNoticeNs (no state yet, or none since then).
+  const std::string awaited = state_on_lcm(opt_.robot_link)
+                                  ? std::string(t1::CH_IMU) + " / " + t1::CH_JOINT_STATE + " on " + opt_.lcm_url
+                                  : std::string(t1::kDdsStateTopic) + " on DDS domain " + std::to_string(opt_.dds_domain_id);
+  const auto fresh = [](float age_ms) { return age_ms >= 0.0f && age_ms < kNoStateNoticeNs * 1e-6f; };
   LiveLine line{};
+  int64_t last_fresh_ns = monotonic_ns(), next_notice_ns = 0;
   while (!stop_.load()) {
     std::this_thread::sleep_for(std::chrono::nanoseconds(kLiveLinePeriodNs));
-    if (!live_line_.read(&line)) continue;
-    std::fprintf(stderr, "\r%s%s%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint %5.1f ms | ovr %lld | %.60s   ",
-                 line.unauthenticated ? "UNAUTHENTICATED " : "", line.composite, line.mode, static_cast<long long>(line.ticks), static_cast<long long>(line.policy_ticks),
-                 line.lateness_p99_us, line.compute_p99_us, line.imu_age_ms, line.joint_age_ms,
-                 static_cast<long long>(line.overruns), line.last_fault);
+    const int64_t now = monotonic_ns();
+    if (live_line_.read(&line)) {
+      if (fresh(line.imu_age_ms) && fresh(line.joint_age_ms)) last_fresh_ns = now, next_notice_ns = 0;
+      if (!opt_.quiet)
+        std::fprintf(stderr, "\r%s%s%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint %5.1f ms | ovr %lld | %.60s   ",
+                     line.unauthenticated ? "UNAUTHENTICATED " : "", line.composite, line.mode, static_cast<long long>(line.ticks), static_cast<long long>(line.policy_ticks),
+                     line.lateness_p99_us, line.compute_p99_us, line.imu_age_ms, line.joint_age_ms,
+                     static_cast<long long>(line.overruns), line.last_fault);
+    }
+    if (now - last_fresh_ns >= kNoStateNoticeNs && now >= next_notice_ns) {
+      std::fprintf(stderr, "%st1-runtime: no %s for %.0f s: is the robot or the sim running?\n", opt_.quiet ? "" : "\n",
+                   awaited.c_str(), static_cast<float>(now - last_fresh_ns) * kNsToS);
+      next_notice_ns = now + kNoStateRepeatNs;
+    }
   }
 }
 
@@ -347,7 +366,7 @@ void Controller::step_realtime() {
 }
 
 void Controller::run() {
-  if (!opt_.quiet) live_line_thread_ = std::thread(&Controller::live_line_worker, this);
+  live_line_thread_ = std::thread(&Controller::live_line_worker, this);
   const int64_t start = monotonic_ns();
   const int64_t end = opt_.duration_s > 0 ? start + static_cast<int64_t>(opt_.duration_s * 1e9) : INT64_MAX;
   task_.start();

@@ -101,7 +101,7 @@ void Controller::publish_status(double now_s) {
                 link_info, state_source_[0] ? " | " : "", state_source_);
   assign_bounded(status_.info, info);
   transport_.publish(t1::CH_CONTROLLER_STATUS, status_);
-  if (!opt_.quiet) post_live_line();
+  post_live_line();  // the live line, and the no-state notice even when quiet
 }
 
 // controller_status_t.state_*: whose state, what was refused, and a named warning while refusals stream in

@@ -220,7 +220,6 @@ int main(int argc, char** argv) {
   std::string loading = opt.policy_path;
   try {
     const t1rt::PolicyStore store = t1rt::make_policy_store(opt);
-    print_authority(opt, store);
     // With a key the startup policies follow load_policy's rule: inside the folder, approved content.
     auto load = [&](const std::string& path) {
       return std::make_unique<t1rt::PolicyEngine>(store.checks_approval() ? store.load_path(path) : t1rt::load_artifact(path));
@@ -241,6 +240,7 @@ int main(int argc, char** argv) {
       loading = opt.policy_path + " + " + opt.upright_policy_path;
       t1rt::check_composite_pair(engine->artifact(), upright->artifact());
     }
+    print_authority(opt, store);  // after the policies: a refused one is the only line
   } catch (const t1rt::PolicyRefused& e) {
     std::fprintf(stderr, "t1-runtime: refused: %s\n", e.what());
     return kExitBadArtifact;

@@ -7,6 +7,7 @@
 #include <climits>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -54,6 +55,9 @@ PolicyArtifact PolicyStore::load_name(const std::string& name) const {
 PolicyArtifact PolicyStore::load_path(const std::string& path) const { return load_resolved(inside(path, path), path); }
 
 PolicyArtifact PolicyStore::load_resolved(const std::string& real, const std::string& shown) const {
+  std::error_code ec;
+  if (std::filesystem::is_directory(real, ec))
+    throw PolicyRefused("policy '" + shown + "': a folder, not an artifact file (*.safetensors)");
   std::ifstream in(real, std::ios::binary);
   if (!in) throw PolicyRefused("policy '" + shown + "': cannot open " + real);
   std::ostringstream ss;

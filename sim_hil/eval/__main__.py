@@ -31,13 +31,20 @@ DEFAULT_LABEL = "student"
 def distilled_from(student: Path) -> str:
     """GETUP,JOYSTICK: the stitched teacher a distilled artifact names in its provenance (paths as given to
     `python -m training distill`, relative to the repository root)."""
-    from common.artifact import read_artifact, stitched_teacher
-    if not student.is_file():
-        raise ValueError(f"policy artifact {student} does not exist")
+    from common.artifact import artifact_problem, read_artifact, stitched_teacher
+    problem = artifact_problem(student)
+    if problem:
+        raise ValueError(f"policy artifact {problem}")
     teacher = stitched_teacher(read_artifact(student)[3])
     if teacher is None:
         raise ValueError(f"{student}: its provenance names no teacher (not a distilled student); give --teacher")
     return ",".join(str(p if Path(p).is_absolute() else ROOT / p) for p in (teacher["getup"], teacher["joystick"]))
+
+
+def _refuse(problem: str):
+    """A bad artifact: one line naming it (not argparse's usage block) and the usage exit code."""
+    print(f"sim_hil.eval: {problem}", file=sys.stderr)
+    raise SystemExit(EXIT_USAGE)
 
 
 def parse_args(argv):
@@ -76,7 +83,7 @@ def parse_args(argv):
         try:
             args.teacher = distilled_from(args.policy)
         except ValueError as e:
-            ap.error(str(e))
+            _refuse(str(e))
     if args.label == DEFAULT_LABEL and keyframe_chain.is_chain(args.policy):
         args.label = args.policy.resolve().name       # a shipped chain by its folder's name (getup_keyframe)
     controllers = [Controller(args.label, args.policy)]
@@ -88,10 +95,12 @@ def parse_args(argv):
         if len(parts) != 2 or not all(parts):
             ap.error(f"--{flag} {value!r}: expected GETUP.safetensors,JOYSTICK.safetensors")
         controllers.append(Controller(label, Path(parts[0]), Path(parts[1])))
+    from common.artifact import artifact_problem
     for c in controllers:
         for p in (c.policy, c.upright):
-            if p is not None and not (p.is_file() or keyframe_chain.is_chain(p)):
-                ap.error(f"policy artifact {p} does not exist")
+            problem = None if p is None or keyframe_chain.is_chain(p) else artifact_problem(p)
+            if problem:
+                _refuse(f"policy artifact {problem}")
     args.out = args.out or ROOT / "out" / "eval" / args.scenario
     return args, plan, controllers
 

@@ -1,5 +1,5 @@
-"""Per-tick physics log of a trial and the metrics computed from it: the seed's Table 4.3 effort metrics,
-foot slips (puddles) and "ran to stabilise" (pushes). Definitions are in each function's docstring.
+"""Per-tick physics log of a trial and the metrics computed from it: the seed's Table 4.3 effort metrics
+(common/effort.py), foot slips (puddles) and "ran to stabilise" (pushes). Definitions are in each function's docstring.
 
 The log keeps per-tick reductions over the 23 joints (not 23-wide arrays): a 60 s trial is 30 000 ticks.
 """
@@ -10,6 +10,7 @@ import math
 import mujoco
 import numpy as np
 
+from common import effort
 from common.events import FALLEN_TRUNK_HEIGHT_M, heading_from_quat, kneeling_posture, up_z_from_quat
 from common.model import ROOT_QPOS, trunk_forward_z
 from sim_hil import config
@@ -93,29 +94,13 @@ class TickLog:
 
 
 def effort_metrics(log: TickLog, begin: int, end: int) -> dict[str, float]:
-    """The seed's Table 4.3 over ticks [begin, end), dt = one control tick (2 ms):
-    energy_J        Σ_t Σ_j |τ·q̇|·dt              (mechanical work of the motors, both signs counted)
-    max_energy_J    max_t Σ_j |τ·q̇|·dt            (largest per-tick energy; /dt gives peak power)
-    max_torque_Nm   max_t,j |τ|
-    total_torque_Nms  Σ_t Σ_j |τ|·dt
-    max_joint_acc   max_t,j |q̈| [rad/s²]
-    total_joint_acc Σ_t Σ_j |q̈|·dt [rad/s]
-    contact_force_mean_N, contact_force_max_N: total normal force of robot-world contacts per tick.
-    """
+    """The seed's Table 4.3 (common/effort.py: definitions and names) over ticks [begin, end), from what physics
+    knew at the end of each 2 ms control tick."""
     if not 0 <= begin < end <= log.n:
         raise ValueError(f"effort_metrics: window [{begin}, {end}) outside the {log.n} logged ticks")
-    dt = config.LOOP_PERIOD_S
     w = slice(begin, end)
-    return {
-        "energy_J": float(log.power[w].sum() * dt),
-        "max_energy_J": float(log.power[w].max() * dt),
-        "max_torque_Nm": float(log.tau_max[w].max()),
-        "total_torque_Nms": float(log.tau_sum[w].sum() * dt),
-        "max_joint_acc": float(log.qacc_max[w].max()),
-        "total_joint_acc": float(log.qacc_sum[w].sum() * dt),
-        "contact_force_mean_N": float(log.contact_n[w].mean()),
-        "contact_force_max_N": float(log.contact_n[w].max()),
-    }
+    return effort.effort_metrics(log.power[w], log.power[w], log.tau_max[w], log.tau_sum[w], log.qacc_max[w],
+                                 log.qacc_sum[w], log.contact_n[w], dt_s=config.LOOP_PERIOD_S)
 
 
 def _runs(mask: np.ndarray, min_len: int) -> int:

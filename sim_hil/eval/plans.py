@@ -10,6 +10,7 @@ from typing import Callable
 import numpy as np
 
 from common import scenarios as sim_scenarios
+from common.effort import EFFORT_METRICS
 from common.events import KNEEL_HIP_MIN_RAD, KNEEL_HOLD_S, KNEEL_KNEE_MIN_RAD
 from common.push_test import (PUSH_ANGLE_SPREAD_RAD, PUSH_AT_S, PUSH_IMPULSE_NS, PUSH_IMPULSE_SPREAD,
                               PUSH_TIME_SPREAD_S, push_draw)
@@ -17,7 +18,7 @@ from sim_hil.eval.trial import STEER_GAIN_PER_S, STEER_MAX_RPS, TrialResult, Tri
 
 # Standing spawns start in the default pose already: a short PREPARE hands the robot to the policy at once
 # (the trial measures the policy; PREPARE itself holds the pose with the T1's stand-up gains, see
-# runtime/include/t1rt/prepare_gains.hpp and tests/test_dds.py).
+# messages/contract.json supervisor.prepare and tests/test_dds.py).
 STANDING_PREPARE_S = 0.1
 # getup: seeded fallen starts (common.model.fallen_state drops the robot from a random pose)
 GETUP_TRIALS = 1000
@@ -124,10 +125,7 @@ def getup_rows(trials: list[TrialResult]) -> dict[str, str]:
            "getup attempts": _fmt([e.attempts for e in ev]),
            "through the kneel gate before standing": f"{sum(r.through_kneel_gate is True for r in trials)}/"
                                                      f"{sum(r.through_kneel_gate is not None for r in trials)} stood"}
-    for key, label in (("energy_J", "energy Σ|τ·q̇|·dt [J]"), ("max_energy_J", "max energy per tick [J]"),
-                       ("max_torque_Nm", "max torque [N·m]"), ("total_torque_Nms", "total torque Σ|τ|·dt [N·m·s]"),
-                       ("max_joint_acc", "max joint acc [rad/s²]"), ("total_joint_acc", "total joint acc Σ|q̈|·dt [rad/s]"),
-                       ("contact_force_mean_N", "contact force mean [N]"), ("contact_force_max_N", "contact force max [N]")):
+    for key, label, _ in EFFORT_METRICS:
         row[label] = _fmt([r.effort.get(key) for r in trials if r.effort], 1)
     return {**row, **_common(trials)}
 

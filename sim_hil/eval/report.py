@@ -90,7 +90,7 @@ def write_report(out: Path, plan: Plan, controllers: list[Controller], results: 
               "from the lowest height while down (hysteresis both ways); success = not down at the end.",
               f"- Every metric starts when the runtime first commands in POLICY (after its PREPARE ramp: "
               f"{results[0].spec.prepare_s:g} s here).",
-              "- Table 4.3 metrics (`sim_hil/eval/metrics.py`) from the in-process physics, over the first "
+              "- Table 4.3 metrics (`common/effort.py`, the batch's names) from the in-process physics, over the first "
               "down phase up to its stand-up; torque = motor torque from the firmware PD, dt = 2 ms.",
               f"- Slip: a foot carrying ≥ {metrics.SLIP_LOAD_N:g} N sliding ≥ {metrics.SLIP_SPEED_MPS} m/s "
               f"for ≥ {metrics.SLIP_MIN_S * 1e3:g} ms. Ran to stabilise: no fall and trunk speed ≥ "

@@ -123,12 +123,14 @@ def spy(log, speed: float) -> int:
 
 
 def replay_cmd(log, policy: str, out: Path | None) -> int:
+    from common.artifact import artifact_problem
     from sim_hil.lcmlog.replay import replay, write_report
     if not _require_netns("replay"):
         return EXIT_USAGE
     chosen = None if policy == "logged" else Path(policy)
-    if chosen is not None and not chosen.is_file():
-        print(f"--policy {policy}: no such artifact", file=sys.stderr)
+    problem = None if chosen is None else artifact_problem(chosen)
+    if problem:
+        print(f"sim_hil.lcmlog replay: --policy {problem}", file=sys.stderr)
         return EXIT_USAGE
     try:
         comparison, _ = replay(log, chosen)

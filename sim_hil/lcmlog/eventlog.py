@@ -121,6 +121,8 @@ def open_log(path: Path | str, channels=None) -> ProjectLog:
     """Read and decode a log; raises only when the file cannot be read at all or holds no event. channels: decode
     only these project channels (the others' events are kept undecoded, in `events`); default all."""
     path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"{path}: a folder, not a log file (*.lcmlog)")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such log file")
     problems = LogProblems()

@@ -29,7 +29,7 @@ from t1 import joint_command_t, joystick_t, runtime_cmd_t
 
 from messages import contract
 from messages.auth import STATE_CHANNELS, UNSIGNED_SENDER, RunKey
-from sim_hil.launch import start_runtime, stop, wait_until_listening
+from sim_hil.launch import runtime_reason, start_runtime, stop, wait_until_listening
 from sim_hil.lcmlog.eventlog import ProjectLog
 
 RUNTIME_INPUTS = (contract.CH_IMU, contract.CH_JOINT_STATE, contract.CH_JOYSTICK, contract.CH_RUNTIME_CMD,
@@ -134,7 +134,7 @@ def replay(log: ProjectLog, policy: Path | None = None, url: str | None = None) 
             unanswered += seq not in answers
             if runtime.poll() is not None:
                 raise RuntimeError(f"t1-runtime exited {runtime.returncode} during the replay: "
-                                   f"{runtime.communicate()[1][-2000:]}")
+                                   f"{runtime_reason(runtime.communicate()[1])}")
     finally:
         stop(runtime)
     comparison = compare(log, answers, str(chosen), info.policy_path if info else "",

@@ -10,6 +10,7 @@ with --with-sim a fresh key of the run that the runtime it starts takes."""
 from __future__ import annotations
 
 import argparse
+import math
 import select
 import subprocess
 import sys
@@ -129,6 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
 
     try:
+        if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+            raise ValueError(f"--duration {args.duration}: must be a finite number of seconds > 0")
         bindings = load_bindings(args.bindings)
         ranges = command_ranges(args.policy)
         pad = None

@@ -63,9 +63,10 @@ def base_config() -> config_dict.ConfigDict:
         # U(−1, 1)·scale·level added per observation term (Playground T1 scales; 0 for exact terms).
         noise=config_dict.create(level=1.0, scales=config_dict.create(
             gyro=0.2, gravity=0.05, command=0.0, joint_pos=0.03, joint_vel=1.5, last_action=0.0, phase=0.0)),
-        # the deployed runtime's target rule R6 (runtime/include/t1rt/safety.hpp SafetyConfig: 0.05 rad per
-        # 2 ms tick, 95 % of the joint range; tests/test_training_motor.py checks them against that file)
-        supervisor=config_dict.create(max_target_speed_rps=25.0, joint_range_fraction=0.95),
+        # the deployed runtime's target rule R6 (messages/contract.json supervisor.r6, the runtime's SafetyConfig
+        # reads the same: 25 rad/s = 0.05 rad per 2 ms tick, 95 % of the joint range)
+        supervisor=config_dict.create(max_target_speed_rps=contract.R6_MAX_TARGET_SPEED_RPS,
+                                      joint_range_fraction=contract.R6_JOINT_RANGE_FRACTION),
         impl="jax",
         backend="mjx",   # physics engine: mjx (JAX, GPU) | cpu (MuJoCo C on all cores, cpu_backend.py)
         wall_course=wall_course.config(),   # the seed's low walls far down +x (wall_course.py; cpu backend)

@@ -16,7 +16,7 @@ the getup member below waist 0.5 m, the upright one above), the seed's chapter-6
 Per env and control tick the host gets trunk height, up_z, waist height, and per-substep aggregates:
 energy Σ|τ·q̇|·dt_sim [J], the largest of one substep's Σ|τ·q̇|·dt_sim [J], max |τ| [N·m], Σ|τ|·dt_sim [N·m·s],
 max |q̈| [rad/s²], Σ|q̈|·dt_sim [rad/s]; after the tick, the total normal force [N] and the world-z force [N]
-of the robot's contacts with the world (the definitions of sim_hil/eval/metrics.py's effort_metrics). Falls / attempts / success / time to stand come from common/events.py, the definitions
+of the robot's contacts with the world (Table 4.3's definitions and names: common/effort.py). Falls / attempts / success / time to stand come from common/events.py, the definitions
 the HIL evaluation uses too. Output: report.md (table beside the seed's numbers), per_env.csv, plots.
 """
 from __future__ import annotations
@@ -34,6 +34,8 @@ from mujoco.mjx._src import support
 from common import events
 from common import model as t1model
 from common import observation as obsdef
+from common.effort import EFFORT_KEYS as TABLE_4_3_KEYS
+from common.effort import effort_metrics
 from common.events import getup_events, reached_kneel
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 from training import envs
@@ -144,6 +146,10 @@ def episode_row(t, readings, series) -> dict:
     stood = not math.isnan(ev.time_to_stand_s)
     stand_tick = int(np.searchsorted(t, t[0] + ev.time_to_stand_s - 1e-9)) if stood else 0
     ctrl_dt = float(t[1] - t[0])
+    # Table 4.3 (common/effort.py) from the per-tick sums of the substeps: already integrals over the tick
+    effort = effort_metrics(series["energy_J"], series["max_energy_J"], series["max_torque_Nm"],
+                            series["torque_integral"], series["max_qacc"], series["qacc_integral"],
+                            series["contact_force_N"])
     return {
         "success": ev.success, "time_to_stand_s": ev.time_to_stand_s, "attempts": ev.attempts,
         "falls": ev.falls, "down_phases": ev.falls + int(ev.started_down),
@@ -152,20 +158,14 @@ def episode_row(t, readings, series) -> dict:
         "gate_while_standing": events.gate_while_standing(readings[:, 0], readings[:, 1]),
         **kneel_rows.kneel_row(t, readings, ev, series["energy_J"]),
         "peak_trunk_m": float(readings[:, 0].max()),
-        "energy_J": float(series["energy_J"].sum()),
+        "energy_J": effort["energy_J"],
         "energy_to_stand_J": float(series["energy_J"][:stand_tick].sum()) if stood else math.nan,
-        "max_energy_J": float(series["max_energy_J"].max()),
-        "max_torque_Nm": float(series["max_torque_Nm"].max()),
-        "total_torque_Nms": float(series["torque_integral"].sum()),
-        "max_joint_acc_radps2": float(series["max_qacc"].max()),
-        "total_joint_acc_radps": float(series["qacc_integral"].sum()),
-        "max_contact_force_N": float(series["contact_force_N"].max()),
-        "mean_contact_force_N": float(series["contact_force_N"].mean()),
+        **{key: effort[key] for key in TABLE_4_3_KEYS[1:]},
         "z_contact_impulse_Ns": float(series["contact_force_z_N"].sum() * ctrl_dt)}
 
 
-EFFORT_KEYS = ("energy_J", "energy_to_stand_J", "max_energy_J", "max_torque_Nm", "total_torque_Nms",
-               "max_joint_acc_radps2", "total_joint_acc_radps", "max_contact_force_N", "mean_contact_force_N", "z_contact_impulse_Ns")
+# Table 4.3's (common/effort.py) with the getup's own energy and the vertical impulse
+EFFORT_KEYS = (TABLE_4_3_KEYS[0], "energy_to_stand_J", *TABLE_4_3_KEYS[1:], "z_contact_impulse_Ns")
 
 
 def _lies(side: str):

@@ -1,7 +1,7 @@
 """The seed's Table 4.3 (thesis §4.9): keyframe getup against the reward-only baseline, ours beside the seed's.
 
 Each metric is per episode, averaged over the seeded fallen starts (training/evaluation/batch.py computes them; the
-definitions are sim_hil/eval/metrics.py's effort_metrics, at the 2 ms physics step). The seed gives no
+definitions and names are common/effort.py's, at the 2 ms physics step). The seed gives no
 definitions and ran IsaacGym on its own model, so absolute values need not agree; what can be compared is
 the direction: whether the keyframe policy is below or above the baseline in both studies. The ratio
 keyframe / baseline is unit-free, so one bar plot shows every metric for both studies.

@@ -8,6 +8,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from common import keyframe_chain
 from common.artifact import read_artifact, write_artifact
 from common.golden import base_manifest
 from training.core import checkpoints
@@ -89,7 +90,6 @@ def ship_chain(policy: str, members: Mapping[str, Path], handover: str, state: d
     """Ship a keyframe chain (common/keyframe_chain.py) as policies/<policy>/: each member artifact (role →
     artifact) beside the others, under its own name, a provenance row each in that folder's CARD.md, and the
     chain's manifest naming them and the rise → stand hand-over. Returns the folder."""
-    from common import keyframe_chain
     folder = checkpoints.policy_dir(policy, policies_root)
     files = {role: ship_artifact(path, state, policies_root, folder).name for role, path in members.items()}
     keyframe_chain.write(folder, files, handover)

@@ -107,7 +107,7 @@ class Controller {
   void publish_status(double now_s);
   void report_state_source();
   void post_live_line();   // the loop's side: a snapshot into live_line_
-  void live_line_worker(); // its own thread: prints the newest snapshot at 5 Hz
+  void live_line_worker(); // its own thread: the newest snapshot at 5 Hz (not --quiet); no state for 1 s: says so
   void reload_worker();
   StateView state_view(double now_s) const;
   void select_member(const StateView& s);

@@ -60,6 +60,7 @@
 #include <cstdint>
 #include <cstddef>
 
+#include "t1_contract.hpp"
 #include "t1_motor_protocol.h"
 #include "t1/controller_status_t.hpp"
 #include "t1/joint_command_t.hpp"
@@ -161,9 +162,11 @@ struct SafetyConfig {
   double hold_age_s = 0.010;         // state older than this: hold the last target
   double fault_age_s = 0.050;        // state older than this: FAULT
   double joystick_stale_s = 0.250;   // joystick older than this: zero command
-  double prepare_duration_s = 2.0;   // PREPARE ramp from the current pose to the default pose
-  float max_target_step_rad = 0.05f; // target rate limit per 2 ms tick (25 rad/s, above every motor's speed)
-  float joint_range_fraction = 0.95f;  // targets clamped to this centred fraction of the joint range
+  // PREPARE's ramp and R6's target shaping: messages/contract.json "supervisor" (training models the same)
+  double prepare_duration_s = t1::kPrepareDurationS;  // PREPARE ramp from the current pose to the default pose
+  // target rate limit per 2 ms tick (25 rad/s, above every motor's speed)
+  float max_target_step_rad = static_cast<float>(t1::kR6MaxTargetSpeedRps * t1::kLoopPeriodS);
+  float joint_range_fraction = t1::kR6JointRangeFraction;  // targets clamped to this centred fraction of the range
   double restart_quiet_s = 0.1;      // R12: a new numbering is a restart only after this much silence [s]
   int64_t max_seq_jump_frames = 500; // R12: a jump further ahead while the stream is alive: a second source
 };

@@ -26,16 +26,14 @@ from ml_collections import config_dict
 from common import model as t1model
 from common.artifact import RUNTIME_LOOP_DT_S
 from common.events import LYING_SIDES, lying_side
+from messages import contract
 from training.envs import base, collision, cpu_backend
 
-# runtime/include/t1rt/prepare_gains.hpp kPrepareKp [N·m/rad] / kPrepareKd [N·m·s/rad], joint order of the
-# contract (tests/test_training_fallen.py reads them back from that header).
-PREPARE_KP = np.array([5.0, 5.0, 40.0, 50.0, 20.0, 10.0, 40.0, 50.0, 20.0, 10.0, 100.0,
-                       350.0, 350.0, 180.0, 350.0, 450.0, 450.0, 350.0, 350.0, 180.0, 350.0, 450.0, 450.0])
-PREPARE_KD = np.array([0.1, 0.1, 0.5, 1.5, 0.2, 0.2, 0.5, 1.5, 0.2, 0.2, 5.0,
-                       7.5, 7.5, 3.0, 5.5, 0.5, 0.5, 7.5, 7.5, 3.0, 5.5, 0.5, 0.5])
-# runtime/include/t1rt/safety.hpp SafetyConfig.prepare_duration_s: the ramp `make eval-getup` runs [s]
-PREPARE_S = 2.0
+# The runtime's PREPARE (messages/contract.json supervisor.prepare, C++ reads the same): the T1's stand-up gains
+# kp [N·m/rad] / kd [N·m·s/rad] in the contract's joint order, and the ramp `make eval-getup` runs [s].
+PREPARE_KP = np.array(contract.PREPARE_KP_NM_PER_RAD)
+PREPARE_KD = np.array(contract.PREPARE_KD_NMS_PER_RAD)
+PREPARE_S = contract.PREPARE_DURATION_S
 
 
 def fallen_config() -> config_dict.ConfigDict:
