@@ -42,12 +42,6 @@ LcmTransport::~LcmTransport() {
 bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* supervisor, CommandAuth* auth,
                         std::string* error, bool subscribe_sim_status, bool subscribe_robot_state,
                         CommandAuth* state_auth) {
-  clock_ = clock;
-  supervisor_ = supervisor;
-  auth_ = auth;
-  state_auth_ = state_auth;
-  buffer_.assign(kEncodeBufferBytes, 0);
-  rx_.assign(t1::kLcmMaxDatagramBytes, 0);
   if (!sender_.open(url)) {
     *error = "cannot send on LCM URL '" + url + "' (a udpm://GROUP:PORT[?ttl=N] URL is needed; multicast "
              "route missing? run inside tools/netns)";
@@ -59,6 +53,18 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
              "missing? run inside tools/netns)";
     return false;
   }
+  attach(clock, supervisor, auth, subscribe_sim_status, subscribe_robot_state, state_auth);
+  return true;
+}
+
+void LcmTransport::attach(ClockMode clock, Supervisor* supervisor, CommandAuth* auth, bool subscribe_sim_status,
+                          bool subscribe_robot_state, CommandAuth* state_auth) {
+  clock_ = clock;
+  supervisor_ = supervisor;
+  auth_ = auth;
+  state_auth_ = state_auth;
+  buffer_.assign(kEncodeBufferBytes, 0);
+  rx_.assign(t1::kLcmMaxDatagramBytes, 0);
   if (subscribe_robot_state) {
     subscribe(t1::CH_IMU, &LcmTransport::on_imu);
     subscribe(t1::CH_JOINT_STATE, &LcmTransport::on_joint);
@@ -77,24 +83,25 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
       for (std::string* s : {&m->scenario, &m->clock, &m->active_faults}) s->reserve(kSimStatusMaxBytes);
     subscribe(t1::CH_SIM_STATUS, &LcmTransport::on_sim_status);
   }
-  return true;
 }
 
 void LcmTransport::subscribe(const char* channel, Handler handler) {
   subscriptions_.at(subscription_count_++) = {channel, handler};
 }
 
+int LcmTransport::deliver(const t1::LcmDatagram& m) {
+  for (std::size_t i = 0; i < subscription_count_; ++i) {
+    if (std::strcmp(m.channel, subscriptions_[i].channel) != 0) continue;
+    if (m.fragment) ++decode_errors;
+    else (this->*subscriptions_[i].handler)({m.payload, static_cast<uint32_t>(m.size)});
+    return 1;
+  }
+  return 0;
+}
+
 int LcmTransport::handle_queued() {
   int handled = 0;
-  t1::drain_lcm_group(sock_, rx_, [&](const t1::LcmDatagram& m) {
-    for (std::size_t i = 0; i < subscription_count_; ++i) {
-      if (std::strcmp(m.channel, subscriptions_[i].channel) != 0) continue;
-      ++handled;
-      if (m.fragment) ++decode_errors;
-      else (this->*subscriptions_[i].handler)({m.payload, static_cast<uint32_t>(m.size)});
-      return;
-    }
-  });
+  t1::drain_lcm_group(sock_, rx_, [&](const t1::LcmDatagram& m) { handled += deliver(m); });
   return handled;
 }
 

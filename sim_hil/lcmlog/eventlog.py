@@ -68,7 +68,11 @@ class LogProblems:
 
 def read_events(path: Path, problems: LogProblems) -> list[Event]:
     """Every readable event, in file order; damage is recorded in `problems`, never raised."""
-    blob = Path(path).read_bytes()
+    return parse_events(Path(path).read_bytes(), problems)
+
+
+def parse_events(blob: bytes, problems: LogProblems) -> list[Event]:
+    """read_events on a log's bytes."""
     events, pos, n = [], 0, len(blob)
     while pos < n:
         if n - pos < HEADER.size:
@@ -110,15 +114,8 @@ class ProjectLog:
         return entries[0][1] if entries else None
 
 
-def open_log(path: Path | str) -> ProjectLog:
-    """Read and decode a log; raises only when the file cannot be read at all or holds no event."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such log file")
-    problems = LogProblems()
-    events = read_events(path, problems)
-    if not events:
-        raise ValueError(f"{path}: no readable LCM event ({'; '.join(problems.messages(path)) or 'empty file'})")
+def decode_events(events: list[Event], problems: LogProblems) -> dict[str, list[tuple[Event, object]]]:
+    """The events of project channels decoded (channel -> [(event, message)]); what cannot be, in `problems`."""
     decoded: dict[str, list[tuple[Event, object]]] = defaultdict(list)
     for ev in events:
         cls = lcm_type(ev.channel)
@@ -142,7 +139,19 @@ def open_log(path: Path | str) -> ProjectLog:
             decoded[ev.channel].append((ev, cls.decode(data)))
         except Exception:          # lcm-gen's decoders raise ValueError or struct.error on short data
             problems.undecodable[ev.channel] += 1
-    return ProjectLog(path, events, dict(decoded), problems)
+    return dict(decoded)
+
+
+def open_log(path: Path | str) -> ProjectLog:
+    """Read and decode a log; raises only when the file cannot be read at all or holds no event."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such log file")
+    problems = LogProblems()
+    events = read_events(path, problems)
+    if not events:
+        raise ValueError(f"{path}: no readable LCM event ({'; '.join(problems.messages(path)) or 'empty file'})")
+    return ProjectLog(path, events, decode_events(events, problems), problems)
 
 
 def write_events(path: Path, events: list[Event]) -> Path:
