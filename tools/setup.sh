@@ -14,6 +14,7 @@ APT_PACKAGES=(
   cyclonedds-dev cyclonedds-tools # Cyclone DDS 0.10 C API + idlc (t1-runtime --transport dds), ddsperf
   python3-venv
   linux-libc-dev python3-dev    # evdev (sim_hil.teleop) builds its C extension from source
+  clang-14 libclang-rt-14-dev   # make test-sanitize / make fuzz: ASan + UBSan, libFuzzer (build-asan)
 )
 
 missing=()
