@@ -19,6 +19,8 @@ import atheris
 with atheris.instrument_imports():
     from messages import auth, contract
     from sim_hil.lcmlog.eventlog import lcm_type
+    import t1  # noqa: F401  lcm-gen's Python decoders of every project type (lcm_type imports them from here)
+    from t1 import imu_t, joint_state_t, joystick_t, runtime_cmd_t  # noqa: F401
 
 SIGNED = sorted(auth.SIGNED_CHANNELS)
 SENDER = auth.new_sender(7)
