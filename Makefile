@@ -52,8 +52,11 @@ build-asan: setup
 	  -DPython3_EXECUTABLE=$(PY) -DT1_FUZZ=ON >/dev/null
 	cmake --build $(ASAN_BUILD) -j $(JOBS)
 
-test-sanitize: build-asan
-	$(NETNS) ctest --test-dir $(ASAN_BUILD) --output-on-failure -j $(JOBS)
+# The ctest suite in build-asan, then the Python tests that drive t1-runtime as a process, on build-asan's.
+SANITIZE_PYTESTS := tests/test_runtime_lcm_faults.py tests/test_runtime_auth.py
+test-sanitize: build build-asan
+	$(NETNS) bash -c 'set -e; ctest --test-dir $(ASAN_BUILD) --output-on-failure -j $(JOBS); \
+	  T1_RUNTIME=$(ASAN_BUILD)/runtime/t1-runtime $(PY) -m pytest -q -n $(JOBS) $(SANITIZE_PYTESTS)'
 
 # make fuzz FUZZ_S=120: every harness for FUZZ_S seconds (tools/fuzz.py: executions, edges, findings each;
 # a finding is saved under out/fuzz/<harness>/ and fails the run).

@@ -89,13 +89,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
     if (t1::parse_lcm_datagram(bytes.data(), bytes.size(), &m) && m.channel != nullptr) transport.deliver(m);
   }
 
-  // A state channel's partner slot holds a healthy frame of the same time, so the loop can tick on the fuzzed one.
-  if (transport.imu.have != transport.joint.have) {
-    auto& other_have = transport.imu.have ? transport.joint.have : transport.imu.have;
-    auto& other_stamp = transport.imu.have ? transport.joint.stamp_s : transport.imu.stamp_s;
-    other_stamp = transport.imu.have ? transport.imu.stamp_s : transport.joint.stamp_s;
-    other_have = true;
-    transport.imu.msg.quat[0] = transport.imu.have && transport.imu.received ? transport.imu.msg.quat[0] : 1.0f;
+  // A state channel's partner slot holds a healthy frame of the same time, so the loop ticks on the fuzzed one.
+  if (transport.imu.have && !transport.joint.have) {
+    transport.joint.have = true;  // zero positions and velocities, no status bits
+    transport.joint.stamp_s = transport.imu.stamp_s;
+  } else if (transport.joint.have && !transport.imu.have) {
+    transport.imu.have = true;    // upright, at rest
+    transport.imu.msg.quat[0] = 1.0f;
+    transport.imu.stamp_s = transport.joint.stamp_s;
   }
 
   // The loop's side (Controller::handle_commands and tick): verbs, joystick gate, a supervisor tick, a policy step.
