@@ -35,10 +35,37 @@ build: setup
 	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_PREFIX_PATH=$(SITE) -DPython3_EXECUTABLE=$(PY) >/dev/null
 	cmake --build $(BUILD) -j $(JOBS)
 
-# Everything: C unit tests (CTest) and Python tests (pytest), all inside one private network namespace.
+# Everything: C unit tests (CTest) and Python tests (pytest), all inside one private network namespace; then
+# the same ctest suite under AddressSanitizer + UBSan and a short pass of every fuzz harness (FUZZ_TEST_S each).
 test: build
 	$(NETNS) bash -c 'set -e; ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS); \
 	  $(PY) -m pytest -q -n $(JOBS) tests'
+	$(MAKE) --no-print-directory test-sanitize
+	$(MAKE) --no-print-directory fuzz FUZZ_S=$(FUZZ_TEST_S)
+
+# The sanitizer build (build-asan): firmware_like, runtime, sim_hil/core and the rest, compiled by clang with
+# -fsanitize=address,undefined (T1_SANITIZE) and libFuzzer's coverage hooks (T1_FUZZ: the harnesses share it).
+ASAN_BUILD  := $(ROOT)/build-asan
+FUZZ_S      ?= 60
+FUZZ_TEST_S ?= 3
+export ASAN_OPTIONS  ?= abort_on_error=1:detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1
+export UBSAN_OPTIONS ?= print_stacktrace=1:halt_on_error=1
+.PHONY: build-asan test-sanitize fuzz
+build-asan: setup
+	CC=clang-14 CXX=clang++-14 cmake -S . -B $(ASAN_BUILD) -G Ninja -DCMAKE_PREFIX_PATH=$(SITE) \
+	  -DPython3_EXECUTABLE=$(PY) -DT1_FUZZ=ON >/dev/null
+	cmake --build $(ASAN_BUILD) -j $(JOBS)
+
+# The ctest suite in build-asan, then the Python tests that drive t1-runtime as a process, on build-asan's.
+SANITIZE_PYTESTS := tests/test_runtime_lcm_faults.py tests/test_runtime_auth.py
+test-sanitize: build build-asan
+	$(NETNS) bash -c 'set -e; ctest --test-dir $(ASAN_BUILD) --output-on-failure -j $(JOBS); \
+	  T1_RUNTIME=$(ASAN_BUILD)/runtime/t1-runtime $(PY) -m pytest -q -n $(JOBS) $(SANITIZE_PYTESTS)'
+
+# make fuzz FUZZ_S=120: every harness for FUZZ_S seconds (tools/fuzz.py: executions, edges, findings each;
+# a finding is saved under out/fuzz/<harness>/ and fails the run).
+fuzz: build-asan
+	$(PY) tools/fuzz.py --build $(ASAN_BUILD) --seconds $(FUZZ_S)
 
 # Skip tests marked slow (for quick iteration; CI runs `make test`).
 test-fast: build
@@ -118,7 +145,7 @@ bench-soak: build
 	$(NETNS) $(PY) -m tests.bench.soak --minutes $(SOAK_MINUTES)
 
 clean:
-	rm -rf $(BUILD)
+	rm -rf $(BUILD) $(ASAN_BUILD)
 
 # Evaluation in the loop (the seed's chapter 6; sim_hil/eval): seeded lockstep trials of the student and,
 # with EVAL_BASELINE=GETUP,JOYSTICK, the baseline composite; reports under out/eval/<scenario>/.

@@ -106,7 +106,11 @@ def read_key_file(path: str | os.PathLike) -> list[Sender]:
         if not stat.S_ISREG(mode) or mode & 0o077:
             raise KeyFileError(f"key file {path}: mode {stat.filemode(mode)} lets its group or others at the key; "
                                f"chmod 600 {path}")
-        text = f.read()
+        try:
+            text = f.read()
+        except UnicodeDecodeError as e:
+            raise KeyFileError(f"key file {path}: byte {e.start} is not UTF-8 text; expected '<sender_id> <key: "
+                               f"{2 * KEY_BYTES} hex digits>' lines") from None
     senders: list[Sender] = []
     for number, line in enumerate(text.splitlines(), 1):
         words = line.split("#", 1)[0].split()

@@ -14,7 +14,8 @@ from messages.auth import RunKey
 
 ROOT = Path(__file__).resolve().parents[1]
 BUILD = Path(os.environ.get("T1_BUILD", ROOT / "build"))
-RUNTIME = BUILD / "runtime" / "t1-runtime"
+# $T1_RUNTIME: another build's t1-runtime (make test-sanitize drives build-asan's from the Python tests)
+RUNTIME = Path(os.environ.get("T1_RUNTIME", BUILD / "runtime" / "t1-runtime"))
 LOGGER = BUILD / "sim_hil" / "core" / "t1-lcm-logger"   # sim_hil/core/lcm_logger.cpp
 RUNTIME_OPEN_MARGIN_S = 0.2     # banner printed -> LCM subscribed: microseconds; this is margin
 

@@ -81,6 +81,17 @@ def test_key_files_open_to_others_or_malformed_are_refused(tmp_path):
     assert sender.key.hex() not in repr(sender) and repr(sender) == "Sender(sender_id=4)"
 
 
+def test_key_file_that_is_not_text_is_refused_in_one_line(tmp_path):
+    """Found by tests/fuzz/fuzz_auth.py: a non-UTF-8 byte raised UnicodeDecodeError (a traceback in sim_hil and
+    the teleop, which print KeyFileError in one line)."""
+    bad = tmp_path / "k"
+    bad.write_bytes(b"0 " + b"ab" * 15 + b"a\x95" + b"ab" * 16 + b"\n12 zz\n")
+    bad.chmod(0o600)
+    with pytest.raises(auth.KeyFileError, match="byte 33 is not UTF-8 text") as refused:
+        auth.read_key_file(bad)
+    assert "\n" not in str(refused.value)
+
+
 def test_a_run_key_is_private_and_removed_with_the_run():
     run = auth.RunKey()
     assert stat.S_IMODE(run.dir.stat().st_mode) == 0o700 and stat.S_IMODE(run.key_path.stat().st_mode) == 0o600

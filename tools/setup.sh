@@ -16,6 +16,7 @@ APT_PACKAGES=(
   linux-libc-dev python3-dev    # evdev (sim_hil.teleop) builds its C extension from source
   chromium                      # headless: Rerun's web viewer as a person sees it (tests/test_rerun_view.py)
   clang-format                  # make lint: the C/C++ style check (.clang-format)
+  clang-14 libclang-rt-14-dev   # make test-sanitize / make fuzz: ASan + UBSan, libFuzzer (build-asan)
 )
 
 missing=()

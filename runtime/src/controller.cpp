@@ -188,26 +188,7 @@ void Controller::adopt_ready_policy() {
   reload_cv_.notify_all();
 }
 
-StateView Controller::state_view(double now_s) const {
-  StateView s;
-  s.now_s = now_s;
-  s.have_imu = transport_.imu.have;
-  s.imu_time_s = transport_.imu.stamp_s;
-  s.quat = transport_.imu.msg.quat;
-  s.gyro = transport_.imu.msg.gyro;
-  s.have_joint = transport_.joint.have;
-  s.joint_time_s = transport_.joint.stamp_s;
-  s.joint_seq = transport_.joint.msg.seq;
-  s.q = transport_.joint.msg.q;
-  s.dq = transport_.joint.msg.dq;
-  s.motor_status = transport_.joint.msg.motor_status;
-  s.needs_sim_status = switched();
-  s.have_sim_status = transport_.sim_status.have;
-  s.sim_status_time_s = transport_.sim_status.stamp_s;
-  s.waist_height_m = transport_.sim_status.msg.waist_height;
-  s.trunk_height_m = transport_.sim_status.msg.trunk_height;
-  return s;
-}
+StateView Controller::state_view(double now_s) const { return transport_.state_view(now_s, switched()); }
 
 void Controller::handle_commands() {
   for (std::size_t i = 0; i < transport_.command_count; ++i) {

@@ -80,11 +80,7 @@ bool DdsTransport::open(int domain_id, ClockMode clock, Supervisor* supervisor, 
                         MessageSlot<t1::joint_state_t>* joint, bool* new_state, std::string* error,
                         double restart_quiet_s) {
   restart_quiet_s_ = restart_quiet_s;
-  clock_ = clock;
-  supervisor_ = supervisor;
-  imu_ = imu;
-  joint_ = joint;
-  new_state_ = new_state;
+  attach(clock, supervisor, imu, joint, new_state);
   participant_ = dds_create_participant(static_cast<dds_domainid_t>(domain_id), nullptr, nullptr);
   if (participant_ < 0) {
     *error = dds_error("dds_create_participant", participant_);
@@ -119,6 +115,15 @@ bool DdsTransport::open(int domain_id, ClockMode clock, Supervisor* supervisor, 
   waitset_ = dds_create_waitset(participant_);
   dds_waitset_attach(waitset_, state_reader_, state_reader_);
   return true;
+}
+
+void DdsTransport::attach(ClockMode clock, Supervisor* supervisor, MessageSlot<t1::imu_t>* imu,
+                          MessageSlot<t1::joint_state_t>* joint, bool* new_state) {
+  clock_ = clock;
+  supervisor_ = supervisor;
+  imu_ = imu;
+  joint_ = joint;
+  new_state_ = new_state;
 }
 
 void DdsTransport::accept(const DdsLowState& sample) {

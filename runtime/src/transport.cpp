@@ -21,6 +21,24 @@ namespace {
 constexpr double kUsToS = 1e-6;
 constexpr double kMsToS = 1e-3;
 
+// Whether sim_status_t's three strings (scenario, clock, active_faults: int32 length with the NUL, bytes) each
+// have a length of at least 1 that fits in the datagram. lcm-gen's decoder reads a length below 1 as
+// length - 1 bytes, which overflows for INT32_MIN before its std::length_error: such a datagram is not decoded.
+bool sim_status_strings_fit(const uint8_t* p, std::size_t size) {
+  // fingerprint, utime, step (int64), real_time_factor (float): messages/t1/sim_status_t.lcm
+  constexpr std::size_t kHead = 3 * sizeof(int64_t) + sizeof(float), kLength = sizeof(int32_t), kStrings = 3;
+  std::size_t pos = kHead;
+  for (std::size_t s = 0; s < kStrings; ++s) {
+    if (size < pos + kLength) return false;
+    const int32_t length = static_cast<int32_t>((uint32_t{p[pos]} << 24) | (uint32_t{p[pos + 1]} << 16) |
+                                                (uint32_t{p[pos + 2]} << 8) | p[pos + 3]);
+    pos += kLength;
+    if (length < 1 || static_cast<std::size_t>(length) > size - pos) return false;
+    pos += static_cast<std::size_t>(length);
+  }
+  return true;
+}
+
 CommandAuth::Stream stream_of(Supervisor::OperatorInput input) {
   return input == Supervisor::OperatorInput::kJoystick ? CommandAuth::kJoystickStream : CommandAuth::kCommandStream;
 }
@@ -42,12 +60,6 @@ LcmTransport::~LcmTransport() {
 bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* supervisor, CommandAuth* auth,
                         std::string* error, bool subscribe_sim_status, bool subscribe_robot_state,
                         CommandAuth* state_auth) {
-  clock_ = clock;
-  supervisor_ = supervisor;
-  auth_ = auth;
-  state_auth_ = state_auth;
-  buffer_.assign(kEncodeBufferBytes, 0);
-  rx_.assign(t1::kLcmMaxDatagramBytes, 0);
   if (!sender_.open(url)) {
     *error = "cannot send on LCM URL '" + url + "' (a udpm://GROUP:PORT[?ttl=N] URL is needed; multicast "
              "route missing? run inside tools/netns)";
@@ -59,6 +71,18 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
              "missing? run inside tools/netns)";
     return false;
   }
+  attach(clock, supervisor, auth, subscribe_sim_status, subscribe_robot_state, state_auth);
+  return true;
+}
+
+void LcmTransport::attach(ClockMode clock, Supervisor* supervisor, CommandAuth* auth, bool subscribe_sim_status,
+                          bool subscribe_robot_state, CommandAuth* state_auth) {
+  clock_ = clock;
+  supervisor_ = supervisor;
+  auth_ = auth;
+  state_auth_ = state_auth;
+  buffer_.assign(kEncodeBufferBytes, 0);
+  rx_.assign(t1::kLcmMaxDatagramBytes, 0);
   if (subscribe_robot_state) {
     subscribe(t1::CH_IMU, &LcmTransport::on_imu);
     subscribe(t1::CH_JOINT_STATE, &LcmTransport::on_joint);
@@ -77,24 +101,25 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
       for (std::string* s : {&m->scenario, &m->clock, &m->active_faults}) s->reserve(kSimStatusMaxBytes);
     subscribe(t1::CH_SIM_STATUS, &LcmTransport::on_sim_status);
   }
-  return true;
 }
 
 void LcmTransport::subscribe(const char* channel, Handler handler) {
   subscriptions_.at(subscription_count_++) = {channel, handler};
 }
 
+int LcmTransport::deliver(const t1::LcmDatagram& m) {
+  for (std::size_t i = 0; i < subscription_count_; ++i) {
+    if (std::strcmp(m.channel, subscriptions_[i].channel) != 0) continue;
+    if (m.fragment) ++decode_errors;
+    else (this->*subscriptions_[i].handler)({m.payload, static_cast<uint32_t>(m.size)});
+    return 1;
+  }
+  return 0;
+}
+
 int LcmTransport::handle_queued() {
   int handled = 0;
-  t1::drain_lcm_group(sock_, rx_, [&](const t1::LcmDatagram& m) {
-    for (std::size_t i = 0; i < subscription_count_; ++i) {
-      if (std::strcmp(m.channel, subscriptions_[i].channel) != 0) continue;
-      ++handled;
-      if (m.fragment) ++decode_errors;
-      else (this->*subscriptions_[i].handler)({m.payload, static_cast<uint32_t>(m.size)});
-      return;
-    }
-  });
+  t1::drain_lcm_group(sock_, rx_, [&](const t1::LcmDatagram& m) { handled += deliver(m); });
   return handled;
 }
 
@@ -112,8 +137,9 @@ double LcmTransport::stamp(int64_t utime) const {
 }
 
 // Safety rule R3 (src/safety_supervisor.cpp): decode into scratch; only a datagram that decodes exactly
-// (no error, no trailing bytes) may replace the live message. lcm-gen's decoder throws std::length_error on a
-// string length below 1 (sim_status_t's strings; runtime_cmd_t's are checked before: CommandAuth::read_tag_size).
+// (no error, no trailing bytes) may replace the live message. String lengths below 1 never reach lcm-gen's
+// decoder (sim_status_t's: sim_status_strings_fit; runtime_cmd_t's: CommandAuth::read_tag_size); the catch stays
+// as a second line.
 template <class Message>
 bool LcmTransport::decode_scratch(MessageSlot<Message>& slot, const Datagram& d) {
   int used = -1;
@@ -204,6 +230,10 @@ void LcmTransport::on_joystick(const Datagram& d) {
 void LcmTransport::on_sim_status(const Datagram& d) {
   if (d.size > kSimStatusMaxBytes) {
     ++sim_status_oversized;
+    return;
+  }
+  if (!sim_status_strings_fit(d.data, d.size)) {
+    ++decode_errors;
     return;
   }
   if (decode_scratch(sim_status, d)) commit(sim_status);

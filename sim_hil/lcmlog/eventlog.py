@@ -69,7 +69,11 @@ class LogProblems:
 
 def read_events(path: Path, problems: LogProblems) -> list[Event]:
     """Every readable event, in file order; damage is recorded in `problems`, never raised."""
-    blob = Path(path).read_bytes()
+    return parse_events(Path(path).read_bytes(), problems)
+
+
+def parse_events(blob: bytes, problems: LogProblems) -> list[Event]:
+    """read_events on a log's bytes."""
     events, pos, n = [], 0, len(blob)
     while pos < n:
         if n - pos < HEADER.size:
@@ -117,18 +121,9 @@ class ProjectLog:
         return entries[0][1] if entries else None
 
 
-def open_log(path: Path | str, channels=None) -> ProjectLog:
-    """Read and decode a log; raises only when the file cannot be read at all or holds no event. channels: decode
-    only these project channels (the others' events are kept undecoded, in `events`); default all."""
-    path = Path(path)
-    if path.is_dir():
-        raise IsADirectoryError(f"{path}: a folder, not a log file (*.lcmlog)")
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such log file")
-    problems = LogProblems()
-    events = read_events(path, problems)
-    if not events:
-        raise ValueError(f"{path}: no readable LCM event ({'; '.join(problems.messages(path)) or 'empty file'})")
+def decode_events(events: list[Event], problems: LogProblems, channels=None) -> dict[str, list[tuple[Event, object]]]:
+    """The events of project channels decoded (channel -> [(event, message)]); what cannot be, in `problems`.
+    channels: decode only these project channels (the others' events stay undecoded); default all."""
     decoded: dict[str, list[tuple[Event, object]]] = defaultdict(list)
     for ev in events:
         if channels is not None and ev.channel in contract.CHANNEL_TYPES and ev.channel not in channels:
@@ -154,7 +149,22 @@ def open_log(path: Path | str, channels=None) -> ProjectLog:
             decoded[ev.channel].append((ev, cls.decode(data)))
         except Exception:          # lcm-gen's decoders raise ValueError or struct.error on short data
             problems.undecodable[ev.channel] += 1
-    return ProjectLog(path, events, dict(decoded), problems)
+    return dict(decoded)
+
+
+def open_log(path: Path | str, channels=None) -> ProjectLog:
+    """Read and decode a log; raises only when the file cannot be read at all or holds no event. channels: decode
+    only these project channels (the others' events are kept undecoded, in `events`); default all."""
+    path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"{path}: a folder, not a log file (*.lcmlog)")
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such log file")
+    problems = LogProblems()
+    events = read_events(path, problems)
+    if not events:
+        raise ValueError(f"{path}: no readable LCM event ({'; '.join(problems.messages(path)) or 'empty file'})")
+    return ProjectLog(path, events, decode_events(events, problems, channels), problems)
 
 
 def write_events(path: Path, events: list[Event]) -> Path:

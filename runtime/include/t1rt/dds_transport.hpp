@@ -64,6 +64,11 @@ class DdsTransport final : public RobotLink {
   bool open(int domain_id, ClockMode clock, Supervisor* supervisor, MessageSlot<t1::imu_t>* imu,
             MessageSlot<t1::joint_state_t>* joint, bool* new_state, std::string* error,
             double restart_quiet_s = SafetyConfig{}.restart_quiet_s);
+  // open() without DDS: where accepted samples go (open() calls it; runtime/fuzz uses it with accept() alone).
+  void attach(ClockMode clock, Supervisor* supervisor, MessageSlot<t1::imu_t>* imu,
+              MessageSlot<t1::joint_state_t>* joint, bool* new_state);
+  // One deserialised rt/low_state sample of the followed writer: checked (R3), numbered, into the slots.
+  void accept(const DdsLowState& sample);
   int wait(int timeout_ms) override;  // waits for a state sample, takes what is queued; >0 took one, 0 timeout
   void drain() override;              // takes everything queued, without waiting
   bool publish(const t1::joint_command_t& cmd) override;
@@ -82,7 +87,6 @@ class DdsTransport final : public RobotLink {
 
  private:
   int take();
-  void accept(const DdsLowState& sample);
   // Whether a sample of `writer` is the followed writer's (adopting a first one, or a new one after the
   // followed one's silence); a refused one is counted and named.
   bool from_followed_writer(dds_instance_handle_t writer, double now_s);

@@ -59,6 +59,12 @@ class LcmTransport {
   // auth: who may command (null: nobody but estop). state_auth: whose state is taken (null: every frame).
   bool open(const std::string& url, ClockMode clock, Supervisor* supervisor, CommandAuth* auth, std::string* error,
             bool subscribe_sim_status = false, bool subscribe_robot_state = true, CommandAuth* state_auth = nullptr);
+  // open() without the sockets: the subscriptions, slots and buffers (open() calls it; the fuzz harnesses
+  // of runtime/fuzz use it alone and hand datagrams to deliver()).
+  void attach(ClockMode clock, Supervisor* supervisor, CommandAuth* auth, bool subscribe_sim_status = false,
+              bool subscribe_robot_state = true, CommandAuth* state_auth = nullptr);
+  // One parsed datagram (t1::parse_lcm_datagram) to its channel's handler; 1 if subscribed, else 0.
+  int deliver(const t1::LcmDatagram& m);
   int handle(int timeout_ms);  // >0 handled datagrams (waiting up to timeout_ms for the first), 0 timeout
   void drain();                // handle everything already queued, without waiting
 
@@ -68,6 +74,27 @@ class LcmTransport {
     if (size < 0 || static_cast<std::size_t>(size) > buffer_.size()) return false;
     if (msg.encode(buffer_.data(), 0, size) != size) return false;
     return sender_.send(channel, buffer_.data(), static_cast<std::size_t>(size));
+  }
+  // The live slots as the supervisor and the policy read them at now_s (needs_sim_status: composite or chain mode).
+  StateView state_view(double now_s, bool needs_sim_status) const {
+    StateView s;
+    s.now_s = now_s;
+    s.have_imu = imu.have;
+    s.imu_time_s = imu.stamp_s;
+    s.quat = imu.msg.quat;
+    s.gyro = imu.msg.gyro;
+    s.have_joint = joint.have;
+    s.joint_time_s = joint.stamp_s;
+    s.joint_seq = joint.msg.seq;
+    s.q = joint.msg.q;
+    s.dq = joint.msg.dq;
+    s.motor_status = joint.msg.motor_status;
+    s.needs_sim_status = needs_sim_status;
+    s.have_sim_status = sim_status.have;
+    s.sim_status_time_s = sim_status.stamp_s;
+    s.waist_height_m = sim_status.msg.waist_height;
+    s.trunk_height_m = sim_status.msg.trunk_height;
+    return s;
   }
   uint64_t send_dropped() const { return sender_.dropped; }   // messages the kernel could not take at once
 
