@@ -3,6 +3,7 @@ its first run and would otherwise report to tel.rerun.io). `rerun analytics disa
 switch; it writes the user's analytics.json, which the SDK and the viewer both read."""
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import subprocess
@@ -11,8 +12,11 @@ from pathlib import Path
 
 
 def rerun_cli() -> str:
-    """The viewer/CLI that the pinned rerun-sdk wheel installs next to this interpreter."""
-    exe = Path(sys.executable).parent / "rerun"
+    """The viewer/CLI binary of the pinned rerun-sdk wheel (package rerun_cli). The binary itself, not the venv's
+    `rerun` script, which runs it as a child: a process stopped through the script would leave the viewer
+    running."""
+    spec = importlib.util.find_spec("rerun_cli")
+    exe = Path(spec.origin).parent / "rerun" if spec is not None and spec.origin else Path(sys.executable).parent / "rerun"
     if not exe.exists():
         raise FileNotFoundError(f"{exe}: the rerun CLI is missing (rerun-sdk in requirements.txt: run `make setup`)")
     return str(exe)
