@@ -56,7 +56,7 @@ int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     (void)t1_unpack_command(index, payload, dlc, &cmd);
     (void)t1_motor_receive(&motors.motors[index], can_id, payload, dlc, now_us);
     tau = t1_motor_step(&motors.motors[index], q, dq, now_us);
-    if (!isfinite(tau)) __builtin_trap();  /* the firmware never applies a non-finite torque */
+    if (!isfinite(tau)) __builtin_trap(); /* the firmware never applies a non-finite torque */
     dlc_out = t1_motor_reply(&motors.motors[index], q, dq, tau, reply);
     if (dlc_out == T1_REPLY_DLC && t1_unpack_reply(reply, (uint8_t)dlc_out, &seen) != T1_OK) __builtin_trap();
     memcpy(slots + index * T1_FRAME_SLOT_BYTES, payload, T1_FRAME_SLOT_BYTES);

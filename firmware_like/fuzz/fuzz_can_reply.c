@@ -21,7 +21,7 @@ static uint32_t u32_at(const uint8_t* p) {
 
 int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size);
 int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  static t1_link_t link;  /* ~50 kB: static, re-initialised for each input */
+  static t1_link_t link; /* ~50 kB: static, re-initialised for each input */
   static t1_motor_array_t motors;
   uint8_t replies[SLOTS_BYTES], commands[SLOTS_BYTES], host[SLOTS_BYTES];
   double q[T1_NUM_MOTORS], dq[T1_NUM_MOTORS], tau[T1_NUM_MOTORS];
@@ -48,8 +48,8 @@ int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   for (unsigned i = 0; i < T1_NUM_MOTORS; ++i) {
     t1_reply_t r;
     if (!(bad & (1u << i)) && !(isfinite(q[i]) && isfinite(dq[i]) && isfinite(tau[i]))) __builtin_trap();
-    if (t1_unpack_reply(replies + i * T1_FRAME_SLOT_BYTES, dlc > T1_FRAME_SLOT_BYTES ? T1_FRAME_SLOT_BYTES : dlc,
-                        &r) == T1_OK &&
+    if (t1_unpack_reply(replies + i * T1_FRAME_SLOT_BYTES, dlc > T1_FRAME_SLOT_BYTES ? T1_FRAME_SLOT_BYTES : dlc, &r) ==
+            T1_OK &&
         !(isfinite(r.q_rad) && isfinite(r.dq_rads) && isfinite(r.tau_nm)))
       __builtin_trap();
   }

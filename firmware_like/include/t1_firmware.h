@@ -110,10 +110,10 @@ uint16_t t1_can_crc15_bits(const uint8_t* bits, size_t nbits);
 
 typedef struct {
   uint8_t bus_index;
-  uint32_t capacity_bits;       /* bitrate × cycle period */
-  uint64_t cycle_start_us;      /* time given to the last begin_cycle */
-  uint32_t bits_this_cycle;     /* offered bits since begin_cycle (may exceed capacity) */
-  uint32_t bits_last_cycle;     /* offered bits of the previous, completed cycle */
+  uint32_t capacity_bits;   /* bitrate × cycle period */
+  uint64_t cycle_start_us;  /* time given to the last begin_cycle */
+  uint32_t bits_this_cycle; /* offered bits since begin_cycle (may exceed capacity) */
+  uint32_t bits_last_cycle; /* offered bits of the previous, completed cycle */
   uint32_t frames_this_cycle;
   uint32_t late_this_cycle;
   uint64_t frames_total;
@@ -149,16 +149,15 @@ int t1_bus_array_init(t1_bus_array_t* b);
 
 /* Pack all 23 commands into out. Returns a bit mask of motors whose command had a non-finite field
  * (their slot is zeroed and must not be sent); 0 = all packed. */
-uint32_t t1_batch_pack_commands(const double* q_des, const double* dq_des, const double* kp,
-                                const double* kd, const double* tau_ff, uint8_t* out);
+uint32_t t1_batch_pack_commands(const double* q_des, const double* dq_des, const double* kp, const double* kd,
+                                const double* tau_ff, uint8_t* out);
 /* Deliver slot i to motor i for every bit set in deliver_mask (1 << i), as a command with the
  * motor's own id and DLC 8. Returns the mask of frames rejected. */
 uint32_t t1_batch_receive(t1_motor_array_t* a, const uint8_t* frames, uint32_t deliver_mask, uint64_t now_us);
 /* Step all 23 motors; tau_out[i] in N·m. */
 void t1_batch_step(t1_motor_array_t* a, const double* q, const double* dq, uint64_t now_us, double* tau_out);
 /* Build all 23 replies (slot byte 7 = 0). */
-void t1_batch_replies(const t1_motor_array_t* a, const double* q, const double* dq, const double* tau,
-                      uint8_t* out);
+void t1_batch_replies(const t1_motor_array_t* a, const double* q, const double* dq, const double* tau, uint8_t* out);
 /* Status reported for a reply slot that does not decode: every bit set, so no "healthy" reading. */
 #define T1_BATCH_NO_REPLY_STATUS (-1)
 /* Decode all 23 reply slots. Returns the mask of slots that failed to decode (wrong motor id byte for
@@ -181,8 +180,8 @@ void t1_batch_bus_cycle(t1_bus_array_t* b, uint64_t now_us, const uint8_t* comma
  * a frame that does not fit in its cycle (T1_BUS_LATE) goes out first in the next cycle; a delayed command
  * waits its cycles in a FIFO; a frame lost on the wire is never submitted. Masks: bit i = motor i. */
 
-#define T1_LINK_LATE_CAPACITY 128u     /* frames carried per bus (overload beyond it: the frame is lost) */
-#define T1_LINK_DELAY_CAPACITY 1024u   /* delayed frames in flight (a 3-cycle delay of all 23 holds 69) */
+#define T1_LINK_LATE_CAPACITY 128u   /* frames carried per bus (overload beyond it: the frame is lost) */
+#define T1_LINK_DELAY_CAPACITY 1024u /* delayed frames in flight (a 3-cycle delay of all 23 holds 69) */
 
 typedef struct {
   uint32_t can_id;
@@ -198,10 +197,10 @@ typedef struct {
   uint32_t n_late[T1_NUM_BUSES];
   t1_link_frame_t delayed[T1_LINK_DELAY_CAPACITY]; /* ring buffer, oldest first */
   uint32_t delayed_head, n_delayed;
-  uint32_t cycle;                                   /* completed cycles (one per exchange_replies) */
+  uint32_t cycle;                                        /* completed cycles (one per exchange_replies) */
   uint8_t motor_rx[T1_NUM_MOTORS * T1_FRAME_SLOT_BYTES]; /* newest command that reached each motor */
   uint32_t motor_rx_mask;
-  uint8_t host_rx[T1_NUM_MOTORS * T1_FRAME_SLOT_BYTES];  /* newest reply that reached the host */
+  uint8_t host_rx[T1_NUM_MOTORS * T1_FRAME_SLOT_BYTES]; /* newest reply that reached the host */
   uint32_t host_rx_mask;
   uint64_t frames_sent, frames_dropped, frames_lost_overflow;
 } t1_link_t;
@@ -222,8 +221,7 @@ uint32_t t1_link_exchange_replies(t1_link_t* l, const uint8_t* replies, uint32_t
 /* The host's joint view after a cycle: each motor in `got` takes its reply's q, dq, tau and status (a slot
  * that does not decode: NaN and T1_BATCH_NO_REPLY_STATUS); every other motor keeps its last values with
  * T1_STATUS_NO_REPLY added to its status. */
-void t1_host_view_update(const uint8_t* host_frames, uint32_t got, double* q, double* dq, double* tau,
-                         int32_t* status);
+void t1_host_view_update(const uint8_t* host_frames, uint32_t got, double* q, double* dq, double* tau, int32_t* status);
 /* out = {frames_sent, frames_dropped, frames_lost_overflow}. */
 void t1_link_counters(const t1_link_t* l, uint64_t out[3]);
 

@@ -118,8 +118,8 @@ extern "C" {
 #define T1_NUM_MOTORS 23
 #define T1_NUM_BUSES 4
 #define T1_NUM_CLASSES 6
-#define T1_CMD_ID_BASE 0x100u   /* command id = base + motor_id */
-#define T1_REPLY_ID_BASE 0x200u /* reply id = base + motor_id (lower priority than any command) */
+#define T1_CMD_ID_BASE 0x100u    /* command id = base + motor_id */
+#define T1_REPLY_ID_BASE 0x200u  /* reply id = base + motor_id (lower priority than any command) */
 #define T1_CAN_STD_ID_MAX 0x7FFu /* 11-bit identifier */
 #define T1_MOTOR_ID_OF_INDEX(i) ((uint8_t)((i) + 1))
 #define T1_CMD_CAN_ID(i) (T1_CMD_ID_BASE + (uint32_t)T1_MOTOR_ID_OF_INDEX(i))
@@ -193,13 +193,13 @@ typedef struct {
 } t1_class_range_t;
 
 typedef struct {
-  const char* name;              /* joint name, messages/contract.json */
-  t1_motor_class_t motor_class;  /* selects the wire scaling ranges */
-  float torque_limit_nm;         /* per-joint clamp [N·m] (t1_facts §2a actuatorfrcrange) */
-  float q_min_rad;               /* soft stop = joint range lower end [rad] */
-  float q_max_rad;               /* soft stop = joint range upper end [rad] */
-  float d_safe_nms;              /* watchdog / power-on damping gain [N·m·s/rad] */
-  uint8_t bus;                   /* t1_bus_id_t */
+  const char* name;             /* joint name, messages/contract.json */
+  t1_motor_class_t motor_class; /* selects the wire scaling ranges */
+  float torque_limit_nm;        /* per-joint clamp [N·m] (t1_facts §2a actuatorfrcrange) */
+  float q_min_rad;              /* soft stop = joint range lower end [rad] */
+  float q_max_rad;              /* soft stop = joint range upper end [rad] */
+  float d_safe_nms;             /* watchdog / power-on damping gain [N·m·s/rad] */
+  uint8_t bus;                  /* t1_bus_id_t */
 } t1_motor_info_t;
 
 /*
@@ -210,6 +210,8 @@ typedef struct {
  * d_safe = torque limit / URDF velocity limit (§6): head 7/12.56, arm 18/18.84, waist 30/10.88,
  * hip pitch 45/12.5, hip roll & yaw 30/10.9, knee 60/11.7, ankle pitch 20/18.8, ankle roll 15/12.4.
  */
+/* one motor per row, the columns aligned: */
+/* clang-format off */
 #define T1_MOTOR_TABLE(X)                                                                                \
   X(0, "AAHead_yaw", T1_CLASS_HEAD, 7.0f,                                                                \
     T1_Q_MIN_RAD_AAHead_yaw, T1_Q_MAX_RAD_AAHead_yaw, 0.56f, T1_BUS_HEAD_WAIST)                          \
@@ -257,8 +259,9 @@ typedef struct {
     T1_Q_MIN_RAD_Right_Ankle_Pitch, T1_Q_MAX_RAD_Right_Ankle_Pitch, 1.06f, T1_BUS_RIGHT_LEG)             \
   X(22, "Right_Ankle_Roll", T1_CLASS_ANKLE, 15.0f,                                                       \
     T1_Q_MIN_RAD_Right_Ankle_Roll, T1_Q_MAX_RAD_Right_Ankle_Roll, 1.21f, T1_BUS_RIGHT_LEG)
+/* clang-format on */
 
-extern const t1_motor_info_t T1_MOTORS[T1_NUM_MOTORS];       /* joint order */
+extern const t1_motor_info_t T1_MOTORS[T1_NUM_MOTORS];         /* joint order */
 extern const t1_class_range_t T1_CLASS_RANGES[T1_NUM_CLASSES]; /* indexed by t1_motor_class_t */
 extern const char* const T1_BUS_NAMES[T1_NUM_BUSES];           /* "left_leg", "right_leg", "arms", "head_waist" */
 
@@ -271,8 +274,7 @@ typedef struct {
   uint32_t cmd_id_base, reply_id_base;
   uint32_t cmd_dlc, reply_dlc, slot_bytes;
   uint32_t bitrate_bps, cycle_us, watchdog_us;
-  uint32_t status_watchdog, status_over_limit, status_bad_frame, status_power_on, status_damping,
-      status_bad_sensor;
+  uint32_t status_watchdog, status_over_limit, status_bad_frame, status_power_on, status_damping, status_bad_sensor;
   float q_max_rad, kp_max, kd_max, soft_stop_full_torque_rad;
   uint32_t status_no_reply; /* host bit (§7); last, so the fields above keep their offsets */
 } t1_protocol_constants_t;

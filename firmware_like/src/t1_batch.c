@@ -31,13 +31,12 @@ int t1_bus_array_init(t1_bus_array_t* b) {
   return T1_OK;
 }
 
-uint32_t t1_batch_pack_commands(const double* q_des, const double* dq_des, const double* kp,
-                                const double* kd, const double* tau_ff, uint8_t* out) {
+uint32_t t1_batch_pack_commands(const double* q_des, const double* dq_des, const double* kp, const double* kd,
+                                const double* tau_ff, uint8_t* out) {
   uint32_t bad = 0u;
   for (unsigned i = 0; i < T1_NUM_MOTORS; ++i) {
     uint8_t* slot = out + (size_t)i * T1_FRAME_SLOT_BYTES;
-    const t1_command_t c = {to_f32(q_des[i]), to_f32(dq_des[i]), to_f32(kp[i]), to_f32(kd[i]),
-                            to_f32(tau_ff[i])};
+    const t1_command_t c = {to_f32(q_des[i]), to_f32(dq_des[i]), to_f32(kp[i]), to_f32(kd[i]), to_f32(tau_ff[i])};
     if (t1_pack_command(i, &c, slot) != T1_OK) {
       memset(slot, 0, T1_FRAME_SLOT_BYTES);
       bad |= 1u << i;
@@ -50,8 +49,8 @@ uint32_t t1_batch_receive(t1_motor_array_t* a, const uint8_t* frames, uint32_t d
   uint32_t rejected = 0u;
   for (unsigned i = 0; i < T1_NUM_MOTORS; ++i) {
     if (!(deliver_mask & (1u << i))) continue;
-    const int rc = t1_motor_receive(&a->motors[i], T1_CMD_CAN_ID(i), frames + (size_t)i * T1_FRAME_SLOT_BYTES,
-                                    T1_CMD_DLC, now_us);
+    const int rc =
+        t1_motor_receive(&a->motors[i], T1_CMD_CAN_ID(i), frames + (size_t)i * T1_FRAME_SLOT_BYTES, T1_CMD_DLC, now_us);
     if (rc != T1_OK) rejected |= 1u << i;
   }
   return rejected;
@@ -62,8 +61,7 @@ void t1_batch_step(t1_motor_array_t* a, const double* q, const double* dq, uint6
     tau_out[i] = (double)t1_motor_step(&a->motors[i], to_f32(q[i]), to_f32(dq[i]), now_us);
 }
 
-void t1_batch_replies(const t1_motor_array_t* a, const double* q, const double* dq, const double* tau,
-                      uint8_t* out) {
+void t1_batch_replies(const t1_motor_array_t* a, const double* q, const double* dq, const double* tau, uint8_t* out) {
   for (unsigned i = 0; i < T1_NUM_MOTORS; ++i)
     (void)t1_motor_reply(&a->motors[i], to_f32(q[i]), to_f32(dq[i]), to_f32(tau[i]),
                          out + (size_t)i * T1_FRAME_SLOT_BYTES);

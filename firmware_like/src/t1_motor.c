@@ -99,8 +99,7 @@ float t1_motor_step(t1_motor_t* m, float q_rad, float dq_rads, uint64_t now_us) 
     tau = -info->d_safe_nms * dq_rads;
   } else {
     const t1_command_t* c = &m->command;
-    tau = c->kp_nm_per_rad * (c->q_des_rad - q_rad) + c->kd_nms_per_rad * (c->dq_des_rads - dq_rads) +
-          c->tau_ff_nm;
+    tau = c->kp_nm_per_rad * (c->q_des_rad - q_rad) + c->kd_nms_per_rad * (c->dq_des_rads - dq_rads) + c->tau_ff_nm;
   }
   int beyond = 0;
   tau += soft_stop_torque(info, q_rad, dq_rads, &beyond);

@@ -21,22 +21,28 @@ const t1_class_range_t T1_CLASS_RANGES[T1_NUM_CLASSES] = {
 const char* const T1_BUS_NAMES[T1_NUM_BUSES] = {"left_leg", "right_leg", "arms", "head_waist"};
 
 const t1_protocol_constants_t T1_PROTOCOL = {
-    T1_NUM_MOTORS,        T1_NUM_BUSES,        T1_CMD_ID_BASE,      T1_REPLY_ID_BASE,
-    T1_CMD_DLC,           T1_REPLY_DLC,        T1_FRAME_SLOT_BYTES, T1_BUS_BITRATE_BPS,
-    T1_BUS_CYCLE_US,      T1_WATCHDOG_US,      T1_STATUS_WATCHDOG,  T1_STATUS_OVER_LIMIT,
-    T1_STATUS_BAD_FRAME,  T1_STATUS_POWER_ON,  T1_STATUS_DAMPING,   T1_STATUS_BAD_SENSOR,
-    T1_Q_MAX_RAD,         T1_KP_MAX,           T1_KD_MAX,           T1_SOFT_STOP_FULL_TORQUE_RAD,
+    T1_NUM_MOTORS,        T1_NUM_BUSES,         T1_CMD_ID_BASE,      T1_REPLY_ID_BASE,   T1_CMD_DLC,
+    T1_REPLY_DLC,         T1_FRAME_SLOT_BYTES,  T1_BUS_BITRATE_BPS,  T1_BUS_CYCLE_US,    T1_WATCHDOG_US,
+    T1_STATUS_WATCHDOG,   T1_STATUS_OVER_LIMIT, T1_STATUS_BAD_FRAME, T1_STATUS_POWER_ON, T1_STATUS_DAMPING,
+    T1_STATUS_BAD_SENSOR, T1_Q_MAX_RAD,         T1_KP_MAX,           T1_KD_MAX,          T1_SOFT_STOP_FULL_TORQUE_RAD,
     T1_STATUS_NO_REPLY,
 };
 
 const char* t1_error_name(int code) {
   switch (code) {
-    case T1_OK: return "ok";
-    case T1_ERR_NONFINITE: return "non-finite float input";
-    case T1_ERR_BAD_INDEX: return "motor/bus index out of range";
-    case T1_ERR_BAD_DLC: return "frame length (DLC) differs from the protocol";
-    case T1_ERR_BAD_ID: return "CAN id or motor id byte not the expected one";
-    case T1_ERR_NULL: return "NULL pointer argument";
-    default: return "unknown error code";
+    case T1_OK:
+      return "ok";
+    case T1_ERR_NONFINITE:
+      return "non-finite float input";
+    case T1_ERR_BAD_INDEX:
+      return "motor/bus index out of range";
+    case T1_ERR_BAD_DLC:
+      return "frame length (DLC) differs from the protocol";
+    case T1_ERR_BAD_ID:
+      return "CAN id or motor id byte not the expected one";
+    case T1_ERR_NULL:
+      return "NULL pointer argument";
+    default:
+      return "unknown error code";
   }
 }

@@ -9,24 +9,24 @@
 static int t1_test_failures = 0;
 static int t1_test_checks = 0;
 
-#define CHECK(cond)                                                                \
-  do {                                                                             \
-    ++t1_test_checks;                                                              \
-    if (!(cond)) {                                                                 \
-      ++t1_test_failures;                                                          \
-      fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond);     \
-    }                                                                              \
+#define CHECK(cond)                                                            \
+  do {                                                                         \
+    ++t1_test_checks;                                                          \
+    if (!(cond)) {                                                             \
+      ++t1_test_failures;                                                      \
+      fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond); \
+    }                                                                          \
   } while (0)
 
-#define CHECK_NEAR(a, b, tol)                                                                   \
-  do {                                                                                          \
-    const double t1_a_ = (double)(a), t1_b_ = (double)(b), t1_tol_ = (double)(tol);             \
-    ++t1_test_checks;                                                                           \
-    if (!(fabs(t1_a_ - t1_b_) <= t1_tol_)) {                                                    \
-      ++t1_test_failures;                                                                       \
-      fprintf(stderr, "%s:%d: CHECK_NEAR failed: %s = %.9g, %s = %.9g, tol %.3g\n", __FILE__,   \
-              __LINE__, #a, t1_a_, #b, t1_b_, t1_tol_);                                          \
-    }                                                                                           \
+#define CHECK_NEAR(a, b, tol)                                                                                          \
+  do {                                                                                                                 \
+    const double t1_a_ = (double)(a), t1_b_ = (double)(b), t1_tol_ = (double)(tol);                                    \
+    ++t1_test_checks;                                                                                                  \
+    if (!(fabs(t1_a_ - t1_b_) <= t1_tol_)) {                                                                           \
+      ++t1_test_failures;                                                                                              \
+      fprintf(stderr, "%s:%d: CHECK_NEAR failed: %s = %.9g, %s = %.9g, tol %.3g\n", __FILE__, __LINE__, #a, t1_a_, #b, \
+              t1_b_, t1_tol_);                                                                                         \
+    }                                                                                                                  \
   } while (0)
 
 static int t1_test_report(const char* name) {

@@ -70,7 +70,9 @@ static uint32_t reference_frame_bits(uint32_t id, const uint8_t* data, uint8_t d
   size_t n = 0;
   bits[n++] = 0;
   for (int b = 10; b >= 0; --b) bits[n++] = (uint8_t)((id >> b) & 1u);
-  bits[n++] = 0; bits[n++] = 0; bits[n++] = 0;
+  bits[n++] = 0;
+  bits[n++] = 0;
+  bits[n++] = 0;
   for (int b = 3; b >= 0; --b) bits[n++] = (uint8_t)((dlc >> b) & 1u);
   for (int i = 0; i < dlc; ++i)
     for (int b = 7; b >= 0; --b) bits[n++] = (uint8_t)((data[i] >> b) & 1u);

@@ -79,8 +79,11 @@ static void test_nonfinite_refused(void) {
   for (int f = 0; f < 5; ++f) {
     for (int k = 0; k < 3; ++k) {
       t1_command_t c = {0.1f, 0.2f, 30.0f, 2.0f, 1.0f};
-      float* field = f == 0 ? &c.q_des_rad : f == 1 ? &c.dq_des_rads : f == 2 ? &c.kp_nm_per_rad
-                   : f == 3 ? &c.kd_nms_per_rad : &c.tau_ff_nm;
+      float* field = f == 0   ? &c.q_des_rad
+                     : f == 1 ? &c.dq_des_rads
+                     : f == 2 ? &c.kp_nm_per_rad
+                     : f == 3 ? &c.kd_nms_per_rad
+                              : &c.tau_ff_nm;
       *field = bad[k];
       uint8_t frame[8] = {0xA5, 0xA5, 0xA5, 0xA5, 0xA5, 0xA5, 0xA5, 0xA5};
       CHECK(t1_pack_command(3, &c, frame) == T1_ERR_NONFINITE);

@@ -60,10 +60,10 @@ static void test_lost_and_dead(void) {
 static void test_delay(void) {
   setup();
   uint32_t got = 0;
-  CHECK(tick(ALL, 0u, 3u, 0u, &got) == 0u);   /* cycle 0: held */
-  CHECK(tick(0u, 0u, 0u, 0u, &got) == 0u);    /* cycles 1, 2: nothing due */
+  CHECK(tick(ALL, 0u, 3u, 0u, &got) == 0u); /* cycle 0: held */
+  CHECK(tick(0u, 0u, 0u, 0u, &got) == 0u);  /* cycles 1, 2: nothing due */
   CHECK(tick(0u, 0u, 0u, 0u, &got) == 0u);
-  CHECK(tick(0u, 0u, 0u, 0u, &got) == ALL);   /* cycle 3: due */
+  CHECK(tick(0u, 0u, 0u, 0u, &got) == ALL); /* cycle 3: due */
   CHECK(link_.n_delayed == 0u);
 }
 
@@ -80,10 +80,10 @@ static void test_overflow_carries_to_next_cycle(void) {
     carried += link_.n_late[k];
   }
   CHECK(late > 0u);
-  CHECK(carried == late);         /* every late frame waits for the next cycle, none lost */
-  CHECK(got != ALL);              /* late replies: missing this cycle ... */
+  CHECK(carried == late); /* every late frame waits for the next cycle, none lost */
+  CHECK(got != ALL);      /* late replies: missing this cycle ... */
   (void)tick(0u, 0u, 0u, 0u, &got);
-  CHECK(got == ALL);              /* ... and on the host the cycle after */
+  CHECK(got == ALL); /* ... and on the host the cycle after */
   for (unsigned k = 0; k < T1_NUM_BUSES; ++k) CHECK(link_.n_late[k] == 0u);
   CHECK(link_.frames_lost_overflow == 0u);
 }

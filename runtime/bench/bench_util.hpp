@@ -34,7 +34,8 @@ class Args {
     char* end = nullptr;
     const double v = std::strtod(text, &end);
     if (!end || *end || !(v >= min_value))
-      usage_error(argv_[0], std::string(name) + " needs a number >= " + std::to_string(min_value) + ", not '" + text + "'");
+      usage_error(argv_[0],
+                  std::string(name) + " needs a number >= " + std::to_string(min_value) + ", not '" + text + "'");
     return v;
   }
   const char* program() const { return argv_[0]; }
@@ -70,7 +71,8 @@ inline Summary summarize(std::vector<double> samples) {
 // Appends `"prefix_median": ..., "prefix_p99": ..., ...` to a JSON object under construction.
 inline void json_summary(std::string& out, const char* prefix, const Summary& s) {
   char buf[320];
-  std::snprintf(buf, sizeof(buf), "\"%s_count\": %zu, \"%s_median\": %.4f, \"%s_p99\": %.4f, \"%s_max\": %.4f, \"%s_min\": %.4f, ",
+  std::snprintf(buf, sizeof(buf),
+                "\"%s_count\": %zu, \"%s_median\": %.4f, \"%s_p99\": %.4f, \"%s_max\": %.4f, \"%s_min\": %.4f, ",
                 prefix, s.count, prefix, s.median, prefix, s.p99, prefix, s.max, prefix, s.min);
   out += buf;
 }

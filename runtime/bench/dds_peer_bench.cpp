@@ -23,9 +23,9 @@ using t1rt::bench::Args;
 using t1rt::bench::usage_error;
 using MotorState = booster_interface_msg_dds__MotorState_;
 
-constexpr float kGravityMps2 = 9.81f;      // accelerometer reading at rest [m/s^2]
-constexpr int kConnectRetryMs = 100;       // re-write state 0 until the runtime's reader has matched
-constexpr int kSettleMs = 200;             // then absorb the answers to the re-written copies
+constexpr float kGravityMps2 = 9.81f;  // accelerometer reading at rest [m/s^2]
+constexpr int kConnectRetryMs = 100;   // re-write state 0 until the runtime's reader has matched
+constexpr int kSettleMs = 200;         // then absorb the answers to the re-written copies
 constexpr int64_t kMsToNs = 1'000'000;
 // The encoders move one count per state: still ones under PD torque are a frozen encoder to the runtime
 // (rule R9 of runtime/src/safety_supervisor.cpp), which would latch FAULT before POLICY.
@@ -47,9 +47,14 @@ struct Peer {
 
   bool open(std::string* error) {
     participant = dds_create_participant(t1::kDdsDomainId, nullptr, nullptr);
-    if (participant < 0) { *error = dds_strretcode(participant); return false; }
-    const dds_entity_t st = dds_create_topic(participant, &booster_interface_msg_dds__LowState__desc, t1::kDdsStateTopic, nullptr, nullptr);
-    const dds_entity_t ct = dds_create_topic(participant, &booster_interface_msg_dds__LowCmd__desc, t1::kDdsCommandTopic, nullptr, nullptr);
+    if (participant < 0) {
+      *error = dds_strretcode(participant);
+      return false;
+    }
+    const dds_entity_t st =
+        dds_create_topic(participant, &booster_interface_msg_dds__LowState__desc, t1::kDdsStateTopic, nullptr, nullptr);
+    const dds_entity_t ct =
+        dds_create_topic(participant, &booster_interface_msg_dds__LowCmd__desc, t1::kDdsCommandTopic, nullptr, nullptr);
     dds_qos_t* qos = dds_create_qos();
     dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1);
     dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
@@ -58,7 +63,10 @@ struct Peer {
     dds_qset_history(qos, DDS_HISTORY_KEEP_ALL, 0);  // count every answer, never overwrite one
     reader = dds_create_reader(participant, ct, qos, nullptr);
     dds_delete_qos(qos);
-    if (st < 0 || ct < 0 || writer < 0 || reader < 0) { *error = "topic/reader/writer creation failed"; return false; }
+    if (st < 0 || ct < 0 || writer < 0 || reader < 0) {
+      *error = "topic/reader/writer creation failed";
+      return false;
+    }
     dds_set_status_mask(reader, DDS_DATA_AVAILABLE_STATUS);
     waitset = dds_create_waitset(participant);
     dds_waitset_attach(waitset, reader, reader);
@@ -121,8 +129,10 @@ int main(int argc, char** argv) {
   Args args(argc, argv);
   while (args.next()) {
     const std::string f = args.flag();
-    if (f == "--help" || f == "-h") { std::fputs(kHelp, stdout); return 0; }
-    else if (f == "--count") count = static_cast<int>(args.number(1));
+    if (f == "--help" || f == "-h") {
+      std::fputs(kHelp, stdout);
+      return 0;
+    } else if (f == "--count") count = static_cast<int>(args.number(1));
     else if (f == "--warmup") warmup = static_cast<int>(args.number(0));
     else if (f == "--timeout-ms") timeout_ms = static_cast<int>(args.number(1));
     else if (f == "--connect-s") connect_s = args.number(0.1);

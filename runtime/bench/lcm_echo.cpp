@@ -53,8 +53,10 @@ int main(int argc, char** argv) {
   Args args(argc, argv);
   while (args.next()) {
     const std::string f = args.flag();
-    if (f == "--help" || f == "-h") { std::fputs(kHelp, stdout); return 0; }
-    else if (f == "--seconds") seconds = args.number(0.01);
+    if (f == "--help" || f == "-h") {
+      std::fputs(kHelp, stdout);
+      return 0;
+    } else if (f == "--seconds") seconds = args.number(0.01);
     else if (f == "--lcm-url") url = args.value();
     else usage_error(argv[0], "unknown argument '" + f + "'");
   }

@@ -24,9 +24,9 @@
 #include "t1/action_t.hpp"
 #include "t1/controller_status_t.hpp"
 #include "t1/imu_t.hpp"
-#include "t1/joystick_t.hpp"
 #include "t1/joint_command_t.hpp"
 #include "t1/joint_state_t.hpp"
+#include "t1/joystick_t.hpp"
 #include "t1_contract.hpp"
 #include "t1rt/command_auth.hpp"
 #include "t1rt/constants.hpp"
@@ -37,11 +37,11 @@ namespace {
 using t1rt::bench::Args;
 using t1rt::bench::usage_error;
 
-constexpr int64_t kSimTickUs = 2000;            // lockstep sim time per state [us] (500 Hz)
-constexpr float kGravityMps2 = 9.81f;           // accelerometer reading at rest [m/s^2]
-constexpr int kConnectRetryMs = 100;            // re-send state 0 until the answering process listens
-constexpr int kLastTelemetryMs = 100;           // wait for the telemetry that follows the last command
-constexpr int kMaxWarmupExchanges = 20000;      // 40 s of sim time: more means the runtime never got to POLICY
+constexpr int64_t kSimTickUs = 2000;        // lockstep sim time per state [us] (500 Hz)
+constexpr float kGravityMps2 = 9.81f;       // accelerometer reading at rest [m/s^2]
+constexpr int kConnectRetryMs = 100;        // re-send state 0 until the answering process listens
+constexpr int kLastTelemetryMs = 100;       // wait for the telemetry that follows the last command
+constexpr int kMaxWarmupExchanges = 20000;  // 40 s of sim time: more means the runtime never got to POLICY
 // The encoders move one count per state: still ones under PD torque are a frozen encoder to the runtime
 // (rule R9 of runtime/src/safety_supervisor.cpp), which would latch FAULT before POLICY.
 constexpr float kEncoderDitherRad = 1e-4f;
@@ -77,9 +77,9 @@ struct Peer {
   std::vector<uint8_t> buffer;
   std::vector<int64_t> policy_seqs;  // states answered by a policy tick (from T1_ACTION's utime)
   int64_t want_seq = -1;
-  int64_t answer_ns = 0;   // arrival time of the command answering want_seq
+  int64_t answer_ns = 0;  // arrival time of the command answering want_seq
   bool answered = false;
-  int8_t mode = -1;        // latest controller_status_t.mode, -1 before the first status
+  int8_t mode = -1;  // latest controller_status_t.mode, -1 before the first status
   std::string fault;
 
   template <class M>
@@ -118,7 +118,8 @@ void prepare_joystick(Peer& p, int64_t k) {
   if (p.key) {
     timespec ts{};
     clock_gettime(CLOCK_REALTIME, &ts);
-    p.last_timestamp_us = std::max(p.last_timestamp_us + 1, static_cast<int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000);
+    p.last_timestamp_us =
+        std::max(p.last_timestamp_us + 1, static_cast<int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000);
     p.joystick.sender_id = p.key->sender_id(0);
     p.joystick.timestamp_us = p.last_timestamp_us;
     p.joystick_bytes = p.key->encode_signed(0, t1::CH_JOYSTICK, p.joystick);
@@ -142,7 +143,8 @@ double exchange(Peer& p, int64_t k, int timeout_ms) {
   p.publish(t1::CH_IMU, p.imu);
   const int64_t t0 = t1rt::monotonic_ns();
   p.publish(t1::CH_JOINT_STATE, p.state);
-  if (stick) lcm_publish(p.lcm, t1::CH_JOYSTICK, p.joystick_bytes.data(), static_cast<unsigned>(p.joystick_bytes.size()));
+  if (stick)
+    lcm_publish(p.lcm, t1::CH_JOYSTICK, p.joystick_bytes.data(), static_cast<unsigned>(p.joystick_bytes.size()));
   const int64_t deadline = t0 + static_cast<int64_t>(timeout_ms) * 1'000'000;
   while (!p.answered) {
     const int64_t left_ms = (deadline - t1rt::monotonic_ns()) / 1'000'000;
@@ -182,8 +184,10 @@ int main(int argc, char** argv) {
   Args args(argc, argv);
   while (args.next()) {
     const std::string f = args.flag();
-    if (f == "--help" || f == "-h") { std::fputs(kHelp, stdout); return 0; }
-    else if (f == "--count") count = static_cast<int>(args.number(1));
+    if (f == "--help" || f == "-h") {
+      std::fputs(kHelp, stdout);
+      return 0;
+    } else if (f == "--count") count = static_cast<int>(args.number(1));
     else if (f == "--warmup") warmup = static_cast<int>(args.number(0));
     else if (f == "--wait-policy") wait_policy = true;
     else if (f == "--timeout-ms") timeout_ms = static_cast<int>(args.number(1));
@@ -227,8 +231,8 @@ int main(int argc, char** argv) {
   auto in_policy = [](const Peer& x) { return x.mode == t1::joint_command_t::MODE_POLICY; };
   for (; warm < warmup || (wait_policy && (!in_policy(p) || (echo.mode != -1 && !in_policy(echo)))); ++k, ++warm) {
     if (warm >= kMaxWarmupExchanges || p.mode == t1::joint_command_t::MODE_FAULT) {
-      std::fprintf(stderr, "%s: answering process did not reach POLICY (status mode %d, last fault '%s')\n",
-                   argv[0], p.mode, p.fault.c_str());
+      std::fprintf(stderr, "%s: answering process did not reach POLICY (status mode %d, last fault '%s')\n", argv[0],
+                   p.mode, p.fault.c_str());
       return t1rt::bench::kExitRun;
     }
     if (!step(k, &target_us, &echo_us)) return t1rt::bench::kExitRun;

@@ -26,15 +26,15 @@ namespace {
 using t1rt::bench::Args;
 using t1rt::bench::usage_error;
 
-constexpr std::size_t kFallbackLlcBytes = 32u << 20;   // when sysconf does not know the L3 size
+constexpr std::size_t kFallbackLlcBytes = 32u << 20;  // when sysconf does not know the L3 size
 constexpr std::size_t kFallbackL2Bytes = 1u << 20;
-constexpr std::size_t kStreamLlcMultiple = 4;          // DRAM buffer = 4 x LLC: nothing of it stays cached
+constexpr std::size_t kStreamLlcMultiple = 4;  // DRAM buffer = 4 x LLC: nothing of it stays cached
 constexpr std::size_t kMinStreamBytes = 64u << 20;
-constexpr int kBandwidthRepeats = 5;                   // best of N passes (least disturbed by neighbours)
-constexpr double kCacheReadTargetBytes = 4e9;          // bytes re-read for the cache-resident bandwidth
+constexpr int kBandwidthRepeats = 5;           // best of N passes (least disturbed by neighbours)
+constexpr double kCacheReadTargetBytes = 4e9;  // bytes re-read for the cache-resident bandwidth
 constexpr int kWarmupPasses = 100;
-constexpr int kMaxCacheIndex = 8;                      // sysfs cache/indexN entries looked at
-constexpr std::size_t kL2ProbeDivisor = 2;             // L2 probe buffer = half the L2: surely resident
+constexpr int kMaxCacheIndex = 8;           // sysfs cache/indexN entries looked at
+constexpr std::size_t kL2ProbeDivisor = 2;  // L2 probe buffer = half the L2: surely resident
 
 const char* kHelp =
     "usage: t1rt_bench_mlp --policy PATH --input FILE [--iterations N] [--cold-iterations N] [--portable]\n"
@@ -129,8 +129,10 @@ int main(int argc, char** argv) {
   Args args(argc, argv);
   while (args.next()) {
     const std::string f = args.flag();
-    if (f == "--help" || f == "-h") { std::fputs(kHelp, stdout); return 0; }
-    else if (f == "--policy") policy_path = args.value();
+    if (f == "--help" || f == "-h") {
+      std::fputs(kHelp, stdout);
+      return 0;
+    } else if (f == "--policy") policy_path = args.value();
     else if (f == "--input") input_path = args.value();
     else if (f == "--iterations") iterations = static_cast<int>(args.number(0));
     else if (f == "--cold-iterations") cold_iterations = static_cast<int>(args.number(0));
@@ -198,7 +200,8 @@ int main(int argc, char** argv) {
     }
 
     out += "\"policy\": \"" + t1rt::bench::json_escape(policy_path) + "\", \"shape\": \"" + shape + "\", ";
-    out += "\"activation\": \"" + std::string(artifact.activation == t1rt::Activation::kSwish ? "swish" : "other") + "\", ";
+    out += "\"activation\": \"" + std::string(artifact.activation == t1rt::Activation::kSwish ? "swish" : "other") +
+           "\", ";
     t1rt::bench::json_summary(out, "warm_ns", t1rt::bench::summarize(warm_ns));
     t1rt::bench::json_summary(out, "cold_ns", t1rt::bench::summarize(cold_ns));
     t1rt::bench::json_number(out, "weight_bytes", static_cast<double>(weight_bytes));

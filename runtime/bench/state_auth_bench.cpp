@@ -20,7 +20,7 @@
 #include "t1rt/controller.hpp"
 
 namespace {
-constexpr int kKeyFill = 0x5a;     // the bench's robot key: 32 bytes of this value (not a secret)
+constexpr int kKeyFill = 0x5a;           // the bench's robot key: 32 bytes of this value (not a secret)
 constexpr int kPortOffsets[2] = {7, 8};  // the two runtimes' LCM ports: the URL's + these
 
 int64_t wall_us() {
@@ -83,7 +83,8 @@ struct Side {
     const bool ok = ctrl->step_lockstep(500);
     const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
     if (record && ctrl->policy_ticks() > before) policy_us.push_back(us);
-    while (lcm_handle_timeout(lcm, 0) > 0) {}
+    while (lcm_handle_timeout(lcm, 0) > 0) {
+    }
     return ok;
   }
 };
@@ -116,8 +117,12 @@ int main(int argc, char** argv) {
     opt.auth = t1rt::AuthMode::kUnauthenticated;
     sides[s].ring = s == 1 ? bench_ring() : nullptr;
     opt.robot_keys = sides[s].ring;
-    if (s == 1 && !sides[s].ring) { std::fprintf(stderr, "cannot write the bench's robot key\n"); return t1rt::bench::kExitRun; }
-    sides[s].ctrl = std::make_unique<t1rt::Controller>(opt, std::make_unique<t1rt::PolicyEngine>(t1rt::load_artifact(policy)));
+    if (s == 1 && !sides[s].ring) {
+      std::fprintf(stderr, "cannot write the bench's robot key\n");
+      return t1rt::bench::kExitRun;
+    }
+    sides[s].ctrl =
+        std::make_unique<t1rt::Controller>(opt, std::make_unique<t1rt::PolicyEngine>(t1rt::load_artifact(policy)));
     std::string error;
     sides[s].lcm = lcm_create(opt.lcm_url.c_str());
     if (!sides[s].lcm || !sides[s].ctrl->open(&error)) {
@@ -132,7 +137,10 @@ int main(int argc, char** argv) {
   for (int b = 0; b < blocks; ++b)
     for (Side& side : sides)
       for (int k = 0; k < block_ticks; ++k)
-        if (!side.tick(true)) { std::fprintf(stderr, "a tick timed out\n"); return t1rt::bench::kExitRun; }
+        if (!side.tick(true)) {
+          std::fprintf(stderr, "a tick timed out\n");
+          return t1rt::bench::kExitRun;
+        }
   for (Side& side : sides) {
     if (side.ctrl->supervisor().mode() != t1rt::Mode::kPolicy || side.ctrl->state_auth().refused_total() != 0) {
       std::fprintf(stderr, "not in POLICY on its own state: %s %s\n", side.ctrl->supervisor().last_fault(),

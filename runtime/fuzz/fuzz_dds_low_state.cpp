@@ -23,9 +23,18 @@ constexpr bool kLittleEndianHost = __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
 // Encapsulation identifier (RTPS 10.5) -> XCDR version and whether the body is big-endian; false: unknown.
 bool encoding_of(uint16_t id, uint32_t* xcdr_version, bool* big_endian) {
   switch (id) {
-    case 0x0000: case 0x0001: *xcdr_version = 1; break;  // CDR_BE, CDR_LE
-    case 0x0006: case 0x0007: case 0x0008: case 0x0009: *xcdr_version = 2; break;  // CDR2, D_CDR2
-    default: return false;
+    case 0x0000:
+    case 0x0001:
+      *xcdr_version = 1;
+      break;  // CDR_BE, CDR_LE
+    case 0x0006:
+    case 0x0007:
+    case 0x0008:
+    case 0x0009:
+      *xcdr_version = 2;
+      break;  // CDR2, D_CDR2
+    default:
+      return false;
   }
   *big_endian = (id & 1) == 0;
   return true;

@@ -94,7 +94,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
     transport.joint.have = true;  // zero positions and velocities, no status bits
     transport.joint.stamp_s = transport.imu.stamp_s;
   } else if (transport.joint.have && !transport.imu.have) {
-    transport.imu.have = true;    // upright, at rest
+    transport.imu.have = true;  // upright, at rest
     transport.imu.msg.quat[0] = 1.0f;
     transport.imu.stamp_s = transport.joint.stamp_s;
   }

@@ -23,7 +23,7 @@ static_assert(kJoints == T1_NUM_MOTORS, "runtime joint count != firmware motor t
 
 namespace {
 using nlohmann::json;
-constexpr std::size_t kHeaderLengthBytes = 8;             // safetensors: u64 little-endian header size
+constexpr std::size_t kHeaderLengthBytes = 8;               // safetensors: u64 little-endian header size
 constexpr uint64_t kMaxHeaderBytes = 100u * 1024u * 1024u;  // safetensors' own limit (100 MB)
 
 struct TensorView {
@@ -35,7 +35,8 @@ struct TensorView {
 
 std::string read_file(const std::string& path) {
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) fail("file", "'" + path + "' is a folder, not an artifact file (*.safetensors)");
+  if (std::filesystem::is_directory(path, ec))
+    fail("file", "'" + path + "' is a folder, not an artifact file (*.safetensors)");
   std::ifstream in(path, std::ios::binary);
   if (!in) fail("file", "cannot open '" + path + "'");
   std::ostringstream ss;
@@ -96,8 +97,8 @@ void check_action_scale(const JointArray& scale) {
 void check_gains(const JointArray& gains, float max, const std::string& field) {
   for (std::size_t i = 0; i < kJoints; ++i)
     if (gains[i] < 0.0f || gains[i] > max)
-      fail(field, "joint " + std::string(t1::kJointNames[i]) + " gain " + std::to_string(gains[i]) +
-                      " outside [0, " + std::to_string(max) + "] (firmware limit)");
+      fail(field, "joint " + std::string(t1::kJointNames[i]) + " gain " + std::to_string(gains[i]) + " outside [0, " +
+                      std::to_string(max) + "] (firmware limit)");
 }
 
 // *unreferenced: data bytes no tensor entry covers; reported after the named tensors are checked, so a
@@ -152,8 +153,9 @@ std::map<std::string, TensorView> parse_safetensors(const std::string& file, std
     tensors.emplace(name, std::move(view));
   }
   *unreferenced = covered <= data_size ? data_size - covered : 0;
-  if (covered > data_size) fail("data", "tensor byte ranges overlap: they cover " + std::to_string(covered) + " of " +
-                                            std::to_string(data_size) + " data bytes");
+  if (covered > data_size)
+    fail("data", "tensor byte ranges overlap: they cover " + std::to_string(covered) + " of " +
+                     std::to_string(data_size) + " data bytes");
   return tensors;
 }
 
@@ -164,8 +166,7 @@ const TensorView& tensor(const std::map<std::string, TensorView>& tensors, const
 }
 
 Eigen::VectorXf finite_vector(const TensorView& t, const std::string& name, int64_t size) {
-  if (t.shape.size() != 1 || t.shape[0] != size)
-    fail(name, "shape must be (" + std::to_string(size) + ",)");
+  if (t.shape.size() != 1 || t.shape[0] != size) fail(name, "shape must be (" + std::to_string(size) + ",)");
   Eigen::VectorXf v(size);
   std::memcpy(v.data(), t.bytes.data(), t.bytes.size());
   if (!v.allFinite()) fail(name, "contains NaN or Inf");
@@ -174,9 +175,13 @@ Eigen::VectorXf finite_vector(const TensorView& t, const std::string& name, int6
 }  // namespace
 
 int obs_term_size(const std::string& name) {
-  static const std::map<std::string, int> kSizes = {
-      {"gyro", 3}, {"gravity", 3}, {"command", 3}, {"joint_pos", static_cast<int>(kJoints)},
-      {"joint_vel", static_cast<int>(kJoints)}, {"last_action", static_cast<int>(kJoints)}, {"phase", 4}};
+  static const std::map<std::string, int> kSizes = {{"gyro", 3},
+                                                    {"gravity", 3},
+                                                    {"command", 3},
+                                                    {"joint_pos", static_cast<int>(kJoints)},
+                                                    {"joint_vel", static_cast<int>(kJoints)},
+                                                    {"last_action", static_cast<int>(kJoints)},
+                                                    {"phase", 4}};
   auto it = kSizes.find(name);
   return it == kSizes.end() ? -1 : it->second;
 }
@@ -211,9 +216,12 @@ PolicyArtifact parse_artifact(const std::string& path, const std::string& file) 
   a.name = name.get<std::string>();
 
   const json act = parse_meta_value(meta, "activation");
-  const std::map<std::string, Activation> kActs = {
-      {"swish", Activation::kSwish}, {"elu", Activation::kElu}, {"tanh", Activation::kTanh}, {"relu", Activation::kRelu}};
-  if (!act.is_string() || !kActs.count(act.get<std::string>())) fail("activation", act.dump() + " is not swish/elu/tanh/relu");
+  const std::map<std::string, Activation> kActs = {{"swish", Activation::kSwish},
+                                                   {"elu", Activation::kElu},
+                                                   {"tanh", Activation::kTanh},
+                                                   {"relu", Activation::kRelu}};
+  if (!act.is_string() || !kActs.count(act.get<std::string>()))
+    fail("activation", act.dump() + " is not swish/elu/tanh/relu");
   a.activation = kActs.at(act.get<std::string>());
   const json rule = parse_meta_value(meta, "output_rule");
   if (rule == "tanh_normal") a.output_rule = OutputRule::kTanhNormal;
@@ -229,7 +237,8 @@ PolicyArtifact parse_artifact(const std::string& path, const std::string& file) 
     const int expected = obs_term_size(term.name);
     if (expected < 0) fail("obs_terms", "unknown term '" + term.name + "'");
     if (term.size != expected)
-      fail("obs_terms", "term '" + term.name + "' has size " + std::to_string(term.size) + ", expected " + std::to_string(expected));
+      fail("obs_terms",
+           "term '" + term.name + "' has size " + std::to_string(term.size) + ", expected " + std::to_string(expected));
     for (const ObsTerm& seen : a.obs_terms)
       if (seen.name == term.name) fail("obs_terms", "term '" + term.name + "' listed twice");
     a.obs_size += term.size;
@@ -237,7 +246,8 @@ PolicyArtifact parse_artifact(const std::string& path, const std::string& file) 
   }
 
   const json joints = parse_meta_value(meta, "joint_names");
-  if (!joints.is_array() || joints.size() != kJoints) fail("joint_names", "expected " + std::to_string(kJoints) + " names");
+  if (!joints.is_array() || joints.size() != kJoints)
+    fail("joint_names", "expected " + std::to_string(kJoints) + " names");
   for (std::size_t i = 0; i < kJoints; ++i)
     if (joints[i] != t1::kJointNames[i])
       fail("joint_names", "index " + std::to_string(i) + " is " + joints[i].dump() + ", runtime order has \"" +
@@ -259,25 +269,29 @@ PolicyArtifact parse_artifact(const std::string& path, const std::string& file) 
     fail("control_dt", std::to_string(a.control_dt_s) + " s != loop dt 0.002 s x decimation 10 = 0.02 s");
   a.gait_frequency_hz = finite_number(parse_meta_value(meta, "gait_frequency"), "gait_frequency");
   if (a.gait_frequency_hz < 0.0 || a.gait_frequency_hz > kMaxGaitFrequencyHz)
-    fail("gait_frequency", std::to_string(a.gait_frequency_hz) + " Hz outside [0, " + std::to_string(kMaxGaitFrequencyHz) + "]");
-  a.phase_freeze_command_norm = finite_number(parse_meta_value(meta, "phase_freeze_command_norm"), "phase_freeze_command_norm");
+    fail("gait_frequency",
+         std::to_string(a.gait_frequency_hz) + " Hz outside [0, " + std::to_string(kMaxGaitFrequencyHz) + "]");
+  a.phase_freeze_command_norm =
+      finite_number(parse_meta_value(meta, "phase_freeze_command_norm"), "phase_freeze_command_norm");
   if (a.phase_freeze_command_norm < 0.0 || a.phase_freeze_command_norm > kMaxCommandMagnitude)
-    fail("phase_freeze_command_norm", std::to_string(a.phase_freeze_command_norm) + " outside [0, " +
-                                          std::to_string(kMaxCommandMagnitude) + "]");
+    fail("phase_freeze_command_norm",
+         std::to_string(a.phase_freeze_command_norm) + " outside [0, " + std::to_string(kMaxCommandMagnitude) + "]");
 
   const json ranges = parse_meta_value(meta, "command_ranges");
   const char* kAxes[3] = {"vx", "vy", "yaw_rate"};
   if (!ranges.is_object()) fail("command_ranges", "expected an object with vx, vy, yaw_rate");
   for (int i = 0; i < 3; ++i) {
     const std::string field = std::string("command_ranges.") + kAxes[i];
-    if (!ranges.contains(kAxes[i]) || !ranges[kAxes[i]].is_array() || ranges[kAxes[i]].size() != 2) fail(field, "expected [lo, hi]");
+    if (!ranges.contains(kAxes[i]) || !ranges[kAxes[i]].is_array() || ranges[kAxes[i]].size() != 2)
+      fail(field, "expected [lo, hi]");
     const double lo = finite_number(ranges[kAxes[i]][0], field), hi = finite_number(ranges[kAxes[i]][1], field);
     if (lo > hi) fail(field, "lo > hi");
     if (std::fabs(lo) > kMaxCommandMagnitude || std::fabs(hi) > kMaxCommandMagnitude)
       fail(field, "|bound| above the documented maximum " + std::to_string(kMaxCommandMagnitude));
     a.command_ranges[i] = {static_cast<float>(lo), static_cast<float>(hi)};
   }
-  if (meta.count("obs_scales") && !parse_meta_value(meta, "obs_scales").is_object()) fail("obs_scales", "expected an object");
+  if (meta.count("obs_scales") && !parse_meta_value(meta, "obs_scales").is_object())
+    fail("obs_scales", "expected an object");
   const json trained = parse_meta_value(meta, "trained");
   if (!trained.is_boolean()) fail("trained", "expected true/false");
   a.trained = trained.get<bool>();
@@ -294,7 +308,8 @@ PolicyArtifact parse_artifact(const std::string& path, const std::string& file) 
     const std::string w = "layers." + std::to_string(i) + ".weight", b = "layers." + std::to_string(i) + ".bias";
     const TensorView& wt = tensor(tensors, w);
     if (wt.shape.size() != 2 || wt.shape[1] != in || wt.shape[0] <= 0)
-      fail(w, "shape must be (out, " + std::to_string(in) + ")" + (i == 0 ? " (in = obs size = sum of obs_terms)" : " (in = previous out)"));
+      fail(w, "shape must be (out, " + std::to_string(in) + ")" +
+                  (i == 0 ? " (in = obs size = sum of obs_terms)" : " (in = previous out)"));
     DenseLayer layer;
     // File is row-major (out, in); map it that way, then copy into Eigen's column-major matrix.
     layer.weight = Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
@@ -314,16 +329,18 @@ PolicyArtifact parse_artifact(const std::string& path, const std::string& file) 
   if ((a.obs_std.array() <= 0.0f).any()) fail("obs_std", "must be strictly positive");
   for (const auto& kv : tensors) {
     const std::string& n = kv.first;
-    const bool known = n == "obs_mean" || n == "obs_std" ||
-                       std::any_of(a.layers.begin(), a.layers.end(), [&, i = std::size_t{0}](const DenseLayer&) mutable {
-                         const std::string p = "layers." + std::to_string(i++) + ".";
-                         return n == p + "weight" || n == p + "bias";
-                       });
+    const bool known =
+        n == "obs_mean" || n == "obs_std" ||
+        std::any_of(a.layers.begin(), a.layers.end(), [&, i = std::size_t{0}](const DenseLayer&) mutable {
+          const std::string p = "layers." + std::to_string(i++) + ".";
+          return n == p + "weight" || n == p + "bias";
+        });
     if (!known) fail(n, "unexpected tensor");
   }
 
   if (unreferenced_bytes > 0)
-    fail("data", std::to_string(unreferenced_bytes) + " data bytes belong to no tensor entry (a tensor entry removed?)");
+    fail("data",
+         std::to_string(unreferenced_bytes) + " data bytes belong to no tensor entry (a tensor entry removed?)");
 
   const json hash = parse_meta_value(meta, "content_hash");
   if (!hash.is_string()) fail("content_hash", "expected a sha256 hex string");

@@ -27,7 +27,7 @@ namespace t1rt {
 namespace {
 constexpr double kUsToS = 1e-6;
 constexpr double kSToUs = 1e6;
-constexpr std::size_t kTagSizeBytes = sizeof(int16_t);          // the tag_size field
+constexpr std::size_t kTagSizeBytes = sizeof(int16_t);               // the tag_size field
 constexpr std::size_t kSignedTailBytes = kTagSizeBytes + kTagBytes;  // what the tag does not cover
 
 uint32_t big_endian(const uint8_t* p, std::size_t n) {
@@ -46,10 +46,17 @@ bool tag_size_offset(CommandAuth::Stream stream, const uint8_t* p, std::size_t s
   static const std::size_t imu = static_cast<std::size_t>(t1::imu_t{}.getEncodedSize()) - kTagSizeBytes;
   static const std::size_t joint = static_cast<std::size_t>(t1::joint_state_t{}.getEncodedSize()) - kTagSizeBytes;
   switch (stream) {
-    case CommandAuth::kJoystickStream: *offset = joystick; return true;
-    case CommandAuth::kImuStream: *offset = imu; return true;
-    case CommandAuth::kJointStream: *offset = joint; return true;
-    default: break;
+    case CommandAuth::kJoystickStream:
+      *offset = joystick;
+      return true;
+    case CommandAuth::kImuStream:
+      *offset = imu;
+      return true;
+    case CommandAuth::kJointStream:
+      *offset = joint;
+      return true;
+    default:
+      break;
   }
   // runtime_cmd_t: fingerprint, utime, seq; verb, argument (int32 length, bytes, NUL); sender_id, timestamp_us
   constexpr std::size_t kHead = 3 * sizeof(int64_t), kLength = sizeof(int32_t), kStrings = 2;
@@ -112,14 +119,22 @@ std::string line_of(const std::string& path, int number) { return path + " line 
 
 const char* refusal_text(Refusal r) {
   switch (r) {
-    case Refusal::kNoKey: return "the runtime has no --key: it takes estop only";
-    case Refusal::kUnsigned: return "unsigned (tag_size 0 or sender_id 0)";
-    case Refusal::kUnknownSender: return "sender not in the key file";
-    case Refusal::kBadTag: return "tag does not verify (another key, or bytes altered)";
-    case Refusal::kReplayed: return "replayed (timestamp not after the sender's last)";
-    case Refusal::kStale: return "stale timestamp";
-    case Refusal::kTagSize: return "tag_size neither 0 (unsigned) nor 32 (signed)";
-    case Refusal::kCount: break;
+    case Refusal::kNoKey:
+      return "the runtime has no --key: it takes estop only";
+    case Refusal::kUnsigned:
+      return "unsigned (tag_size 0 or sender_id 0)";
+    case Refusal::kUnknownSender:
+      return "sender not in the key file";
+    case Refusal::kBadTag:
+      return "tag does not verify (another key, or bytes altered)";
+    case Refusal::kReplayed:
+      return "replayed (timestamp not after the sender's last)";
+    case Refusal::kStale:
+      return "stale timestamp";
+    case Refusal::kTagSize:
+      return "tag_size neither 0 (unsigned) nor 32 (signed)";
+    case Refusal::kCount:
+      break;
   }
   return "?";
 }
@@ -160,8 +175,8 @@ std::shared_ptr<const KeyRing> KeyRing::load(const std::string& path, std::strin
     Entry e;
     if (!(words >> key_text) || (words >> extra) || !parse_sender_id(id_text, &e.id) ||
         !parse_hex(key_text, e.key.data(), kKeyBytes)) {
-      *error = "key file " + line_of(path, number) + ": expected '<sender_id > 0> <key: " +
-               std::to_string(2 * kKeyBytes) + " hex digits>'";
+      *error = "key file " + line_of(path, number) +
+               ": expected '<sender_id > 0> <key: " + std::to_string(2 * kKeyBytes) + " hex digits>'";
       return nullptr;
     }
     if (ring->index_of(e.id) >= 0) {
@@ -195,8 +210,7 @@ bool KeyRing::mac(std::size_t i, const void* head, std::size_t head_size, const 
                   uint8_t out[kTagBytes]) const {
   EVP_MAC_CTX* ctx = hmac_algorithm() ? EVP_MAC_CTX_new(hmac_algorithm()) : nullptr;
   std::size_t n = 0;
-  const bool ok = ctx && key_context(i, ctx) &&
-                  EVP_MAC_update(ctx, static_cast<const uint8_t*>(head), head_size) &&
+  const bool ok = ctx && key_context(i, ctx) && EVP_MAC_update(ctx, static_cast<const uint8_t*>(head), head_size) &&
                   EVP_MAC_update(ctx, static_cast<const uint8_t*>(body), body_size) &&
                   EVP_MAC_final(ctx, out, &n, kTagBytes) && n == kTagBytes;
   EVP_MAC_CTX_free(ctx);
@@ -237,7 +251,8 @@ bool KeyRing::approves(const std::string& approvals, const uint8_t digest[kSha25
   }
   *why = unverified.empty()
              ? "content sha256 " + std::string(hex) + " is not approved (no line for it in " + approvals + ")"
-             : "the approval of sha256 " + std::string(hex) + " in " + unverified + " does not verify under the key file's keys";
+             : "the approval of sha256 " + std::string(hex) + " in " + unverified +
+                   " does not verify under the key file's keys";
   return false;
 }
 
@@ -252,7 +267,8 @@ int64_t CommandAuth::wall_us() {
   return static_cast<int64_t>(ts.tv_sec) * 1'000'000 + ts.tv_nsec / 1000;
 }
 
-bool CommandAuth::open(AuthMode mode, std::shared_ptr<const KeyRing> keys, const AuthConfig& config, std::string* error) {
+bool CommandAuth::open(AuthMode mode, std::shared_ptr<const KeyRing> keys, const AuthConfig& config,
+                       std::string* error) {
   mode_ = mode;
   keys_ = std::move(keys);
   cfg_ = config;
@@ -273,8 +289,9 @@ bool CommandAuth::open(AuthMode mode, std::shared_ptr<const KeyRing> keys, const
       return false;
     }
   }
-  const char* text = mode_ == AuthMode::kUnauthenticated ? "unauthenticated" : mode_ == AuthMode::kEstopOnly
-                                                                                ? "estop only (no --key)" : nullptr;
+  const char* text = mode_ == AuthMode::kUnauthenticated ? "unauthenticated"
+                     : mode_ == AuthMode::kEstopOnly     ? "estop only (no --key)"
+                                                         : nullptr;
   if (text) std::snprintf(describe_.data(), describe_.size(), "%s", text);
   else std::snprintf(describe_.data(), describe_.size(), "signed (%zu senders)", keys_->size());
   return true;
@@ -353,19 +370,23 @@ void CommandAuth::set_description(const char* text) { std::snprintf(describe_.da
 void CommandAuth::refuse_tag_size(const char* what, int tag_size) {
   verdict_ = Refusal::kTagSize;
   ++refused_[static_cast<int>(verdict_)];
-  std::snprintf(last_refusal_.data(), last_refusal_.size(), "refused %s: tag_size %d, neither 0 (unsigned) nor %zu "
-                "(signed)", what, tag_size, kTagBytes);
+  std::snprintf(last_refusal_.data(), last_refusal_.size(),
+                "refused %s: tag_size %d, neither 0 (unsigned) nor %zu "
+                "(signed)",
+                what, tag_size, kTagBytes);
 }
 
 void CommandAuth::refuse(const char* what, int64_t sender_id) {
   ++refused_[static_cast<int>(verdict_)];
   if (verdict_ == Refusal::kStale)
-    std::snprintf(last_refusal_.data(), last_refusal_.size(), "refused %s from sender %" PRId64 ": stale timestamp "
-                  "(%+.3f s from this clock, window -%.1f..+%.1f s, none before the runtime's start)", what, sender_id,
-                  verdict_offset_s_, cfg_.max_age_s, cfg_.max_lead_s);
+    std::snprintf(last_refusal_.data(), last_refusal_.size(),
+                  "refused %s from sender %" PRId64
+                  ": stale timestamp "
+                  "(%+.3f s from this clock, window -%.1f..+%.1f s, none before the runtime's start)",
+                  what, sender_id, verdict_offset_s_, cfg_.max_age_s, cfg_.max_lead_s);
   else
-    std::snprintf(last_refusal_.data(), last_refusal_.size(), "refused %s from sender %" PRId64 ": %s", what,
-                  sender_id, refusal_text(verdict_));
+    std::snprintf(last_refusal_.data(), last_refusal_.size(), "refused %s from sender %" PRId64 ": %s", what, sender_id,
+                  refusal_text(verdict_));
 }
 
 }  // namespace t1rt

@@ -12,7 +12,7 @@ namespace t1rt {
 namespace {
 std::atomic<bool> g_sighup{false};
 constexpr std::size_t kStringReserve = Controller::kStatusStringReserve;
-constexpr std::size_t kObsReserve = 1024;     // observation_t vectors: largest obs size without reallocation
+constexpr std::size_t kObsReserve = 1024;           // observation_t vectors: largest obs size without reallocation
 constexpr int64_t kLiveLinePeriodNs = 200'000'000;  // terminal status line at 5 Hz
 // No fresh state for this long: say what the runtime waits for, then again every kNoStateRepeatNs.
 constexpr int64_t kNoStateNoticeNs = 1'000'000'000;
@@ -24,8 +24,8 @@ constexpr const char* kApprovalsFileName = "approvals";  // the approvals file's
 
 PolicyStore make_policy_store(const ControllerOptions& o) {
   // a chain's folder holds its members: it is their policy folder
-  const std::string own = is_chain_folder(o.policy_path) ? o.policy_path
-                                                         : std::filesystem::path(o.policy_path).parent_path().string();
+  const std::string own =
+      is_chain_folder(o.policy_path) ? o.policy_path : std::filesystem::path(o.policy_path).parent_path().string();
   std::string dir = o.policy_dir.empty() ? own : o.policy_dir;
   if (dir.empty()) dir = ".";
   const std::string approvals = o.approvals_path.empty() ? dir + "/" + kApprovalsFileName : o.approvals_path;
@@ -49,8 +49,12 @@ Controller::Controller(const ControllerOptions& options, std::unique_ptr<PolicyE
 
 Controller::Controller(const ControllerOptions& options, std::array<std::unique_ptr<PolicyEngine>, kChainStages> chain,
                        float handover_up_error)
-    : opt_(options), supervisor_(options.safety), store_(make_policy_store(options)), engine_(std::move(chain[0])),
-      rule_(SwitchRule::kKeyframe), handover_up_error_(handover_up_error) {
+    : opt_(options),
+      supervisor_(options.safety),
+      store_(make_policy_store(options)),
+      engine_(std::move(chain[0])),
+      rule_(SwitchRule::kKeyframe),
+      handover_up_error_(handover_up_error) {
   members_ = {engine_.get()};
   for (std::size_t i = 1; i < kChainStages; ++i) {
     check_composite_pair(engine_->artifact(), chain[i]->artifact());  // one gain set: throws before any thread
@@ -65,9 +69,9 @@ Controller::Controller(const ControllerOptions& options, std::array<std::unique_
 void Controller::init_common() {
   supervisor_.set_autostart(opt_.autostart);  // the ladder and the operator's precedence: safety rule R1
   current_path_ = opt_.policy_path;
-  for (std::string* s : {&status_.mode_name, &status_.policy_name, &status_.policy_hash, &status_.clock,
-                         &status_.last_fault, &status_.info, &status_.command_auth, &status_.state_auth,
-                         &status_.state_source})
+  for (std::string* s :
+       {&status_.mode_name, &status_.policy_name, &status_.policy_hash, &status_.clock, &status_.last_fault,
+        &status_.info, &status_.command_auth, &status_.state_auth, &status_.state_source})
     s->reserve(kStringReserve);
   obs_msg_.raw.reserve(kObsReserve);
   obs_msg_.normalized.reserve(kObsReserve);
@@ -89,15 +93,15 @@ bool Controller::open(std::string* error) {
   if (!auth_.open(opt_.auth, opt_.keys, opt_.auth_config, error)) return false;
   // Whose state: the robot key's frames only (--robot-key), else every frame (rule R12 still watches).
   const bool robot_key = opt_.robot_keys != nullptr;
-  if (!state_auth_.open(robot_key ? AuthMode::kSigned : AuthMode::kUnauthenticated, opt_.robot_keys,
-                        opt_.auth_config, error))
+  if (!state_auth_.open(robot_key ? AuthMode::kSigned : AuthMode::kUnauthenticated, opt_.robot_keys, opt_.auth_config,
+                        error))
     return false;
   char describe[96];
   if (robot_key) std::snprintf(describe, sizeof(describe), "signed (robot key, %zu senders)", opt_.robot_keys->size());
   else std::snprintf(describe, sizeof(describe), "unauthenticated (no --robot-key)");
   state_auth_.set_description(describe);
-  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, &auth_, error, switched(),
-                       state_on_lcm(opt_.robot_link), &state_auth_))
+  if (!transport_.open(opt_.lcm_url, opt_.clock, &supervisor_, &auth_, error, switched(), state_on_lcm(opt_.robot_link),
+                       &state_auth_))
     return false;
   link_ = open_robot_link(opt_.robot_link, opt_.dds_domain_id, opt_.clock, &supervisor_, &transport_, error,
                           opt_.safety.restart_quiet_s);
@@ -109,8 +113,7 @@ void Controller::publish_command() { link_->publish(command_); }
 void Controller::send_exit_damping() {
   if (!transport_.joint.have) return;  // never commanded anything: nothing to release
   supervisor_.estop();                 // DAMPING (a latched FAULT is damping already)
-  const double now_s = opt_.clock == ClockMode::kLockstep ? transport_.joint.stamp_s
-                                                          : monotonic_s();
+  const double now_s = opt_.clock == ClockMode::kLockstep ? transport_.joint.stamp_s : monotonic_s();
   const StateView s = state_view(now_s);
   supervisor_.begin_tick(s, active_->artifact());
   supervisor_.finish_tick(s, active_->artifact(), active_->q_target(), command_);
@@ -155,19 +158,24 @@ void Controller::reload_worker() {
       message = std::string("reload REJECTED, old policies kept: hot reload is not supported in ") +
                 (chain() ? "chain" : "composite") + " mode";
     } else try {
-      // load_policy: a name inside the policy folder, approved content only; SIGHUP (a local signal): the
-      // current file, approved again when the runtime has a key (the file may have been replaced).
-      engine = std::make_unique<PolicyEngine>(!name.empty() ? store_.load_name(name)
-                                              : store_.checks_approval() ? store_.load_path(path) : load_artifact(path));
-      message = "reload ok: " + path + " (" + engine->artifact().name + ", " + engine->artifact().content_hash.substr(0, 12) + ")";
-    } catch (const PolicyRefused& e) {
-      message = std::string("reload REJECTED, old policy kept: ") + e.what();
-    } catch (const std::exception& e) {
-      message = "reload REJECTED, old policy kept: " + path + ": " + e.what();
-    }
+        // load_policy: a name inside the policy folder, approved content only; SIGHUP (a local signal): the
+        // current file, approved again when the runtime has a key (the file may have been replaced).
+        engine = std::make_unique<PolicyEngine>(!name.empty()              ? store_.load_name(name)
+                                                : store_.checks_approval() ? store_.load_path(path)
+                                                                           : load_artifact(path));
+        message = "reload ok: " + path + " (" + engine->artifact().name + ", " +
+                  engine->artifact().content_hash.substr(0, 12) + ")";
+      } catch (const PolicyRefused& e) {
+        message = std::string("reload REJECTED, old policy kept: ") + e.what();
+      } catch (const std::exception& e) {
+        message = "reload REJECTED, old policy kept: " + path + ": " + e.what();
+      }
     lock.lock();
     reload_message_ = message.substr(0, kStringReserve - 1);
-    if (!engine) { message_changed_.store(true); continue; }  // "reload ok" shows once the loop adopts it
+    if (!engine) {
+      message_changed_.store(true);
+      continue;
+    }                                         // "reload ok" shows once the loop adopts it
     current_path_ = engine->artifact().path;  // the resolved file
     ready_ = std::move(engine);
     ready_flag_.store(true);
@@ -198,7 +206,9 @@ void Controller::handle_commands() {
     else if (c.verb == "reset") supervisor_.reset();
     else if (c.verb == "load_policy") request_reload(c.argument);
     else if (c.verb == "set_mode" && parse_mode(c.argument.c_str(), &mode)) supervisor_.request_mode(mode);
-    else std::fprintf(stderr, "t1-runtime: ignored runtime_cmd_t verb '%s' argument '%s'\n", c.verb.c_str(), c.argument.c_str());
+    else
+      std::fprintf(stderr, "t1-runtime: ignored runtime_cmd_t verb '%s' argument '%s'\n", c.verb.c_str(),
+                   c.argument.c_str());
   }
   transport_.command_count = 0;
   if (transport_.estop_pending) supervisor_.estop();  // after the queue: estop wins in its tick (rule R2)
@@ -226,8 +236,10 @@ void Controller::tick(double now_s) {
     if (switched() && result == PolicyEngine::Result::kOk)
       for (PolicyEngine* idle : members_)
         if (idle != active_) idle->follow(active_->q_target(), command_vel_);
-    if (result == PolicyEngine::Result::kNonFiniteObs) supervisor_.fault(fault_bit::kNonFiniteObs, "non-finite observation");
-    if (result == PolicyEngine::Result::kNonFiniteAction) supervisor_.fault(fault_bit::kNonFiniteAction, "non-finite action");
+    if (result == PolicyEngine::Result::kNonFiniteObs)
+      supervisor_.fault(fault_bit::kNonFiniteObs, "non-finite observation");
+    if (result == PolicyEngine::Result::kNonFiniteAction)
+      supervisor_.fault(fault_bit::kNonFiniteAction, "non-finite action");
     ++policy_ticks_;
     policy_ran = true;
   }
@@ -297,9 +309,10 @@ void Controller::post_live_line() {
 
 void Controller::live_line_worker() {
   // What the loop waits for, named once it has waited kNoStateNoticeNs (no state yet, or none since then).
-  const std::string awaited = state_on_lcm(opt_.robot_link)
-                                  ? std::string(t1::CH_IMU) + " / " + t1::CH_JOINT_STATE + " on " + opt_.lcm_url
-                                  : std::string(t1::kDdsStateTopic) + " on DDS domain " + std::to_string(opt_.dds_domain_id);
+  const std::string awaited =
+      state_on_lcm(opt_.robot_link)
+          ? std::string(t1::CH_IMU) + " / " + t1::CH_JOINT_STATE + " on " + opt_.lcm_url
+          : std::string(t1::kDdsStateTopic) + " on DDS domain " + std::to_string(opt_.dds_domain_id);
   const auto fresh = [](float age_ms) { return age_ms >= 0.0f && age_ms < kNoStateNoticeNs * 1e-6f; };
   LiveLine line{};
   int64_t last_fresh_ns = monotonic_ns(), next_notice_ns = 0;
@@ -309,8 +322,11 @@ void Controller::live_line_worker() {
     if (live_line_.read(&line)) {
       if (fresh(line.imu_age_ms) && fresh(line.joint_age_ms)) last_fresh_ns = now, next_notice_ns = 0;
       if (!opt_.quiet)
-        std::fprintf(stderr, "\r%s%s%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint %5.1f ms | ovr %lld | %.60s   ",
-                     line.unauthenticated ? "UNAUTHENTICATED " : "", line.composite, line.mode, static_cast<long long>(line.ticks), static_cast<long long>(line.policy_ticks),
+        std::fprintf(stderr,
+                     "\r%s%s%-7s ticks %lld pol %lld | late p99 %6.1f us | comp p99 %6.1f us | age imu %5.1f joint "
+                     "%5.1f ms | ovr %lld | %.60s   ",
+                     line.unauthenticated ? "UNAUTHENTICATED " : "", line.composite, line.mode,
+                     static_cast<long long>(line.ticks), static_cast<long long>(line.policy_ticks),
                      line.lateness_p99_us, line.compute_p99_us, line.imu_age_ms, line.joint_age_ms,
                      static_cast<long long>(line.overruns), line.last_fault);
     }

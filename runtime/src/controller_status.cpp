@@ -83,18 +83,24 @@ void Controller::publish_status(double now_s) {
   }
   char composite_info[160] = {0};
   if (composite())
-    std::snprintf(composite_info, sizeof(composite_info), "composite: waist %.3f m from T1_SIM_STATUS (privileged sim "
-                  "signal), getup below %.2f m, active %s, switches %lld | ", transport_.sim_status.msg.waist_height,
-                  kGetupSwitchWaistHeightM, member_name(member_), static_cast<long long>(member_switches_));
+    std::snprintf(composite_info, sizeof(composite_info),
+                  "composite: waist %.3f m from T1_SIM_STATUS (privileged sim "
+                  "signal), getup below %.2f m, active %s, switches %lld | ",
+                  transport_.sim_status.msg.waist_height, kGetupSwitchWaistHeightM, member_name(member_),
+                  static_cast<long long>(member_switches_));
   else if (chain())
-    std::snprintf(composite_info, sizeof(composite_info), "chain: trunk %.3f m from T1_SIM_STATUS (privileged sim "
+    std::snprintf(composite_info, sizeof(composite_info),
+                  "chain: trunk %.3f m from T1_SIM_STATUS (privileged sim "
                   "signal), rise hands over at |u - e_z| < %.2f, active %s, switches %lld | ",
                   transport_.sim_status.msg.trunk_height, handover_up_error_, stage_name(stage_),
                   static_cast<long long>(member_switches_));
   // Who may command next to the mode: "commands unauthenticated" on a bench runtime, the last refusal.
   const char* bench = auth_.mode() == AuthMode::kUnauthenticated ? " | commands unauthenticated" : "";
   const char* refusal = auth_.last_refusal();
-  char info[kStringReserve + 880 + 2 * sizeof(state_source_)];  // composite (160) + supervisor (160) + auth (230) + reload message + the link's rejection (160)
+  char info
+      [kStringReserve + 880 +
+       2 * sizeof(
+               state_source_)];  // composite (160) + supervisor (160) + auth (230) + reload message + the link's rejection (160)
   const char* link_info = link_->last_rejection();
   std::snprintf(info, sizeof(info), "%s%s%s%s%s%s%s%s%s%s%s", composite_info, supervisor_.last_info(), bench,
                 refusal[0] ? " | " : "", refusal, reload_info_[0] ? " | " : "", reload_info_, link_info[0] ? " | " : "",
@@ -118,11 +124,11 @@ void Controller::report_state_source() {
   const char* refusal = state_auth_.last_refusal();
   const char* link_other = link_->second_writer();
   if (warning || !state_source_[0])
-    std::snprintf(state_source_, sizeof(state_source_), "%s%lld state frames refused, %lld of a second source%s%s%s%s%s%s",
-                  warning ? "REFUSING STATE: " : "", static_cast<long long>(new_refused),
-                  static_cast<long long>(new_second), refusal[0] ? "; last: " : "", refusal,
-                  supervisor_.second_source()[0] ? "; " : "", supervisor_.second_source(), link_other[0] ? "; " : "",
-                  link_other);
+    std::snprintf(state_source_, sizeof(state_source_),
+                  "%s%lld state frames refused, %lld of a second source%s%s%s%s%s%s", warning ? "REFUSING STATE: " : "",
+                  static_cast<long long>(new_refused), static_cast<long long>(new_second), refusal[0] ? "; last: " : "",
+                  refusal, supervisor_.second_source()[0] ? "; " : "", supervisor_.second_source(),
+                  link_other[0] ? "; " : "", link_other);
   if (!warning && refused == 0 && second == 0) state_source_[0] = '\0';
   assign_bounded(status_.state_source, state_source_);
 }

@@ -138,8 +138,7 @@ void DdsTransport::accept(const DdsLowState& sample) {
   low_state_to_messages(sample, &imu_->scratch, &joint_->scratch, accepted_ > 0 ? lost_seen_.data() : nullptr);
   for (std::size_t i = 0; i < kJoints; ++i) lost_seen_[i] = sample.motor_state_serial._buffer[i].lost;
   // Lockstep: one state per control period, so the state's own time is its number times the loop dt.
-  const double stamp_s = clock_ == ClockMode::kLockstep ? static_cast<double>(accepted_) * kLoopDtS
-                                                        : monotonic_s();
+  const double stamp_s = clock_ == ClockMode::kLockstep ? static_cast<double>(accepted_) * kLoopDtS : monotonic_s();
   imu_->scratch.seq = joint_->scratch.seq = seq;
   imu_->scratch.utime = joint_->scratch.utime = static_cast<int64_t>(stamp_s * kSToUs);
   std::swap(imu_->msg, imu_->scratch);

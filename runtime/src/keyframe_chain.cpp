@@ -13,10 +13,14 @@ namespace fs = std::filesystem;
 
 const char* stage_name(ChainStage stage) {
   switch (stage) {
-    case ChainStage::kRoll: return "roll";
-    case ChainStage::kRise: return "rise";
-    case ChainStage::kStand: return "stand";
-    default: return "start";
+    case ChainStage::kRoll:
+      return "roll";
+    case ChainStage::kRise:
+      return "rise";
+    case ChainStage::kStand:
+      return "stand";
+    default:
+      return "start";
   }
 }
 
@@ -30,7 +34,8 @@ ChainFile read_chain_file(const std::string& folder) {
   std::ifstream in(manifest);
   if (!in) throw ArtifactError(kChainManifest, folder + ": not a keyframe chain (no readable chain.json)");
   const nlohmann::json data = nlohmann::json::parse(in, nullptr, false);
-  if (data.is_discarded() || !data.is_object()) throw ArtifactError(kChainManifest, manifest.string() + ": not a JSON object");
+  if (data.is_discarded() || !data.is_object())
+    throw ArtifactError(kChainManifest, manifest.string() + ": not a JSON object");
   if (data.value("format", std::string()) != kChainFormat)
     throw ArtifactError(kChainManifest, manifest.string() + ": format must be \"" + kChainFormat + "\"");
   const auto stages = data.find("stages");
@@ -53,8 +58,9 @@ ChainFile read_chain_file(const std::string& folder) {
   chain.handover = data.value("handover", std::string());
   if (chain.handover == "kneel_gate") chain.handover_up_error = t1::kKneelGateUpError;
   else if (chain.handover == "kneel_band") chain.handover_up_error = t1::kKneelBandUpError;
-  else throw ArtifactError(std::string(kChainManifest) + ": handover", "must be kneel_gate or kneel_band, got '" +
-                           chain.handover + "'");
+  else
+    throw ArtifactError(std::string(kChainManifest) + ": handover",
+                        "must be kneel_gate or kneel_band, got '" + chain.handover + "'");
   return chain;
 }
 
@@ -82,8 +88,9 @@ bool at_kneel(const TrunkReadings& r, float up_error_max) {
 
 ChainStage next_stage(ChainStage stage, const TrunkReadings& r, float handover_up_error) {
   if (stage == ChainStage::kStart)
-    stage = lying(r) ? ChainStage::kRoll
-                     : r.height_m < t1::kStandingTrunkThresholdM ? ChainStage::kRise : ChainStage::kStand;
+    stage = lying(r)                                    ? ChainStage::kRoll
+            : r.height_m < t1::kStandingTrunkThresholdM ? ChainStage::kRise
+                                                        : ChainStage::kStand;
   switch (stage) {
     case ChainStage::kRoll:
       return lying(r) && still(r) && r.forward_z < -t1::kRolledForwardZ ? ChainStage::kRise : ChainStage::kRoll;

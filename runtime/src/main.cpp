@@ -40,15 +40,18 @@ void on_sighup(int) { t1rt::Controller::notify_sighup(); }
 bool write_histogram(FILE* f, t1rt::PeriodicTask& task) {
   const std::string bins = task.histogram().json();
   std::fprintf(f, "{\"lateness_us\": %s, \"max_us\": %.1f, \"overruns\": %lld, \"ticks\": %lld}\n", bins.c_str(),
-               task.lateness().max(), static_cast<long long>(task.overruns()), static_cast<long long>(task.lateness().count()));
+               task.lateness().max(), static_cast<long long>(task.overruns()),
+               static_cast<long long>(task.lateness().count()));
   return std::fclose(f) == 0;
 }
 
 void usage(FILE* out) {
-  std::fprintf(out,
+  std::fprintf(
+      out,
       "usage: t1-runtime --policy PATH [--policy-upright PATH] [options]\n"
       "  --policy PATH          policy artifact (*.safetensors, policies/ARTIFACT.md); required. A keyframe chain's\n"
-      "                         folder (chain.json: roll, rise, stand; policies/getup_keyframe): chain mode (sim only),\n"
+      "                         folder (chain.json: roll, rise, stand; policies/getup_keyframe): chain mode (sim "
+      "only),\n"
       "                         switched by the Trunk's height from T1_SIM_STATUS (run the sim with --status-rate\n"
       "                         500); one gain set; no hot reload\n"
       "  --policy-upright PATH  composite mode (sim only): --policy is the getup member, run while the waist is\n"
@@ -59,7 +62,8 @@ void usage(FILE* out) {
       "                         answered by T1_JOINT_CMD with state_seq = that state's seq\n"
       "  --transport lcm|dds    the robot link (default lcm). dds: the real T1's own topics over Cyclone DDS,\n"
       "                         state from rt/low_state, LowCmd (SERIAL) to rt/joint_ctrl, domain from the contract;\n"
-      "                         lockstep: one tick per LowState sample. Joystick, runtime commands and status stay LCM\n"
+      "                         lockstep: one tick per LowState sample. Joystick, runtime commands and status stay "
+      "LCM\n"
       "  --lcm-url URL          LCM URL (default: $T1_LCM_URL, else the contract default)\n"
       "  --rt                   SCHED_FIFO, mlockall, CPU pinning, /dev/cpu_dma_latency=0 (failures reported)\n"
       "  --rt-required          like --rt, but any failed step is fatal (exit 5)\n"
@@ -95,10 +99,13 @@ void print_authority(const t1rt::ControllerOptions& opt, const t1rt::PolicyStore
     std::fprintf(stderr, "t1-runtime: commands signed: key file %s (senders %s); artifacts in %s approved in %s\n",
                  opt.keys->path().c_str(), ids.c_str(), store.dir().c_str(), store.approvals().c_str());
   } else if (opt.auth == t1rt::AuthMode::kUnauthenticated) {
-    std::fprintf(stderr, "t1-runtime: commands unauthenticated (--unauthenticated, a bench setup): any program on "
-                 "the LCM group may command this robot; load_policy loads any artifact in %s\n", store.dir().c_str());
+    std::fprintf(stderr,
+                 "t1-runtime: commands unauthenticated (--unauthenticated, a bench setup): any program on "
+                 "the LCM group may command this robot; load_policy loads any artifact in %s\n",
+                 store.dir().c_str());
   } else {
-    std::fprintf(stderr, "t1-runtime: commands: estop only (no --key): every other runtime_cmd_t and the joystick "
+    std::fprintf(stderr,
+                 "t1-runtime: commands: estop only (no --key): every other runtime_cmd_t and the joystick "
                  "are refused; --key FILE takes the operator's signed ones\n");
   }
 }
@@ -121,19 +128,27 @@ int main(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (a == "--help" || a == "-h") { usage(stdout); return kExitOk; }
-    else if (a == "--policy") opt.policy_path = value("--policy");
+    if (a == "--help" || a == "-h") {
+      usage(stdout);
+      return kExitOk;
+    } else if (a == "--policy") opt.policy_path = value("--policy");
     else if (a == "--policy-upright") opt.upright_policy_path = value("--policy-upright");
     else if (a == "--clock") {
       const std::string c = value("--clock");
       if (c == "realtime") opt.clock = t1rt::ClockMode::kRealtime;
       else if (c == "lockstep") opt.clock = t1rt::ClockMode::kLockstep;
-      else { std::fprintf(stderr, "t1-runtime: --clock must be realtime or lockstep, not '%s'\n", c.c_str()); return kExitUsage; }
+      else {
+        std::fprintf(stderr, "t1-runtime: --clock must be realtime or lockstep, not '%s'\n", c.c_str());
+        return kExitUsage;
+      }
     } else if (a == "--transport") {
       const std::string t = value("--transport");
       if (t == "lcm") opt.robot_link = t1rt::RobotLinkKind::kLcm;
       else if (t == "dds") opt.robot_link = t1rt::RobotLinkKind::kDds;
-      else { std::fprintf(stderr, "t1-runtime: --transport must be lcm or dds, not '%s'\n", t.c_str()); return kExitUsage; }
+      else {
+        std::fprintf(stderr, "t1-runtime: --transport must be lcm or dds, not '%s'\n", t.c_str());
+        return kExitUsage;
+      }
     } else if (a == "--lcm-url") cli_url = value("--lcm-url");
     else if (a == "--rt") rt = true;
     else if (a == "--rt-required") rt = rt_required = true;
@@ -141,12 +156,12 @@ int main(int argc, char** argv) {
       const char* v = value("--rt-cpu");
       long cpu = 0;
       if (!parse_long(v, -1, kMaxRtCpu, &cpu)) {
-        std::fprintf(stderr, "t1-runtime: --rt-cpu needs a core number in [-1, %ld] (-1 = no pinning), not '%s'\n", kMaxRtCpu, v);
+        std::fprintf(stderr, "t1-runtime: --rt-cpu needs a core number in [-1, %ld] (-1 = no pinning), not '%s'\n",
+                     kMaxRtCpu, v);
         return kExitUsage;
       }
       rt_options.cpu = static_cast<int>(cpu);
-    }
-    else if (a == "--key") key_path = value("--key");
+    } else if (a == "--key") key_path = value("--key");
     else if (a == "--robot-key") robot_key_path = value("--robot-key");
     else if (a == "--unauthenticated") unauthenticated = true;
     else if (a == "--policy-dir") opt.policy_dir = value("--policy-dir");
@@ -162,17 +177,16 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "t1-runtime: --prepare-s needs seconds in (0, %g], not '%s'\n", kMaxPrepareS, v);
         return kExitUsage;
       }
-    }
-    else if (a == "--quiet") opt.quiet = true;
+    } else if (a == "--quiet") opt.quiet = true;
     else if (a == "--lateness-histogram") {
       histogram_path = value("--lateness-histogram");
       histogram_file = std::fopen(histogram_path.c_str(), "w");
       if (!histogram_file) {
-        std::fprintf(stderr, "t1-runtime: --lateness-histogram: cannot write %s: %s\n", histogram_path.c_str(), std::strerror(errno));
+        std::fprintf(stderr, "t1-runtime: --lateness-histogram: cannot write %s: %s\n", histogram_path.c_str(),
+                     std::strerror(errno));
         return kExitUsage;
       }
-    }
-    else if (a == "--duration") {
+    } else if (a == "--duration") {
       char* end = nullptr;
       const char* v = value("--duration");
       opt.duration_s = std::strtod(v, &end);
@@ -181,9 +195,17 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "t1-runtime: --duration needs finite seconds in (0, %g], not '%s'\n", kMaxDurationS, v);
         return kExitUsage;
       }
-    } else { std::fprintf(stderr, "t1-runtime: unknown argument '%s'\n", a.c_str()); usage(stderr); return kExitUsage; }
+    } else {
+      std::fprintf(stderr, "t1-runtime: unknown argument '%s'\n", a.c_str());
+      usage(stderr);
+      return kExitUsage;
+    }
   }
-  if (opt.policy_path.empty()) { std::fprintf(stderr, "t1-runtime: --policy PATH is required\n"); usage(stderr); return kExitUsage; }
+  if (opt.policy_path.empty()) {
+    std::fprintf(stderr, "t1-runtime: --policy PATH is required\n");
+    usage(stderr);
+    return kExitUsage;
+  }
   if (unauthenticated && !key_path.empty()) {
     std::fprintf(stderr, "t1-runtime: --key and --unauthenticated exclude each other\n");
     return kExitUsage;
@@ -194,18 +216,25 @@ int main(int argc, char** argv) {
   }
   opt.lcm_url = t1rt::resolve_lcm_url(cli_url);
   opt.dds_domain_id = t1::kDdsDomainId;
-  opt.auth = unauthenticated ? t1rt::AuthMode::kUnauthenticated : key_path.empty() ? t1rt::AuthMode::kEstopOnly
-                                                                                   : t1rt::AuthMode::kSigned;
+  opt.auth = unauthenticated    ? t1rt::AuthMode::kUnauthenticated
+             : key_path.empty() ? t1rt::AuthMode::kEstopOnly
+                                : t1rt::AuthMode::kSigned;
   if (!key_path.empty()) {
     std::string error;
     opt.keys = t1rt::KeyRing::load(key_path, &error);
-    if (!opt.keys) { std::fprintf(stderr, "t1-runtime: refused: %s\n", error.c_str()); return kExitKey; }
+    if (!opt.keys) {
+      std::fprintf(stderr, "t1-runtime: refused: %s\n", error.c_str());
+      return kExitKey;
+    }
   }
 
   if (!robot_key_path.empty()) {
     std::string error;
     opt.robot_keys = t1rt::KeyRing::load(robot_key_path, &error);
-    if (!opt.robot_keys) { std::fprintf(stderr, "t1-runtime: refused: robot %s\n", error.c_str()); return kExitKey; }
+    if (!opt.robot_keys) {
+      std::fprintf(stderr, "t1-runtime: refused: robot %s\n", error.c_str());
+      return kExitKey;
+    }
   }
 
   std::unique_ptr<t1rt::PolicyEngine> engine, upright;
@@ -222,7 +251,8 @@ int main(int argc, char** argv) {
     const t1rt::PolicyStore store = t1rt::make_policy_store(opt);
     // With a key the startup policies follow load_policy's rule: inside the folder, approved content.
     auto load = [&](const std::string& path) {
-      return std::make_unique<t1rt::PolicyEngine>(store.checks_approval() ? store.load_path(path) : t1rt::load_artifact(path));
+      return std::make_unique<t1rt::PolicyEngine>(store.checks_approval() ? store.load_path(path)
+                                                                          : t1rt::load_artifact(path));
     };
     if (chain_mode) {
       chain_file = t1rt::read_chain_file(opt.policy_path);
@@ -251,44 +281,53 @@ int main(int argc, char** argv) {
   std::vector<std::pair<std::string, const t1rt::PolicyEngine*>> members;
   if (chain_mode)
     for (std::size_t i = 0; i < t1rt::kChainStages; ++i)
-      members.emplace_back(std::string(t1rt::stage_name(static_cast<t1rt::ChainStage>(i))) + " member: ", chain[i].get());
-  else if (upright)
-    members = {{"getup member: ", engine.get()}, {"upright member: ", upright.get()}};
-  else
-    members = {{"", engine.get()}};
+      members.emplace_back(std::string(t1rt::stage_name(static_cast<t1rt::ChainStage>(i))) + " member: ",
+                           chain[i].get());
+  else if (upright) members = {{"getup member: ", engine.get()}, {"upright member: ", upright.get()}};
+  else members = {{"", engine.get()}};
   for (const auto& [label, p] : members) {
     const auto& art = p->artifact();
-    std::fprintf(stderr, "t1-runtime: %spolicy '%s' hash %.12s trained=%s obs %d layers %zu (MLP kernel %s); clock %s; "
+    std::fprintf(stderr,
+                 "t1-runtime: %spolicy '%s' hash %.12s trained=%s obs %d layers %zu (MLP kernel %s); clock %s; "
                  "LCM %s; robot link %s\n",
-                 label.c_str(), art.name.c_str(),
-                 art.content_hash.c_str(), art.trained ? "true" : "false", art.obs_size, art.layers.size(), p->mlp_variant(),
-                 t1rt::clock_name(opt.clock), opt.lcm_url.c_str(),
+                 label.c_str(), art.name.c_str(), art.content_hash.c_str(), art.trained ? "true" : "false",
+                 art.obs_size, art.layers.size(), p->mlp_variant(), t1rt::clock_name(opt.clock), opt.lcm_url.c_str(),
                  t1rt::robot_link_description(opt.robot_link));
   }
   if (opt.robot_keys)
     std::fprintf(stderr, "t1-runtime: state: only the robot's signed frames (--robot-key %s, %zu senders)\n",
                  robot_key_path.c_str(), opt.robot_keys->size());
   else if (t1rt::state_on_lcm(opt.robot_link))
-    std::fprintf(stderr, "t1-runtime: state unauthenticated (no --robot-key, a bench setup): any program on the LCM "
+    std::fprintf(stderr,
+                 "t1-runtime: state unauthenticated (no --robot-key, a bench setup): any program on the LCM "
                  "group can publish T1_IMU / T1_JOINT_STATE; a second sequence stream is a FAULT (rule R12)\n");
   if (upright)
-    std::fprintf(stderr, "t1-runtime: COMPOSITE mode: getup below waist %.2f m, else upright; waist height from "
-                 "T1_SIM_STATUS (privileged simulator signal, not available on a robot)\n", t1rt::kGetupSwitchWaistHeightM);
+    std::fprintf(stderr,
+                 "t1-runtime: COMPOSITE mode: getup below waist %.2f m, else upright; waist height from "
+                 "T1_SIM_STATUS (privileged simulator signal, not available on a robot)\n",
+                 t1rt::kGetupSwitchWaistHeightM);
   if (chain_mode)
-    std::fprintf(stderr, "t1-runtime: CHAIN mode: roll -> rise -> stand, the rise hands over at %s (|u - e_z| < %.2f); "
+    std::fprintf(stderr,
+                 "t1-runtime: CHAIN mode: roll -> rise -> stand, the rise hands over at %s (|u - e_z| < %.2f); "
                  "Trunk height from T1_SIM_STATUS (privileged simulator signal, not available on a robot)\n",
                  chain_file.handover.c_str(), chain_file.handover_up_error);
 
-  t1rt::Controller controller = chain_mode
-      ? t1rt::Controller(opt, std::move(chain), chain_file.handover_up_error)
-      : t1rt::Controller(opt, std::move(engine), std::move(upright));
+  t1rt::Controller controller = chain_mode ? t1rt::Controller(opt, std::move(chain), chain_file.handover_up_error)
+                                           : t1rt::Controller(opt, std::move(engine), std::move(upright));
   std::string error;
-  if (!controller.open(&error)) { std::fprintf(stderr, "t1-runtime: transport init failed: %s\n", error.c_str()); return kExitLcm; }
+  if (!controller.open(&error)) {
+    std::fprintf(stderr, "t1-runtime: transport init failed: %s\n", error.c_str());
+    return kExitLcm;
+  }
 
   t1rt::RtSetup rt_setup;
   if (rt) {
-    for (const std::string& line : rt_setup.apply(rt_options)) std::fprintf(stderr, "t1-runtime: rt %s\n", line.c_str());
-    if (rt_required && !rt_setup.all_ok()) { std::fprintf(stderr, "t1-runtime: --rt-required: real-time setup failed\n"); return kExitRt; }
+    for (const std::string& line : rt_setup.apply(rt_options))
+      std::fprintf(stderr, "t1-runtime: rt %s\n", line.c_str());
+    if (rt_required && !rt_setup.all_ok()) {
+      std::fprintf(stderr, "t1-runtime: --rt-required: real-time setup failed\n");
+      return kExitRt;
+    }
   }
   g_controller = &controller;
   std::signal(SIGINT, on_stop_signal);
@@ -298,10 +337,12 @@ int main(int argc, char** argv) {
   g_controller = nullptr;
   auto& task = controller.task();
   if (histogram_file && !write_histogram(histogram_file, task)) {
-    std::fprintf(stderr, "t1-runtime: --lateness-histogram: cannot write %s: %s\n", histogram_path.c_str(), std::strerror(errno));
+    std::fprintf(stderr, "t1-runtime: --lateness-histogram: cannot write %s: %s\n", histogram_path.c_str(),
+                 std::strerror(errno));
     return kExitUsage;
   }
-  std::fprintf(stderr, "t1-runtime: stopped in %s after %lld ticks (%lld policy); lateness p99 %.1f us max %.1f us; "
+  std::fprintf(stderr,
+               "t1-runtime: stopped in %s after %lld ticks (%lld policy); lateness p99 %.1f us max %.1f us; "
                "compute p99 %.1f us max %.1f us; overruns %lld; last fault: %s\n",
                t1rt::mode_name(controller.supervisor().mode()), static_cast<long long>(controller.ticks()),
                static_cast<long long>(controller.policy_ticks()), task.lateness().p99(), task.lateness().max(),

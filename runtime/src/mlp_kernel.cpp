@@ -70,7 +70,7 @@ typedef int IVec __attribute__((vector_size(kLanes * sizeof(int))));
 Vec exp_vec(Vec x) {
   x = x > kExpMaxArg ? kExpMaxArg : x;  // a NaN fails both tests and passes through
   x = x < kExpMinArg ? kExpMinArg : x;
-  Vec n = x * kLog2e + kRoundMagic;                    // round to nearest: the integer lands in the low bits
+  Vec n = x * kLog2e + kRoundMagic;  // round to nearest: the integer lands in the low bits
   const IVec bits = (IVec)n - (IVec)(Vec{} + kRoundMagic);
   n -= kRoundMagic;
   const Vec r = x - n * kLn2Hi - n * kLn2Lo;
@@ -92,9 +92,15 @@ void activate(Activation activation, float* h, int n) {
         store(h + i, x / (1.0f + exp_vec(-x)));
       }
       break;
-    case Activation::kElu: for (int i = 0; i < n; ++i) h[i] = h[i] > 0.0f ? h[i] : expm1f(h[i]); break;
-    case Activation::kTanh: for (int i = 0; i < n; ++i) h[i] = tanhf(h[i]); break;
-    case Activation::kRelu: for (int i = 0; i < n; ++i) h[i] = h[i] > 0.0f ? h[i] : 0.0f; break;
+    case Activation::kElu:
+      for (int i = 0; i < n; ++i) h[i] = h[i] > 0.0f ? h[i] : expm1f(h[i]);
+      break;
+    case Activation::kTanh:
+      for (int i = 0; i < n; ++i) h[i] = tanhf(h[i]);
+      break;
+    case Activation::kRelu:
+      for (int i = 0; i < n; ++i) h[i] = h[i] > 0.0f ? h[i] : 0.0f;
+      break;
   }
 }
 }  // namespace

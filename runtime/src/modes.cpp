@@ -8,17 +8,25 @@ namespace t1rt {
 
 const char* mode_name(Mode mode) {
   switch (mode) {
-    case Mode::kPassive: return "PASSIVE";
-    case Mode::kDamping: return "DAMPING";
-    case Mode::kPrepare: return "PREPARE";
-    case Mode::kPolicy: return "POLICY";
-    case Mode::kFault: return "FAULT";
+    case Mode::kPassive:
+      return "PASSIVE";
+    case Mode::kDamping:
+      return "DAMPING";
+    case Mode::kPrepare:
+      return "PREPARE";
+    case Mode::kPolicy:
+      return "POLICY";
+    case Mode::kFault:
+      return "FAULT";
   }
   return "?";
 }
 
 bool parse_mode(const char* text, Mode* mode) {
-  static const struct { const char* name; Mode mode; } kModes[] = {
+  static const struct {
+    const char* name;
+    Mode mode;
+  } kModes[] = {
       {"passive", Mode::kPassive}, {"damping", Mode::kDamping}, {"prepare", Mode::kPrepare}, {"policy", Mode::kPolicy}};
   for (const auto& m : kModes)
     if (std::strcmp(text, m.name) == 0) {

@@ -111,9 +111,7 @@ std::vector<std::string> RtSetup::apply(const RtOptions& options) {
   return report;
 }
 
-void PeriodicTask::start() {
-  deadline_ns_ = monotonic_ns() + period_ns_;
-}
+void PeriodicTask::start() { deadline_ns_ = monotonic_ns() + period_ns_; }
 
 int64_t PeriodicTask::wait_next() {
   const timespec ts = to_timespec(deadline_ns_);
@@ -132,8 +130,6 @@ int64_t PeriodicTask::wait_next() {
   return wake_ns_;
 }
 
-void PeriodicTask::end_compute() {
-  compute_.add(static_cast<double>(monotonic_ns() - wake_ns_) / kNsPerUs);
-}
+void PeriodicTask::end_compute() { compute_.add(static_cast<double>(monotonic_ns() - wake_ns_) / kNsPerUs); }
 
 }  // namespace t1rt

@@ -35,7 +35,10 @@ void projected_gravity(const float* quat_wxyz, float* out3) {
   double w = quat_wxyz[0], x = quat_wxyz[1], y = quat_wxyz[2], z = quat_wxyz[3];
   const double n = std::sqrt(w * w + x * x + y * y + z * z);
   if (n > 0.0) {
-    w /= n; x /= n; y /= n; z /= n;
+    w /= n;
+    x /= n;
+    y /= n;
+    z /= n;
   }
   // R^T (0,0,-1) = -(third row of R) transposed.
   out3[0] = static_cast<float>(-2.0 * (x * z - w * y));
@@ -166,8 +169,8 @@ void PolicyEngine::follow(const JointArray& applied_q_target, const float* comma
   }
 }
 
-PolicyEngine::Result PolicyEngine::step(const float* imu_quat, const float* gyro, const float* command,
-                                        const float* q, const float* dq) {
+PolicyEngine::Result PolicyEngine::step(const float* imu_quat, const float* gyro, const float* command, const float* q,
+                                        const float* dq) {
   // The observation carries the clock as it stands; it advances after the step, with this tick's command,
   // exactly as the training envs do (reset observation = initial phase).
   ObsInputs in{imu_quat, gyro, command, q, dq, last_action_.data(), gait_.phase()};

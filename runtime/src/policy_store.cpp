@@ -45,7 +45,8 @@ std::string PolicyStore::inside(const std::string& path, const std::string& show
 PolicyArtifact PolicyStore::load_name(const std::string& name) const {
   if (name.empty()) throw PolicyRefused("load_policy needs an artifact name inside the policy folder " + dir_);
   if (name[0] == '/')
-    throw PolicyRefused("policy '" + name + "': an absolute path; load_policy takes a name inside the policy folder " + dir_);
+    throw PolicyRefused("policy '" + name + "': an absolute path; load_policy takes a name inside the policy folder " +
+                        dir_);
   std::istringstream parts(name);
   for (std::string part; std::getline(parts, part, '/');)
     if (part == "..") throw PolicyRefused("policy '" + name + "': '..' leaves the policy folder " + dir_);
@@ -67,7 +68,8 @@ PolicyArtifact PolicyStore::load_resolved(const std::string& real, const std::st
     uint8_t digest[kSha256Bytes];
     SHA256(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), digest);
     std::string why;
-    if (!approvers_->approves(approvals_, digest, &why)) throw PolicyRefused("policy '" + shown + "' not loaded: " + why);
+    if (!approvers_->approves(approvals_, digest, &why))
+      throw PolicyRefused("policy '" + shown + "' not loaded: " + why);
   }
   return parse_artifact(real, bytes);
 }

@@ -74,12 +74,13 @@ bool Supervisor::accept_state_seq(StateSource& source, SeqTracker& tracker, int6
   const SeqTracker::Step step = tracker.step(seq);
   const bool alive = source.have && now_s - source.last_s < cfg_.restart_quiet_s;
   const bool restart = step == SeqTracker::Step::kRestart;
-  const bool jump = step == SeqTracker::Step::kNew && tracker.newest() >= 0 &&
-                    seq - tracker.newest() > cfg_.max_seq_jump_frames;
+  const bool jump =
+      step == SeqTracker::Step::kNew && tracker.newest() >= 0 && seq - tracker.newest() > cfg_.max_seq_jump_frames;
   if (alive && (restart || jump)) {
     ++second_source_frames_;
-    std::snprintf(second_source_.data(), second_source_.size(), "second state source on %s: seq %lld %s the followed stream at seq %lld, "
-                  "alive %.0f ms ago", source.channel, static_cast<long long>(seq), restart ? "behind" : "far ahead of",
+    std::snprintf(second_source_.data(), second_source_.size(),
+                  "second state source on %s: seq %lld %s the followed stream at seq %lld, alive %.0f ms ago",
+                  source.channel, static_cast<long long>(seq), restart ? "behind" : "far ahead of",
                   static_cast<long long>(tracker.newest()), (now_s - source.last_s) * 1e3);
     if (!(latched_bits_ & fault_bit::kSecondStateSource)) fault(fault_bit::kSecondStateSource, second_source_.data());
     return false;
@@ -146,8 +147,9 @@ void Supervisor::enter(Mode mode, const StateView& state) {
 
 bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& /*artifact*/) {
   entered_policy_ = false;
-  warning_bits_ &= ~(fault_bit::kImuHold | fault_bit::kJointHold | fault_bit::kSimStatusHold | fault_bit::kMotorWarning | fault_bit::kMotorOverLimit |
-                     fault_bit::kTargetClamped | fault_bit::kRateLimited | fault_bit::kTorqueClamped);
+  warning_bits_ &=
+      ~(fault_bit::kImuHold | fault_bit::kJointHold | fault_bit::kSimStatusHold | fault_bit::kMotorWarning |
+        fault_bit::kMotorOverLimit | fault_bit::kTargetClamped | fault_bit::kRateLimited | fault_bit::kTorqueClamped);
   const double imu_age = s.have_imu ? s.now_s - s.imu_time_s : kNever;
   const double joint_age = s.have_joint ? s.now_s - s.joint_time_s : kNever;
   const double sim_age = !s.needs_sim_status ? 0.0 : s.have_sim_status ? s.now_s - s.sim_status_time_s : kNever;
@@ -181,11 +183,13 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& /*artifact
       std::snprintf(why, sizeof(why), "imu_t stale: age %.1f ms > %.1f ms", imu_age * 1e3, cfg_.fault_age_s * 1e3);
       fault(fault_bit::kImuStale, why);
     } else if (joint_age > cfg_.fault_age_s) {
-      std::snprintf(why, sizeof(why), "joint_state_t stale: age %.1f ms > %.1f ms", joint_age * 1e3, cfg_.fault_age_s * 1e3);
+      std::snprintf(why, sizeof(why), "joint_state_t stale: age %.1f ms > %.1f ms", joint_age * 1e3,
+                    cfg_.fault_age_s * 1e3);
       fault(fault_bit::kJointStale, why);
     } else if (sim_age > cfg_.fault_age_s) {
-      std::snprintf(why, sizeof(why), "sim_status_t stale: age %.1f ms > %.1f ms (switched mode: sim --status-rate 500)",
-                    sim_age * 1e3, cfg_.fault_age_s * 1e3);
+      std::snprintf(why, sizeof(why),
+                    "sim_status_t stale: age %.1f ms > %.1f ms (switched mode: sim --status-rate 500)", sim_age * 1e3,
+                    cfg_.fault_age_s * 1e3);
       fault(fault_bit::kSimStatusStale, why);
     } else if (motor_index >= 0) {
       std::snprintf(why, sizeof(why), "motor %d (%s) status 0x%x", motor_index, T1_MOTORS[motor_index].name,
@@ -213,7 +217,8 @@ bool Supervisor::begin_tick(const StateView& s, const PolicyArtifact& /*artifact
       case Mode::kPrepare:
         if (!fresh) set_info("set_mode prepare refused: state not fresh");
         else if (motor_index >= 0) set_info("set_mode prepare refused: motor fault bits set");
-        else if (watched >= 0) std::snprintf(last_info_.data(), last_info_.size(), "set_mode prepare refused: %s", watch_why);
+        else if (watched >= 0)
+          std::snprintf(last_info_.data(), last_info_.size(), "set_mode prepare refused: %s", watch_why);
         else if (mode_ == Mode::kPassive) set_info("set_mode prepare refused: go to DAMPING first");
         else enter(Mode::kPrepare, s);
         break;
@@ -260,17 +265,21 @@ void Supervisor::advance_watch(const StateView& s) {
     // R10: further past the range, or faster, than any joint of the model went in falls, getups and pushes.
     const bool outside = q < m.q_min_rad - kImpossibleRangeMarginRad || q > m.q_max_rad + kImpossibleRangeMarginRad;
     const float v_max = kImpossibleSpeedFactor * T1_CLASS_RANGES[m.motor_class].v_max_rads;  // [rad/s]
-    const float max_step = have_prev ? v_max * static_cast<float>(kLoopDtS) *
-                                           static_cast<float>(s.joint_seq - w.last_seq) + kImpossibleJumpQuanta * kQQuantumRad
-                                     : std::numeric_limits<float>::infinity();
-    w.impossible = outside ? MotorWatch::kOutside
-                   : std::fabs(q - w.last_q) > max_step ? MotorWatch::kJump : MotorWatch::kPlausible;
+    const float max_step = have_prev
+                               ? v_max * static_cast<float>(kLoopDtS) * static_cast<float>(s.joint_seq - w.last_seq) +
+                                     kImpossibleJumpQuanta * kQQuantumRad
+                               : std::numeric_limits<float>::infinity();
+    w.impossible = outside                              ? MotorWatch::kOutside
+                   : std::fabs(q - w.last_q) > max_step ? MotorWatch::kJump
+                                                        : MotorWatch::kPlausible;
     w.impossible_from = w.last_q;
-    w.impossible_ms = have_prev ? static_cast<float>(s.joint_seq - w.last_seq) * static_cast<float>(kLoopDtS * 1e3) : 0.0f;
+    w.impossible_ms =
+        have_prev ? static_cast<float>(s.joint_seq - w.last_seq) * static_cast<float>(kLoopDtS * 1e3) : 0.0f;
     // R9: still under load, away from the stops that would explain it, while the body moves.
     const float tau = cmd_kp_[i] * (cmd_q_[i] - q) - cmd_kd_[i] * s.dq[i];  // dq_des = tau_ff = 0
     const bool loaded = std::fabs(tau) > frozen_encoder_torque_nm(m.torque_limit_nm);
-    const bool off_stops = q > m.q_min_rad + kFrozenEncoderStopMarginRad && q < m.q_max_rad - kFrozenEncoderStopMarginRad;
+    const bool off_stops =
+        q > m.q_min_rad + kFrozenEncoderStopMarginRad && q < m.q_max_rad - kFrozenEncoderStopMarginRad;
     const bool same = have_prev && std::memcmp(&w.last_q, &q, sizeof(float)) == 0;
     w.frozen_cycles = same && loaded && off_stops && body_moves ? w.frozen_cycles + 1 : 0;
     w.have_q = true;
@@ -288,8 +297,8 @@ int Supervisor::watch_motors(const StateView& s, int32_t* bit, char* why, std::s
     const int motor = static_cast<int>(i);
     if (w.silent_cycles > kMotorSilentMaxCycles) {
       *bit = fault_bit::kMotorSilent;
-      std::snprintf(why, why_size, "motor %d (%s) silent: no reply for %d bus cycles (> %d)", motor,
-                    m.name, static_cast<int>(w.silent_cycles), kMotorSilentMaxCycles);
+      std::snprintf(why, why_size, "motor %d (%s) silent: no reply for %d bus cycles (> %d)", motor, m.name,
+                    static_cast<int>(w.silent_cycles), kMotorSilentMaxCycles);
       return motor;
     }
     if (w.impossible != MotorWatch::kPlausible) {
@@ -307,8 +316,10 @@ int Supervisor::watch_motors(const StateView& s, int32_t* bit, char* why, std::s
     }
     if (w.frozen_cycles > kFrozenEncoderMaxCycles) {
       *bit = fault_bit::kEncoderFrozen;
-      std::snprintf(why, why_size, "motor %d (%s) encoder frozen: q bit-identical for %d replies under |PD torque| > %.1f N*m "
-                    "while the body turned", motor, m.name, static_cast<int>(w.frozen_cycles),
+      std::snprintf(why, why_size,
+                    "motor %d (%s) encoder frozen: q bit-identical for %d replies under |PD torque| > %.1f N*m "
+                    "while the body turned",
+                    motor, m.name, static_cast<int>(w.frozen_cycles),
                     static_cast<double>(frozen_encoder_torque_nm(m.torque_limit_nm)));
       return motor;
     }
@@ -343,7 +354,7 @@ void Supervisor::clamp_targets(const StateView& s, const JointArray& kps, const 
       const float t_lo = s.q[i] + (kd * s.dq[i] - m.torque_limit_nm) / kp;
       const float t_hi = s.q[i] + (kd * s.dq[i] + m.torque_limit_nm) / kp;
       if (wanted < t_lo || wanted > t_hi || t_hi < lo || t_lo > hi) warning_bits_ |= fault_bit::kTorqueClamped;
-      narrow(lo, hi, t_lo, t_hi);         // unreachable within the rate: the nearest rate-allowed point
+      narrow(lo, hi, t_lo, t_hi);  // unreachable within the rate: the nearest rate-allowed point
     }
     // 3. Range, as far as reachable.
     if (wanted < range_lo || wanted > range_hi) warning_bits_ |= fault_bit::kTargetClamped;

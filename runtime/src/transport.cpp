@@ -61,13 +61,15 @@ bool LcmTransport::open(const std::string& url, ClockMode clock, Supervisor* sup
                         std::string* error, bool subscribe_sim_status, bool subscribe_robot_state,
                         CommandAuth* state_auth) {
   if (!sender_.open(url)) {
-    *error = "cannot send on LCM URL '" + url + "' (a udpm://GROUP:PORT[?ttl=N] URL is needed; multicast "
+    *error = "cannot send on LCM URL '" + url +
+             "' (a udpm://GROUP:PORT[?ttl=N] URL is needed; multicast "
              "route missing? run inside tools/netns)";
     return false;
   }
   sock_ = t1::open_lcm_group_socket(url);
   if (sock_ < 0) {
-    *error = "cannot receive on LCM URL '" + url + "' (a udpm://GROUP:PORT URL is needed; multicast route "
+    *error = "cannot receive on LCM URL '" + url +
+             "' (a udpm://GROUP:PORT URL is needed; multicast route "
              "missing? run inside tools/netns)";
     return false;
   }
@@ -132,8 +134,7 @@ int LcmTransport::handle(int timeout_ms) {
 void LcmTransport::drain() { handle_queued(); }
 
 double LcmTransport::stamp(int64_t utime) const {
-  return clock_ == ClockMode::kLockstep ? static_cast<double>(utime) * kUsToS
-                                        : monotonic_s();
+  return clock_ == ClockMode::kLockstep ? static_cast<double>(utime) * kUsToS : monotonic_s();
 }
 
 // Safety rule R3 (src/safety_supervisor.cpp): decode into scratch; only a datagram that decodes exactly
@@ -250,8 +251,8 @@ void LcmTransport::on_command(const Datagram& d) {
   const bool estop = c.verb == "estop";
   char what[128];
   std::snprintf(what, sizeof(what), "runtime_cmd_t '%.24s %.64s'", c.verb.c_str(), c.argument.c_str());
-  if (!admitted(estop ? Supervisor::OperatorInput::kEstop : Supervisor::OperatorInput::kCommand, t1::CH_RUNTIME_CMD,
-                d, c, what))
+  if (!admitted(estop ? Supervisor::OperatorInput::kEstop : Supervisor::OperatorInput::kCommand, t1::CH_RUNTIME_CMD, d,
+                c, what))
     return;
   if (estop) {  // safety rule R2: outside the bounded queue
     estop_pending = true;

@@ -28,7 +28,9 @@ class LcmPeer {
     lcm_subscribe(lcm_, t1::CH_JOINT_CMD, &LcmPeer::on_cmd, this);
     lcm_subscribe(lcm_, t1::CH_CONTROLLER_STATUS, &LcmPeer::on_status, this);
   }
-  ~LcmPeer() { if (lcm_) lcm_destroy(lcm_); }
+  ~LcmPeer() {
+    if (lcm_) lcm_destroy(lcm_);
+  }
   bool ok() const { return lcm_ != nullptr; }
 
   template <class M>
@@ -47,7 +49,9 @@ class LcmPeer {
   }
   // A runtime_cmd_t or joystick_t with this peer's sender id, a fresh timestamp and its tag.
   template <class M>
-  void publish_signed(const char* channel, M m) { publish_signed_by(*ring_, sender_, channel, std::move(m)); }
+  void publish_signed(const char* channel, M m) {
+    publish_signed_by(*ring_, sender_, channel, std::move(m));
+  }
   // The same signed by sender i of another ring (the robot key: imu_t, joint_state_t).
   template <class M>
   void publish_signed_by(const KeyRing& ring, std::size_t i, const char* channel, M m) {
@@ -75,7 +79,10 @@ class LcmPeer {
     }
     return false;
   }
-  void drain() { while (lcm_handle_timeout(lcm_, 0) > 0) {} }
+  void drain() {
+    while (lcm_handle_timeout(lcm_, 0) > 0) {
+    }
+  }
 
   t1::joint_command_t last_cmd{};
   bool have_cmd = false;

@@ -27,8 +27,8 @@ struct ArtifactSpec {
 
 inline std::vector<std::vector<float>> home_pose_and_gains() {
   // Menagerie home pose [rad] and moderate gains within the firmware limits.
-  std::vector<float> pose = {0, 0, 0, -1.4f, 0, -0.4f, 0, 1.4f, 0, 0.4f, 0,
-                             -0.2f, 0, 0, 0.4f, -0.2f, 0, -0.2f, 0, 0, 0.4f, -0.2f, 0};
+  std::vector<float> pose = {0, 0, 0,    -1.4f, 0, -0.4f, 0, 1.4f, 0,    0.4f,  0, -0.2f,
+                             0, 0, 0.4f, -0.2f, 0, -0.2f, 0, 0,    0.4f, -0.2f, 0};
   std::vector<float> kp(kJoints, 40.0f), kd(kJoints, 2.0f);
   return {pose, kp, kd};
 }
@@ -40,15 +40,26 @@ inline ArtifactSpec make_spec(std::vector<int> hidden = {32, 32}, const std::str
   const auto pg = home_pose_and_gains();
   nlohmann::json joints = nlohmann::json::array();
   for (const char* n : t1::kJointNames) joints.push_back(n);
-  s.meta = {{"schema_version", 1}, {"name", "test_policy"}, {"activation", activation}, {"output_rule", rule},
-            {"obs_terms", nlohmann::json::array({nlohmann::json::array({"gyro", 3}), nlohmann::json::array({"gravity", 3}),
-                                                  nlohmann::json::array({"command", 3}), nlohmann::json::array({"joint_pos", 23}),
-                                                  nlohmann::json::array({"joint_vel", 23}), nlohmann::json::array({"last_action", 23}),
-                                                  nlohmann::json::array({"phase", 4})})},
-            {"joint_names", joints}, {"default_pose", pg[0]}, {"action_scale", 0.5}, {"kp", pg[1]}, {"kd", pg[2]},
-            {"control_dt", 0.02}, {"gait_frequency", 1.5}, {"phase_freeze_command_norm", 0.1},
+  s.meta = {{"schema_version", 1},
+            {"name", "test_policy"},
+            {"activation", activation},
+            {"output_rule", rule},
+            {"obs_terms",
+             nlohmann::json::array({nlohmann::json::array({"gyro", 3}), nlohmann::json::array({"gravity", 3}),
+                                    nlohmann::json::array({"command", 3}), nlohmann::json::array({"joint_pos", 23}),
+                                    nlohmann::json::array({"joint_vel", 23}),
+                                    nlohmann::json::array({"last_action", 23}), nlohmann::json::array({"phase", 4})})},
+            {"joint_names", joints},
+            {"default_pose", pg[0]},
+            {"action_scale", 0.5},
+            {"kp", pg[1]},
+            {"kd", pg[2]},
+            {"control_dt", 0.02},
+            {"gait_frequency", 1.5},
+            {"phase_freeze_command_norm", 0.1},
             {"command_ranges", {{"vx", {-1, 1}}, {"vy", {-0.8, 0.8}}, {"yaw_rate", {-1, 1}}}},
-            {"trained", false}, {"provenance", {{"git_commit", "test"}, {"steps", 0}, {"date", "today"}, {"command", "gtest"}}}};
+            {"trained", false},
+            {"provenance", {{"git_commit", "test"}, {"steps", 0}, {"date", "today"}, {"command", "gtest"}}}};
   std::mt19937 rng(seed);
   std::normal_distribution<float> normal(0.0f, 0.3f);
   int in = 82;  // 3+3+3+23+23+23+4
@@ -79,7 +90,8 @@ inline std::string serialise(ArtifactSpec s, const std::string& header_override 
   nlohmann::json header = nlohmann::json::object();
   for (const auto& kv : s.tensors) {
     const std::string bytes = raw_bytes(kv.second);
-    header[kv.first] = {{"dtype", "F32"}, {"shape", kv.second.shape}, {"data_offsets", {data.size(), data.size() + bytes.size()}}};
+    header[kv.first] = {
+        {"dtype", "F32"}, {"shape", kv.second.shape}, {"data_offsets", {data.size(), data.size() + bytes.size()}}};
     data += bytes;
   }
   if (s.fix_hash) s.meta["content_hash"] = sha256_hex(data);

@@ -26,16 +26,33 @@ std::vector<Malformed> malformed_cases() {
     };
   };
   return {
-      {"truncated", [] { const std::string b = serialise(make_spec()); return b.substr(0, b.size() - 100); }, "outside the"},
+      {"truncated",
+       [] {
+         const std::string b = serialise(make_spec());
+         return b.substr(0, b.size() - 100);
+       },
+       "outside the"},
       {"shorter_than_header", [] { return std::string("\x05\x00", 2); }, "header_length"},
-      {"huge_header_length", [] { std::string b = serialise(make_spec()); for (int i = 0; i < 8; ++i) b[i] = '\xff'; return b; }, "header_length"},
+      {"huge_header_length",
+       [] {
+         std::string b = serialise(make_spec());
+         for (int i = 0; i < 8; ++i) b[i] = '\xff';
+         return b;
+       },
+       "header_length"},
       {"bad_header_json", [] { return serialise(make_spec(), "{not json!"); }, "'header'"},
       {"missing_tensor", with([](ArtifactSpec& s) { s.tensors.erase("obs_std"); }), "obs_std"},
       {"missing_bias", with([](ArtifactSpec& s) { s.tensors.erase("layers.1.bias"); }), "layers.1.bias"},
-      {"wrong_shape_chain", with([](ArtifactSpec& s) { auto& w = s.tensors["layers.1.weight"]; w.shape = {32, 16}; w.data.resize(32 * 16); }), "layers.1.weight"},
+      {"wrong_shape_chain", with([](ArtifactSpec& s) {
+         auto& w = s.tensors["layers.1.weight"];
+         w.shape = {32, 16};
+         w.data.resize(32 * 16);
+       }),
+       "layers.1.weight"},
       {"obs_size_ne_terms", with([](ArtifactSpec& s) { s.meta["obs_terms"].erase(6); }), "layers.0.weight"},
       {"unknown_term", with([](ArtifactSpec& s) { s.meta["obs_terms"][0][0] = "linvel"; }), "unknown term 'linvel'"},
-      {"wrong_joint_order", with([](ArtifactSpec& s) { std::swap(s.meta["joint_names"][11], s.meta["joint_names"][12]); }), "joint_names"},
+      {"wrong_joint_order",
+       with([](ArtifactSpec& s) { std::swap(s.meta["joint_names"][11], s.meta["joint_names"][12]); }), "joint_names"},
       {"wrong_joint_count", with([](ArtifactSpec& s) { s.meta["joint_names"].erase(22); }), "joint_names"},
       {"nan_weight", with([](ArtifactSpec& s) { s.tensors["layers.0.weight"].data[5] = NAN; }), "layers.0.weight"},
       {"zero_std", with([](ArtifactSpec& s) { s.tensors["obs_std"].data[3] = 0.0f; }), "obs_std"},
@@ -45,15 +62,23 @@ std::vector<Malformed> malformed_cases() {
       {"unknown_activation", with([](ArtifactSpec& s) { s.meta["activation"] = "gelu"; }), "activation"},
       {"unknown_output_rule", with([](ArtifactSpec& s) { s.meta["output_rule"] = "softmax"; }), "output_rule"},
       {"output_width", with([](ArtifactSpec& s) { s.meta["output_rule"] = "linear"; }), "output rule needs 23"},
-      {"hash_mismatch", with([](ArtifactSpec& s) { s.fix_hash = false; s.meta["content_hash"] = std::string(64, '0'); }), "content_hash"},
+      {"hash_mismatch", with([](ArtifactSpec& s) {
+         s.fix_hash = false;
+         s.meta["content_hash"] = std::string(64, '0');
+       }),
+       "content_hash"},
       {"missing_metadata_key", with([](ArtifactSpec& s) { s.meta.erase("gait_frequency"); }), "gait_frequency"},
       {"schema_version", with([](ArtifactSpec& s) { s.meta["schema_version"] = 2; }), "schema_version"},
       {"nan_default_pose", with([](ArtifactSpec& s) { s.meta["default_pose"][2] = "nan"; }), "default_pose[2]"},
-      {"bad_command_ranges", with([](ArtifactSpec& s) { s.meta["command_ranges"]["vx"] = {1, -1}; }), "command_ranges.vx"},
+      {"bad_command_ranges", with([](ArtifactSpec& s) {
+         s.meta["command_ranges"]["vx"] = {1, -1};
+       }),
+       "command_ranges.vx"},
       {"trained_not_bool", with([](ArtifactSpec& s) { s.meta["trained"] = "yes"; }), "trained"},
       // Every manifest number is checked for sign and range, and a removed tensor entry whose
       // bytes stay in the file is named as the missing tensor.
-      {"missing_tensor_bytes_kept", [] {
+      {"missing_tensor_bytes_kept",
+       [] {
          const ArtifactSpec s = make_spec();
          const std::string full = serialise(s);
          uint64_t n = 0;
@@ -61,16 +86,25 @@ std::vector<Malformed> malformed_cases() {
          nlohmann::json header = nlohmann::json::parse(full.substr(8, n));
          header.erase("obs_std");
          return serialise(s, header.dump());
-       }, "'obs_std': missing tensor"},
+       },
+       "'obs_std': missing tensor"},
       {"action_scale_huge", with([](ArtifactSpec& s) { s.meta["action_scale"] = 1e6; }), "action_scale[0]"},
       {"action_scale_negative", with([](ArtifactSpec& s) { s.meta["action_scale"] = -0.5; }), "action_scale[0]"},
       {"action_scale_zero_joint", with([](ArtifactSpec& s) {
-         std::vector<float> v(kJoints, 0.5f); v[7] = 0.0f; s.meta["action_scale"] = v; }), "action_scale[7]"},
-      {"default_pose_10_rad", with([](ArtifactSpec& s) { s.meta["default_pose"] = std::vector<float>(kJoints, 10.0f); }),
-       "default_pose[0]"},
-      {"default_pose_one_joint_out", with([](ArtifactSpec& s) { s.meta["default_pose"][14] = -0.5; }), "default_pose[14]"},
+         std::vector<float> v(kJoints, 0.5f);
+         v[7] = 0.0f;
+         s.meta["action_scale"] = v;
+       }),
+       "action_scale[7]"},
+      {"default_pose_10_rad",
+       with([](ArtifactSpec& s) { s.meta["default_pose"] = std::vector<float>(kJoints, 10.0f); }), "default_pose[0]"},
+      {"default_pose_one_joint_out", with([](ArtifactSpec& s) { s.meta["default_pose"][14] = -0.5; }),
+       "default_pose[14]"},
       {"gait_frequency_huge", with([](ArtifactSpec& s) { s.meta["gait_frequency"] = 1e4; }), "gait_frequency"},
-      {"command_range_huge", with([](ArtifactSpec& s) { s.meta["command_ranges"]["vy"] = {-1e9, 1e9}; }), "command_ranges.vy"},
+      {"command_range_huge", with([](ArtifactSpec& s) {
+         s.meta["command_ranges"]["vy"] = {-1e9, 1e9};
+       }),
+       "command_ranges.vy"},
   };
 }
 
@@ -94,8 +128,8 @@ TEST(ArtifactLoader, RejectsEveryMalformedArtifactNamingTheField) {
       load_artifact(path);
       ADD_FAILURE() << c.name << ": accepted";
     } catch (const ArtifactError& e) {
-      EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << c.name << ": message '" << e.what()
-                                                                           << "' does not name '" << c.expected << "'";
+      EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos)
+          << c.name << ": message '" << e.what() << "' does not name '" << c.expected << "'";
     }
   }
 }
@@ -122,7 +156,7 @@ TEST(RuntimeCli, BadArtifactExitsThreeWithMessage) {
 TEST(RuntimeCli, UsageAndHelpExitCodes) {
   const std::string bin = T1_RUNTIME_BIN;
   EXPECT_EQ(WEXITSTATUS(std::system((bin + " --help > /dev/null").c_str())), 0);
-  EXPECT_EQ(WEXITSTATUS(std::system((bin + " 2> /dev/null").c_str())), 2);              // --policy missing
+  EXPECT_EQ(WEXITSTATUS(std::system((bin + " 2> /dev/null").c_str())), 2);  // --policy missing
   EXPECT_EQ(WEXITSTATUS(std::system((bin + " --policy x --clock fast 2> /dev/null").c_str())), 2);
   EXPECT_EQ(WEXITSTATUS(std::system((bin + " --policy x --bogus 2> /dev/null").c_str())), 2);
 }

@@ -10,8 +10,8 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "t1/imu_t.hpp"
 #include "t1/joint_state_t.hpp"
@@ -28,7 +28,8 @@ using namespace t1rt::testing;
 namespace {
 std::vector<uint8_t> from_hex(const std::string& hex) {
   std::vector<uint8_t> out;
-  for (std::size_t i = 0; i + 1 < hex.size(); i += 2) out.push_back(static_cast<uint8_t>(std::stoi(hex.substr(i, 2), nullptr, 16)));
+  for (std::size_t i = 0; i + 1 < hex.size(); i += 2)
+    out.push_back(static_cast<uint8_t>(std::stoi(hex.substr(i, 2), nullptr, 16)));
   return out;
 }
 
@@ -86,7 +87,8 @@ TEST(CommandAuth, AgreesWithThePythonGoldenVector) {
   t1::joint_state_t joints{};
   joints.utime = 777000, joints.seq = 11;
   for (std::size_t i = 0; i < t1::kNumJoints; ++i)
-    joints.q[i] = static_cast<float>(0.01 * static_cast<double>(i)), joints.motor_status[i] = static_cast<int32_t>(i % 3);
+    joints.q[i] = static_cast<float>(0.01 * static_cast<double>(i)),
+    joints.motor_status[i] = static_cast<int32_t>(i % 3);
   int seen_state = 0;
   for (const auto& m : doc["messages"]) {
     const std::string channel = m["channel"];
@@ -103,7 +105,8 @@ TEST(CommandAuth, AgreesWithThePythonGoldenVector) {
   EXPECT_EQ(seen_state, 2) << "the golden vector holds a signed imu_t and joint_state_t";
   const auto& a = doc["approval"];
   const std::string approvals = own_path("golden", ".approvals");
-  std::ofstream(approvals) << a["artifact_sha256_hex"].get<std::string>() << " 7 " << a["tag_hex"].get<std::string>() << " golden\n";
+  std::ofstream(approvals) << a["artifact_sha256_hex"].get<std::string>() << " 7 " << a["tag_hex"].get<std::string>()
+                           << " golden\n";
   std::string why;
   EXPECT_TRUE(ring->approves(approvals, from_hex(a["artifact_sha256_hex"]).data(), &why)) << why;
 }
@@ -119,7 +122,8 @@ TEST(CommandAuth, KeyFileOpenToOthersOrMalformedIsRefused) {
   EXPECT_NE(error.find("No such file"), std::string::npos) << error;
   EXPECT_FALSE(KeyRing::load(write_key_file("dup", {test_sender(3, 1), test_sender(3, 2)}), &error));
   EXPECT_NE(error.find("listed twice"), std::string::npos) << error;
-  for (auto bad : {std::pair<int64_t, std::string>{0, test_sender(1, 1).second}, {4, "abcd"}, {5, std::string(64, 'g')}}) {
+  for (auto bad :
+       {std::pair<int64_t, std::string>{0, test_sender(1, 1).second}, {4, "abcd"}, {5, std::string(64, 'g')}}) {
     EXPECT_FALSE(KeyRing::load(write_key_file("bad", {bad}), &error)) << bad.first;
     EXPECT_NE(error.find("line 2"), std::string::npos) << error;
   }
@@ -136,24 +140,26 @@ TEST(CommandAuth, EveryRefusalReason) {
   const int64_t t = now_us();
   const auto good = signed_bytes(*ring, 0, t1::CH_JOYSTICK, js, t);
   EXPECT_EQ(v.joystick(good), "");
-  EXPECT_EQ(v.joystick(good), refusal_text(Refusal::kReplayed));                                        // same bytes again
+  EXPECT_EQ(v.joystick(good), refusal_text(Refusal::kReplayed));  // same bytes again
   EXPECT_EQ(v.joystick(signed_bytes(*ring, 0, t1::CH_JOYSTICK, js, t - 1)), refusal_text(Refusal::kReplayed));
   // The same timestamp is new on the other channel's stream, and for the other sender.
   EXPECT_EQ(v.joystick(good, CommandAuth::kCommandStream), "");
   EXPECT_EQ(v.joystick(signed_bytes(*ring, 1, t1::CH_JOYSTICK, js, t)), "");
-  const auto unsigned_js = encoded(js);                                     // default: sender 0, tag_size 0
+  const auto unsigned_js = encoded(js);  // default: sender 0, tag_size 0
   EXPECT_EQ(v.joystick(unsigned_js), refusal_text(Refusal::kUnsigned));
-  t1::joystick_t untagged = js;                                              // a known sender's id, no tag
+  t1::joystick_t untagged = js;  // a known sender's id, no tag
   untagged.sender_id = 1;
   untagged.timestamp_us = t + 5;
   EXPECT_EQ(v.joystick(encoded(untagged)), refusal_text(Refusal::kUnsigned));
   EXPECT_EQ(v.joystick(signed_bytes(*stranger, 1, t1::CH_JOYSTICK, js, t + 10)), refusal_text(Refusal::kUnknownSender));
-  EXPECT_EQ(v.joystick(signed_bytes(*stranger, 0, t1::CH_JOYSTICK, js, t + 20)), refusal_text(Refusal::kBadTag));  // wrong key
+  EXPECT_EQ(v.joystick(signed_bytes(*stranger, 0, t1::CH_JOYSTICK, js, t + 20)),
+            refusal_text(Refusal::kBadTag));  // wrong key
   auto tampered = signed_bytes(*ring, 0, t1::CH_JOYSTICK, js, t + 30);
-  tampered[8 + 8 + 8 + 3] ^= 0x40;                                                                      // vx's last byte
+  tampered[8 + 8 + 8 + 3] ^= 0x40;  // vx's last byte
   EXPECT_EQ(v.joystick(tampered), refusal_text(Refusal::kBadTag));
-  EXPECT_EQ(v.joystick(signed_bytes(*ring, 0, t1::CH_JOYSTICK, js, t + 40)), "");                       // tampering moved nothing
-  EXPECT_EQ(v.joystick(signed_bytes(*ring, 1, t1::CH_JOYSTICK, js, now_us() + 5'000'000)), refusal_text(Refusal::kStale));
+  EXPECT_EQ(v.joystick(signed_bytes(*ring, 0, t1::CH_JOYSTICK, js, t + 40)), "");  // tampering moved nothing
+  EXPECT_EQ(v.joystick(signed_bytes(*ring, 1, t1::CH_JOYSTICK, js, now_us() + 5'000'000)),
+            refusal_text(Refusal::kStale));
   v.auth.refuse("joystick_t", 2);
   EXPECT_NE(std::string(v.auth.last_refusal()).find("stale timestamp (+"), std::string::npos) << v.auth.last_refusal();
   EXPECT_EQ(v.auth.refused(Refusal::kStale), 1);
@@ -165,7 +171,8 @@ TEST(CommandAuth, EveryRefusalReason) {
   // A restarted runtime: the captured bytes are from before its start; an old timestamp is stale too.
   Verifier restarted(AuthMode::kSigned, ring);
   EXPECT_EQ(restarted.joystick(good), refusal_text(Refusal::kStale));
-  EXPECT_EQ(restarted.joystick(signed_bytes(*ring, 1, t1::CH_JOYSTICK, js, now_us() - 5'000'000)), refusal_text(Refusal::kStale));
+  EXPECT_EQ(restarted.joystick(signed_bytes(*ring, 1, t1::CH_JOYSTICK, js, now_us() - 5'000'000)),
+            refusal_text(Refusal::kStale));
   EXPECT_EQ(restarted.joystick(signed_bytes(*ring, 1, t1::CH_JOYSTICK, js, now_us())), "");
 
   Verifier nobody(AuthMode::kEstopOnly, nullptr);
@@ -273,7 +280,8 @@ TEST_F(PolicyFolder, NamesInsideOnlyAndApprovedContentOnly) {
 TEST_F(PolicyFolder, RuntimeRefusesToStartWithoutTheKeyRules) {
   auto run = [&](const std::string& args, std::string* err_text) {
     const std::string err = own_path("cli_auth", ".err");
-    const int status = std::system((std::string(T1_RUNTIME_BIN) + " " + args + " --duration 0.1 --quiet 2> " + err).c_str());
+    const int status =
+        std::system((std::string(T1_RUNTIME_BIN) + " " + args + " --duration 0.1 --quiet 2> " + err).c_str());
     std::ifstream in(err);
     std::ostringstream ss;
     ss << in.rdbuf();

@@ -18,7 +18,7 @@ using namespace t1rt::testing;
 
 namespace {
 constexpr int64_t kTickUs = 2000;
-constexpr int kTicksPerPolicyTick = 10;               // 20 ms control period / 2 ms loop tick
+constexpr int kTicksPerPolicyTick = 10;  // 20 ms control period / 2 ms loop tick
 constexpr int kHipPitch = 11;
 constexpr int kGetupObsSize = 3 + 3 + 23 + 23 + 23;  // gyro gravity joint_pos joint_vel last_action
 constexpr float kUprightActionScaleRad = 0.5f;       // [rad per unit action]: make_spec's
@@ -33,9 +33,10 @@ ArtifactSpec constant_spec(const std::string& name, float hip_bias, bool getup_t
     if (kv.first.rfind("layers.", 0) == 0) std::fill(kv.second.data.begin(), kv.second.data.end(), 0.0f);
   s.tensors["layers.1.bias"].data[kHipPitch] = hip_bias;
   if (getup_terms) {  // the getup expert's observation subset: no command, no phase
-    s.meta["obs_terms"] = nlohmann::json::array({nlohmann::json::array({"gyro", 3}), nlohmann::json::array({"gravity", 3}),
-                                                 nlohmann::json::array({"joint_pos", 23}), nlohmann::json::array({"joint_vel", 23}),
-                                                 nlohmann::json::array({"last_action", 23})});
+    s.meta["obs_terms"] =
+        nlohmann::json::array({nlohmann::json::array({"gyro", 3}), nlohmann::json::array({"gravity", 3}),
+                               nlohmann::json::array({"joint_pos", 23}), nlohmann::json::array({"joint_vel", 23}),
+                               nlohmann::json::array({"last_action", 23})});
     Tensor& w0 = s.tensors["layers.0.weight"];
     w0.shape = {8, kGetupObsSize};
     w0.data.assign(8 * kGetupObsSize, 0.0f);
@@ -133,8 +134,8 @@ TEST(CompositePair, CliRejectsMismatchedPairWithExitThree) {
   const std::string g = write_spec("cli_g", constant_spec("g", 1.0f, true));
   const std::string u = write_spec("cli_u", other);
   const std::string err = temp_path("cli_pair_err") + ".txt";
-  const std::string cmd = std::string(T1_RUNTIME_BIN) + " --policy " + g + " --policy-upright " + u +
-                          " --quiet --duration 0.1 2> " + err;
+  const std::string cmd =
+      std::string(T1_RUNTIME_BIN) + " --policy " + g + " --policy-upright " + u + " --quiet --duration 0.1 2> " + err;
   const int rc = std::system(cmd.c_str());
   ASSERT_TRUE(WIFEXITED(rc));
   EXPECT_EQ(WEXITSTATUS(rc), 3);
@@ -160,7 +161,8 @@ TEST_F(CompositeLcm, SwitchesMemberByWaistHeightAndSaysSo) {
   peer_.drain();
   ASSERT_GT(peer_.statuses, 0);
   EXPECT_NE(peer_.last_status.policy_name.find("composite[getup=getup_test,upright=upright_test] active=getup"),
-            std::string::npos) << peer_.last_status.policy_name;
+            std::string::npos)
+      << peer_.last_status.policy_name;
   EXPECT_NE(peer_.last_status.info.find("T1_SIM_STATUS"), std::string::npos) << peer_.last_status.info;
 
   for (int i = 0; i < 60; ++i) step(0.62f);
@@ -192,12 +194,12 @@ TEST_F(CompositeLcm, IdleMemberReadsTheAppliedTargetsInItsOwnMap) {
 
 TEST_F(CompositeLcm, StaleSimStatusHoldsThenFaults) {
   to_policy(0.6f);
-  for (int i = 0; i < 5; ++i) step(0.6f, false);   // 10 ms without sim status: still fresh (age <= 10 ms)
+  for (int i = 0; i < 5; ++i) step(0.6f, false);  // 10 ms without sim status: still fresh (age <= 10 ms)
   EXPECT_EQ(ctrl_->supervisor().fault_bits() & fault_bit::kSimStatusHold, 0);
-  step(0.6f, false);                                // 12 ms: hold
+  step(0.6f, false);  // 12 ms: hold
   EXPECT_NE(ctrl_->supervisor().fault_bits() & fault_bit::kSimStatusHold, 0);
   EXPECT_EQ(ctrl_->supervisor().mode(), Mode::kPolicy);
-  for (int i = 0; i < 20; ++i) step(0.6f, false);   // > 50 ms: FAULT
+  for (int i = 0; i < 20; ++i) step(0.6f, false);  // > 50 ms: FAULT
   EXPECT_EQ(ctrl_->supervisor().mode(), Mode::kFault);
   EXPECT_NE(ctrl_->supervisor().fault_bits() & fault_bit::kSimStatusStale, 0);
   EXPECT_NE(std::string(ctrl_->supervisor().last_fault()).find("sim_status_t stale"), std::string::npos);
@@ -231,7 +233,8 @@ TEST_F(CompositeLcm, HotReloadRejected) {
   write_spec("composite_reload", constant_spec("other", 0.0f, false));
   peer_.command("load_policy", "t1rt_composite_reload.safetensors");
   for (int i = 0; i < 200 && ctrl_->reload_message().empty(); ++i) step(0.6f);
-  EXPECT_NE(ctrl_->reload_message().find("not supported in composite mode"), std::string::npos) << ctrl_->reload_message();
+  EXPECT_NE(ctrl_->reload_message().find("not supported in composite mode"), std::string::npos)
+      << ctrl_->reload_message();
   EXPECT_EQ(ctrl_->active_policy().artifact().name, "upright_test");
 }
 
@@ -260,7 +263,8 @@ TEST(CompositeOff, SinglePolicyNeverListensToSimStatus) {
 TEST(RuntimeCli, PrepareSecondsValidated) {
   const std::string g = write_spec("cli_prep", constant_spec("p", 0.0f, false));
   for (const char* bad : {"0", "-1", "11", "abc"}) {
-    const std::string cmd = std::string(T1_RUNTIME_BIN) + " --policy " + g + " --prepare-s " + bad + " --quiet 2>/dev/null";
+    const std::string cmd =
+        std::string(T1_RUNTIME_BIN) + " --policy " + g + " --prepare-s " + bad + " --quiet 2>/dev/null";
     const int rc = std::system(cmd.c_str());
     ASSERT_TRUE(WIFEXITED(rc));
     EXPECT_EQ(WEXITSTATUS(rc), 2) << "--prepare-s " << bad;

@@ -42,13 +42,19 @@ TEST(GravityFromRpy, LevelPitchedAndRolled) {
   float g[3];
   const float level[3] = {0, 0, 2.0f};  // any yaw: gravity straight down the IMU's -z
   gravity_from_rpy(level, g);
-  EXPECT_NEAR(g[0], 0, kTol); EXPECT_NEAR(g[1], 0, kTol); EXPECT_NEAR(g[2], -1, kTol);
+  EXPECT_NEAR(g[0], 0, kTol);
+  EXPECT_NEAR(g[1], 0, kTol);
+  EXPECT_NEAR(g[2], -1, kTol);
   const float nose_down[3] = {0, static_cast<float>(M_PI / 2), 0};  // +pitch: nose (x) down
   gravity_from_rpy(nose_down, g);
-  EXPECT_NEAR(g[0], 1, kTol); EXPECT_NEAR(g[1], 0, kTol); EXPECT_NEAR(g[2], 0, kTol);
+  EXPECT_NEAR(g[0], 1, kTol);
+  EXPECT_NEAR(g[1], 0, kTol);
+  EXPECT_NEAR(g[2], 0, kTol);
   const float left_up[3] = {static_cast<float>(M_PI / 2), 0, 0};  // +roll: left side (y) up
   gravity_from_rpy(left_up, g);
-  EXPECT_NEAR(g[0], 0, kTol); EXPECT_NEAR(g[1], -1, kTol); EXPECT_NEAR(g[2], 0, kTol);
+  EXPECT_NEAR(g[0], 0, kTol);
+  EXPECT_NEAR(g[1], -1, kTol);
+  EXPECT_NEAR(g[2], 0, kTol);
 }
 
 TEST(GravityFromRpy, AgreesWithTheQuaternionPathTheObservationUses) {
@@ -70,8 +76,10 @@ TEST(GravityFromRpy, YawIsAboutZThenPitchThenRoll) {
   const float yaw_only[3] = {0, 0, 0.8f};
   float q[4];
   quat_from_rpy(yaw_only, q);
-  EXPECT_NEAR(q[0], std::cos(0.4f), kTol); EXPECT_NEAR(q[3], std::sin(0.4f), kTol);
-  EXPECT_NEAR(q[1], 0, kTol); EXPECT_NEAR(q[2], 0, kTol);
+  EXPECT_NEAR(q[0], std::cos(0.4f), kTol);
+  EXPECT_NEAR(q[3], std::sin(0.4f), kTol);
+  EXPECT_NEAR(q[1], 0, kTol);
+  EXPECT_NEAR(q[2], 0, kTol);
 }
 
 TEST(LowStateCheck, AcceptsAWellFormedSampleAndConvertsIt) {
@@ -98,7 +106,8 @@ TEST(LowStateCheck, AChangedLostCounterIsANoReplyForThatMotorOnly) {
   low_state_to_messages(s.msg, &imu, &joint);  // first sample: nothing to compare with
   for (std::size_t i = 0; i < kJoints; ++i) EXPECT_EQ(joint.motor_status[i], 0) << i;
   low_state_to_messages(s.msg, &imu, &joint, prev);
-  for (std::size_t i = 0; i < kJoints; ++i) EXPECT_EQ(joint.motor_status[i], i == 15 ? int32_t(T1_STATUS_NO_REPLY) : 0) << i;
+  for (std::size_t i = 0; i < kJoints; ++i)
+    EXPECT_EQ(joint.motor_status[i], i == 15 ? int32_t(T1_STATUS_NO_REPLY) : 0) << i;
   prev[15] = 1;
   low_state_to_messages(s.msg, &imu, &joint, prev);
   EXPECT_EQ(joint.motor_status[15], 0);
@@ -147,7 +156,8 @@ TEST(LowCmd, SerialWithTheContractsCustomModeFieldsAndTheSupervisorsNumbers) {
 TEST(RobotLink, LcmLinkRefusesNothingItselfAndEachKindIsNamed) {
   LcmTransport lcm;
   std::string error;
-  std::unique_ptr<RobotLink> link = open_robot_link(RobotLinkKind::kLcm, 0, ClockMode::kLockstep, nullptr, &lcm, &error);
+  std::unique_ptr<RobotLink> link =
+      open_robot_link(RobotLinkKind::kLcm, 0, ClockMode::kLockstep, nullptr, &lcm, &error);
   ASSERT_NE(link, nullptr) << error;
   EXPECT_EQ(link->rejected_samples(), 0);
   EXPECT_STREQ(link->last_rejection(), "");

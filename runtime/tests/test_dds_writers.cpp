@@ -20,8 +20,8 @@ struct Writer {
   dds_entity_t participant = 0, writer = 0;
   explicit Writer(int domain) {
     participant = dds_create_participant(static_cast<dds_domainid_t>(domain), nullptr, nullptr);
-    const dds_entity_t topic = dds_create_topic(participant, &booster_interface_msg_dds__LowState__desc,
-                                                t1::kDdsStateTopic, nullptr, nullptr);
+    const dds_entity_t topic =
+        dds_create_topic(participant, &booster_interface_msg_dds__LowState__desc, t1::kDdsStateTopic, nullptr, nullptr);
     writer = dds_create_writer(participant, topic, nullptr, nullptr);
   }
   ~Writer() { close(); }
@@ -75,7 +75,7 @@ TEST(DdsOneWriter, ASecondWriterIsRefusedAndNamedAndARestartIsFollowed) {
   const std::string followed = link.dds.followed.data();
   EXPECT_EQ(followed.size(), 32u) << followed;  // a 16-byte GUID in hex
   ASSERT_TRUE(link.deliver(forger, kForgedQ));
-  robot.write(kRobotQ);                           // the robot alive beside it
+  robot.write(kRobotQ);  // the robot alive beside it
   link.dds.wait(10);
   EXPECT_GE(link.dds.other_writer_samples, 1);
   EXPECT_EQ(link.joint.msg.q[0], kRobotQ) << "a second writer's sample reached the state";

@@ -48,8 +48,9 @@ std::string write_chain(const std::string& name, const std::string& handover = "
     fs::copy_file(write_spec(name + "_" + stages[i], s), dir / (std::string(stages[i]) + ".safetensors"),
                   fs::copy_options::overwrite_existing);
   }
-  std::ofstream(dir / kChainManifest) << "{\"format\": \"t1-keyframe-chain/1\", \"stages\": {\"roll\": "
-      "\"roll.safetensors\", \"rise\": \"rise.safetensors\", \"stand\": \"stand.safetensors\"}, \"handover\": \""
+  std::ofstream(dir / kChainManifest)
+      << "{\"format\": \"t1-keyframe-chain/1\", \"stages\": {\"roll\": "
+         "\"roll.safetensors\", \"rise\": \"rise.safetensors\", \"stand\": \"stand.safetensors\"}, \"handover\": \""
       << handover << "\"}";
   return dir.string();
 }
@@ -86,7 +87,8 @@ TEST(KeyframeChainRule, RiseHandsOverAtTheKneelWithinItsUprightBound) {
   EXPECT_EQ(next_stage(ChainStage::kRise, readings(kKneelM, 0.3f), t1::kKneelGateUpError), ChainStage::kStand);
   EXPECT_EQ(next_stage(ChainStage::kRise, readings(0.38f, 0.0f), t1::kKneelBandUpError), ChainStage::kRise)
       << "below the gate's height";
-  EXPECT_EQ(next_stage(ChainStage::kRise, readings(kLyingM, -90.0f), 0.01f), ChainStage::kRoll) << "tipped onto its back";
+  EXPECT_EQ(next_stage(ChainStage::kRise, readings(kLyingM, -90.0f), 0.01f), ChainStage::kRoll)
+      << "tipped onto its back";
 }
 
 TEST(KeyframeChainRule, StandLatchesUntilTheTrunkIsDown) {
@@ -114,8 +116,11 @@ TEST(KeyframeChainFile, RefusesWhatCannotRunNamingIt) {
                  "must be a file name");
   expect_refused(dir, "{\"format\": \"t1-keyframe-chain/1\", " + stages + "\"stand\": \"absent.safetensors\"}}",
                  "does not exist");
-  expect_refused(dir, "{\"format\": \"t1-keyframe-chain/1\", " + stages + "\"stand\": \"stand.safetensors\"}, "
-                 "\"handover\": \"kneel\"}", "must be kneel_gate or kneel_band");
+  expect_refused(dir,
+                 "{\"format\": \"t1-keyframe-chain/1\", " + stages +
+                     "\"stand\": \"stand.safetensors\"}, "
+                     "\"handover\": \"kneel\"}",
+                 "must be kneel_gate or kneel_band");
   expect_refused(dir, "{not json", "not a JSON object");
 }
 
@@ -133,7 +138,8 @@ TEST(KeyframeChainLcm, TheActingMemberFollowsTheRule) {
   opt.auth = AuthMode::kUnauthenticated;
   const ChainFile file = read_chain_file(opt.policy_path);
   std::array<std::unique_ptr<PolicyEngine>, kChainStages> members;
-  for (std::size_t i = 0; i < kChainStages; ++i) members[i] = std::make_unique<PolicyEngine>(load_artifact(file.members[i]));
+  for (std::size_t i = 0; i < kChainStages; ++i)
+    members[i] = std::make_unique<PolicyEngine>(load_artifact(file.members[i]));
   Controller ctrl(opt, std::move(members), file.handover_up_error);
   std::string error;
   ASSERT_TRUE(ctrl.open(&error)) << error;
@@ -173,7 +179,7 @@ TEST(KeyframeChainLcm, TheActingMemberFollowsTheRule) {
   hold(kKneelM, 2.0f, 2);  // inside the band this chain hands over at
   EXPECT_EQ(ctrl.chain_stage(), ChainStage::kStand);
   EXPECT_EQ(ctrl.active_policy().artifact().name, "stand_test");
-  hold(0.45f, 15.0f, 2);   // latched: a stand that leans is still the stand
+  hold(0.45f, 15.0f, 2);  // latched: a stand that leans is still the stand
   EXPECT_EQ(ctrl.chain_stage(), ChainStage::kStand);
   hold(kLyingM, 0.0f, 2);
   EXPECT_EQ(ctrl.chain_stage(), ChainStage::kRoll);

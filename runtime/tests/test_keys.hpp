@@ -72,8 +72,8 @@ inline void approve(const KeyRing& ring, std::size_t i, const std::string& appro
     for (std::size_t k = 0; k < n; ++k) s += (std::snprintf(b, sizeof(b), "%02x", p[k]), b);
     return s;
   };
-  std::ofstream(approvals, std::ios::app) << hex(digest, kSha256Bytes) << " " << ring.sender_id(i) << " "
-                                          << hex(tag, kTagBytes) << " " << artifact << "\n";
+  std::ofstream(approvals, std::ios::app)
+      << hex(digest, kSha256Bytes) << " " << ring.sender_id(i) << " " << hex(tag, kTagBytes) << " " << artifact << "\n";
 }
 
 }  // namespace t1rt::testing

@@ -39,7 +39,8 @@ TEST(MlpKernel, DispatchedMatchesPortable) {
   std::normal_distribution<float> normal(0.0f, 1.0f);
   for (const char* act : {"swish", "elu", "tanh", "relu"})
     for (const char* rule : {"tanh_normal", "linear"}) {
-      const PolicyArtifact a = load_artifact(write_spec(std::string("kernel_") + act + rule, make_spec({33, 70, 5}, rule, act, 5)));
+      const PolicyArtifact a =
+          load_artifact(write_spec(std::string("kernel_") + act + rule, make_spec({33, 70, 5}, rule, act, 5)));
       Mlp dispatched(a), portable(a, mlp_kernel::portable_variant());
       for (float scale : {0.1f, 1.0f, 10.0f}) {
         Eigen::VectorXf x(a.obs_size);

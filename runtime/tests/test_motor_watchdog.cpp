@@ -17,8 +17,8 @@ using namespace t1rt;
 namespace {
 constexpr int kKnee = 14, kAnkle = 15;  // Left_Knee_Pitch (limit 60 N·m), Left_Ankle_Pitch
 
-constexpr float kTurning = 0.5f;   // [rad/s] a body rate walking keeps (the walk's filtered rate is 0.23-0.86)
-constexpr float kLimbSpeed = 0.5f; // [rad/s] the motors' mean speed walking (filtered 0.36-1.1)
+constexpr float kTurning = 0.5f;    // [rad/s] a body rate walking keeps (the walk's filtered rate is 0.23-0.86)
+constexpr float kLimbSpeed = 0.5f;  // [rad/s] the motors' mean speed walking (filtered 0.36-1.1)
 
 class Robot {
  public:
@@ -194,7 +194,8 @@ TEST(FrozenEncoder, AStillEncoderUnderStandingLoadsOrAMovingOneUnderFullTorqueNe
 
 TEST(FrozenEncoder, TheThresholdIsAFractionOfTheLimitWithAFloor) {
   EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(60.0f), 60.0f * kFrozenEncoderTorqueFraction);  // knee
-  EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(7.0f), kFrozenEncoderMinTorqueNm);  // head: above its 7 N·m limit, never reached
+  EXPECT_FLOAT_EQ(frozen_encoder_torque_nm(7.0f),
+                  kFrozenEncoderMinTorqueNm);  // head: above its 7 N·m limit, never reached
 }
 
 TEST(FrozenEncoder, MissedRepliesAreNoReadingAndAQuietTickRestartsTheClock) {

@@ -6,9 +6,9 @@
 #include <cstdlib>
 
 #include "lcm_peer.hpp"
+#include "t1/sim_status_t.hpp"
 #include "t1rt/controller.hpp"
 #include "t1rt/dds_transport.hpp"
-#include "t1/sim_status_t.hpp"
 #include "test_artifact.hpp"
 #include "test_keys.hpp"
 
@@ -25,9 +25,18 @@ void note() {
 }
 }  // namespace
 
-extern "C" void* malloc(size_t n) { note(); return __libc_malloc(n); }
-extern "C" void* calloc(size_t a, size_t b) { note(); return __libc_calloc(a, b); }
-extern "C" void* realloc(void* p, size_t n) { note(); return __libc_realloc(p, n); }
+extern "C" void* malloc(size_t n) {
+  note();
+  return __libc_malloc(n);
+}
+extern "C" void* calloc(size_t a, size_t b) {
+  note();
+  return __libc_calloc(a, b);
+}
+extern "C" void* realloc(void* p, size_t n) {
+  note();
+  return __libc_realloc(p, n);
+}
 
 using namespace t1rt;
 using namespace t1rt::testing;
@@ -194,7 +203,8 @@ TEST(NoHeap, DdsLoopTicksAllocateOnlyInsideCyclone) {
   ASSERT_TRUE(ctrl.open(&error)) << error;
   // The robot: a Cyclone writer of LowState_ in this process.
   const dds_entity_t pp = dds_create_participant(t1::kDdsDomainId, nullptr, nullptr);
-  const dds_entity_t topic = dds_create_topic(pp, &booster_interface_msg_dds__LowState__desc, t1::kDdsStateTopic, nullptr, nullptr);
+  const dds_entity_t topic =
+      dds_create_topic(pp, &booster_interface_msg_dds__LowState__desc, t1::kDdsStateTopic, nullptr, nullptr);
   dds_qos_t* qos = dds_create_qos();
   dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
   const dds_entity_t writer = dds_create_writer(pp, topic, qos, nullptr);

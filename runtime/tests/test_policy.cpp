@@ -17,19 +17,25 @@ TEST(Observation, ProjectedGravity) {
   float g[3];
   const float upright[4] = {1, 0, 0, 0};
   projected_gravity(upright, g);
-  EXPECT_NEAR(g[0], 0, 1e-7); EXPECT_NEAR(g[1], 0, 1e-7); EXPECT_NEAR(g[2], -1, 1e-7);
+  EXPECT_NEAR(g[0], 0, 1e-7);
+  EXPECT_NEAR(g[1], 0, 1e-7);
+  EXPECT_NEAR(g[2], -1, 1e-7);
   // Pitched forward 90 deg about y: gravity points along +x of the IMU frame... R^T(0,0,-1) = (1,0,0).
   const float s = std::sqrt(0.5f);
   const float pitched[4] = {s, 0, s, 0};
   projected_gravity(pitched, g);
-  EXPECT_NEAR(g[0], 1, 1e-6); EXPECT_NEAR(g[1], 0, 1e-6); EXPECT_NEAR(g[2], 0, 1e-6);
+  EXPECT_NEAR(g[0], 1, 1e-6);
+  EXPECT_NEAR(g[1], 0, 1e-6);
+  EXPECT_NEAR(g[2], 0, 1e-6);
 }
 
 TEST(Observation, TermsInManifestOrder) {
   const PolicyArtifact a = load_artifact(write_spec("obs", make_spec()));
   float quat[4] = {1, 0, 0, 0}, gyro[3] = {0.1f, 0.2f, 0.3f}, cmd[3] = {0.5f, 0, 0}, phase[2] = {0.3f, -2.0f};
   JointArray q = a.default_pose, dq{}, last{};
-  q[14] += 0.25f; dq[3] = 1.5f; last[22] = -0.7f;
+  q[14] += 0.25f;
+  dq[3] = 1.5f;
+  last[22] = -0.7f;
   Eigen::VectorXf obs(a.obs_size);
   build_observation(a, {quat, gyro, cmd, q.data(), dq.data(), last.data(), phase}, obs);
   EXPECT_FLOAT_EQ(obs[1], 0.2f);
@@ -67,28 +73,30 @@ TEST(GaitPhase, AdvancesWrapsAndFreezes) {
 TEST(Mlp, MatchesReferenceForEveryActivation) {
   for (const mlp_kernel::Variant* variant : {&mlp_kernel::portable_variant(), &mlp_kernel::selected_variant()})
     for (const char* act : {"swish", "elu", "tanh", "relu"})
-    for (const char* rule : {"tanh_normal", "linear"}) {
-      const ArtifactSpec spec = make_spec({16, 8}, rule, act, 3);
-      PolicyArtifact a = load_artifact(write_spec(std::string("mlp_") + act + rule, spec));
-      Mlp mlp(a, *variant);
-      Eigen::VectorXf x = Eigen::VectorXf::LinSpaced(a.obs_size, -2.0f, 2.0f);
-      const Eigen::VectorXf y = mlp.run(x);
-      Eigen::VectorXd h = x.cast<double>();
-      for (std::size_t i = 0; i < a.layers.size(); ++i) {
-        h = a.layers[i].weight.cast<double>() * h + a.layers[i].bias.cast<double>();
-        if (i + 1 == a.layers.size()) break;
-        for (int k = 0; k < h.size(); ++k) {
-          const double v = h[k];
-          h[k] = std::string(act) == "swish" ? v / (1 + std::exp(-v)) : std::string(act) == "elu" ? (v > 0 ? v : std::expm1(v))
-               : std::string(act) == "tanh" ? std::tanh(v) : std::max(v, 0.0);
+      for (const char* rule : {"tanh_normal", "linear"}) {
+        const ArtifactSpec spec = make_spec({16, 8}, rule, act, 3);
+        PolicyArtifact a = load_artifact(write_spec(std::string("mlp_") + act + rule, spec));
+        Mlp mlp(a, *variant);
+        Eigen::VectorXf x = Eigen::VectorXf::LinSpaced(a.obs_size, -2.0f, 2.0f);
+        const Eigen::VectorXf y = mlp.run(x);
+        Eigen::VectorXd h = x.cast<double>();
+        for (std::size_t i = 0; i < a.layers.size(); ++i) {
+          h = a.layers[i].weight.cast<double>() * h + a.layers[i].bias.cast<double>();
+          if (i + 1 == a.layers.size()) break;
+          for (int k = 0; k < h.size(); ++k) {
+            const double v = h[k];
+            h[k] = std::string(act) == "swish"  ? v / (1 + std::exp(-v))
+                   : std::string(act) == "elu"  ? (v > 0 ? v : std::expm1(v))
+                   : std::string(act) == "tanh" ? std::tanh(v)
+                                                : std::max(v, 0.0);
+          }
+        }
+        ASSERT_EQ(y.size(), 23);
+        for (int k = 0; k < 23; ++k) {
+          const double ref = std::string(rule) == "tanh_normal" ? std::tanh(h[k]) : h[k];
+          EXPECT_NEAR(y[k], ref, 1e-5) << variant->name << " " << act << " " << rule << " " << k;
         }
       }
-      ASSERT_EQ(y.size(), 23);
-      for (int k = 0; k < 23; ++k) {
-        const double ref = std::string(rule) == "tanh_normal" ? std::tanh(h[k]) : h[k];
-        EXPECT_NEAR(y[k], ref, 1e-5) << variant->name << " " << act << " " << rule << " " << k;
-      }
-    }
 }
 
 TEST(TimingStats, LastMeanP99Max) {
@@ -124,7 +132,7 @@ TEST(PeriodicTask, MissedPeriodIsCountedAndRePhasedWithoutABurst) {
   PeriodicTask task(kLoopPeriodNs);
   task.start();
   task.wait_next();
-  const int64_t overruns_before = task.overruns();  // a loaded machine may already have overrun
+  const int64_t overruns_before = task.overruns();                // a loaded machine may already have overrun
   const timespec stall{0, static_cast<long>(3 * kLoopPeriodNs)};  // a tick that overruns by > 1 period
   nanosleep(&stall, nullptr);
   const int64_t late_wake_ns = task.wait_next();
@@ -137,7 +145,8 @@ TEST(PeriodicTask, MissedPeriodIsCountedAndRePhasedWithoutABurst) {
 TEST(Golden, ObservationAndActionMatchPython) {
   const std::filesystem::path dir = T1_GOLDEN_DIR;
   const auto json_path = dir / "golden_vectors.json";
-  if (!std::filesystem::exists(json_path)) GTEST_SKIP() << "no " << json_path << " yet (written by training/export/brax.py)";
+  if (!std::filesystem::exists(json_path))
+    GTEST_SKIP() << "no " << json_path << " yet (written by training/export/brax.py)";
   std::ifstream in(json_path);
   const nlohmann::json g = nlohmann::json::parse(in);
   const PolicyArtifact a = load_artifact((dir / g.at("artifact").get<std::string>()).string());
@@ -186,8 +195,8 @@ TEST(PolicyEngine, ObservesThePhaseBeforeAdvancingIt) {
   const float quat[4] = {1, 0, 0, 0}, gyro[3] = {0, 0, 0}, walk[3] = {0.5f, 0, 0};
   JointArray q = a.default_pose, dq{};
   ASSERT_EQ(engine.step(quat, gyro, walk, q.data(), dq.data()), PolicyEngine::Result::kOk);
-  EXPECT_FLOAT_EQ(engine.obs_raw()[phase_at + 0], 1.0f);                 // cos(0)
-  EXPECT_NEAR(engine.obs_raw()[phase_at + 1], -1.0f, 1e-6);              // cos(-pi)
+  EXPECT_FLOAT_EQ(engine.obs_raw()[phase_at + 0], 1.0f);     // cos(0)
+  EXPECT_NEAR(engine.obs_raw()[phase_at + 1], -1.0f, 1e-6);  // cos(-pi)
   ASSERT_EQ(engine.step(quat, gyro, walk, q.data(), dq.data()), PolicyEngine::Result::kOk);
   const double advanced = 2 * M_PI * a.gait_frequency_hz * a.control_dt_s;
   EXPECT_NEAR(engine.obs_raw()[phase_at + 0], std::cos(advanced), 1e-5);

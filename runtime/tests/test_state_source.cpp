@@ -88,28 +88,28 @@ class Robot {
 
 TEST(StateAuth, TakesOnlyTheRobotsFramesAndCountsEveryRefusalByReason) {
   auto robot = test_ring("state_robot", {test_sender(1, 0x44)});
-  auto other = test_ring("state_other", {test_sender(1, 0x55)});      // the same id, another key
+  auto other = test_ring("state_other", {test_sender(1, 0x55)});  // the same id, another key
   auto stranger = test_ring("state_stranger", {test_sender(9, 0x66)});
   Robot r("state_auth", robot);
   ASSERT_TRUE(r.ok_);
   r.ticks(100);
   ASSERT_EQ(r.ctrl_->supervisor().mode(), Mode::kPolicy) << r.ctrl_->supervisor().last_fault();
   const t1::imu_t forged = Robot::forged_imu(r.k_ + 1);
-  r.peer_.publish(t1::CH_IMU, forged);                                     // unsigned
-  r.peer_.publish_signed_by(*other, 0, t1::CH_IMU, forged);                // wrong key
-  r.peer_.publish_signed_by(*stranger, 0, t1::CH_IMU, forged);             // a sender the file does not list
+  r.peer_.publish(t1::CH_IMU, forged);                          // unsigned
+  r.peer_.publish_signed_by(*other, 0, t1::CH_IMU, forged);     // wrong key
+  r.peer_.publish_signed_by(*stranger, 0, t1::CH_IMU, forged);  // a sender the file does not list
   t1::imu_t stale = forged;
   stale.sender_id = 1, stale.timestamp_us = wall_us() - 5'000'000;
-  const auto stale_bytes = robot->encode_signed(0, t1::CH_IMU, stale);     // the robot's key, 5 s old
+  const auto stale_bytes = robot->encode_signed(0, t1::CH_IMU, stale);  // the robot's key, 5 s old
   r.peer_.publish_raw(t1::CH_IMU, stale_bytes.data(), stale_bytes.size());
   t1::imu_t early = r.imu_;
   early.sender_id = 1, early.timestamp_us = wall_us();
   const auto captured = robot->encode_signed(0, t1::CH_IMU, early);
-  r.peer_.publish_raw(t1::CH_IMU, captured.data(), captured.size());       // taken once...
+  r.peer_.publish_raw(t1::CH_IMU, captured.data(), captured.size());  // taken once...
   ASSERT_TRUE(r.tick());
-  r.peer_.publish_raw(t1::CH_IMU, captured.data(), captured.size());       // ...and refused when replayed
+  r.peer_.publish_raw(t1::CH_IMU, captured.data(), captured.size());  // ...and refused when replayed
   std::vector<uint8_t> odd = robot->encode_signed(0, t1::CH_IMU, early);
-  odd[odd.size() - kTagBytes - 1] = 7;                                     // tag_size 7
+  odd[odd.size() - kTagBytes - 1] = 7;  // tag_size 7
   r.peer_.publish_raw(t1::CH_IMU, odd.data(), odd.size());
   r.ticks(kStatusTicks);
   const CommandAuth& a = r.ctrl_->state_auth();
@@ -128,7 +128,7 @@ TEST(StateAuth, TakesOnlyTheRobotsFramesAndCountsEveryRefusalByReason) {
   // The warning is live: set in the status period the refusals came in, gone in a quiet one.
   r.peer_.publish_signed_by(*other, 0, t1::CH_JOINT_STATE, r.js_);
   const int64_t sent_at = r.ctrl_->ticks();
-  while (r.ctrl_->status().ticks <= sent_at) ASSERT_TRUE(r.tick());   // the first status after it
+  while (r.ctrl_->status().ticks <= sent_at) ASSERT_TRUE(r.tick());  // the first status after it
   EXPECT_TRUE(r.ctrl_->status().fault_bits & fault_bit::kStateRefused);
   EXPECT_TRUE(says(r.ctrl_->status().state_source, "REFUSING STATE")) << r.ctrl_->status().state_source;
   EXPECT_TRUE(says(r.ctrl_->status().state_source, "T1_JOINT_STATE")) << r.ctrl_->status().state_source;

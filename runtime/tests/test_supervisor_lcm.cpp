@@ -152,8 +152,8 @@ TEST_F(SupervisorLcm, StaleImuHoldsThenFaults) {
   to_policy();
   const int64_t imu_time = (k_ + 1) * kTickUs;
   step(imu_time);
-  step(-1);  // no new IMU from here on
-  for (int i = 0; i < 4; ++i) step(-1);  // age 10 ms: still fresh
+  step(-1);                                  // no new IMU from here on
+  for (int i = 0; i < 4; ++i) step(-1);      // age 10 ms: still fresh
   const float held = step(-1).q_des[kKnee];  // age > 10 ms: hold
   EXPECT_TRUE(ctrl_->supervisor().fault_bits() & fault_bit::kImuHold);
   EXPECT_EQ(step(-1).q_des[kKnee], held);
@@ -188,8 +188,8 @@ TEST_F(SupervisorLcm, TruncatedAndFragmentedStatesCountedAndIgnored) {
   js.q[0] = q0 + 1.0f;
   std::vector<uint8_t> buf(js.getEncodedSize());
   js.encode(buf.data(), 0, static_cast<int>(buf.size()));
-  peer_.publish_raw(t1::CH_JOINT_STATE, buf.data(), buf.size() - 4);   // truncated
-  buf.resize(100 * 1024);                                              // trailing bytes, over 64 kB
+  peer_.publish_raw(t1::CH_JOINT_STATE, buf.data(), buf.size() - 4);  // truncated
+  buf.resize(100 * 1024);                                             // trailing bytes, over 64 kB
   peer_.publish_raw(t1::CH_JOINT_STATE, buf.data(), buf.size());
   step();
   EXPECT_EQ(ctrl_->transport().decode_errors, errors + 2);
@@ -392,7 +392,7 @@ TEST(SeqTracker, RejectsOlderFramesAndCountsOnlyRealGaps) {
   EXPECT_EQ(t.gaps(), 86);
   EXPECT_FALSE(t.accept(100 - SeqTracker::kWindowFrames + 1));  // oldest in the window: late, its gap taken back
   EXPECT_EQ(t.gaps(), 85);
-  EXPECT_TRUE(t.accept(20));   // further behind: the publisher restarted
+  EXPECT_TRUE(t.accept(20));  // further behind: the publisher restarted
   EXPECT_TRUE(t.accept(21));
   EXPECT_EQ(t.gaps(), 85);
   EXPECT_EQ(t.reordered(), 3);

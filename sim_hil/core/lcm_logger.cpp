@@ -23,21 +23,23 @@
 #include <t1_lcm_group.hpp>
 
 namespace {
-constexpr int kObserverReceiveBufferBytes = 1 << 22;   // the kernel doubles it, capped by net.core.rmem_max
-constexpr double kWaitSliceS = 0.005;                   // how often the loop looks at the stop flag and flush
+constexpr int kObserverReceiveBufferBytes = 1 << 22;  // the kernel doubles it, capped by net.core.rmem_max
+constexpr double kWaitSliceS = 0.005;                 // how often the loop looks at the stop flag and flush
 constexpr int kExitUsage = 2, kExitRuntime = 1;
 volatile std::sig_atomic_t g_stop = 0;
 
 void on_signal(int) { g_stop = 1; }
 
 int64_t wall_us() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(
-             std::chrono::system_clock::now().time_since_epoch()).count();
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
 }
 
 int usage(const char* why) {
-  std::fprintf(stderr, "t1-lcm-logger: %s\nusage: t1-lcm-logger --lcm-url URL --channels CH1,CH2,... "
-               "[--flush-interval MS] FILE\n", why);
+  std::fprintf(stderr,
+               "t1-lcm-logger: %s\nusage: t1-lcm-logger --lcm-url URL --channels CH1,CH2,... "
+               "[--flush-interval MS] FILE\n",
+               why);
   return kExitUsage;
 }
 }  // namespace
@@ -50,7 +52,7 @@ int main(int argc, char** argv) {
     std::string a = argv[i], value;
     const auto eq = a.find('=');
     const bool inline_value = a.rfind("--", 0) == 0 && eq != std::string::npos;
-    if (inline_value) {   // --name=value as well as --name value
+    if (inline_value) {  // --name=value as well as --name value
       value = a.substr(eq + 1);
       a = a.substr(0, eq);
     }
@@ -93,11 +95,11 @@ int main(int argc, char** argv) {
   int64_t logged = 0, fragments = 0, write_errors = 0;
   auto last_flush = std::chrono::steady_clock::now();
   for (;;) {
-    const bool stopping = g_stop;   // then one last pass over what is queued
+    const bool stopping = g_stop;  // then one last pass over what is queued
     if (!stopping) t1::wait_readable(sock, kWaitSliceS);
     t1::drain_lcm_group(sock, rx, [&](const t1::LcmDatagram& m) {
       if (channels.count(m.channel) == 0) return;
-      if (m.fragment) {   // never one of the project's channels; counted, not reassembled
+      if (m.fragment) {  // never one of the project's channels; counted, not reassembled
         ++fragments;
         return;
       }

@@ -25,10 +25,10 @@ typedef struct {
   t1_mj_step_fn mj_step;
   t1_link_t* buses;
   t1_motor_array_t* motors;
-  double *host_q, *host_dq, *host_tau;   // the host's joint view (sim_hil.firmware.HostView)
+  double *host_q, *host_dq, *host_tau;  // the host's joint view (sim_hil.firmware.HostView)
   int32_t* host_status;
   int substeps;
-  int quat_adr, gyro_adr, accel_adr;    // the IMU's sensordata addresses
+  int quat_adr, gyro_adr, accel_adr;  // the IMU's sensordata addresses
 } t1_sim_plant;
 
 typedef struct {             // this tick's faults (all zero: none)
@@ -58,9 +58,9 @@ int t1_sim_link_publish(RobotLink* link, const char* channel, const void* data, 
   return link->publish(channel, data, size);
 }
 
-void t1_sim_link_publish_state(RobotLink* link, int64_t utime_us, int64_t seq, const double* quat,
-                               const double* gyro, const double* accel, const double* q, const double* dq,
-                               const double* tau, const int32_t* status) {
+void t1_sim_link_publish_state(RobotLink* link, int64_t utime_us, int64_t seq, const double* quat, const double* gyro,
+                               const double* accel, const double* q, const double* dq, const double* tau,
+                               const int32_t* status) {
   link->publish_state({utime_us, seq, quat, gyro, accel, q, dq, tau, status});
 }
 
@@ -95,21 +95,20 @@ static uint64_t now_us(const mjData* d) { return static_cast<uint64_t>(std::llro
 int t1_sim_lockstep_tick(RobotLink* link, const t1_sim_plant* p, const t1_sim_tick_faults* f, int64_t seq,
                          double wait_s) {
   mjData* d = p->data;
-  const int nq_free = 7, nv_free = 6;   // the floating base's qpos / qvel entries come first
-  double gyro[3], accel[3];   // + 0.0 as the Python tick's zero bias: a -0.0 reading is published as 0.0
+  const int nq_free = 7, nv_free = 6;  // the floating base's qpos / qvel entries come first
+  double gyro[3], accel[3];            // + 0.0 as the Python tick's zero bias: a -0.0 reading is published as 0.0
   for (int i = 0; i < 3; ++i) {
     gyro[i] = d->sensordata[p->gyro_adr + i] + 0.0;
     accel[i] = d->sensordata[p->accel_adr + i] + 0.0;
   }
-  link->publish_state({static_cast<int64_t>(now_us(d)), seq, d->sensordata + p->quat_adr, gyro, accel,
-                       p->host_q, p->host_dq, p->host_tau, p->host_status});
+  link->publish_state({static_cast<int64_t>(now_us(d)), seq, d->sensordata + p->quat_adr, gyro, accel, p->host_q,
+                       p->host_dq, p->host_tau, p->host_status});
   const int answered = link->wait_for_answer(seq, wait_s) ? 1 : 0;
 
   uint8_t frames[T1_NUM_MOTORS * T1_FRAME_SLOT_BYTES];
   const bool fresh = link->take_frames(frames);
   (void)t1_link_send_commands(p->buses, p->motors, now_us(d), fresh ? frames : nullptr,
-                              fresh ? (1u << T1_NUM_MOTORS) - 1u : 0u, f->cmd_drop_mask, f->delay_cycles,
-                              f->dead_mask);
+                              fresh ? (1u << T1_NUM_MOTORS) - 1u : 0u, f->cmd_drop_mask, f->delay_cycles, f->dead_mask);
   double tau[T1_NUM_MOTORS] = {};
   for (int s = 0; s < p->substeps; ++s) {
     t1_batch_step(p->motors, d->qpos + nq_free, d->qvel + nv_free, now_us(d), tau);
@@ -130,8 +129,8 @@ int t1_sim_lockstep_tick(RobotLink* link, const t1_sim_plant* p, const t1_sim_ti
 
 // Ticks seq0 … seq0 + n − 1 under the same faults (the simulator batches the ticks between two things that
 // need Python: a status message, a fault window's edge); returns how many were answered within wait_s.
-int t1_sim_lockstep_ticks(RobotLink* link, const t1_sim_plant* p, const t1_sim_tick_faults* f, int64_t seq0,
-                          int n, double wait_s) {
+int t1_sim_lockstep_ticks(RobotLink* link, const t1_sim_plant* p, const t1_sim_tick_faults* f, int64_t seq0, int n,
+                          double wait_s) {
   int answered = 0;
   for (int i = 0; i < n; ++i) answered += t1_sim_lockstep_tick(link, p, f, seq0 + i, wait_s);
   return answered;

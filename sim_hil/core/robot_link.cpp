@@ -22,8 +22,8 @@
 
 namespace t1sim {
 namespace {
-constexpr int kReportedDrops = 5;   // drop reasons printed; the rest only counted (commands come at 500 Hz)
-constexpr std::size_t kTagBytes = 32;            // messages/auth.py TAG_BYTES
+constexpr int kReportedDrops = 5;      // drop reasons printed; the rest only counted (commands come at 500 Hz)
+constexpr std::size_t kTagBytes = 32;  // messages/auth.py TAG_BYTES
 constexpr std::size_t kSignedTail = 2 + kTagBytes;  // tag_size (int16) and the tag: what the tag does not cover
 enum StateStream { kImuStream = 0, kJointStream = 1 };
 
@@ -60,7 +60,8 @@ RobotLink::~RobotLink() {
 
 bool RobotLink::set_robot_key(int64_t sender_id, const uint8_t* key, std::size_t size) {
   static char digest[] = "SHA256";
-  OSSL_PARAM params[] = {OSSL_PARAM_construct_utf8_string(OSSL_MAC_PARAM_DIGEST, digest, 0), OSSL_PARAM_construct_end()};
+  OSSL_PARAM params[] = {OSSL_PARAM_construct_utf8_string(OSSL_MAC_PARAM_DIGEST, digest, 0),
+                         OSSL_PARAM_construct_end()};
   EVP_MAC* hmac = EVP_MAC_fetch(nullptr, "HMAC", nullptr);
   EVP_MAC_CTX* ctx = hmac ? EVP_MAC_CTX_new(hmac) : nullptr;
   EVP_MAC_free(hmac);  // the context holds its own reference
@@ -140,8 +141,10 @@ void RobotLink::drop(const std::string& reason) {
 void RobotLink::on_command(const uint8_t* payload, size_t size) {
   t1::joint_command_t c;
   if (c.decode(payload, 0, static_cast<int>(size)) < 0) return drop("undecodable T1_JOINT_CMD");
-  const struct { const char* name; const float (&v)[T1_NUM_MOTORS]; } fields[] = {
-      {"q_des", c.q_des}, {"dq_des", c.dq_des}, {"kp", c.kp}, {"kd", c.kd}, {"tau_ff", c.tau_ff}};
+  const struct {
+    const char* name;
+    const float (&v)[T1_NUM_MOTORS];
+  } fields[] = {{"q_des", c.q_des}, {"dq_des", c.dq_des}, {"kp", c.kp}, {"kd", c.kd}, {"tau_ff", c.tau_ff}};
   for (const auto& f : fields)
     if (!finite(f.v)) return drop(std::string(f.name) + " contains NaN or Inf");
   char why[96];
@@ -161,7 +164,7 @@ void RobotLink::on_command(const uint8_t* payload, size_t size) {
     kd[i] = c.kd[i];
     tau[i] = c.tau_ff[i];
   }
-  (void)t1_batch_pack_commands(q, dq, kp, kd, tau, frames_);   // all finite: nothing left unpacked
+  (void)t1_batch_pack_commands(q, dq, kp, kd, tau, frames_);  // all finite: nothing left unpacked
   fresh_ = true;
   ++received;
   latest_state_seq_ = c.state_seq;

@@ -22,8 +22,8 @@ namespace t1sim {
 
 struct StateReading {  // what one state message pair carries (joint order, SI units)
   int64_t utime_us, seq;
-  const double *quat, *gyro, *accel;   // 4, 3, 3
-  const double *q, *dq, *tau;          // NUM_MOTORS each
+  const double *quat, *gyro, *accel;  // 4, 3, 3
+  const double *q, *dq, *tau;         // NUM_MOTORS each
   const int32_t* status;
 };
 
@@ -59,24 +59,24 @@ class RobotLink {
 
  private:
   template <class Message>
-  void send(const char* channel, Message& msg, int stream);   // encoded into tx_ (signed with a robot key),
-                                                               // then sent (or counted dropped)
+  void send(const char* channel, Message& msg, int stream);  // encoded into tx_ (signed with a robot key),
+                                                             // then sent (or counted dropped)
   void on_command(const uint8_t* payload, size_t size);
-  int handle_queued();   // commands read from the socket now; returns how many datagrams were read
+  int handle_queued();  // commands read from the socket now; returns how many datagrams were read
   void drop(const std::string& reason);
 
   t1::LcmGroupSender sender_;
-  std::vector<uint8_t> tx_;   // one encoded state message
+  std::vector<uint8_t> tx_;  // one encoded state message
   int sock_ = -1;
-  std::vector<uint8_t> rx_;   // one datagram
+  std::vector<uint8_t> rx_;  // one datagram
   std::vector<uint8_t> latest_payload_;
   int64_t latest_state_seq_ = -1;
   uint8_t frames_[T1_NUM_MOTORS * T1_FRAME_SLOT_BYTES] = {};
   bool fresh_ = false;
   int reported_ = 0;
-  evp_mac_ctx_st* mac_ = nullptr;      // keyed HMAC-SHA256 context of the robot key (null: unsigned state)
+  evp_mac_ctx_st* mac_ = nullptr;  // keyed HMAC-SHA256 context of the robot key (null: unsigned state)
   int64_t sender_id_ = 0;
-  std::array<int64_t, 2> last_us_{};   // the last timestamp per state channel (imu, joint)
+  std::array<int64_t, 2> last_us_{};  // the last timestamp per state channel (imu, joint)
 };
 
 }  // namespace t1sim

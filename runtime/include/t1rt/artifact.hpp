@@ -36,10 +36,10 @@ struct PolicyArtifact {
   int action_size = 0;  // always kJoints: one action per joint
   std::vector<DenseLayer> layers;
   Eigen::VectorXf obs_mean, obs_std;
-  JointArray default_pose{};   // [rad]
-  JointArray action_scale{};   // [rad per unit action]
-  JointArray kp{};             // [N·m/rad]
-  JointArray kd{};             // [N·m·s/rad]
+  JointArray default_pose{};  // [rad]
+  JointArray action_scale{};  // [rad per unit action]
+  JointArray kp{};            // [N·m/rad]
+  JointArray kd{};            // [N·m·s/rad]
   double control_dt_s = 0.0;
   double gait_frequency_hz = 0.0;
   double phase_freeze_command_norm = 0.0;

@@ -27,9 +27,9 @@ typedef struct evp_mac_ctx_st EVP_MAC_CTX;
 
 namespace t1rt {
 
-inline constexpr std::size_t kTagBytes = 32;     // tag_size of a signed runtime_cmd_t / joystick_t (0: unsigned)
+inline constexpr std::size_t kTagBytes = 32;  // tag_size of a signed runtime_cmd_t / joystick_t (0: unsigned)
 inline constexpr std::size_t kKeyBytes = t1::kAuthKeyBytes;
-inline constexpr std::size_t kMaxSenders = 16;   // lines of a key file
+inline constexpr std::size_t kMaxSenders = 16;  // lines of a key file
 inline constexpr std::size_t kSha256Bytes = 32;
 
 struct AuthConfig {

@@ -7,15 +7,15 @@
 // A stale sim status is treated like stale state (Supervisor: > hold age holds the last target, > fault
 // age latches FAULT), so the sim must publish it every tick: `python -m sim_hil --status-rate 500`.
 #pragma once
-#include "t1rt/artifact.hpp"
 #include "t1_contract.hpp"
+#include "t1rt/artifact.hpp"
 
 namespace t1rt {
 
 // The switch height is the contract's (messages/contract.json waist_switch_height_m).
 inline constexpr float kGetupSwitchWaistHeightM = t1::kWaistSwitchHeightM;
-inline constexpr std::size_t kSimStatusMaxBytes = 4096;   // larger sim_status_t datagrams are dropped
-                                                          // (their strings would outgrow the reserve)
+inline constexpr std::size_t kSimStatusMaxBytes = 4096;  // larger sim_status_t datagrams are dropped
+                                                         // (their strings would outgrow the reserve)
 
 enum class CompositeMember : int8_t { kGetup = 0, kUpright = 1 };
 const char* member_name(CompositeMember member);

@@ -25,18 +25,17 @@
 
 namespace t1rt {
 
-
 struct ControllerOptions {
   std::string policy_path;          // the single policy; in composite mode the getup member; a chain's folder
   std::string upright_policy_path;  // non-empty: composite mode (composite.hpp), the upright member
-  std::string lcm_url;          // resolved (resolve_lcm_url)
+  std::string lcm_url;              // resolved (resolve_lcm_url)
   RobotLinkKind robot_link = RobotLinkKind::kLcm;  // which link faces the robot (robot_link.hpp)
-  int dds_domain_id = 0;        // --transport dds: the robot's DDS domain (contract.json)
+  int dds_domain_id = 0;                           // --transport dds: the robot's DDS domain (contract.json)
   ClockMode clock = ClockMode::kRealtime;
-  bool autostart = false;       // PASSIVE -> DAMPING -> PREPARE -> POLICY without operator commands
-  bool quiet = false;           // no live status line
-  double duration_s = 0.0;      // wall-clock run time; <= 0: until SIGINT/SIGTERM
-  int lockstep_wait_ms = 100;   // one handleTimeout slice while waiting for a state in lockstep
+  bool autostart = false;      // PASSIVE -> DAMPING -> PREPARE -> POLICY without operator commands
+  bool quiet = false;          // no live status line
+  double duration_s = 0.0;     // wall-clock run time; <= 0: until SIGINT/SIGTERM
+  int lockstep_wait_ms = 100;  // one handleTimeout slice while waiting for a state in lockstep
   SafetyConfig safety;
   // Who may command (command_auth.hpp; safety rule R11). kSigned: keys is the --key file.
   AuthMode auth = AuthMode::kEstopOnly;
@@ -55,7 +54,8 @@ PolicyStore make_policy_store(const ControllerOptions& options);
 
 class Controller {
  public:
-  static constexpr std::size_t kStatusStringReserve = 512;  // status strings reuse this capacity: no per-tick allocation
+  static constexpr std::size_t kStatusStringReserve =
+      512;  // status strings reuse this capacity: no per-tick allocation
   // upright_policy non-null: composite mode, initial_policy is the getup member. Throws ArtifactError
   // when the pair does not share one gain set (check_composite_pair).
   Controller(const ControllerOptions& options, std::unique_ptr<PolicyEngine> initial_policy,
@@ -80,11 +80,11 @@ class Controller {
   static void notify_sighup();                   // async-signal-safe
 
   Supervisor& supervisor() { return supervisor_; }
-  PolicyEngine& policy() { return *engine_; }            // composite mode: the getup member; chain: the roll
-  PolicyEngine& active_policy() { return *active_; }     // the one whose targets are commanded
+  PolicyEngine& policy() { return *engine_; }         // composite mode: the getup member; chain: the roll
+  PolicyEngine& active_policy() { return *active_; }  // the one whose targets are commanded
   bool composite() const { return rule_ == SwitchRule::kWaist; }
   bool chain() const { return rule_ == SwitchRule::kKeyframe; }
-  bool switched() const { return rule_ != SwitchRule::kNone; }   // on a privileged sim signal (T1_SIM_STATUS)
+  bool switched() const { return rule_ != SwitchRule::kNone; }  // on a privileged sim signal (T1_SIM_STATUS)
   CompositeMember member() const { return member_; }
   ChainStage chain_stage() const { return stage_; }
   int64_t member_switches() const { return member_switches_; }
@@ -106,12 +106,12 @@ class Controller {
   void adopt_ready_policy();
   void publish_status(double now_s);
   void report_state_source();
-  void post_live_line();   // the loop's side: a snapshot into live_line_
-  void live_line_worker(); // its own thread: the newest snapshot at 5 Hz (not --quiet); no state for 1 s: says so
+  void post_live_line();    // the loop's side: a snapshot into live_line_
+  void live_line_worker();  // its own thread: the newest snapshot at 5 Hz (not --quiet); no state for 1 s: says so
   void reload_worker();
   StateView state_view(double now_s) const;
   void select_member(const StateView& s);
-  void init_common();   // what both constructors do last: reserves, the reload worker
+  void init_common();  // what both constructors do last: reserves, the reload worker
   void format_policy_identity();
 
   ControllerOptions opt_;
@@ -131,7 +131,7 @@ class Controller {
   std::vector<std::unique_ptr<PolicyEngine>> others_;
   std::vector<PolicyEngine*> members_;
   SwitchRule rule_ = SwitchRule::kNone;
-  PolicyEngine* active_ = nullptr;           // one of members_, or engine_
+  PolicyEngine* active_ = nullptr;  // one of members_, or engine_
   CompositeMember member_ = CompositeMember::kUpright;
   ChainStage stage_ = ChainStage::kStart;
   float handover_up_error_ = t1::kKneelGateUpError;
@@ -149,7 +149,7 @@ class Controller {
   struct LiveLine {
     char mode[16];
     char last_fault[64];
-    char composite[64];  // empty unless a switched mode
+    char composite[64];    // empty unless a switched mode
     bool unauthenticated;  // --unauthenticated: the line says so
     int64_t ticks, policy_ticks, overruns;
     float lateness_p99_us, compute_p99_us, imu_age_ms, joint_age_ms;

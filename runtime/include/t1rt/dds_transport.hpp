@@ -77,13 +77,13 @@ class DdsTransport final : public RobotLink {
   int64_t second_writer_samples() const override { return other_writer_samples; }
   const char* second_writer() const override { return other_writer.data(); }
 
-  int64_t rejected = 0;            // samples refused by check_low_state (state unchanged)
-  int64_t lost = 0;                // samples DDS reports lost before they reached the reader
-  std::array<char, 160> last_reject{};  // why the newest rejected sample was refused
-  int64_t other_writer_samples = 0;     // samples of a writer other than the followed one, refused
-  int64_t writer_changes = 0;           // followed writers replaced after the old one fell silent
-  std::array<char, 48> followed{};      // the followed writer's GUID (hex), "" before the first sample
-  std::array<char, 160> other_writer{}; // the newest refused writer, named with its GUID ("" until one)
+  int64_t rejected = 0;                  // samples refused by check_low_state (state unchanged)
+  int64_t lost = 0;                      // samples DDS reports lost before they reached the reader
+  std::array<char, 160> last_reject{};   // why the newest rejected sample was refused
+  int64_t other_writer_samples = 0;      // samples of a writer other than the followed one, refused
+  int64_t writer_changes = 0;            // followed writers replaced after the old one fell silent
+  std::array<char, 48> followed{};       // the followed writer's GUID (hex), "" before the first sample
+  std::array<char, 160> other_writer{};  // the newest refused writer, named with its GUID ("" until one)
 
  private:
   int take();
@@ -102,7 +102,7 @@ class DdsTransport final : public RobotLink {
   double restart_quiet_s_ = 0.0;
   dds_instance_handle_t writer_ = 0, named_other_ = 0;  // the followed writer, the last one named refused
   double writer_last_s_ = 0.0;                          // CLOCK_MONOTONIC time of its newest sample [s]
-  std::array<uint32_t, kJoints> lost_seen_{};  // MotorState_.lost of the last accepted sample
+  std::array<uint32_t, kJoints> lost_seen_{};           // MotorState_.lost of the last accepted sample
   std::array<DdsMotorCmd, kJoints> motors_{};
   DdsLowCmd low_cmd_{};
 };

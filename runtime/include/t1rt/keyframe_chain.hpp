@@ -24,8 +24,8 @@ const char* stage_name(ChainStage stage);
 
 // A chain folder's manifest: its members' files (roll, rise, stand) and the rise → stand hand-over.
 struct ChainFile {
-  std::array<std::string, kChainStages> members;  // paths, in ChainStage order
-  std::string handover;                           // "kneel_gate" | "kneel_band"
+  std::array<std::string, kChainStages> members;    // paths, in ChainStage order
+  std::string handover;                             // "kneel_gate" | "kneel_band"
   float handover_up_error = t1::kKneelGateUpError;  // its upright bound ‖u − e_z‖ (the contract's)
 };
 

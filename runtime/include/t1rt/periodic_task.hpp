@@ -59,6 +59,7 @@ class LatenessHistogram {
   void add(double late_us);
   // {"bin_us": [...], "count": [...]} of the non-empty bins (the last bin is "kMaxUs or more") as JSON text.
   std::string json() const;
+
  private:
   std::array<uint32_t, kMaxUs + 1> counts_{};
 };
@@ -66,9 +67,9 @@ class LatenessHistogram {
 class PeriodicTask {
  public:
   explicit PeriodicTask(int64_t period_ns = kLoopPeriodNs) : period_ns_(period_ns) {}
-  void start();              // first deadline = now + one period
-  int64_t wait_next();       // sleeps to the next absolute deadline, records lateness, returns wake time [ns]
-  void end_compute();        // records compute time since the last wake-up
+  void start();         // first deadline = now + one period
+  int64_t wait_next();  // sleeps to the next absolute deadline, records lateness, returns wake time [ns]
+  void end_compute();   // records compute time since the last wake-up
   int64_t overruns() const { return overruns_; }
   TimingStats& lateness() { return lateness_; }
   const LatenessHistogram& histogram() const { return histogram_; }

@@ -53,8 +53,7 @@ class GaitPhase {
 // every buffer is allocated in the constructor.
 class Mlp {
  public:
-  explicit Mlp(const PolicyArtifact& artifact,
-               const mlp_kernel::Variant& variant = mlp_kernel::selected_variant());
+  explicit Mlp(const PolicyArtifact& artifact, const mlp_kernel::Variant& variant = mlp_kernel::selected_variant());
   // Returns the action (size kJoints) after the output rule.
   const Eigen::VectorXf& run(const Eigen::VectorXf& input);
   const char* variant_name() const { return variant_.name; }
@@ -64,11 +63,11 @@ class Mlp {
 
  private:
   const mlp_kernel::Variant& variant_;
-  std::vector<float> storage_;                 // packed panels and biases of every layer, cache-line aligned
-  const float* packed_ = nullptr;              // their first value (aligned), packed_size_ values
+  std::vector<float> storage_;     // packed panels and biases of every layer, cache-line aligned
+  const float* packed_ = nullptr;  // their first value (aligned), packed_size_ values
   std::size_t packed_size_ = 0;
   std::vector<mlp_kernel::PackedLayer> layers_;
-  std::vector<std::vector<float>> outputs_;    // one per layer, padded to whole panels
+  std::vector<std::vector<float>> outputs_;  // one per layer, padded to whole panels
   std::vector<float*> output_ptrs_;
   mlp_kernel::Net net_;
   Eigen::VectorXf action_;

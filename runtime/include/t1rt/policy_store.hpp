@@ -36,7 +36,7 @@ class PolicyStore {
  private:
   PolicyArtifact load_resolved(const std::string& real, const std::string& shown) const;
   std::string inside(const std::string& path, const std::string& shown) const;  // its real path, or throws
-  std::string dir_;  // real path, no trailing '/'
+  std::string dir_;                                                             // real path, no trailing '/'
   std::shared_ptr<const KeyRing> approvers_;
   std::string approvals_;
 };

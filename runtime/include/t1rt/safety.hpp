@@ -57,13 +57,13 @@
 //     restart_quiet_s of silence the new numbering is taken, as R3 says.
 #pragma once
 #include <array>
-#include <cstdint>
 #include <cstddef>
+#include <cstdint>
 
-#include "t1_contract.hpp"
-#include "t1_motor_protocol.h"
 #include "t1/controller_status_t.hpp"
 #include "t1/joint_command_t.hpp"
+#include "t1_contract.hpp"
+#include "t1_motor_protocol.h"
 #include "t1rt/artifact.hpp"
 
 namespace t1rt {
@@ -80,12 +80,12 @@ inline constexpr int32_t kNonFiniteState = 1 << 2;
 inline constexpr int32_t kNonFiniteObs = 1 << 3;
 inline constexpr int32_t kNonFiniteAction = 1 << 4;
 inline constexpr int32_t kMotorFault = 1 << 5;
-inline constexpr int32_t kSimStatusStale = 1 << 6;     // composite mode: T1_SIM_STATUS older than fault age
-inline constexpr int32_t kNonFiniteSimStatus = 1 << 7; // composite mode: waist height not finite
-inline constexpr int32_t kMotorSilent = 1 << 8;        // rule R8: a motor sent no reply for too many bus cycles
-inline constexpr int32_t kEncoderFrozen = 1 << 9;      // rule R9: an encoder read still while the body moved
-inline constexpr int32_t kImpossibleReading = 1 << 10; // rule R10: a reading no joint can produce
-inline constexpr int32_t kSecondStateSource = 1 << 11; // rule R12: a second state stream beside the robot's
+inline constexpr int32_t kSimStatusStale = 1 << 6;      // composite mode: T1_SIM_STATUS older than fault age
+inline constexpr int32_t kNonFiniteSimStatus = 1 << 7;  // composite mode: waist height not finite
+inline constexpr int32_t kMotorSilent = 1 << 8;         // rule R8: a motor sent no reply for too many bus cycles
+inline constexpr int32_t kEncoderFrozen = 1 << 9;       // rule R9: an encoder read still while the body moved
+inline constexpr int32_t kImpossibleReading = 1 << 10;  // rule R10: a reading no joint can produce
+inline constexpr int32_t kSecondStateSource = 1 << 11;  // rule R12: a second state stream beside the robot's
 inline constexpr int32_t kLatchedMask = t1::controller_status_t::LATCHED_FAULT_MASK;  // the bits above: warnings
 inline constexpr int32_t kImuHold = 1 << 16;
 inline constexpr int32_t kJointHold = 1 << 17;
@@ -155,20 +155,21 @@ inline constexpr float kImpossibleJumpQuanta = 2.0f;
 // The torque threshold of R9 for motor i [N·m].
 inline constexpr float frozen_encoder_torque_nm(float torque_limit_nm) {
   return torque_limit_nm * kFrozenEncoderTorqueFraction > kFrozenEncoderMinTorqueNm
-             ? torque_limit_nm * kFrozenEncoderTorqueFraction : kFrozenEncoderMinTorqueNm;
+             ? torque_limit_nm * kFrozenEncoderTorqueFraction
+             : kFrozenEncoderMinTorqueNm;
 }
 
 struct SafetyConfig {
-  double hold_age_s = 0.010;         // state older than this: hold the last target
-  double fault_age_s = 0.050;        // state older than this: FAULT
-  double joystick_stale_s = 0.250;   // joystick older than this: zero command
+  double hold_age_s = 0.010;        // state older than this: hold the last target
+  double fault_age_s = 0.050;       // state older than this: FAULT
+  double joystick_stale_s = 0.250;  // joystick older than this: zero command
   // PREPARE's ramp and R6's target shaping: messages/contract.json "supervisor" (training models the same)
   double prepare_duration_s = t1::kPrepareDurationS;  // PREPARE ramp from the current pose to the default pose
   // target rate limit per 2 ms tick (25 rad/s, above every motor's speed)
   float max_target_step_rad = static_cast<float>(t1::kR6MaxTargetSpeedRps * t1::kLoopPeriodS);
   float joint_range_fraction = t1::kR6JointRangeFraction;  // targets clamped to this centred fraction of the range
-  double restart_quiet_s = 0.1;      // R12: a new numbering is a restart only after this much silence [s]
-  int64_t max_seq_jump_frames = 500; // R12: a jump further ahead while the stream is alive: a second source
+  double restart_quiet_s = 0.1;       // R12: a new numbering is a restart only after this much silence [s]
+  int64_t max_seq_jump_frames = 500;  // R12: a jump further ahead while the stream is alive: a second source
 };
 
 // Sequence bookkeeping of one state stream (imu_t or joint_state_t); the rules are in accept().
@@ -180,12 +181,12 @@ class SeqTracker {
   // newer), kRestart (further behind: R3's publisher restart). accept() is unchanged by it.
   enum class Step { kNew, kLate, kRestart };
   Step step(int64_t seq) const;
-  int64_t newest() const { return newest_; }  // -1: none yet
+  int64_t newest() const { return newest_; }        // -1: none yet
   int64_t gaps() const { return gaps_; }            // seq numbers never received
   int64_t reordered() const { return reordered_; }  // frames rejected because a newer one came first
  private:
   int64_t newest_ = -1, first_ = -1;  // first_: oldest seq of the current run (no gaps before it)
-  uint64_t seen_ = 0;  // bit i: seq newest_ - i was received (i < 64)
+  uint64_t seen_ = 0;                 // bit i: seq newest_ - i was received (i < 64)
   int64_t gaps_ = 0, reordered_ = 0;
 };
 
@@ -199,17 +200,17 @@ struct StateView {
   const float* gyro = nullptr;  // 3
   bool have_joint = false;
   double joint_time_s = 0.0;
-  int64_t joint_seq = 0;                 // joint_state_t.seq: bus cycles between two states (R10)
-  const float* q = nullptr;              // 23 [rad]
-  const float* dq = nullptr;             // 23 [rad/s]
-  const int32_t* motor_status = nullptr; // 23 firmware bits + host NO_REPLY (t1_motor_protocol.h §7)
+  int64_t joint_seq = 0;                  // joint_state_t.seq: bus cycles between two states (R10)
+  const float* q = nullptr;               // 23 [rad]
+  const float* dq = nullptr;              // 23 [rad/s]
+  const int32_t* motor_status = nullptr;  // 23 firmware bits + host NO_REPLY (t1_motor_protocol.h §7)
   // Composite and chain modes only (needs_sim_status): the privileged waist and Trunk heights from
   // T1_SIM_STATUS, which pick the member. Its age follows the same hold / FAULT rules as the IMU and the joint state.
   bool needs_sim_status = false;
   bool have_sim_status = false;
   double sim_status_time_s = 0.0;
-  float waist_height_m = 0.0f;            // [m]
-  float trunk_height_m = 0.0f;            // [m]
+  float waist_height_m = 0.0f;  // [m]
+  float trunk_height_m = 0.0f;  // [m]
 };
 
 class Supervisor {
@@ -234,7 +235,7 @@ class Supervisor {
   bool accept_imu_seq(int64_t seq, double now_s) { return accept_state_seq(imu_source_, imu_seq_, seq, now_s); }
   bool accept_joint_seq(int64_t seq, double now_s) { return accept_state_seq(joint_source_, joint_seq_, seq, now_s); }
   int64_t second_source_frames() const { return second_source_frames_; }  // R12: refused as a second source
-  const char* second_source() const { return second_source_.data(); }       // R12: the latest one, named ("")
+  const char* second_source() const { return second_source_.data(); }     // R12: the latest one, named ("")
   const SeqTracker& imu_seq() const { return imu_seq_; }
   const SeqTracker& joint_seq() const { return joint_seq_; }
 
@@ -264,10 +265,10 @@ class Supervisor {
   void clamp_targets(const StateView& state, const JointArray& kp, const JointArray& kd, JointArray& target);
   int watch_motors(const StateView& state, int32_t* bit, char* why, std::size_t why_size);
   void remember_command(const t1::joint_command_t& out);
-  struct StateSource {         // rule R12: the followed stream of one state channel
+  struct StateSource {  // rule R12: the followed stream of one state channel
     const char* channel;
     bool have = false;
-    double last_s = 0.0;       // CLOCK_MONOTONIC time of its newest taken frame [s]
+    double last_s = 0.0;  // CLOCK_MONOTONIC time of its newest taken frame [s]
   };
   bool accept_state_seq(StateSource& source, SeqTracker& tracker, int64_t seq, double now_s);
   StateSource imu_source_{"T1_IMU"}, joint_source_{"T1_JOINT_STATE"};
@@ -276,12 +277,12 @@ class Supervisor {
 
   // Rules R8, R9, R10: per-motor watch, advanced once per joint state.
   struct MotorWatch {
-    int32_t silent_cycles = 0;   // consecutive states without a reply
-    bool have_q = false;         // last_q holds a replied encoder value
-    float last_q = 0.0f;         // [rad]
-    int64_t last_seq = 0;        // joint_seq of that reply
-    int32_t frozen_cycles = 0;   // consecutive replies with q bit-identical to the one before, under torque,
-                                 // away from the stops, while the body moved
+    int32_t silent_cycles = 0;  // consecutive states without a reply
+    bool have_q = false;        // last_q holds a replied encoder value
+    float last_q = 0.0f;        // [rad]
+    int64_t last_seq = 0;       // joint_seq of that reply
+    int32_t frozen_cycles = 0;  // consecutive replies with q bit-identical to the one before, under torque,
+                                // away from the stops, while the body moved
     enum Reading : int8_t { kPlausible, kOutside, kJump };
     Reading impossible = kPlausible;  // R10: the latest reply is one no joint can produce
     float impossible_from = 0.0f;     // [rad] the reply before it, and how long before [ms] (for the message)
@@ -289,9 +290,9 @@ class Supervisor {
   };
   void advance_watch(const StateView& state);
   std::array<MotorWatch, kJoints> watch_{};
-  double watched_joint_time_s_ = -1e300;  // the state watch_ has seen last
-  float body_rate_radps_ = 0.0f;     // low-passed |IMU angular rate|: R9's evidence that the body turns
-  float joint_speed_radps_ = 0.0f;   // low-passed mean |dq| of the motors: R9's evidence that the limbs move
+  double watched_joint_time_s_ = -1e300;      // the state watch_ has seen last
+  float body_rate_radps_ = 0.0f;              // low-passed |IMU angular rate|: R9's evidence that the body turns
+  float joint_speed_radps_ = 0.0f;            // low-passed mean |dq| of the motors: R9's evidence that the limbs move
   JointArray cmd_q_{}, cmd_kp_{}, cmd_kd_{};  // the last command sent: what the motors act on now
 
   SafetyConfig cfg_;

@@ -96,14 +96,14 @@ class LcmTransport {
     s.trunk_height_m = sim_status.msg.trunk_height;
     return s;
   }
-  uint64_t send_dropped() const { return sender_.dropped; }   // messages the kernel could not take at once
+  uint64_t send_dropped() const { return sender_.dropped; }  // messages the kernel could not take at once
 
   MessageSlot<t1::imu_t> imu;
   MessageSlot<t1::joint_state_t> joint;
   MessageSlot<t1::joystick_t> joystick;
   MessageSlot<t1::sim_status_t> sim_status;  // composite mode only; its strings are reserved in open()
   int64_t sim_status_oversized = 0;          // datagrams > kSimStatusMaxBytes, dropped
-  bool new_joint_state = false;  // set by an accepted joint_state_t; the lockstep loop clears it
+  bool new_joint_state = false;              // set by an accepted joint_state_t; the lockstep loop clears it
   std::array<t1::runtime_cmd_t, kCommandQueue> commands;  // verbs other than estop, in arrival order
   std::size_t command_count = 0;
   bool estop_pending = false;    // estop never queues, so a full queue cannot drop it (safety rule R2)
@@ -140,7 +140,7 @@ class LcmTransport {
   bool admitted(Supervisor::OperatorInput input, const char* channel, const Datagram& d, const Message& m,
                 const char* what);
   void subscribe(const char* channel, Handler handler);
-  int handle_queued();   // datagrams read now on subscribed channels
+  int handle_queued();  // datagrams read now on subscribed channels
   double stamp(int64_t utime) const;
   template <class Message>
   bool decode_scratch(MessageSlot<Message>& slot, const Datagram& d);
@@ -149,7 +149,7 @@ class LcmTransport {
   t1::runtime_cmd_t command_scratch_;
 
   t1::LcmGroupSender sender_;
-  int sock_ = -1;          // the group's datagrams
+  int sock_ = -1;  // the group's datagrams
   std::vector<uint8_t> rx_;
   std::array<Subscription, kMaxSubscriptions> subscriptions_{};
   std::size_t subscription_count_ = 0;
