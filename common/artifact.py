@@ -16,8 +16,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from messages import contract
 from common import observation
+from messages import contract
 
 # The loop and policy rates are the contract's (messages/contract.json): a manifest's control_dt must be the
 # policy period, contract.POLICY_PERIOD_S = LOOP_PERIOD_S × POLICY_DECIMATION.
@@ -138,7 +138,8 @@ def _serialize_container(tensors: Mapping[str, np.ndarray], metadata: Mapping[st
     offset, blobs = 0, []
     for name in sorted(tensors, key=lambda n: n.encode()):
         blob = np.ascontiguousarray(tensors[name], dtype="<f4").tobytes()
-        header[name] = {"dtype": "F32", "shape": list(tensors[name].shape), "data_offsets": [offset, offset + len(blob)]}
+        header[name] = {"dtype": "F32", "shape": list(tensors[name].shape),
+                        "data_offsets": [offset, offset + len(blob)]}
         blobs.append(blob)
         offset += len(blob)
     header_bytes = json.dumps(header, separators=(",", ":")).encode("utf-8")
@@ -208,7 +209,8 @@ def _parse_container(data: bytes) -> tuple[dict[str, np.ndarray], dict[str, str]
     tensors = {}
     for name, info in header.items():
         if not isinstance(info, dict) or info.get("dtype") != "F32":
-            raise ValueError(f"{name}: dtype must be F32, got {info.get('dtype') if isinstance(info, dict) else info!r}")
+            got = info.get("dtype") if isinstance(info, dict) else info
+            raise ValueError(f"{name}: dtype must be F32, got {got!r}")
         shape, offsets = info.get("shape"), info.get("data_offsets")
         if (not isinstance(shape, list) or not all(isinstance(s, int) and s >= 0 for s in shape)
                 or not isinstance(offsets, list) or len(offsets) != 2):

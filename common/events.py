@@ -19,8 +19,8 @@ Definitions (one sample = one control tick; the series is read causally, left to
   down or since the previous attempt failed. The attempt ends in success (stood up) or fails when the
   trunk drops attempt_rise_m below its highest height during the attempt; the next attempt needs a fresh
   rise of attempt_rise_m from the new low. A stand-up ends the attempt in progress; if the down phase
-  had no counted rise yet (a series too coarse to see it), the stand-up itself counts as one. Hysteresis of one attempt_rise_m both ways is what keeps
-  wobbling and settling from counting as attempts.
+  had no counted rise yet (a series too coarse to see it), the stand-up itself counts as one. Hysteresis of
+  one attempt_rise_m both ways is what keeps wobbling and settling from counting as attempts.
 - failed after the switch (with a waist height series): a failed attempt during which the waist reached
   the composite's switch height, so the upright policy had the robot when it dropped back.
 - success: the series does not end down (every down phase ended with a stand-up). A series that never
@@ -37,7 +37,6 @@ from typing import NamedTuple
 import numpy as np
 
 from messages import contract
-
 
 # The heights are the contract's (messages/contract.json, one meaning each) [m]: Trunk origin below
 # FALLEN_TRUNK_HEIGHT_M = lying on the ground; at or above STANDING_TRUNK_THRESHOLD_M (and upright) = standing,

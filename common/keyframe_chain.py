@@ -59,7 +59,8 @@ def read(folder) -> KeyframeChain:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
         raise ChainError(f"{path}: not readable JSON ({e})") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise ChainError(f"{path}: format must be {FORMAT!r}, got {data.get('format') if isinstance(data, dict) else data!r}")
+        got = data.get("format") if isinstance(data, dict) else data
+        raise ChainError(f"{path}: format must be {FORMAT!r}, got {got!r}")
     stages = data.get("stages")
     if not isinstance(stages, dict) or set(stages) != set(events.KEYFRAME_STAGES):
         raise ChainError(f"{path}: stages must name exactly {', '.join(events.KEYFRAME_STAGES)}")

@@ -44,4 +44,5 @@ def save_side_strip(model: mujoco.MjModel, poses, out_png: str, lookat_m, elevat
     import PIL.Image
     camera = mujoco.MjvCamera()
     camera.lookat[:], camera.distance, camera.elevation, camera.azimuth = lookat_m, 2.0, elevation_deg, 90.0
-    PIL.Image.fromarray(np.concatenate(render_frames(model, poses, camera, px, px), axis=1)).save(out_png, optimize=True)
+    strip = np.concatenate(render_frames(model, poses, camera, px, px), axis=1)
+    PIL.Image.fromarray(strip).save(out_png, optimize=True)

@@ -259,7 +259,8 @@ def golden_document() -> dict:
                         f"key (messages/auth.py); "
                         f"regenerate with `{GOLDEN_COMMAND}`",
             "key_hex": key.hex(), "messages": messages,
-            "approval": {"artifact_sha256_hex": digest.hex(), "sender_id": 7, "tag_hex": approval_tag(key, digest).hex()}}
+            "approval": {"artifact_sha256_hex": digest.hex(), "sender_id": 7,
+                         "tag_hex": approval_tag(key, digest).hex()}}
 
 
 def main(argv: list[str] | None = None, artifact_problem=None) -> int:

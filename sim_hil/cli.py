@@ -9,9 +9,9 @@ from pathlib import Path
 
 from messages import contract
 from sim_hil import config
-from sim_hil.motor_bus import INTERFACES
 from sim_hil.faults import FaultSpecError
 from sim_hil.launch import stop_cleanly_on_sigterm
+from sim_hil.motor_bus import INTERFACES
 from sim_hil.wait_notice import WaitNotice
 
 EXIT_OK, EXIT_USAGE, EXIT_RUNTIME = 0, 2, 3

@@ -20,7 +20,7 @@ import sys
 
 import lcm
 import numpy as np
-from cyclonedds.core import Qos, Policy, ReadCondition, ViewState, InstanceState, SampleState, WaitSet
+from cyclonedds.core import InstanceState, Policy, Qos, ReadCondition, SampleState, ViewState, WaitSet
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader, InvalidSample

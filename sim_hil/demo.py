@@ -19,12 +19,12 @@ import numpy as np
 from t1 import controller_status_t, imu_t, joint_state_t, joystick_t, sim_status_t
 
 from common import events, keyframe_chain
+from common.artifact import artifact_problem, read_artifact, stitched_teacher
 from messages import contract
 from messages.auth import RunKey
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop, stop_cleanly_on_sigterm
 from sim_hil.lcmlog.capture import LogCapture, RunInfo
 from sim_hil.plots import plot_heights_and_velocity
-from common.artifact import artifact_problem, read_artifact, stitched_teacher
 
 POLICIES = (ROOT / "policies" / "student" / "student.safetensors",
             ROOT / "policies" / "student_untrained" / "student_untrained.safetensors")
@@ -81,7 +81,8 @@ def main(argv=None) -> int:
               "the kneel")
         code = run(KEYFRAME_GETUP, ON_BACK_SPAWN, args.seconds, args.out, "demo_keyframe", log=not args.no_log)
     elif code == 0 and _trained(getup):
-        print(f"\ndemo: next — the trained getup expert {getup.parent.name} ({getup.parent.relative_to(ROOT)}/CARD.md), same fallen "
+        print(f"\ndemo: next — the trained getup expert {getup.parent.name} "
+              f"({getup.parent.relative_to(ROOT)}/CARD.md), same fallen "
               "start. It gets up and stands; it does not walk (it ignores the joystick)")
         code = run(getup, args.spawn, args.seconds, args.out, "demo_getup", log=not args.no_log)
     if code == 0 and _trained(JOYSTICK_EXPERT):
@@ -215,7 +216,8 @@ def run(policy: Path, spawn: str, seconds: float, out: Path, name: str, log: boo
         {policy.stem: series}, out / f"{name}_plot.png",
         f"{policy.stem} ({'trained' if trained else 'UNTRAINED'}), spawn {spawn}",
         command_vx=[(t, vx) for t, vx, _, _ in JOYSTICK_SCRIPT], modes=modes)
-    print(f"demo: runtime ended in {rt.mode_name if rt else '?'}; faults: {rt.last_fault if rt and rt.last_fault else 'none'}")
+    print(f"demo: runtime ended in {rt.mode_name if rt else '?'}; "
+          f"faults: {rt.last_fault if rt and rt.last_fault else 'none'}")
     print(f"demo: video {video}\ndemo: plot  {plot}")
     if capture is not None:
         print(f"demo: log   {capture.path} (make replay LOG={capture.path}; make plot-log LOG={capture.path})")

@@ -30,24 +30,25 @@ def start_sim(*args: str, run_key: RunKey | None = None) -> subprocess.Popen:
     (start_runtime's run_key too): the simulator signs its state with the run's robot key (--robot-key)."""
     log_args = () if "--log" in args else ("--no-log",)
     key_args = ("--robot-key", str(run_key.robot_key_path)) if run_key is not None and "--robot-key" not in args else ()
-    return subprocess.Popen([sys.executable, "-m", "sim_hil", "--quiet", *log_args, *key_args, *args], cwd=ROOT, env=_env(),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen([sys.executable, "-m", "sim_hil", "--quiet", *log_args, *key_args, *args], cwd=ROOT,
+                            env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 def _value_of(args: tuple[str, ...], flag: str) -> str | None:
     return args[args.index(flag) + 1] if flag in args[:-1] else None
 
 
-def start_runtime(policy: Path, *args: str, output=None, sign: bool = True, run_key: RunKey | None = None) -> subprocess.Popen:
+def start_runtime(policy: Path, *args: str, output=None, sign: bool = True,
+                  run_key: RunKey | None = None) -> subprocess.Popen:
     """`t1-runtime --policy POLICY --quiet ARGS`, commanded by this run only: unless ARGS carry --key or
     --unauthenticated, a fresh key of this run (messages.auth.RunKey: a private temporary folder) is made,
-    the run's policies (POLICY or a chain folder's members, --policy-upright) approved under it, and --key, --approvals and --policy-dir
-    (ARGS' own, else the policies' common folder) added. The process's run_key signs what the caller sends
-    (run_key.signer(); None when ARGS chose) and approves what it loads; stop() removes it. output: a file
-    for stdout and stderr (default: pipes the caller reads). sign=False adds nothing: the runtime then takes
-    estop only. run_key: the run's keys, made by the caller before the simulator (start_sim(run_key=...)):
-    used instead of a fresh one, and its robot key added (--robot-key): the runtime takes state only from the
-    simulator of this run."""
+    the run's policies (POLICY or a chain folder's members, --policy-upright) approved under it, and --key,
+    --approvals and --policy-dir (ARGS' own, else the policies' common folder) added. The process's run_key
+    signs what the caller sends (run_key.signer(); None when ARGS chose) and approves what it loads; stop()
+    removes it. output: a file for stdout and stderr (default: pipes the caller reads). sign=False adds nothing: the
+    runtime then takes estop only. run_key: the run's keys, made by the caller before the simulator
+    (start_sim(run_key=...)): used instead of a fresh one, and its robot key added (--robot-key): the runtime takes
+    state only from the simulator of this run."""
     if not RUNTIME.exists():
         raise FileNotFoundError(f"{RUNTIME} is not built: run `make build`")
     given, auth_args = run_key, []

@@ -28,11 +28,10 @@ from common import model as t1model
 from common import scenarios
 from common.events import FALLEN_TRUNK_HEIGHT_M
 from messages.auth import read_key_file
-from sim_hil import config
+from sim_hil import config, motor_bus
 from sim_hil.faults import FaultSchedule, parse_faults
 from sim_hil.imu import Imu
 from sim_hil.lcm_bridge import LcmBridge
-from sim_hil import motor_bus
 from sim_hil.motor_bus import open_motor_bus
 
 

@@ -158,7 +158,8 @@ class LiveViewer:
         fallen = "FALLEN" if trunk_h < FALLEN_TRUNK_HEIGHT_M else "upright"
         self.handle.set_texts([(None, mujoco.mjtGridPos.mjGRID_TOPLEFT,
                                 "t\nmode\ncommand\nstate\nfaults",
-                                f"{t:.2f} s\n{self.runtime.mode()}\nvx {vx:+.2f} vy {vy:+.2f} m/s, yaw {wz:+.2f} rad/s\n"
+                                f"{t:.2f} s\n{self.runtime.mode()}\n"
+                                f"vx {vx:+.2f} vy {vy:+.2f} m/s, yaw {wz:+.2f} rad/s\n"
                                 f"{fallen} (trunk {trunk_h:.2f} m)\n{faults}")])
         with self.handle.lock():
             scn = self.handle.user_scn

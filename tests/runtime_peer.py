@@ -11,9 +11,9 @@ import lcm
 import numpy as np
 from t1 import controller_status_t, imu_t, joint_command_t, joint_state_t, joystick_t, observation_t, runtime_cmd_t
 
+from common.artifact import read_artifact
 from messages import contract
 from sim_hil.launch import start_runtime, stop
-from common.artifact import read_artifact
 
 TICK_US = 2000                 # runtime loop period [us]
 ANSWER_TIMEOUT_S = 5.0         # liveness bound for one answer (not a timing check)

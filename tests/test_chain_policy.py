@@ -1,5 +1,5 @@
-"""The keyframe getup's latched chain (training/evaluation/artifact_policy.py ChainPolicy): roll → rise → stand, switched by
-common/events' hand-over rules, and those rules themselves."""
+"""The keyframe getup's latched chain (training/evaluation/artifact_policy.py ChainPolicy): roll → rise → stand,
+switched by common/events' hand-over rules, and those rules themselves."""
 import json
 import math
 import re

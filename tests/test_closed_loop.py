@@ -44,7 +44,8 @@ def test_runtime_and_sim_in_lockstep_run_20s_without_fault_and_deterministically
     # Every state was answered, in order (state_seq k answers state k).
     assert [c.state_seq for c in decoded] == list(range(n_ticks))
     assert first_status[-1].mode_name == "POLICY", first_status[-1].mode_name
-    assert all(s.fault_bits & controller_status_t.LATCHED_FAULT_MASK == 0 for s in first_status), [s.last_fault for s in first_status][-1]
+    assert all(s.fault_bits & controller_status_t.LATCHED_FAULT_MASK == 0 for s in first_status), \
+        [s.last_fault for s in first_status][-1]
     assert first_status[-1].policy_ticks > 0.8 * n_ticks / 10
     second_cmds, _ = closed_loop_run(SIM_SECONDS, tmp_path / "second.lcmlog")
     # utime in a command is the answered state's sim time, so equal streams mean equal trajectories.

@@ -14,8 +14,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from messages import contract
 from common import model as t1model
+from messages import contract
 from training import envs
 
 VEL_TOL = 5e-3        # [rad/s] joint velocity / gyro terms of the observation
@@ -143,9 +143,10 @@ def test_every_task_step_keeps_the_metrics_wrappers_add(task):
 # Getup evaluation rollouts (training/evaluation/batch.py's MJX scan, training/evaluation/cpu.py's C batch), first
 # control tick from the same fallen starts and policy. The supervisor's rate limit keeps the torques off
 # their clamps, so they follow the engines' small differences in q, dq (kp·Δq): trunk readings agree to
-# ≤ 1e-3 (measured 3.4e-4) and peak torques to ≤ 0.5 N·m of 60 (measured 0.13); integrals (energy, Σ|q̈|·dt, Σ|τ|·dt) to ≤ 3 % (measured ≤ 2.5 %: the engines' contact solvers
-# differ on impact); the peaks of q̈ and one substep's energy, and the contact forces, are single-substep
-# impact values, where the two solvers differ most (measured ≤ 13 % and ≤ 10 %).
+# ≤ 1e-3 (measured 3.4e-4) and peak torques to ≤ 0.5 N·m of 60 (measured 0.13); integrals (energy, Σ|q̈|·dt,
+# Σ|τ|·dt) to ≤ 3 % (measured ≤ 2.5 %: the engines' contact solvers differ on impact); the peaks of q̈ and one
+# substep's energy, and the contact forces, are single-substep impact values, where the two solvers differ most
+# (measured ≤ 13 % and ≤ 10 %).
 EVAL_TOL = {"readings": (0.0, 1e-3), "max_torque_Nm": (0.0, 0.5), "energy_J": (0.03, 1e-3),
             "qacc_integral": (0.03, 1e-3), "torque_integral": (0.03, 1e-3), "max_qacc": (0.2, 1.0),
             "max_energy_J": (0.2, 1e-3), "contact_force_N": (0.15, 1.0), "contact_force_z_N": (0.15, 1.0)}
@@ -153,10 +154,10 @@ EVAL_TOL = {"readings": (0.0, 1e-3), "max_torque_Nm": (0.0, 0.5), "energy_J": (0
 
 @pytest.mark.slow
 def test_getup_evaluation_rollout_matches_mjx_on_the_first_tick():
+    from sim_hil.launch import ROOT
     from training.evaluation.artifact_policy import ArtifactPolicy
     from training.evaluation.batch import make_rollout
     from training.evaluation.cpu import cpu_rollout
-    from sim_hil.launch import ROOT
     policy = ArtifactPolicy.load(ROOT / "tests" / "golden" / "random_policy.safetensors")  # any policy will do
     qpos, qvel = envs.fallen_states(3, 0)
     over = {"fallen.bank_starts": 2}
@@ -172,10 +173,10 @@ def test_getup_evaluation_rollout_matches_mjx_on_the_first_tick():
 
 
 def test_target_noise_moves_the_rollout_reproducibly_and_is_refused_on_mjx():
+    from sim_hil.launch import ROOT
     from training.evaluation.artifact_policy import ArtifactPolicy
     from training.evaluation.batch import run_policy
     from training.evaluation.cpu import cpu_rollout
-    from sim_hil.launch import ROOT
     policy = ArtifactPolicy.load(ROOT / "tests" / "golden" / "random_policy.safetensors")
     qpos, qvel = (np.asarray(a) for a in envs.fallen_states(2, 0))
     env = envs.make("getup", config_overrides={"fallen.bank_starts": 2, "backend": "cpu"})

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 from t1 import controller_status_t, sim_status_t
 
+from common.artifact import read_artifact
 from messages import contract
 from sim_hil.dds_bridge import rpy_from_quat
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop
 from tests.dds_peer import DdsRobotPeer, low_state
 from tests.runtime_peer import LATCHED_FAULT_MASK, MODE
-from common.artifact import read_artifact
 
 UNTRAINED_STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 N = contract.NUM_JOINTS
@@ -36,7 +36,8 @@ class LcmWatch:
         self.lc = lcm.LCM(contract.lcm_url())
         self.status: list[controller_status_t] = []
         self.sim: list[sim_status_t] = []
-        self.lc.subscribe(contract.CH_CONTROLLER_STATUS, lambda _c, d: self.status.append(controller_status_t.decode(d)))
+        self.lc.subscribe(contract.CH_CONTROLLER_STATUS,
+                          lambda _c, d: self.status.append(controller_status_t.decode(d)))
         self.lc.subscribe(contract.CH_SIM_STATUS, lambda _c, d: self.sim.append(sim_status_t.decode(d)))
 
     def pump_while(self, alive, timeout_s: float) -> None:

@@ -4,8 +4,17 @@ import math
 import numpy as np
 import pytest
 
-from common.events import (EventThresholds, GetupEvents, gate_while_standing, getup_events, kneel_gate_mask,
-                           reached_kneel, standing_mask, through_kneel_gate, up_z_from_quat)
+from common.events import (
+    EventThresholds,
+    GetupEvents,
+    gate_while_standing,
+    getup_events,
+    kneel_gate_mask,
+    reached_kneel,
+    standing_mask,
+    through_kneel_gate,
+    up_z_from_quat,
+)
 
 DT_S = 0.02                 # 50 Hz series: the events must not depend on the tick rate
 STAND_M, KNEEL_M, LIE_M = 0.66, 0.45, 0.15

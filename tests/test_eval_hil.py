@@ -11,12 +11,12 @@ import sys
 import numpy as np
 import pytest
 
-from sim_hil.eval import plans
-from sim_hil.eval.plans import PUSH_AT_S
-from sim_hil.launch import ROOT, _env
 from common import observation as obsdef
 from common.artifact import write_artifact
 from common.golden import base_manifest, random_policy
+from sim_hil.eval import plans
+from sim_hil.eval.plans import PUSH_AT_S
+from sim_hil.launch import ROOT, _env
 
 STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 SECONDS = {"getup": 3.0, "wall": 3.0, "puddle": 3.0, "push": PUSH_AT_S + 1.0}   # sim s; PREPARE takes 2 s
@@ -95,6 +95,7 @@ def _lying_then_standing_log(n: int = 3000, policy_from: int = 100, up_from: int
     """A scripted trial log (2 ms ticks): POLICY from tick policy_from, lying and sliding back, standing
     and walking at 0.4 m/s from tick up_from."""
     from t1 import joint_command_t
+
     from common import model as t1model
     from sim_hil.eval.metrics import TickLog
     log = TickLog(t1model.load_model(), n)
@@ -187,6 +188,7 @@ def test_fig51_teacher_defaults_to_the_one_the_student_names(baseline, tmp_path)
 def test_push_and_wall_trials_differ_by_seed_within_their_spreads():
     """Lockstep trials are deterministic: without a seeded difference 20 trials would be one trial 20 times."""
     import math
+
     from sim_hil.faults import parse_faults
     pushes = plans.push_specs(30, plans.PUSH_SECONDS, 0)
     assert pushes == plans.push_specs(30, plans.PUSH_SECONDS, 0)          # same seed, same trial
@@ -205,6 +207,7 @@ def test_push_and_wall_trials_differ_by_seed_within_their_spreads():
 def test_course_operator_steers_back_down_the_course_only_while_upright():
     """Walls and puddles: the robot may rise from a fall facing anywhere; the operator turns it back to +x."""
     import math
+
     from common.events import heading_from_quat
     from sim_hil.eval.trial import STEER_MAX_RPS, STEER_MIN_UP_Z, operator_yaw_rate
     assert operator_yaw_rate(0.0, 0.0, 1.0) == 0.0

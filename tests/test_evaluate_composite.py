@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from common import observation as obsdef
-from training.evaluation.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
 from messages.contract import WAIST_SWITCH_HEIGHT_M
+from training.evaluation.artifact_policy import ArtifactPolicy, CompositePolicy, load_policy
 
 ROOT = Path(__file__).resolve().parents[1]
 GETUP = ROOT / "policies" / "getup_baseline" / "getup_baseline.safetensors"

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from messages import contract
 from common import artifact
 from common import golden as export
-from training.export import brax as training_export
 from common import observation as ob
+from messages import contract
+from training.export import brax as training_export
 
 GOLDEN = Path(__file__).resolve().parent / "golden" / export.GOLDEN_ARTIFACT
 N = contract.NUM_JOINTS
@@ -183,8 +183,8 @@ def test_gain_limits_come_from_the_firmware_header():
 def test_export_brax_ppo_matches_brax_deterministic_policy(tmp_path):
     jax = pytest.importorskip("jax")
     ppo_networks = pytest.importorskip("brax.training.agents.ppo.networks")
-    from brax.training.acme import running_statistics, specs
     import jax.numpy as jnp
+    from brax.training.acme import running_statistics, specs
 
     obs_size = ob.observation_size(ob.TERMS_UNION)
     networks = ppo_networks.make_ppo_networks(

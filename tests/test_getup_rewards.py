@@ -55,7 +55,8 @@ def test_energy_cost():
     tau = np.array([3.0, 4.0, -10.0] + [1.0] * 20)
     tau_max = np.array([7.0, 7.0, 18.0] + [30.0] * 20)
     expected = 3.0 / 7.0 + 8.0 / 7.0 + 5.0 / 18.0
-    assert float(G.energy_cost(jnp.asarray(dq), jnp.asarray(tau), jnp.asarray(tau_max))) == pytest.approx(expected, rel=1e-6)
+    cost = float(G.energy_cost(jnp.asarray(dq), jnp.asarray(tau), jnp.asarray(tau_max)))
+    assert cost == pytest.approx(expected, rel=1e-6)
 
 
 @pytest.mark.parametrize("h, up, ok", [

@@ -40,6 +40,7 @@ def record(task: str, overrides: dict, hold_kneel: bool) -> dict[str, np.ndarray
     """{series name: (STEPS + 1, BATCH, …) array} of a seeded reset and STEPS steps."""
     import jax
     import jax.numpy as jnp
+
     from training import envs
     env = envs.make(task, config_overrides={"backend": "cpu", "episode_length": 50, **overrides})
     reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))

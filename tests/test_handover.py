@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from common import model as t1model
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 from training import envs
 from training.envs.starts import handover, knockdown
 from training.envs.starts.bank import place
-from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 GETUP = "policies/getup_knockdown/getup_knockdown.safetensors"
 BANK_STARTS = 6
@@ -98,7 +98,8 @@ def test_getup_env_refuses_a_bad_knockdown_config(over, why):
 
 @pytest.fixture(scope="module")
 def knock_bank():
-    return knockdown.knockdown_bank(envs.make, JOYSTICK, KNOCK_STARTS, seed=int(envs.default_config("getup").knockdown_starts.seed))
+    return knockdown.knockdown_bank(envs.make, JOYSTICK, KNOCK_STARTS,
+                                    seed=int(envs.default_config("getup").knockdown_starts.seed))
 
 
 @pytest.mark.slow

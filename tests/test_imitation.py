@@ -11,8 +11,7 @@ from common import events
 from common import observation as obsdef
 from training.evaluation.artifact_policy import ArtifactPolicy
 from training.imitation import __main__ as cli
-from training.imitation import config
-from training.imitation import best_of_k, coverage, dagger, dataset, expert
+from training.imitation import best_of_k, config, coverage, dagger, dataset, expert
 from training.imitation.campaign import build
 from training.imitation.learner import fit, load_learner, new_learner
 

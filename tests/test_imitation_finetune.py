@@ -5,19 +5,17 @@ from __future__ import annotations
 
 import json
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from training.core import networks
-from training.ppo import configs
-
-from training.recipes import base as R
-
-from training.recipes import runner as recipe_runner
-from training.imitation import config as imitation_config, dagger, dataset, finetune
+from training.imitation import config as imitation_config
+from training.imitation import dagger, dataset, finetune
 from training.imitation.learner import load_learner, new_learner, targets_to_labels
+from training.ppo import configs
+from training.recipes import base as R
+from training.recipes import runner as recipe_runner
 
 CAMPAIGN = dagger.REPO_ROOT / "training" / "campaigns" / "getup_keyframe" / "dagger"
 ARTIFACT = CAMPAIGN / imitation_config.ARTIFACT
@@ -54,6 +52,7 @@ def _ppo_cfg(**imitation):
 
 def _network(cfg):
     from brax.training.acme import running_statistics
+
     from training.core import networks as ppo_networks
     return ppo_networks.network_factory(cfg)(SIZES, 23, preprocess_observations_fn=running_statistics.normalize)
 

@@ -99,6 +99,7 @@ def test_bad_waypoints_are_refused(model):
 
 def test_the_stand_task_draws_starts_up_to_max_progress_and_at_the_kneel():
     import jax
+
     from training import envs
     cfg = envs.default_config("getup_stand")
     cfg.backend = "cpu"
@@ -136,6 +137,7 @@ def test_bad_curriculum_config_is_refused():
 def test_cpu_backend_resets_a_batch_whose_start_velocity_is_shared():
     """The path starts share one zero qvel; the CPU backend's reset callback must broadcast it (vmap)."""
     import jax
+
     from training import envs
     cfg = envs.default_config("getup_stand")
     cfg.backend = "cpu"

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from t1 import imu_t, joint_command_t, joint_state_t
 
+from common.artifact import read_artifact, write_artifact
 from messages import contract
 from sim_hil.launch import ROOT, _env
 from sim_hil.lcmlog.eventlog import Event, LogProblems, open_log, read_events, write_events
 from sim_hil.lcmlog.plot import parse_joints, plot_log
-from common.artifact import read_artifact, write_artifact
 
 STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 N = contract.NUM_JOINTS
@@ -224,8 +224,10 @@ def test_make_sim_logs_by_default_under_out_sim_and_not_with_no_log(netns):
 def test_the_logger_refuses_bad_arguments_and_skips_foreign_channels(tmp_path, netns):
     """t1-lcm-logger (sim_hil/core/lcm_logger.cpp): a wrong argument exits 2 naming it; it logs only the
     channels it is given, whole, in order, and writes what it holds at SIGINT."""
-    import lcm
     import signal
+
+    import lcm
+
     from sim_hil.launch import LOGGER
     for bad, why in ((["--bogus"], "--bogus"), (["--flush-interval=0", "--lcm-url=x", "--channels=A", "f"], "ms > 0"),
                      (["--lcm-url", contract.lcm_url(), str(tmp_path / "x.lcmlog")], "required")):
@@ -260,7 +262,9 @@ def test_state_recorded_before_state_was_signed_is_kept_as_unsigned_frames_and_n
     log = open_log(write_events(tmp_path / "old.lcmlog", [Event(0, 1, contract.CH_IMU, old_imu),
                                                           Event(0, 2, contract.CH_JOINT_STATE, old_js)]))
     got_imu, got_js = log.first(contract.CH_IMU), log.first(contract.CH_JOINT_STATE)
-    assert (got_imu.seq, list(got_imu.accel), got_imu.sender_id, got_imu.tag_size) == (5, [0.0, 0.0, np.float32(9.81)], 0, 0)
+    assert (got_imu.seq, list(got_imu.accel), got_imu.sender_id, got_imu.tag_size) == \
+        (5, [0.0, 0.0, np.float32(9.81)], 0, 0)
     assert got_js.encode() == _state(6) and not log.problems.wrong_version
     text = "\n".join(log.problems.messages(log.path))
-    assert f"1 events of the imu_t version before state was signed (fingerprint {LEGACY_STATE_FINGERPRINTS['imu_t']:#018x})" in text
+    assert ("1 events of the imu_t version before state was signed "
+            f"(fingerprint {LEGACY_STATE_FINGERPRINTS['imu_t']:#018x})") in text

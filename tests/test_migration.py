@@ -10,7 +10,6 @@ from pathlib import Path
 import pytest
 
 from training import envs
-
 from training.ppo import migration
 from training.ppo.configs import ppo_config
 
@@ -173,6 +172,7 @@ def test_every_stored_campaign_resumes_on_today_s_code(tmp_path, stored):
     """Each stored campaign's checkpoint goes on: its migrated configs build its task's env and the network, and
     the call (at its steps already: no PPO update) exports its params and saves the run back in today's schema."""
     import shutil
+
     from common.artifact import read_artifact
     from training.ppo import train
     from training.recipes.runner import TOY_BANK_STARTS
@@ -191,7 +191,8 @@ def test_every_stored_campaign_resumes_on_today_s_code(tmp_path, stored):
     assert state["task"] == task and set(state["env_config"]) == set(envs.default_config(task).to_dict())
 
 
-@pytest.mark.parametrize("key, value", [("gravity_scale", 0.5), ("upright_policy", "policies/joystick/joystick.safetensors"),
+@pytest.mark.parametrize("key, value", [("gravity_scale", 0.5),
+                                        ("upright_policy", "policies/joystick/joystick.safetensors"),
                                         ("rise_pace", {"weight": 5.0, "waist_from_m": 0.4}),
                                         ("wall_starts", {"prob": 0.3, "joystick_policy": "j", "bank_starts": 8,
                                                          "seed": 1}),

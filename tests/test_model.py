@@ -5,9 +5,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from messages import contract
 from common import model as t1
 from common import scenarios
+from messages import contract
 
 TOTAL_MASS_KG = 31.614357
 SOLE_FLAT_TOL_M = 1e-3

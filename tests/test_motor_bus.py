@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sim_hil import firmware as fw
-from sim_hil.motor_bus import CanMotorBus, DirectMotorBus, NO_REPLY, open_motor_bus
+from sim_hil.motor_bus import NO_REPLY, CanMotorBus, DirectMotorBus, open_motor_bus
 
 N = fw.NUM_MOTORS
 DT_US = fw.BUS_CYCLE_US

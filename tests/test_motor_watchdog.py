@@ -7,7 +7,6 @@ frame drop (both links), 10 ms CAN delay (standing, getups, pushes and the rest 
 tests/test_supervisor_false_alarms.py). The rule logic itself is in the gtest runtime/tests/test_motor_watchdog.cpp."""
 from __future__ import annotations
 
-
 import pytest
 from t1 import joystick_t
 

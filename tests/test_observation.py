@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from messages import contract
 from common import golden as export
 from common import observation as ob
 from common.artifact import read_artifact
+from messages import contract
 
 GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
 N = contract.NUM_JOINTS

@@ -4,8 +4,8 @@ import numpy as np
 
 
 def test_policy_std_scale_scales_only_the_sampling_std():
-    import jax
     import jax.numpy as jnp
+
     from training.core.networks import network_factory
     from training.ppo.configs import ppo_config
     cfg = ppo_config("getup", "toy")
@@ -28,6 +28,7 @@ def test_value_warmup_networks_train_only_the_critic():
     from brax.training import types
     from brax.training.acme import running_statistics
     from brax.training.agents.ppo import losses
+
     from training.core.networks import frozen_policy_factory, network_factory
     from training.ppo.configs import ppo_config
     cfg = ppo_config("getup", "toy")

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from common import model as t1model
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 from sim_hil.eval import plans
 from sim_hil.faults import parse_faults
 from training import envs
 from training.envs.starts import push
-from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 JOYSTICK = "policies/joystick/joystick.safetensors"
 STARTS = 6
@@ -80,8 +80,8 @@ def test_push_bank_holds_the_falls_of_the_push_test(push_bank):
 @pytest.mark.slow
 def test_evaluate_starts_from_push_landings(push_bank, tmp_path):
     from training.evaluation.batch import evaluate
-    report = evaluate("policies/getup_knockdown/getup_knockdown.safetensors", tmp_path, seeds=STARTS, seconds=0.2, first_seed=SEED,
-                      backend="cpu", starts="push", start_joystick=JOYSTICK).read_text()
+    report = evaluate("policies/getup_knockdown/getup_knockdown.safetensors", tmp_path, seeds=STARTS, seconds=0.2,
+                      first_seed=SEED, backend="cpu", starts="push", start_joystick=JOYSTICK).read_text()
     assert f"{push_bank[0].shape[0]} landings in the loop's push test (of {STARTS} standing starts" in report
     assert "| attempts per episode (the loop's push test counts per trial) |" in report
 
@@ -96,7 +96,8 @@ def test_unified_torso_shoves_are_the_push_tests_turned_to_the_heading():
     heading = 2.0
     qpos = np.asarray(t1model.keyframe_qpos(model, "home")).copy()
     qpos[3:7] = [math.cos(heading / 2), 0.0, 0.0, math.sin(heading / 2)]
-    dqvel = np.asarray(jax.vmap(env._torso_shove.dqvel, in_axes=(None, 0))(qpos, jax.random.split(jax.random.PRNGKey(0), 600)))
+    keys = jax.random.split(jax.random.PRNGKey(0), 600)
+    dqvel = np.asarray(jax.vmap(env._torso_shove.dqvel, in_axes=(None, 0))(qpos, keys))
     along = dqvel[:, 0] * math.cos(heading) + dqvel[:, 1] * math.sin(heading)
     assert 0.6 < np.mean(along > 0) < 0.73                                 # forward 2 : backward 1
     data = mujoco.MjData(model)

@@ -12,8 +12,9 @@ import pytest
 
 from training.core import checkpoints
 from training.imitation import campaign as imitation
-from training.recipes import base as R, runner as recipe_runner
 from training.imitation import config as imitation_config
+from training.recipes import base as R
+from training.recipes import runner as recipe_runner
 
 ROOT = Path(__file__).resolve().parents[1]
 CAMPAIGN = ROOT / "training" / "campaigns" / "getup_keyframe"
@@ -133,7 +134,8 @@ def test_a_distill_stage_ends_at_its_phase_and_the_next_stage_starts_from_there(
     assert calls[-1][1]["end_at"] is None                 # a toy run's few phases end at their last
     _distill_run(tmp_path, "r", "d", [0, 100], {"phases": 100, "finished": True, "stopped_by_max_minutes": True})
     run(resume=True, toy=False)                           # stopped at phase 100: 200 more, of 300 left
-    assert calls[-1][0] == "d.2" and calls[-1][1]["end_at"] == 200 and "bc.dagger_steps=300" in calls[-1][1]["overrides"]
+    assert calls[-1][0] == "d.2" and calls[-1][1]["end_at"] == 200
+    assert "bc.dagger_steps=300" in calls[-1][1]["overrides"]
     assert not recipe_runner.stage_complete(tmp_path, recipe, recipe.stage("d"))
     _distill_run(tmp_path, "r", "d.2", [0, 200], {"phases": 300, "finished": True, "end_at": 200})
     assert recipe_runner.stage_complete(tmp_path, recipe, recipe.stage("d"))

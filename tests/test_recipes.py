@@ -44,7 +44,8 @@ def toy_root(tmp_path_factory) -> Path:
         groups = [wave[i::WORKERS] for i in range(WORKERS) if wave[i::WORKERS]]
         procs = [subprocess.Popen(
             [sys.executable, "-c", "import sys; from training import cli\n"
-             "for n in sys.argv[2:]:\n    assert cli.main(['recipe', n, '--toy', '--no-progress', '--out', sys.argv[1]]) == 0",
+             "for n in sys.argv[2:]:\n"
+             "    assert cli.main(['recipe', n, '--toy', '--no-progress', '--out', sys.argv[1]]) == 0",
              str(root), *group], cwd=ROOT, env=TOY_ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
             for group in groups]
         for group, proc in zip(groups, procs):
@@ -94,8 +95,9 @@ def test_the_kneel_rise_starts_from_the_dagger_learner_with_the_bc_term(toy_root
     checkpoint; `rise` starts from that checkpoint's export (a DAgger round was rolled out by it), reads the BC
     term's data from the campaign and exports its kept checkpoints (mid-run: the manifest fields of the artifact
     it started from)."""
+    from training.imitation import config as imitation_config
+    from training.imitation import finetune
     from training.ppo import train
-    from training.imitation import config as imitation_config, finetune
     dagger = toy_root / "getup_keyframe" / "dagger"
     explore = toy_root / "getup_keyframe" / "rise_explore"
     first = json.loads((explore / checkpoints.RUN_STATE).read_text())
@@ -215,6 +217,7 @@ def test_a_backplay_stage_advances_once_its_metric_has_risen(tmp_path):
     """advance_at: the run stops at the first evaluation after trained steps with the metric at the value (its
     checkpoint saved just before), records it, and its recipe stage counts as complete."""
     from types import SimpleNamespace
+
     from training.ppo import train
     state = {"name": "s", "env_steps": 0, "target_steps": 1000, "minutes": 0.0, "calls": [],
              "advance_at": ["eval/episode_gate_reached", 0.8]}

@@ -16,7 +16,7 @@ import rerun.chunk as rrc
 
 from messages import contract
 from sim_hil.launch import ROOT, _env
-from sim_hil.lcmlog.eventlog import Event, open_log, read_events, LogProblems, write_events
+from sim_hil.lcmlog.eventlog import Event, LogProblems, open_log, read_events, write_events
 from sim_hil.rerun_view.analytics import analytics_disabled
 from sim_hil.rerun_view.record import EVENTS, SERIES, TIMELINE, joint_entity
 from sim_hil.rerun_view.robot import RobotGeoms
@@ -109,7 +109,8 @@ def _damaged(log_path, out):
     """The demo's log with T1_JOINT_CMD of another type version and its last event cut in half."""
     events = read_events(log_path, LogProblems())
     other = [Event(e.offset, e.timestamp_us, e.channel,
-                   struct.pack(">Q", 0x1234_5678_9ABC_DEF0) + e.data[8:] if e.channel == contract.CH_JOINT_CMD else e.data)
+                   struct.pack(">Q", 0x1234_5678_9ABC_DEF0) + e.data[8:] if e.channel == contract.CH_JOINT_CMD
+                   else e.data)
              for e in events]
     write_events(out, other)
     with open(out, "r+b") as f:

@@ -173,7 +173,8 @@ def test_load_policy_takes_approved_names_inside_the_policy_folder_only(runtime,
     (tmp_path / "escape.safetensors").symlink_to(OUTSIDE_POLICY)         # approved content, outside the folder
     peer.run_key.approve(OUTSIDE_POLICY)
     for name, why in ((str(OUTSIDE_POLICY), "an absolute path"), ("../" + OUTSIDE_POLICY.name, "'..' leaves"),
-                      ("escape.safetensors", "outside the policy folder"), ("unapproved.safetensors", "is not approved")):
+                      ("escape.safetensors", "outside the policy folder"),
+                      ("unapproved.safetensors", "is not approved")):
         peer.command("load_policy", name)
         for _ in range(40):
             status = peer.last_status()

@@ -9,14 +9,13 @@ import shutil
 
 import numpy as np
 import pytest
-
 from t1 import joystick_t
 
+from common.artifact import _serialize_container, _tensors_from, content_hash, read_artifact
 from messages import contract
 from sim_hil import firmware as fw
 from sim_hil.launch import ROOT, start_runtime
 from tests.runtime_peer import LATCHED_FAULT_MASK, MODE, RuntimePeer
-from common.artifact import _serialize_container, _tensors_from, content_hash, read_artifact
 
 STUDENT = ROOT / "policies" / "student_untrained" / "student_untrained.safetensors"
 FAST_PREPARE = ("--prepare-s", "0.02")   # 10-tick ramp: keeps the ladder short
@@ -106,7 +105,8 @@ def test_malformed_state_datagrams_never_reach_the_live_state(runtime):
         assert cmd.state_seq == live
         np.testing.assert_array_equal(np.float32(cmd.q_des), pose32)
     status = peer.last_status()
-    assert status.decode_errors == 3 and status.fault_bits & LATCHED_FAULT_MASK == 0, (status.decode_errors, status.last_fault)
+    assert status.decode_errors == 3 and status.fault_bits & LATCHED_FAULT_MASK == 0, \
+        (status.decode_errors, status.last_fault)
 
 
 def test_malformed_joystick_datagram_does_not_change_the_command(runtime):

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from t1 import imu_t, joint_command_t, joint_state_t
 
-from messages import contract
 from common import model as t1model
 from common import scenarios
+from messages import contract
 from sim_hil import firmware as fw
 from sim_hil.faults import FaultSpecError, parse_faults
 from sim_hil.motor_bus import NO_REPLY
@@ -51,7 +51,9 @@ def test_frame_drop_loses_replies_and_starves_motors(netns):
 def test_frame_delay_postpones_the_response(netns):
     step = HOME.copy()
     step[HEAD] += 0.4
-    target = lambda ti, _q: step if ti >= 0.1 else HOME
+
+    def target(ti, _q):
+        return step if ti >= 0.1 else HOME
 
     def onset(faults):
         seq, t, _ = _run(faults, duration_s=0.3, target=target)
@@ -71,7 +73,9 @@ def test_dead_motor_goes_silent_and_limp(netns):
 
 def test_frozen_encoder_reports_a_constant_position(netns):
     joint = HEAD
-    moving = lambda ti, _q: HOME + 0.3 * np.sin(2 * np.pi * 2 * ti) * (np.arange(23) == joint)
+
+    def moving(ti, _q):
+        return HOME + 0.3 * np.sin(2 * np.pi * 2 * ti) * (np.arange(23) == joint)
     seq, t, _ = _run(f"frozen:joint={joint}@0.2", target=moving)
     during = np.array([s.q[joint] for s, ti in zip(seq, t) if ti > 0.21])
     before = np.array([s.q[joint] for s, ti in zip(seq, t) if ti < 0.2])
@@ -86,7 +90,9 @@ def test_frozen_encoder_reports_a_constant_position(netns):
 def test_a_load_holds_the_trunk_down_while_it_lasts(netns):
     _, _, free = _run("", duration_s=0.5)
     _, _, held = _run("load:z=-2000@0.1-0.3", duration_s=0.5)
-    z = lambda status, at: {round(s.utime * 1e-6, 1): s.base_pos[2] for s in status.msgs}[at]
+
+    def z(status, at):
+        return {round(s.utime * 1e-6, 1): s.base_pos[2] for s in status.msgs}[at]
     assert z(held, 0.3) < z(free, 0.3) - 0.01        # pressed down, then released
     assert "load" in next(s.active_faults for s in held.msgs if 0.1 < s.utime * 1e-6 < 0.3)
 
@@ -103,7 +109,9 @@ def test_a_press_holds_a_joint_against_its_stop(netns):
 def test_imu_noise_and_bias_show_in_the_imu_stream(netns):
     def gyro_stream(faults):
         imus: list[imu_t] = []
-        sub = lambda lc: lc.subscribe(contract.CH_IMU, lambda _c, d: imus.append(imu_t.decode(d)))
+
+        def sub(lc):
+            return lc.subscribe(contract.CH_IMU, lambda _c, d: imus.append(imu_t.decode(d)))
         _run(faults, duration_s=0.6, extra=sub)
         return np.array([m.utime * 1e-6 for m in imus]), np.array([m.gyro for m in imus])
     # Lockstep is deterministic, so the fault-free run is the exact truth to subtract.

@@ -23,7 +23,9 @@ def states(client) -> list[joint_state_t]:
 
 
 def test_lockstep_same_seed_gives_byte_identical_joint_states(netns):
-    target = lambda t, q: HOME + 0.3 * np.sin(2 * np.pi * t) * (np.arange(23) % 3 == 0)
+
+    def target(t, q):
+        return HOME + 0.3 * np.sin(2 * np.pi * t) * (np.arange(23) % 3 == 0)
     args = ["--clock", "lockstep", "--spawn", "fallen:4", "--seed", "7"]
     runs = [run_with_client(args, target, KP, KD, duration_s=1.0)[0] for _ in range(2)]
     assert len(runs[0].states) == 500          # one state per 2 ms tick

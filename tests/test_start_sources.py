@@ -7,11 +7,9 @@ from __future__ import annotations
 import pytest
 
 from training import envs
-
-from training.evaluation import batch as evaluate
-
-from training.recipes import runner as recipe_runner
 from training.envs import starts
+from training.evaluation import batch as evaluate
+from training.recipes import runner as recipe_runner
 
 SHARES = tuple(s for s in starts.SOURCES if "prob" in s.functions()[0]())
 

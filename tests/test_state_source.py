@@ -164,7 +164,8 @@ def _robot_stood_on_its_own_state(run: Run) -> controller_status_t:
     if run.dds:                                        # one simulator: its truth is the robot's
         assert run.watch.min_trunk_m > FALLEN_TRUNK_HEIGHT_M, f"the robot fell: trunk {run.watch.min_trunk_m:.2f} m"
     else:                                              # the robot's own signed IMU frames
-        assert 0 < run.watch.max_tilt_rad < MAX_TILT_RAD, f"the robot tilted {math.degrees(run.watch.max_tilt_rad):.0f} deg"
+        assert 0 < run.watch.max_tilt_rad < MAX_TILT_RAD, \
+            f"the robot tilted {math.degrees(run.watch.max_tilt_rad):.0f} deg"
     warned = [s for s in run.during_attack() if s.fault_bits & STATE_REFUSED_BIT]
     assert warned, "no status warned of the refused state"
     return status

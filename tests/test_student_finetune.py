@@ -11,8 +11,8 @@ import pytest
 from ml_collections import config_dict
 
 from common import observation as obsdef
-from training.distill import finetune as F
 from training.core import networks as ppo_networks
+from training.distill import finetune as F
 from training.ppo.configs import ppo_config
 
 OBS = {"state": (82,), "privileged_state": (125,), "waist_height": (1,)}
@@ -94,6 +94,7 @@ def test_the_bc_weight_decays_linearly_to_zero_and_counts_samples():
 
 def test_the_teacher_term_is_in_the_ppo_loss_only_while_open(monkeypatch):
     from brax.training.agents.ppo import losses as ppo_losses
+
     from training.distill import teacher as teacher_module
     original = ppo_losses.compute_ppo_loss
     monkeypatch.setattr(teacher_module, "load_expert", lambda path, kind: kind)

@@ -16,7 +16,8 @@ N = obsdef.NUM_JOINTS
 def _expert(name, terms, scale, bias):
     """A constant policy: zero weights, output bias `bias` (pre-tanh loc)."""
     size = obsdef.observation_size(terms)
-    layers = ((np.zeros((2 * N, size), np.float32), np.concatenate([np.full(N, bias), np.zeros(N)]).astype(np.float32)),)
+    layers = ((np.zeros((2 * N, size), np.float32),
+               np.concatenate([np.full(N, bias), np.zeros(N)]).astype(np.float32)),)
     return Expert(name, layers, np.zeros(size, np.float32), np.ones(size, np.float32), "swish", tuple(terms),
                   np.full(N, scale, np.float32))
 
@@ -51,7 +52,8 @@ def test_brax_bc_loss_is_least_where_the_student_executes_the_teachers_action():
     teacher_action, extras = teacher(obs)
 
     def loss_if_student_executes(executed):
-        make_policy = lambda params: lambda o, key_sample=None: (None, {"loc": executed})   # it acts with loc
+        def make_policy(params):
+            return lambda o, key_sample=None: (None, {"loc": executed})   # it acts with loc
         return float(bc_loss(None, None, {"observations": obs, "teacher_action_extras": extras}, make_policy)[0])
 
     assert loss_if_student_executes(teacher_action) < 1e-8
@@ -100,8 +102,7 @@ def test_the_chain_teacher_acts_with_the_stage_s_member():
 def test_the_kneeling_teacher_is_the_chain_below_the_waist_switch_and_the_joystick_above():
     """Roll, rise, stand by the stage while the waist is below 0.5 m; the joystick expert at or above it, whatever
     the stage; the stage and waist wrappers compose for the DAgger env."""
-    from training.distill.teacher import (KNEELING, STAGE_OBS_KEY, WAIST_OBS_KEY, make_kneeling_teacher,
-                                          teacher_kind)
+    from training.distill.teacher import KNEELING, STAGE_OBS_KEY, WAIST_OBS_KEY, make_kneeling_teacher, teacher_kind
     members = [_expert(name, obsdef.TERMS_UNION, 2.0, bias) for name, bias in (("roll", 0.1), ("rise", 0.2),
                                                                                 ("stand", 0.3), ("joystick", 0.4))]
     teacher = make_kneeling_teacher(members, obsdef.TERMS_UNION, 2.0)

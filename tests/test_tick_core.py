@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from messages import contract
 from common import model as t1model
 from common import scenarios
+from messages import contract
 from tests.sim_harness import hold_pose, run_with_client
 
 MODEL, _ = scenarios.build("flat", 0)

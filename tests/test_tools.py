@@ -30,8 +30,9 @@ def test_lcm_spy_finds_every_project_type(netns):
     assert jar.exists(), "make build did not produce the lcm-spy type jar"
     n_types = len(list((ROOT / "messages" / "t1").glob("*.lcm")))
     env = dict(os.environ, CLASSPATH=str(jar))
-    proc = subprocess.Popen(["xvfb-run", "-a", str(Path(sys.executable).parent / "lcm-spy"), f"--lcm-url={netns}"], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    proc = subprocess.Popen(["xvfb-run", "-a", str(Path(sys.executable).parent / "lcm-spy"), f"--lcm-url={netns}"],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
     out = ""
     try:
         deadline = time.monotonic() + 60

@@ -15,14 +15,9 @@ import numpy as np
 import pytest
 from ml_collections import config_dict
 
-from training import cli
-
-from training.core import checkpoints
-
-from training.core import curves
-
-from training.core import overrides
 from common.artifact import read_artifact
+from training import cli
+from training.core import checkpoints, curves, overrides
 
 ROOT = Path(__file__).resolve().parent.parent
 RUNTIME = Path(os.environ.get("T1_BUILD", ROOT / "build")) / "runtime" / "t1-runtime"
@@ -141,7 +136,8 @@ def toy_runs(tmp_path_factory):
                   "--out", str(dirs["boxed"]), *toy],
         "distill": ["distill", "--getup", str(dirs["getup_stand"] / "getup_stand.safetensors"), "--joystick",
                     str(dirs["joystick"]), "--out", str(dirs["student"]), "--config", "env.start_probs=(0.0, 0.5, 0.5)",
-                    "--name", "student_toy", *toy],  # default --task: the unified env (no fallen starts: their precompute is slow)
+                    # default --task: the unified env (no fallen starts: their precompute is slow)
+                    "--name", "student_toy", *toy],
         # the keyframe chain as the teacher (each member the toy stand policy: a getup-layout artifact)
         "distill_chain": ["distill", "--chain", ",".join([str(dirs["getup_stand"] / "getup_stand.safetensors")] * 3),
                           "--task", "getup", "--out", str(root / "chain_distill"), "--config",
@@ -279,6 +275,7 @@ def test_export_checkpoint_mid_run_takes_env_fields_from_the_from_run(toy_runs, 
     """A run still going has no export yet: the manifest's env fields come from its --from run's export,
     the provenance from its own state."""
     import shutil
+
     from training.ppo.train import export_checkpoint
     parent = toy_runs["joystick"]
     child = tmp_path / "child"
@@ -336,7 +333,8 @@ def test_a_killed_distillation_goes_on_from_its_newest_checkpoint(toy_runs, tmp_
     assert state["phases_before"] == first["phases"] and state["steps_before"] == first["steps"]
     newest = checkpoints.list_checkpoints(run_dir)[-1]
     at = prior_progress(run_dir)
-    assert at["checkpoint"] == str(newest.resolve()) and at["phases"] == first["phases"] + int(newest.name) > first["phases"]
+    assert at["checkpoint"] == str(newest.resolve())
+    assert at["phases"] == first["phases"] + int(newest.name) > first["phases"]
     assert at["steps"] == first["steps"] + int(newest.name) * state["steps_per_phase"]
 
 

@@ -1,6 +1,5 @@
 """training/core: the metrics log and its curves, and the run provenance's git commit."""
-from training.core import checkpoints
-from training.core import curves
+from training.core import checkpoints, curves
 
 
 def test_metrics_log_csv_and_plot(tmp_path):

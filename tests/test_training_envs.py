@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from common import model as t1model
-from training import envs
 from common import observation as obsdef
+from training import envs
 from training.envs import collision, motor
 
 OBS_SIZES = {  # actor size from the terms; critic = actor + base extras + task extras
@@ -95,7 +95,10 @@ def test_observation_sizes_and_manifest(env_by_task):
 
 def test_step_pytree_is_stable(env_by_task):
     """step's output has reset's exact structure, shapes, dtypes and weak types: no jit retrace."""
-    spec = lambda x: (x.shape, str(x.dtype), bool(getattr(x, "weak_type", False)))
+
+    def spec(x):
+        return x.shape, str(x.dtype), bool(getattr(x, "weak_type", False))
+
     for task, env in env_by_task.items():
         s0 = jax.eval_shape(env.reset, jax.random.PRNGKey(0))
         s1 = jax.eval_shape(env.step, s0, jax.ShapeDtypeStruct((23,), jnp.float32))
@@ -136,7 +139,8 @@ def test_full_body_matches_hil_model_on_fallen_states():
         d.qpos[:] = q
         __import__("mujoco").mj_forward(base, d)
         for a, b in t1model.self_contacts(base, d):
-            ba, bb = base.body(base.geom_bodyid[base.geom(a).id]).name, base.body(base.geom_bodyid[base.geom(b).id]).name
+            ba = base.body(base.geom_bodyid[base.geom(a).id]).name
+            bb = base.body(base.geom_bodyid[base.geom(b).id]).name
             assert tuple(sorted((ba, bb))) in pairs_full
 
 
@@ -251,7 +255,8 @@ def test_joystick_rollout():
         np.testing.assert_allclose(np.asarray(s.obs["state"]), ref, atol=1e-5)
         # zero command: the gait clock stays frozen at its initial value
         np.testing.assert_allclose(np.asarray(s.info["phase"]), np.broadcast_to(obsdef.initial_gait_phase(), (2, 2)))
-    assert set(k for k in states[-1].metrics if k.startswith("reward/")) >= {"reward/tracking_lin_vel", "reward/feet_phase"}
+    rewards = set(k for k in states[-1].metrics if k.startswith("reward/"))
+    assert rewards >= {"reward/tracking_lin_vel", "reward/feet_phase"}
     assert float(states[-1].info["up_z"].min()) > 0.9  # three ticks from home: still upright
 
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim_hil import config as sim_config
 from common import model as t1model
+from sim_hil import config as sim_config
 from sim_hil.launch import ROOT
 from training.envs import base
 from training.envs.starts import fallen

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from common import scenarios
+from messages.contract import WAIST_SWITCH_HEIGHT_M
 from training import envs
 from training.envs import wall_course
 from training.envs.starts import wall_approach
-from messages.contract import WAIST_SWITCH_HEIGHT_M
 
 JOYSTICK = "policies/joystick/joystick.safetensors"
 APPROACHES = 8

@@ -7,11 +7,11 @@ exporter's writer, LCM event logs and key files.
 """
 from __future__ import annotations
 
-import math
 import struct
 from pathlib import Path
 
 import numpy as np
+from t1 import imu_t, joint_state_t, joystick_t, runtime_cmd_t, sim_status_t
 
 from common import observation as obsdef
 from common.artifact import encode_artifact
@@ -19,8 +19,7 @@ from common.golden import base_manifest, random_policy
 from messages import contract, dds_types
 from messages.auth import SIGNED_CHANNELS, Signer, new_sender
 from sim_hil import firmware
-from sim_hil.lcmlog.eventlog import Event, HEADER, SYNC
-from t1 import imu_t, joint_state_t, joystick_t, runtime_cmd_t, sim_status_t
+from sim_hil.lcmlog.eventlog import HEADER, SYNC, Event
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNTIME = ROOT / "runtime" / "fuzz" / "corpus"

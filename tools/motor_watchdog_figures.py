@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from messages import contract
-from sim_hil import firmware as fw, launch
+from sim_hil import firmware as fw
+from sim_hil import launch
 from sim_hil.eval import plans
 from sim_hil.eval.trial import Controller, TrialSpec, run_trial, trial_lcm_url
 from sim_hil.launch import ROOT
@@ -44,8 +45,8 @@ SWEEP_FRACTIONS = (0.45, 0.5, 0.55, 0.6, 0.65)   # R9 torque fractions the evide
 def constants() -> dict[str, float]:
     text = (ROOT / "runtime/include/t1rt/safety.hpp").read_text()
     names = ("kFrozenEncoderTorqueFraction", "kFrozenEncoderMinTorqueNm", "kFrozenEncoderMaxCycles",
-             "kBodyMotionTimeConstantS", "kBodyMotionMinRateRadS", "kJointMotionMinSpeedRadS", "kFrozenEncoderStopMarginRad",
-             "kImpossibleRangeMarginRad", "kImpossibleSpeedFactor")
+             "kBodyMotionTimeConstantS", "kBodyMotionMinRateRadS", "kJointMotionMinSpeedRadS",
+             "kFrozenEncoderStopMarginRad", "kImpossibleRangeMarginRad", "kImpossibleSpeedFactor")
     return {n: float(re.search(rf"{n} = ([0-9.]+)", text).group(1)) for n in names}
 
 
@@ -126,7 +127,8 @@ def analyse(rows: list[np.ndarray], c: dict[str, float], fault_at: float | None)
     return (f"longest NO_REPLY run {longest}; worst still load with evidence {load[k, j] / threshold[j]:.2f} of R9's "
             f"threshold ({contract.JOINT_NAMES[j]} at {(k + 1) * DT:.2f} s); longest evidence run by torque "
             f"fraction ({', '.join(runs)}; more than {width} trips); filtered body rate max {body.max():.2f}, last "
-            f"5 s max {body[-2500:].max():.3f} rad/s, limb speed last 5 s max {limbs[-2500:].max():.3f} rad/s; R10: fastest step "
+            f"5 s max {body[-2500:].max():.3f} rad/s, limb speed last 5 s max {limbs[-2500:].max():.3f} rad/s; "
+            "R10: fastest step "
             f"{speed.max():.2f} of its bound, furthest {past:+.3f} rad past a range end (margin "
             f"{c['kImpossibleRangeMarginRad']:g});{when}")
 

@@ -20,7 +20,7 @@ RUNS_DIR = "runs"   # experiments' default home (ignored by git): = training.rec
 
 # ---------------------------------------------------------------- subcommands
 def _cmd_train(args, command: str) -> int:
-    from training.ppo import train   # lazy: keeps JAX out of --help
+    from training.ppo import train  # lazy: keeps JAX out of --help
     out = args.out or f"{RUNS_DIR}/{args.name or args.task}"
     result = train.train(
         args.task, out, steps=args.steps, num_envs=args.envs, seed=args.seed, resume=args.resume,
@@ -34,7 +34,7 @@ def _cmd_train(args, command: str) -> int:
 
 
 def _cmd_teacher(args, command: str) -> int:
-    from training.distill import teacher   # lazy: keeps JAX out of --help
+    from training.distill import teacher  # lazy: keeps JAX out of --help
     report = teacher.check_teacher(args.getup, args.joystick, num_envs=args.envs, seed=args.seed,
                                    steps=args.check_steps)
     print(report)
@@ -42,8 +42,8 @@ def _cmd_teacher(args, command: str) -> int:
 
 
 def _cmd_distill(args, command: str) -> int:
-    from training.distill import dagger as distill   # lazy: keeps JAX out of --help
-    from training.distill import teacher as T   # lazy: keeps JAX out of --help
+    from training.distill import dagger as distill  # lazy: keeps JAX out of --help
+    from training.distill import teacher as T  # lazy: keeps JAX out of --help
     if not (args.chain or args.getup or args.joystick) or (args.chain and args.getup):
         raise ValueError("distill: give either --getup and --joystick (the stitched teacher), --chain ROLL,RISE,STAND "
                          "(the keyframe chain), or --chain and --joystick (the chain below the waist switch)")
@@ -67,14 +67,14 @@ def _cmd_distill(args, command: str) -> int:
 
 
 def _cmd_export_phase(args, command: str) -> int:
-    from training.distill import dagger as distill   # lazy: keeps JAX out of --help
+    from training.distill import dagger as distill  # lazy: keeps JAX out of --help
     path = distill.export_phase(args.run, args.phase, args.name, args.like)
     print(f"{path}: DAgger phase {args.phase} of {args.run}")
     return 0
 
 
 def _cmd_export_checkpoint(args, command: str) -> int:
-    from training.ppo import train   # lazy: keeps JAX out of --help
+    from training.ppo import train  # lazy: keeps JAX out of --help
     path = train.export_checkpoint(args.run, args.steps, args.name, like=args.like)
     what = "the checkpoint" if len(args.steps) == 1 else "the mean of the checkpoints"
     print(f"{path}: {what} at {', '.join(map(str, args.steps))} env steps of {args.run}")
@@ -82,7 +82,7 @@ def _cmd_export_checkpoint(args, command: str) -> int:
 
 
 def _cmd_kneel_report(args, command: str) -> int:
-    from training.ppo import kneel_report   # lazy: keeps JAX out of --help
+    from training.ppo import kneel_report  # lazy: keeps JAX out of --help
     rows = kneel_report.report(args.run, seeds=args.seeds, seconds=args.seconds, steps=args.steps, like=args.like,
                                mean=args.mean)
     print(f"{args.run}/{kneel_report.REPORT}: {len(rows)} rows")
@@ -90,7 +90,7 @@ def _cmd_kneel_report(args, command: str) -> int:
 
 
 def _cmd_recipe(args, command: str) -> int:
-    from training.recipes import runner as recipe_runner   # lazy: keeps JAX out of --help
+    from training.recipes import runner as recipe_runner  # lazy: keeps JAX out of --help
     if args.list:
         print(recipe_runner.describe())
         return 0
@@ -114,7 +114,8 @@ EVAL_SECONDS = {"getup": 10.0, "joystick": 20.0}   # default episode length per 
 # = training.evaluation.batch.START_KINDS and JOYSTICK_STARTS (not imported: parsing needs no JAX)
 START_CHOICES = ("fallen", "knockdown", "wall", "push")
 JOYSTICK_STARTS = ("knockdown", "wall", "push")
-START_JOYSTICK = "policies/joystick/joystick.safetensors"   # evaluate --starts knockdown|wall|push: the shipped joystick expert
+# evaluate --starts knockdown|wall|push: the shipped joystick expert
+START_JOYSTICK = "policies/joystick/joystick.safetensors"
 
 
 def _cmd_evaluate(args, command: str) -> int:
@@ -131,11 +132,11 @@ def _cmd_evaluate(args, command: str) -> int:
             raise ValueError("--starts: the joystick evaluation starts standing")
         if args.target_noise or args.handover_up_error is not None:
             raise ValueError("--target-noise, --handover-up-error: the getup evaluation only")
-        from training.evaluation import joystick as evaluate_joystick   # lazy: keeps JAX out of --help
+        from training.evaluation import joystick as evaluate_joystick  # lazy: keeps JAX out of --help
         report = evaluate_joystick.evaluate(args.policy, out, episodes=args.seeds, seconds=seconds,
                                             first_seed=args.first_seed, command=command, backend=args.backend)
     else:
-        from training.evaluation import batch as evaluate   # lazy: keeps JAX out of --help
+        from training.evaluation import batch as evaluate  # lazy: keeps JAX out of --help
         report = evaluate.evaluate(args.policy, out, baseline=args.baseline, task=args.task,
                                    seeds=args.seeds, seconds=seconds, first_seed=args.first_seed,
                                    command=command, backend=args.backend, starts=args.starts,

@@ -3,8 +3,8 @@
 Seeded lockstep trials of the student (one artifact) and, with --baseline / --teacher, a composite (getup
 policy below waist 0.5 m, joystick policy above: t1-runtime --policy-upright): the baseline composite of
 chapter 6, or the stitched teacher the student was distilled from (fig5.1: the seed's Fig. 5.1). Writes
-report.md, plots.png, video.mp4 and results.json under --out (default out/eval/<scenario>). Run inside tools/netns (make eval-*).
-Two trials run at once at most (--jobs), each sim+runtime pair on its own LCM port.
+report.md, plots.png, video.mp4 and results.json under --out (default out/eval/<scenario>). Run inside
+tools/netns (make eval-*). Two trials run at once at most (--jobs), each sim+runtime pair on its own LCM port.
 """
 from __future__ import annotations
 

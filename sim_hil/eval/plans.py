@@ -12,8 +12,14 @@ import numpy as np
 from common import scenarios as sim_scenarios
 from common.effort import EFFORT_METRICS
 from common.events import KNEEL_HIP_MIN_RAD, KNEEL_HOLD_S, KNEEL_KNEE_MIN_RAD
-from common.push_test import (PUSH_ANGLE_SPREAD_RAD, PUSH_AT_S, PUSH_IMPULSE_NS, PUSH_IMPULSE_SPREAD,
-                              PUSH_TIME_SPREAD_S, push_draw)
+from common.push_test import (
+    PUSH_ANGLE_SPREAD_RAD,
+    PUSH_AT_S,
+    PUSH_IMPULSE_NS,
+    PUSH_IMPULSE_SPREAD,
+    PUSH_TIME_SPREAD_S,
+    push_draw,
+)
 from sim_hil.eval.trial import STEER_GAIN_PER_S, STEER_MAX_RPS, TrialResult, TrialSpec
 
 # Standing spawns start in the default pose already: a short PREPARE hands the robot to the policy at once
@@ -215,7 +221,8 @@ def walk_rows(trials: list[TrialResult]) -> dict[str, str]:
 def wall_specs(trials: int, seconds: float, seed0: int) -> list[TrialSpec]:
     return [TrialSpec("walls", seed0 + i, "standing", seconds, command_vx_mps=WALL_COMMAND_MPS,
                       steer_heading_rad=COURSE_HEADING_RAD,
-                      command_start_s=STANDING_PREPARE_S + np.random.default_rng(seed0 + i).uniform(0.0, WALL_START_SPREAD_S),
+                      command_start_s=STANDING_PREPARE_S
+                      + np.random.default_rng(seed0 + i).uniform(0.0, WALL_START_SPREAD_S),
                       prepare_s=STANDING_PREPARE_S) for i in range(trials)]
 
 
@@ -329,26 +336,30 @@ PLANS = {
                   description="seeded fallen starts on flat ground, no command (Table 4.3 metrics)"),
     "kneel": Plan("kneel", "flat", KNEEL_TRIALS, KNEEL_SECONDS, getup_specs, kneel_rows, _kneel_cells,
                   description="stage 1: seeded fallen starts on flat ground, no command; §4.8's gate in the kneeling "
-                              f"posture (both knees ≥ {KNEEL_KNEE_MIN_RAD:g} rad, hips ≥ {KNEEL_HIP_MIN_RAD:g} rad) and "
+                              f"posture (both knees ≥ {KNEEL_KNEE_MIN_RAD:g} rad, "
+                              f"hips ≥ {KNEEL_HIP_MIN_RAD:g} rad) and "
                               f"its hold ≥ {KNEEL_HOLD_S:g} s"),
     "push": Plan("push", "flat", PUSH_FORWARD + PUSH_BACKWARD, PUSH_SECONDS, push_specs, push_rows, _push_cells,
                  description=f"standing, no command, one torso impulse of ±{PUSH_IMPULSE_NS:g} N·s "
-                             f"(seeded: ±{PUSH_IMPULSE_SPREAD:.0%}, ±{math.degrees(PUSH_ANGLE_SPREAD_RAD):.0f}° off x) at "
+                             f"(seeded: ±{PUSH_IMPULSE_SPREAD:.0%}, "
+                             f"±{math.degrees(PUSH_ANGLE_SPREAD_RAD):.0f}° off x) at "
                              f"t = {PUSH_AT_S:g}-{PUSH_AT_S + PUSH_TIME_SPREAD_S:g} s ({PUSH_FORWARD} forward, "
                              f"{PUSH_BACKWARD} backward)"),
     "walk": Plan("walk", "flat", 1, WALK_SECONDS, walk_specs, walk_rows, _walk_cells,
                  description=f"standing starts, {WALK_SECONDS:g} s each: {WALK_FORWARD_MPS} m/s forward, zero "
                              f"command, {WALK_YAW_RPS} rad/s yaw (lockstep), {WALK_FORWARD_MPS} m/s in realtime, "
-                             f"{WALK_FORWARD_MPS} m/s with {WALK_YAW_RPS} rad/s, zero command from {WALK_STOP_AT:.0%} of the trial "
+                             f"{WALK_FORWARD_MPS} m/s with {WALK_YAW_RPS} rad/s, "
+                             f"zero command from {WALK_STOP_AT:.0%} of the trial "
                              f"(lockstep); targets: forward ≥ {WALK_TARGETS['forward_m']:g} m, stand drift ≤ "
                              f"{WALK_TARGETS['stand_drift_m']:g} m, turn ≥ {WALK_TARGETS['turn_rad']:g} rad, "
                              "no fall"),
-    "wall": Plan("wall", "walls", WALL_TRIALS, WALL_SECONDS, wall_specs, wall_rows, _wall_cells, finish_x_m=wall_finish_x(),
-                 segment_edges_x=wall_segment_edges(),
+    "wall": Plan("wall", "walls", WALL_TRIALS, WALL_SECONDS, wall_specs, wall_rows, _wall_cells,
+                 finish_x_m=wall_finish_x(), segment_edges_x=wall_segment_edges(),
                  description=f"three 0.2 m walls at x = {', '.join(f'{x:g}' for x in wall_xs())} m, "
                              f"{WALL_COMMAND_MPS} m/s forward from a seeded start within {WALL_START_SPREAD_S:g} s; "
                              f"finish line x = {wall_finish_x():g} m; {STEERED}"),
-    "fig5.1": Plan("fig5.1", "flat", 1, FIG51_SECONDS, fig51_specs, fig51_rows, _fig51_cells, side_by_side=True, seed0=FIG51_SEED,
+    "fig5.1": Plan("fig5.1", "flat", 1, FIG51_SECONDS, fig51_specs, fig51_rows, _fig51_cells, side_by_side=True,
+                   seed0=FIG51_SEED,
                    description=f"the seed's Fig. 5.1: fallen start (seed {FIG51_SEED}), {FIG51_COMMAND_MPS} m/s "
                                "forward from the start; teacher (--teacher) and student side by side"),
     "puddle": Plan("puddle", "puddles", PUDDLE_TRIALS, PUDDLE_SECONDS, puddle_specs, puddle_rows, _puddle_cells,

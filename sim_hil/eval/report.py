@@ -9,15 +9,14 @@ from dataclasses import asdict
 from datetime import datetime, timezone
 from pathlib import Path
 
-from common import events
+from common import events, keyframe_chain
+from common.artifact import read_artifact
+from common.seed_figures import SEED_FIGURES, SEED_TRIAL_TABLES, seed_cells, seed_columns
 from messages import contract
 from sim_hil.eval import metrics
 from sim_hil.eval.plans import COMMON_ROWS, Plan
-from common.seed_figures import SEED_FIGURES, SEED_TRIAL_TABLES, seed_cells, seed_columns
 from sim_hil.eval.trial import Controller, TrialResult
 from sim_hil.plots import plot_heights_and_velocity
-from common import keyframe_chain
-from common.artifact import read_artifact
 
 
 def trained_flags(controllers: list[Controller]) -> dict[str, bool]:

@@ -16,16 +16,24 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import mujoco
 import numpy as np
 from t1 import joint_command_t, joystick_t
 
+from common.events import (
+    FALLEN_TRUNK_HEIGHT_M,
+    GetupEvents,
+    getup_events,
+    heading_from_quat,
+    kneel_gate_mask,
+    kneel_hold_s,
+    lying_side,
+    through_kneel_gate,
+    up_z_from_quat,
+)
 from messages import contract
-from sim_hil import config
-from common.events import (FALLEN_TRUNK_HEIGHT_M, GetupEvents, getup_events, heading_from_quat, kneel_gate_mask,
-                           kneel_hold_s, lying_side, through_kneel_gate, up_z_from_quat)
-from sim_hil.eval.metrics import TickLog, effort_metrics, ran_to_stabilise, slip_events
 from messages.auth import RunKey
+from sim_hil import config
+from sim_hil.eval.metrics import TickLog, effort_metrics, ran_to_stabilise, slip_events
 from sim_hil.launch import start_runtime, stop, wait_until_listening
 
 JOYSTICK_EVERY_TICKS = 10       # 50 Hz joystick, as a gamepad; the runtime zeroes it only after 250 ms
@@ -109,7 +117,7 @@ def trial_lcm_url(worker: int, base: str | None = None) -> str:
 
 def run_trial(spec: TrialSpec, controller: Controller, lcm_url: str, finish_x_m: float | None = None,
               segment_edges_x: list[float] | None = None) -> TrialResult:
-    from sim_hil.sim import SimConfig, Simulator   # heavy (MuJoCo, CAN); only where a trial runs
+    from sim_hil.sim import SimConfig, Simulator  # heavy (MuJoCo, CAN); only where a trial runs
     lockstep = spec.clock == "lockstep"
     run_key = RunKey()                               # the trial's keys: the sim signs state with its robot key
     sim = Simulator(SimConfig(scenario=spec.scenario, spawn=spec.spawn, clock=spec.clock, seed=spec.seed,
@@ -170,9 +178,9 @@ def _yaw_command(spec: TrialSpec, data) -> float:
 
 
 def _start_log(spec: TrialSpec, controller: Controller, runtime_args: list[str], lcm_url: str):
-    from sim_hil.lcmlog.capture import LogCapture, RunInfo
     from common import keyframe_chain
     from common.artifact import read_artifact
+    from sim_hil.lcmlog.capture import LogCapture, RunInfo
     info = RunInfo(run_name=Path(spec.log).stem, producer=f"eval:{spec.scenario}", clock=spec.clock,
                    policy_path=str(controller.policy),
                    policy_hash="+".join(read_artifact(p)[3]["content_hash"]
@@ -242,7 +250,8 @@ def summarise(spec: TrialSpec, label: str, log: TickLog, finish_x_m: float | Non
         final_x_m=float(log.base_x[-1]) if log.n else np.nan, finish_time_s=finish, fall_x_m=fall_x,
         drift_m=drift, yaw_turned_rad=turned, after_stop_m=after_stop,
         runtime_faults=runtime_faults, segment_attempts=seg_attempts, segment_falls=seg_falls,
-        through_kneel_gate=gate, **kneel, plot={"t": log.t[every].tolist(), "trunk": log.trunk[every].tolist(), "waist": log.waist[every].tolist(),
+        through_kneel_gate=gate, **kneel,
+        plot={"t": log.t[every].tolist(), "trunk": log.trunk[every].tolist(), "waist": log.waist[every].tolist(),
               "vx": log.fwd_vel[every].tolist()})
 
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import importlib
 import struct
 from collections import Counter, defaultdict
-from functools import lru_cache
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 from messages import contract

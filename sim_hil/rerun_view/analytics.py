@@ -16,7 +16,8 @@ def rerun_cli() -> str:
     `rerun` script, which runs it as a child: a process stopped through the script would leave the viewer
     running."""
     spec = importlib.util.find_spec("rerun_cli")
-    exe = Path(spec.origin).parent / "rerun" if spec is not None and spec.origin else Path(sys.executable).parent / "rerun"
+    exe = (Path(spec.origin).parent / "rerun" if spec is not None and spec.origin
+           else Path(sys.executable).parent / "rerun")
     if not exe.exists():
         raise FileNotFoundError(f"{exe}: the rerun CLI is missing (rerun-sdk in requirements.txt: run `make setup`)")
     return str(exe)

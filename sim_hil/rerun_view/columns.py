@@ -10,7 +10,6 @@ prefix; otherwise it is left to the project's reader (sim_hil.lcmlog.eventlog), 
 from __future__ import annotations
 
 import re
-import struct
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path

@@ -1,9 +1,9 @@
 """`python -m sim_hil.rerun_view.live`: the project's LCM group as a live Rerun stream, the same entities and
 blueprint as a converted log (record.py). A process of its own that only subscribes, like the logger: the
-runtime's loop and the simulator never wait for it, and it runs niced below them. It runs inside the project namespace (it needs the LCM
-group) and writes the stream to stdout, which tools/rerun_live pipes to a viewer outside the namespace
-that listens on the machine's loopback only; --save writes an .rrd instead. SIGINT/SIGTERM: the last
-batch is flushed, then it exits 0."""
+runtime's loop and the simulator never wait for it, and it runs niced below them. It runs inside the project
+namespace (it needs the LCM group) and writes the stream to stdout, which tools/rerun_live pipes to a viewer
+outside the namespace that listens on the machine's loopback only; --save writes an .rrd instead. SIGINT/SIGTERM: the
+last batch is flushed, then it exits 0."""
 from __future__ import annotations
 
 import argparse

@@ -189,7 +189,8 @@ class RunRecorder:
             prev, self._sim = self._sim, msg
             out = []
             if msg.active_faults != (prev.active_faults if prev else ""):
-                out.append((stamp, f"sim faults: {msg.active_faults or 'none'}", "WARN" if msg.active_faults else "INFO"))
+                out.append((stamp, f"sim faults: {msg.active_faults or 'none'}",
+                            "WARN" if msg.active_faults else "INFO"))
             if msg.fallen != (prev.fallen if prev else False):
                 out.append((stamp, "fallen" if msg.fallen else "upright again", "WARN" if msg.fallen else "INFO"))
             return out

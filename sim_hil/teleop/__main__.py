@@ -23,8 +23,7 @@ from t1 import joystick_t, runtime_cmd_t
 from messages import contract
 from messages.auth import KeyFileError, RunKey, Signer, read_key_file
 from sim_hil.launch import BUILD, ROOT, RUNTIME, start_runtime, start_sim, stop
-from sim_hil.teleop.core import (DEFAULT_POLICY, PUBLISH_RATE_HZ, TeleopCore, command_ranges,
-                                 load_bindings)
+from sim_hil.teleop.core import DEFAULT_POLICY, PUBLISH_RATE_HZ, TeleopCore, command_ranges, load_bindings
 from sim_hil.teleop.readers import DeviceGone, GamepadReader, KeyboardReader, find_gamepad
 
 BEHIND_RESYNC_S = 0.5     # publisher this far behind its schedule (suspended, swapped out): restart the schedule
@@ -164,7 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.with_sim:
         children, run_key = start_sim_and_runtime(policy, folder, load, BUILD.parent / "out" / "teleop")
         signer = run_key.signer()
-    readers = ([pad] if pad else []) + ([KeyboardReader(sys.stdin.fileno())] if sys.stdin.isatty() or pad is None else [])
+    keyboard = [KeyboardReader(sys.stdin.fileno())] if sys.stdin.isatty() or pad is None else []
+    readers = ([pad] if pad else []) + keyboard
     try:
         reason = run(core, readers, LcmPublisher(args.lcm_url or contract.lcm_url(), signer), args.duration,
                      log=lambda s: print(s, file=sys.stderr))

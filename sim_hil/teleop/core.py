@@ -109,7 +109,8 @@ class TeleopCore:
 
     def __init__(self, ranges: dict[str, tuple[float, float]], bindings: dict[str, dict] | None = None,
                  load_path: str = "", clock: Callable[[], float] = time.monotonic):
-        self.ranges, self.bindings, self.load_path, self.clock = ranges, bindings or load_bindings(None), load_path, clock
+        self.ranges, self.bindings = ranges, bindings or load_bindings(None)
+        self.load_path, self.clock = load_path, clock
         self.stick = dict.fromkeys(FIELDS, 0.0)        # normalised [-1, 1], sign applied
         self.deadman_held: set[str] = set()            # which deadman buttons are down
         self.key_value = dict.fromkeys(FIELDS, 0.0)    # normalised, from keys

@@ -39,7 +39,8 @@ class GamepadReader:
         for section, known in (("buttons", ecodes.ecodes), ("axes", ecodes.ecodes)):
             for key in bindings[section]:
                 if key not in known:
-                    raise ValueError(f"bindings: {section} entry {key!r} is not an evdev code name (e.g. BTN_EAST, ABS_X)")
+                    raise ValueError(f"bindings: {section} entry {key!r} is not an evdev code name "
+                                     "(e.g. BTN_EAST, ABS_X)")
         self.fd, self.absinfo, self.bindings, self.name = fd, absinfo, bindings, name
         self._buffer = b""
         self._device = None   # the evdev.InputDevice that owns fd, when opened by open()
@@ -47,7 +48,7 @@ class GamepadReader:
     @classmethod
     def open(cls, path: str, bindings: dict[str, dict]) -> "GamepadReader":
         """A live pad at /dev/input/eventN. ValueError when the path is not an input device or not a pad."""
-        import evdev   # imported here: the recorded-stream path needs only ecodes
+        import evdev  # imported here: the recorded-stream path needs only ecodes
         try:
             dev = evdev.InputDevice(path)
         except FileNotFoundError as e:

@@ -43,7 +43,8 @@ def _lcm_run(policy: Path, count: int, url: str, key: RunKey | None, second: str
     other = ([bench_binary("t1rt_bench_lcm_echo"), "--seconds", budget_s, "--lcm-url", echo_url] if second == "echo"
              else _runtime_cmd(policy, echo_url, second_key, budget_s))
     pin = ["taskset", "-c", cpu] if cpu is not None else []
-    servers = [subprocess.Popen([str(c) for c in pin + cmd], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    servers = [subprocess.Popen([str(c) for c in pin + cmd], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                text=True)
                for cmd in (other, _runtime_cmd(policy, url, key, budget_s))]
     keys = [*(["--key", key.key_path] if key else []), *(["--echo-key", second_key.key_path] if second_key else [])]
     try:
@@ -75,8 +76,10 @@ def bench_lcm(policy: Path, count: int) -> dict:
     finally:
         key.close()
     rows = [("t1-runtime lockstep, all ticks", "latency_us"), ("  ticks without policy or joystick", "plain_tick_us"),
-            ("  joystick ticks (without policy)", "joystick_tick_us"), ("  policy ticks (MLP, every 10th)", "policy_tick_us")]
-    print(f"{'against the raw LCM echo (C++)':<44}{'n':>7}{'median':>9}{'p99':>9}{'max':>9}   ratio to the echo median / p99")
+            ("  joystick ticks (without policy)", "joystick_tick_us"),
+            ("  policy ticks (MLP, every 10th)", "policy_tick_us")]
+    print(f"{'against the raw LCM echo (C++)':<44}{'n':>7}{'median':>9}{'p99':>9}{'max':>9}"
+          "   ratio to the echo median / p99")
     for name, r in against_echo.items():
         for label, k in [("raw LCM echo (C++)", "echo_us")] + rows:
             print(f"{label + f' [{name}]':<44}{int(r[k + '_count']):>7}{r[k + '_median']:>9.1f}{r[k + '_p99']:>9.1f}"
@@ -86,7 +89,8 @@ def bench_lcm(policy: Path, count: int) -> dict:
     for i, r in enumerate(paired):          # even runs: the signed runtime is the peer's target, odd: its echo side
         s_, u_ = ("latency_us", "echo_us") if i % 2 == 0 else ("echo_us", "latency_us")
         signed_over.append((r[s_ + "_median"] / r[u_ + "_median"], r[s_ + "_p99"] / r[u_ + "_p99"]))
-        print(f"side by side, run {i + 1}: signed runtime median / p99 {r[s_ + '_median']:.1f} / {r[s_ + '_p99']:.1f} µs, "
+        print(f"side by side, run {i + 1}: signed runtime median / p99 "
+              f"{r[s_ + '_median']:.1f} / {r[s_ + '_p99']:.1f} µs, "
               f"unsigned {r[u_ + '_median']:.1f} / {r[u_ + '_p99']:.1f} µs")
     # The geometric mean over runs that put each runtime first equally often: a bias of the position cancels.
     gm = np.exp(np.mean(np.log(np.asarray(signed_over)), axis=0))

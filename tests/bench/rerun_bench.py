@@ -13,9 +13,9 @@ import argparse
 import resource
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
-import tempfile
 
 import numpy as np
 
@@ -40,9 +40,9 @@ def _free_port() -> int:
 
 def _live_view():
     """The viewer (loopback) reading the bridge's stream through a pipe; returns both, the bridge subscribed."""
-    viewer = subprocess.Popen(["nice", "-n", str(LIVE_NICE), rerun_cli(), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port",
-                               str(_free_port()), "--port", str(_free_port()), "-"], stdin=subprocess.PIPE,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    viewer = subprocess.Popen(["nice", "-n", str(LIVE_NICE), rerun_cli(), "--serve-web", "--bind", "127.0.0.1",
+                               "--web-viewer-port", str(_free_port()), "--port", str(_free_port()), "-"],
+                              stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     bridge = subprocess.Popen([sys.executable, "-m", "sim_hil.rerun_view.live", "--name", "bench"], cwd=ROOT,
                               env=_env(), stdout=viewer.stdin, stderr=subprocess.PIPE, text=True)
     viewer.stdin.close()
@@ -83,7 +83,8 @@ def main(argv=None) -> None:
         cpu_before = resource.getrusage(resource.RUSAGE_CHILDREN)
         start = time.perf_counter()
         done = subprocess.run([sys.executable, "-m", "sim_hil.lcmlog", "rerun", str(Path(tmp) / "plain.lcmlog"),
-                               "-o", str(Path(tmp) / "plain.rrd")], cwd=ROOT, env=_env(), capture_output=True, text=True)
+                               "-o", str(Path(tmp) / "plain.rrd")], cwd=ROOT, env=_env(), capture_output=True,
+                              text=True)
         convert_s = time.perf_counter() - start
         cpu_after = resource.getrusage(resource.RUSAGE_CHILDREN)
         convert_cpu_s = (cpu_after.ru_utime - cpu_before.ru_utime) + (cpu_after.ru_stime - cpu_before.ru_stime)

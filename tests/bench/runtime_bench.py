@@ -30,7 +30,6 @@ from pathlib import Path
 
 import numpy as np
 
-
 from tests.bench.bench_tools import BENCH_BIN, ROOT, bench_binary, ratio, run_json
 from tests.bench.link_latency import bench_dds, bench_lcm
 
@@ -73,7 +72,8 @@ def ort_worker(directory: Path, iterations: int) -> dict:
               (("s_start", [0]), ("s_end", [action_size]), ("s_axis", [1]))]
     nodes += [helper.make_node("Slice", [h, "s_start", "s_end", "s_axis"], ["loc"]),
               helper.make_node("Tanh", ["loc"], ["action"])]
-    graph = helper.make_graph(nodes, "t1_student", [helper.make_tensor_value_info("obs", TensorProto.FLOAT, [1, x.shape[1]])],
+    graph = helper.make_graph(nodes, "t1_student",
+                              [helper.make_tensor_value_info("obs", TensorProto.FLOAT, [1, x.shape[1]])],
                               [helper.make_tensor_value_info("action", TensorProto.FLOAT, [1, action_size])], inits)
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", ORT_OPSET)])
     model.ir_version = ORT_IR_VERSION
@@ -163,7 +163,8 @@ def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
             print(f"check: max |t1rt::Mlp - onnxruntime {ort_check['version']}| over the {ours_action.size} actions = "
                   f"{err:.2e} ({'ok' if ok else 'MISMATCH'}, tolerance {MATCH_TOL:g})")
             if not ok:
-                raise SystemExit("runtime_bench: t1rt::Mlp and onnxruntime disagree; timings would compare different maths")
+                raise SystemExit("runtime_bench: t1rt::Mlp and onnxruntime disagree; "
+                                 "timings would compare different maths")
             ort = run_json(ort_cmd + ["--iterations", iterations], 600)
         ours = run_json(mlp_cmd + ["--iterations", iterations, "--cold-iterations", cold_iterations], 600)
         # The same binary forced onto the portable kernel, and the whole policy code rebuilt for this CPU.
@@ -176,7 +177,8 @@ def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
             if err <= MATCH_TOL:
                 others[label] = run_json(cmd + ["--iterations", iterations, "--cold-iterations", 0], 600)
             else:
-                print(f"note: t1rt::Mlp {label.split(',')[0]} differs from the dispatched kernel by {err:.2e}: not timed")
+                print(f"note: t1rt::Mlp {label.split(',')[0]} differs from the dispatched kernel by {err:.2e}: "
+                      "not timed")
 
     us = 1e-3
     print(f"{'':<44}{'median µs':>11}{'p99 µs':>10}{'ours/this':>11}")
@@ -200,7 +202,8 @@ def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
     warm_level = "L2" if fits_l2 else ("LLC" if wb <= llc else "DRAM")
     bounds = [(f"bound: DRAM stream read {ours['dram_read_GBps']:.1f} GB/s", ours["dram_bound_ns"]),
               (f"bound: L2-resident read {ours['l2_read_GBps']:.1f} GB/s", ours["l2_bound_ns"]),
-              (f"bound: weights-sized buffer ({warm_level}) {ours['cache_read_GBps']:.1f} GB/s", ours["cache_bound_ns"])]
+              (f"bound: weights-sized buffer ({warm_level}) {ours['cache_read_GBps']:.1f} GB/s",
+               ours["cache_bound_ns"])]
     for label, ns in bounds:
         print(f"{label:<44}{ns * us:>11.1f}{'':>10}{ratio(med, ns):>11}")
     print(f"weights {wb / 1e6:.2f} MB ({wb:.0f} B); L2 {l2 / 2**10:.0f} KiB per core, LLC {llc / 2**20:.0f} MiB; "
@@ -209,7 +212,8 @@ def bench_mlp(policy: Path, iterations: int, cold_iterations: int) -> None:
         print("applies: weights fit in L2, so back-to-back passes are bounded by the L2-resident bound; "
               "a cold pass by the DRAM bound.")
     else:
-        print(f"applies: weights do NOT fit in L2 ({wb / 2**10:.0f} KiB > {l2 / 2**10:.0f} KiB), so the L2 bound is out "
+        print(f"applies: weights do NOT fit in L2 ({wb / 2**10:.0f} KiB > {l2 / 2**10:.0f} KiB), "
+              "so the L2 bound is out "
               f"of reach; warm passes stream them from the {warm_level} (weights-sized buffer bound), a cold pass "
               f"(policy tick after other work evicted them) from DRAM (DRAM bound).")
 
@@ -278,8 +282,10 @@ def bench_state_auth(policy: Path, quick: bool) -> None:
 def parse_args(argv: list[str]) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m tests.bench.runtime_bench", description=__doc__.split("\n\n")[0])
     p.add_argument("--quick", action="store_true", help=f"{QUICK_SECONDS:g} s loop runs, fewer exchanges")
-    p.add_argument("--seconds", type=float, default=None, help=f"loop-lateness run time each (default {DEFAULT_SECONDS:g})")
-    p.add_argument("--only", default="mlp,loop,lcm,dds,state", help="comma-separated sections: mlp, loop, lcm, dds, state")
+    p.add_argument("--seconds", type=float, default=None,
+                   help=f"loop-lateness run time each (default {DEFAULT_SECONDS:g})")
+    p.add_argument("--only", default="mlp,loop,lcm,dds,state",
+                   help="comma-separated sections: mlp, loop, lcm, dds, state")
     p.add_argument("--policy", type=Path, default=STUDENT_POLICY, help="artifact for the MLP and LCM sections")
     p.add_argument("--mlp-iterations", type=int, default=MLP_ITERATIONS)
     p.add_argument("--lcm-count", type=int, default=None)

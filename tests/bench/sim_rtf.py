@@ -11,9 +11,9 @@ import lcm
 import mujoco
 from t1 import sim_status_t
 
-from messages import contract
 from common import model as t1model
 from common import scenarios
+from messages import contract
 from sim_hil.launch import ROOT, start_runtime, start_sim, stop, wait_until_listening
 from tests.sim_harness import hold_pose, run_with_client
 
@@ -54,8 +54,8 @@ def runtime_hil_rtf(spawn: str, seconds: float = SIM_SECONDS, *sim_args: str) ->
     marks: list[tuple[float, int]] = []     # (wall [s], sim time [µs]) of each T1_SIM_STATUS
     lc.subscribe(contract.CH_SIM_STATUS,
                  lambda _c, d: marks.append((time.perf_counter(), sim_status_t.decode(d).utime)))
-    runtime = start_runtime(ROOT / "policies" / "student_untrained" / "student_untrained.safetensors", "--clock", "lockstep",
-                            "--autostart")
+    runtime = start_runtime(ROOT / "policies" / "student_untrained" / "student_untrained.safetensors",
+                            "--clock", "lockstep", "--autostart")
     wait_until_listening(runtime)
     sim = start_sim("--clock", "lockstep", "--spawn", spawn, "--duration", str(seconds), *sim_args)
     while sim.poll() is None:

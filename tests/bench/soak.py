@@ -66,7 +66,8 @@ def summary(bins_us: np.ndarray, counts: np.ndarray, overruns: int) -> dict:
     bins_us, counts = bins_us[order], counts[order]
     cum = np.cumsum(counts) / counts.sum()
     return {"ticks": int(counts.sum()), "max_us": float(bins_us[-1]),
-            "p99_us": float(bins_us[np.searchsorted(cum, 0.99)]), "p9999_us": float(bins_us[np.searchsorted(cum, 0.9999)]),
+            "p99_us": float(bins_us[np.searchsorted(cum, 0.99)]),
+            "p9999_us": float(bins_us[np.searchsorted(cum, 0.9999)]),
             "overruns": int(overruns), "bins_us": bins_us, "counts": counts}
 
 
@@ -161,7 +162,8 @@ def main(argv: list[str] | None = None) -> dict:
               f"max {s['max_us']:.0f} µs, overruns {s['overruns']}")
     print(f"runtime max / cyclictest max = {ratio:.2f} (target ≤ {TARGET_RATIO}), runtime overruns {rt['overruns']} "
           f"(target 0), runtime fault: {rt['fault']}")
-    print(f"sim state stream {sim['n']} periods: |period − 2 ms| p99 {sim['p99_ms']:.3f} ms, p99.99 {sim['p9999_ms']:.3f} "
+    print(f"sim state stream {sim['n']} periods: |period − 2 ms| p99 {sim['p99_ms']:.3f} ms, "
+          f"p99.99 {sim['p9999_ms']:.3f} "
           f"ms, max {sim['max_ms']:.3f} ms (target ≤ {TARGET_SIM_MAX_MS} ms)")
     print(f"histograms: {args.out / 'lateness.png'}")
     return {"runtime": rt, "cyclictest": ct, "sim": sim, "ratio": ratio}

@@ -44,6 +44,7 @@ def _cpu_jiffies() -> np.ndarray:
 def raw_physics_rate(task: str, num_envs: int, seed: int = 0) -> float:
     """Env-steps/s of the C physics alone (see the module docstring)."""
     import jax
+
     from training import envs
     from training.envs import cpu_backend
     env = envs.make(task, config_overrides={"backend": "cpu"})
@@ -66,8 +67,8 @@ def raw_physics_rate(task: str, num_envs: int, seed: int = 0) -> float:
 def ppo_run(task: str, backend: str, updates: int) -> dict:
     """A fresh `--preset cpu` run of `updates`+1 epochs of one update: its steady env-steps/s, wall s, and (CPU
     backend) its profile."""
-    from training.ppo import train
     from training.envs import cpu_backend
+    from training.ppo import train
     cpu_backend.PROFILE.reset()
     jiffies, t0 = _cpu_jiffies(), time.monotonic()
     with tempfile.TemporaryDirectory(prefix=f"bench_{task}_{backend}_") as out:
@@ -82,8 +83,8 @@ def ppo_run(task: str, backend: str, updates: int) -> dict:
 
 
 def main(argv=None) -> int:
-    from training.ppo import configs
     from tests.bench import train_profile
+    from training.ppo import configs
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--tasks", nargs="+", choices=(*TASKS, "planner"), default=[*TASKS, "planner"],
                     help="PPO tasks, and `planner`: DAgger's expert (tests/bench/planner_bench.py)")

@@ -30,6 +30,7 @@ def env_jax_s(env, num_envs: int) -> float:
     """Seconds per env step of the env's JAX code around the C physics."""
     import jax
     import jax.numpy as jnp
+
     from training.envs import cpu_backend
     step = jax.jit(jax.vmap(env.step))
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
@@ -48,6 +49,7 @@ def _networks(env, cfg):
     import jax
     import jax.numpy as jnp
     from brax.training.acme import running_statistics
+
     from training.core import networks as ppo_networks
     sizes = {k: tuple(v) for k, v in env.observation_size.items()}
     nets = ppo_networks.network_factory(cfg)(sizes, env.action_size,

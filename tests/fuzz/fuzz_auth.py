@@ -17,10 +17,11 @@ import tempfile
 import atheris
 
 with atheris.instrument_imports():
-    from messages import auth, contract
-    from sim_hil.lcmlog.eventlog import lcm_type
     import t1  # noqa: F401  lcm-gen's Python decoders of every project type (lcm_type imports them from here)
     from t1 import imu_t, joint_state_t, joystick_t, runtime_cmd_t  # noqa: F401
+
+    from messages import auth
+    from sim_hil.lcmlog.eventlog import lcm_type
 
 SIGNED = sorted(auth.SIGNED_CHANNELS)
 SENDER = auth.new_sender(7)
@@ -62,7 +63,8 @@ def legacy_state(data: bytes) -> None:
     for name in auth.LEGACY_STATE_FINGERPRINTS:
         fingerprint = 0x1234_5678_9ABC_DEF0
         out = auth.upgrade_legacy_state(name, data, fingerprint)
-        assert out is None or (len(out) == len(data) + len(auth.UNSIGNED_TAIL) and out[:8] == fingerprint.to_bytes(8, "big"))
+        assert out is None or (len(out) == len(data) + len(auth.UNSIGNED_TAIL)
+                               and out[:8] == fingerprint.to_bytes(8, "big"))
 
 
 def test_one_input(data: bytes) -> None:

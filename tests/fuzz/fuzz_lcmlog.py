@@ -11,12 +11,23 @@ from pathlib import Path
 import atheris
 
 with atheris.instrument_imports():
+    import t1  # noqa: F401  lcm-gen's Python decoders of every project type (decode_events imports them from here)
+    from t1 import (  # noqa: F401
+        action_t,
+        controller_status_t,
+        imu_t,
+        joint_command_t,
+        joint_state_t,
+        joystick_t,
+        observation_t,
+        run_info_t,
+        runtime_cmd_t,
+        sim_status_t,
+    )
+
     from messages import contract
     from sim_hil.lcmlog import eventlog
     from sim_hil.lcmlog.plot import series
-    import t1  # noqa: F401  lcm-gen's Python decoders of every project type (decode_events imports them from here)
-    from t1 import (action_t, controller_status_t, imu_t, joint_command_t, joint_state_t, joystick_t,  # noqa: F401
-                    observation_t, run_info_t, runtime_cmd_t, sim_status_t)
 
 LOG = Path("fuzz.lcmlog")
 

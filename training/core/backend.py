@@ -1,5 +1,6 @@
 """The physics backend a run, DAgger run or evaluation uses unless told."""
 from __future__ import annotations
+
 import jax
 
 

@@ -24,8 +24,13 @@ import jax
 from brax.training import checkpoint as brax_checkpoint
 
 # the reading side of the layout, below the envs (their start banks read policies too); part of this module's API
-from training.envs.policy_files import (  # noqa: F401
-    CHECKPOINT_DIR, RUN_STATE, list_checkpoints, load_checkpoint, resolve_checkpoint)
+from training.envs.policy_files import (
+    CHECKPOINT_DIR,  # noqa: F401
+    RUN_STATE,  # noqa: F401
+    list_checkpoints,  # noqa: F401
+    load_checkpoint,  # noqa: F401
+    resolve_checkpoint,  # noqa: F401
+)
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 KEEP_CHECKPOINTS = 3  # older ones are deleted: each T1 PPO checkpoint is a few MB, GPU disks are small
@@ -58,7 +63,7 @@ def jax_setup() -> None:
     try:
         jax.device_put_replicated  # noqa: B018 (probe)
     except AttributeError:
-        from jax._src import api   # only on a jax without it (its private home; the public name is gone)
+        from jax._src import api  # only on a jax without it (its private home; the public name is gone)
         jax.device_put_replicated = api.device_put_replicated
 
 

@@ -6,9 +6,7 @@ import functools
 
 import jax
 import numpy as np
-from brax.training import distribution
-from brax.training import networks
-from brax.training import types
+from brax.training import distribution, networks, types
 from brax.training.acme import running_statistics
 from brax.training.agents.ppo import networks as brax_ppo_networks
 from brax.training.types import identity_observation_preprocessor

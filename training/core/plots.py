@@ -4,7 +4,7 @@ from __future__ import annotations
 
 def pyplot():
     """matplotlib.pyplot on the Agg backend."""
-    import matplotlib   # here, not at the top: the backend must be chosen before pyplot loads, and only plots pay for it
+    import matplotlib  # here, not at the top: the backend must be chosen before pyplot loads, and only plots pay for it
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt   # after use("Agg") above
+    import matplotlib.pyplot as plt  # after use("Agg") above
     return plt

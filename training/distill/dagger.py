@@ -36,15 +36,12 @@ from common import events
 from common import observation as obsdef
 from common.artifact import read_artifact
 from training import envs
-from training.core import checkpoints
-from training.core import curves
+from training.core import checkpoints, curves
 from training.core.backend import default_backend
 from training.core.networks import ACTIVATION
-from training.core.overrides import apply_overrides
-from training.core.overrides import TOY_ENV_OVERRIDES
+from training.core.overrides import TOY_ENV_OVERRIDES, apply_overrides
 from training.distill.teacher import CHAIN, STUDENT_OBS_KEY, load_teacher, teacher_kind, teacher_observation
-from training.export.brax import export_brax_ppo
-from training.export.brax import ship_artifact
+from training.export.brax import export_brax_ppo, ship_artifact
 
 DEFAULT_TASK = "unified"  # the whole walk–fall–getup task (training/envs/unified.py); cli.py repeats it
 # what the learner's teacher is (the chain's hand-over): a toy run keeps it (recipes/runner.py), as it keeps its
@@ -215,8 +212,8 @@ def distill(teacher: dict, out, task: str = DEFAULT_TASK, overrides: Sequence[st
             name: str = "student", backend: str | None = None, from_checkpoint=None,
             recipe: dict | None = None, end_at: int | None = None) -> DistillResult:
     """One DAgger run from `teacher` ({role: artifact}: getup + joystick, the stitched teacher; roll + rise +
-    stand, the keyframe getup's chain); with `from_checkpoint` (a checkpoint or a distill run directory → its newest) the
-    student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
+    stand, the keyframe getup's chain); with `from_checkpoint` (a checkpoint or a distill run directory → its
+    newest) the student starts from those params and normaliser (brax bc restore_checkpoint_path; the optimiser restarts
     and, as in any bc run, the teacher acts in the first phase), and the phase count, curve and provenance
     continue from that run's (STATE_FILE), so a campaign goes on across sessions. With `end_at` (a phase of this
     run with a checkpoint: a multiple of dagger_steps / (num_evals − 1)) the run ends there, finished, on the
@@ -293,7 +290,8 @@ def _train_bc(cfg, env, teacher, network_factory, progress_fn, seed: int, episod
             eval_length=round(cfg.eval_length_factor * episode_length), batch_size=cfg.batch_size,
             scramble_time=cfg.scramble_time or episode_length, network_factory=network_factory,
             progress_fn=progress_fn, seed=seed, learning_rate=cfg.learning_rate, dagger_steps=cfg.dagger_steps,
-            dagger_beta_fn=beta_schedule(cfg.beta_teacher_phases, cfg.beta_floor, cfg.beta_decay_phases), num_evals=cfg.num_evals,
+            dagger_beta_fn=beta_schedule(cfg.beta_teacher_phases, cfg.beta_floor, cfg.beta_decay_phases),
+            num_evals=cfg.num_evals,
             reset=cfg.reset, save_checkpoint_path=str(ckpt_root), restore_checkpoint_path=restore)
     except _Stop:
         return None, True

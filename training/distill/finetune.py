@@ -16,10 +16,10 @@ with e_i = Σ_joints (tanh(mode) − tanh(label))² for the "normal" policy (its
 distill/dagger.py) and Σ_joints (mode − label)² for tanh-normal (its mode is tanh(μ), the executed action), the
 label the teacher's action in the student's map (teacher.py) and n the env steps of this fine-tune, read from the
 observation normaliser's sample count (one sample per env step; the only step counter brax hands its loss) minus
-the count it started from (the run state's `bc_count_start`). With teacher.bc_hold_in_course, samples of wall-course episodes keep teacher.bc_weight
-(no decay): there the teacher trips across the wall and gets up beyond, the one way on for a blind policy,
-while PPO alone learns to balance in front of it (training/LESSONS.md). They are told apart by the unified
-env's "wall_course" metric, which brax hands the loss summed over the episode so far.
+the count it started from (the run state's `bc_count_start`). With teacher.bc_hold_in_course, samples of
+wall-course episodes keep teacher.bc_weight (no decay): there the teacher trips across the wall and gets up
+beyond, the one way on for a blind policy, while PPO alone learns to balance in front of it (training/LESSONS.md). They
+are told apart by the unified env's "wall_course" metric, which brax hands the loss summed over the episode so far.
 The teacher reads what it switches on (the privileged waist height, or the keyframe chain's stage): the env is
 wrapped in training/distill/teacher.py's teacher_observation.
 The trainer reaches all this through one PPOExtension (core/extension.py): `extension(ppo_cfg, restored)`.
@@ -36,10 +36,8 @@ from ml_collections import config_dict
 from common import events
 from common import observation as obsdef
 from training.core.extension import PPOExtension
-from training.distill.teacher import load_teacher
-from training.distill.teacher import teacher_observation
+from training.distill.teacher import load_teacher, teacher_observation
 from training.export.brax import NORMAL
-
 
 # the keys that make a PPO stage this fine-tune: a toy run keeps them (recipes/runner.py), as it keeps the learner
 LEARNER_KEYS = ("ppo.teacher.", "ppo.policy_distribution", "ppo.init_noise_std")

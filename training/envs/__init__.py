@@ -1,7 +1,8 @@
 """MJX training envs for the T1 (JAX backend over mujoco_playground's MjxEnv).
 
     from training import envs
-    envs.TASKS                      # ("joystick", "getup", "getup_kneel", "getup_roll", "getup_stand", "getup_baseline", "unified")
+    envs.TASKS                      # ("joystick", "getup", "getup_kneel", "getup_roll", "getup_stand",
+                                    #  "getup_baseline", "unified")
     cfg = envs.default_config("getup_kneel"); cfg.reward.scales.gate = 1.0
     env = envs.make("getup_kneel", cfg, config_overrides={"episode_length": 20})
     env.observation_size            # {"state": (n_actor,), "privileged_state": (n_critic,)}
@@ -20,8 +21,8 @@ from typing import Callable
 
 from ml_collections import config_dict
 
-from training.envs.starts.fallen import fallen_states
 from training.envs.randomize import domain_randomize
+from training.envs.starts.fallen import fallen_states
 
 # task → (module under training/envs, env class). getup_roll turns a robot on its back face down (the chain's
 # first stage), getup_kneel and getup_stand are the keyframe curriculum's

@@ -39,7 +39,6 @@ from mujoco import batch as mj_batch
 
 from training.envs.randomize import RANDOMIZED_FIELDS
 
-
 REPO_ROOT = Path(__file__).resolve().parents[2]
 LIBRARY = Path("training") / "cpu_physics" / "libt1_mjcb_motor.so"   # under the CMake build folder
 FOOT_FLOOR_SENSORS = ("left_foot_floor", "right_foot_floor")

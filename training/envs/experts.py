@@ -16,8 +16,8 @@ from typing import Sequence
 import jax.numpy as jnp
 import numpy as np
 
-from common import observation as obsdef
 from common import model as t1model
+from common import observation as obsdef
 from common.artifact import read_artifact
 from training.envs import base
 from training.envs.getup_base import GETUP_ACTION_SCALE_RAD

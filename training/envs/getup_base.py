@@ -23,10 +23,10 @@ from mujoco_playground._src import mjx_env
 
 from common import observation as obsdef
 from common.events import STAND_HOLD_S, STANDING_TRUNK_THRESHOLD_M, UPRIGHT_UP_Z
+from messages import contract
 from training.envs import base, starts
 from training.envs import getup_rewards as G
 from training.envs.starts.fallen import fallen_states, weight_sides
-from messages import contract
 
 GETUP_ACTION_SCALE_RAD = 2.0    # rad per unit action (base_config says why)
 START_KINDS = ("fallen", "kneeling", "standing")

@@ -4,8 +4,8 @@ starts, episodes that end only on non-finite physics: the seed's stage 1 at the 
 Ours, off by default (the recipe's stage-1 settings set them, training/recipes/getup_keyframe.py):
 `reward.scales.gate` per step while §4.8's gate holds and `reward.scales.upright` × a slope toward the gate's
 tilt at its height (getup_rewards.upright_at_gate_height) pay the gate itself, which holding the kneel keyframe's
-joint angles under PD misses by a sag of 1.25° that the pose term pays 0.999 of its best; `demo_starts` (starts/demos.py)
-replaces a share of the fallen starts by states of the planner's rises.
+joint angles under PD misses by a sag of 1.25° that the pose term pays 0.999 of its best; `demo_starts`
+(starts/demos.py) replaces a share of the fallen starts by states of the planner's rises.
 The gate the task carries (critic input, metric `gate`, `success`) latches from its first hold until the trunk
 is down: the kneel reached and not lost.
 """

@@ -20,9 +20,9 @@ from mujoco_playground._src import mjx_env
 
 from common import observation as obsdef
 from training.envs import base, starts
-from training.envs.walking import Walking
 from training.envs.starts import handover
 from training.envs.starts.bank import place
+from training.envs.walking import Walking
 
 
 def default_config() -> config_dict.ConfigDict:

@@ -31,7 +31,10 @@ RANDOMIZED_FIELDS = ("geom_friction", "dof_frictionloss", "dof_armature", "body_
 
 def _one_world(model: mjx.Model, rng: jax.Array):
     k = jax.random.split(rng, 7)
-    u = lambda key, lo_hi, shape=(): jax.random.uniform(key, shape, minval=lo_hi[0], maxval=lo_hi[1])
+
+    def u(key, lo_hi, shape=()):
+        return jax.random.uniform(key, shape, minval=lo_hi[0], maxval=lo_hi[1])
+
     friction = model.geom_friction.at[FLOOR_GEOM_ID, 0].set(u(k[0], FLOOR_FRICTION))
     frictionloss = model.dof_frictionloss.at[6:].multiply(u(k[1], FRICTIONLOSS_SCALE, (NUM_JOINTS,)))
     armature = model.dof_armature.at[6:].multiply(u(k[2], ARMATURE_SCALE, (NUM_JOINTS,)))

@@ -1,23 +1,25 @@
 """Batched getup evaluation of policy ARTIFACTS (the files the runtime runs), seed's chapter 6.
 
-    python -m training evaluate --policy policies/getup.safetensors --baseline policies/getup_baseline/getup_baseline.safetensors \
+    python -m training evaluate --policy policies/getup.safetensors \
+        --baseline policies/getup_baseline/getup_baseline.safetensors \
         --task getup --seeds 32 --seconds 10 --out out/eval_getup [--backend cpu|mjx]
 
 N seeded fallen starts (the env's fallen_starts: the settled fall after the runtime's PREPARE ramp, as
 `make eval-getup` hands them to the policy) are rolled out in parallel with the getup env's model
 and motor law, on either physics backend (default as `train`): MJX (jax.vmap over envs, lax.scan over
 control ticks, make_rollout below) or MuJoCo C (training/evaluation/cpu.py, the same series). The policy side is the
-artifact run through common/observation.py with xp=jax.numpy (training/evaluation/artifact_policy.py): the observation is
-built from the physics state exactly as the runtime builds it (no noise, command 0, gait clock frozen at its initial
-phase because ‖command‖ < phase_freeze_command_norm), normalised, fed through the MLP, mapped to targets.
-A policy may also be the runtime's composite of two artifacts, `--policy GETUP,UPRIGHT` (CompositePolicy:
+artifact run through common/observation.py with xp=jax.numpy (training/evaluation/artifact_policy.py): the
+observation is built from the physics state exactly as the runtime builds it (no noise, command 0, gait clock
+frozen at its initial phase because ‖command‖ < phase_freeze_command_norm), normalised, fed through the MLP, mapped to
+targets. A policy may also be the runtime's composite of two artifacts, `--policy GETUP,UPRIGHT` (CompositePolicy:
 the getup member below waist 0.5 m, the upright one above), the seed's chapter-6 baseline.
 
 Per env and control tick the host gets trunk height, up_z, waist height, and per-substep aggregates:
 energy Σ|τ·q̇|·dt_sim [J], the largest of one substep's Σ|τ·q̇|·dt_sim [J], max |τ| [N·m], Σ|τ|·dt_sim [N·m·s],
 max |q̈| [rad/s²], Σ|q̈|·dt_sim [rad/s]; after the tick, the total normal force [N] and the world-z force [N]
-of the robot's contacts with the world (Table 4.3's definitions and names: common/effort.py). Falls / attempts / success / time to stand come from common/events.py, the definitions
-the HIL evaluation uses too. Output: report.md (table beside the seed's numbers), per_env.csv, plots.
+of the robot's contacts with the world (Table 4.3's definitions and names: common/effort.py). Falls / attempts /
+success / time to stand come from common/events.py, the definitions the HIL evaluation uses too. Output:
+report.md (table beside the seed's numbers), per_env.csv, plots.
 """
 from __future__ import annotations
 
@@ -39,8 +41,7 @@ from common.effort import effort_metrics
 from common.events import getup_events, reached_kneel
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 from training import envs
-from training.core import plots
-from training.core import checkpoints
+from training.core import checkpoints, plots
 from training.core.backend import default_backend
 from training.envs.starts import landing_bank
 from training.evaluation import kneel_rows, table_4_3

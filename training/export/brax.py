@@ -15,7 +15,6 @@ from training.core import checkpoints
 from training.envs import sagittal
 from training.envs.policy_files import brax_policy_layers
 
-
 # ---------------------------------------------------------------- brax PPO
 NORMAL = "normal"   # ppo.policy_distribution of a fine-tuned student (training/distill/finetune.py)
 
@@ -96,7 +95,8 @@ def ship_chain(policy: str, members: Mapping[str, Path], handover: str, state: d
     return folder
 
 
-def ship_artifact(artifact: Path, state: dict, policies_root=checkpoints.POLICIES_ROOT, folder: Path | None = None) -> Path:
+def ship_artifact(artifact: Path, state: dict, policies_root=checkpoints.POLICIES_ROOT,
+                  folder: Path | None = None) -> Path:
     """Copy the artifact to policies/<name>/<name>.safetensors (into `folder` where given: a chain's member) and
     append its provenance row to that folder's CARD.md (created from the card template for a new policy)."""
     manifest = read_artifact(artifact)[3]

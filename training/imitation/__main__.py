@@ -17,7 +17,6 @@ from training.imitation import dagger
 from training.imitation.campaign import run
 
 
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m training.imitation", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)

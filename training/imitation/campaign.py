@@ -2,7 +2,9 @@
 its rounds run into a campaign folder (run)."""
 from __future__ import annotations
 
-from training.planner import batch as planner_batch   # first: its renderer picks the offscreen GL before mujoco loads
+from training.planner import batch as planner_batch  # first: its renderer picks the offscreen GL before mujoco loads
+
+# isort: split
 import training.evaluation.batch  # noqa: F401  (imported now: a long run must not pick up code edited meanwhile)
 import training.evaluation.cpu  # noqa: F401
 from training.core.overrides import apply_overrides

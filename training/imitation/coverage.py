@@ -23,8 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from common import events
-from training.imitation import best_of_k
-from training.imitation import dagger, dataset
+from training.imitation import best_of_k, dagger, dataset
 from training.imitation.campaign import build
 from training.imitation.learner import load_learner, new_learner
 from training.planner.batch import end_with_parent

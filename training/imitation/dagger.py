@@ -19,8 +19,7 @@ from common.events import LYING_SIDES
 from training.core import checkpoints
 from training.core.checkpoints import repo_relative
 from training.evaluation.batch import kneel_figures
-from training.imitation import best_of_k, config, dataset, expert
-from training.imitation import report
+from training.imitation import best_of_k, config, dataset, expert, report
 from training.imitation.learner import fit, load_learner, new_learner
 from training.planner.demos import start_side
 

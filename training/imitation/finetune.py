@@ -30,9 +30,10 @@ from training.core import checkpoints
 from training.core.checkpoints import repo_path
 from training.core.extension import PPOExtension
 from training.core.networks import NORMALIZER_COUNT, held_normalizer, tanh_normal_policy
-from training.envs.policy_files import artifact_params
 from training.distill.finetune import bc_weight, sample_count
-from training.imitation import config as campaign_files, dataset
+from training.envs.policy_files import artifact_params
+from training.imitation import config as campaign_files
+from training.imitation import dataset
 from training.imitation.learner import targets_to_labels
 
 # the keys that make a PPO stage this fine-tune: a toy run keeps them (recipes/runner.py)

@@ -44,7 +44,8 @@ def write(folder: Path, state: dict) -> None:
             f"takeover {cfg['expert']['takeover_replans']} replans from each segment's start "
             f"({cfg['expert']['policy_samples']} policy + {cfg['expert']['plan_samples']} plan samples, horizon "
             f"{state['config']['planner']['horizon_s']} s), or best-of-K rises of the policy (best_of_k.py); batch "
-            f"evaluation from {cfg['eval_seeds']} fallen seeds × {cfg['eval_seconds']} s (training/evaluation/batch.py, "
+            f"evaluation from {cfg['eval_seeds']} fallen seeds × {cfg['eval_seconds']} s "
+            "(training/evaluation/batch.py, "
             f"\"reached the kneel\").\n\n" + table(rows))
     (Path(folder) / "report.md").write_text(text)
     _curve(rows, Path(folder) / "curve.png")

@@ -12,11 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
-from training.planner import demos      # first: its renderer picks the offscreen GL before mujoco loads
+from training.planner import demos  # first: its renderer picks the offscreen GL before mujoco loads
+
+# isort: split
+from training import envs
 from training.core.overrides import apply_overrides
 from training.planner import config as planner_config
 from training.planner.mppi import Planner
-from training import envs
 
 
 def build(overrides: list[str]):

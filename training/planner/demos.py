@@ -9,13 +9,15 @@ import json
 from pathlib import Path
 
 import numpy as np
+import PIL.Image
 
-from common.render import render_frames, tracking_camera   # first: it picks the offscreen GL before mujoco loads
+from common.render import render_frames, tracking_camera  # first: it picks the offscreen GL before mujoco loads
+
+# isort: split
 from common.events import LYING_SIDES, lying_side
 from common.model import trunk_forward_z
 from training.envs.starts import demos as demo_starts
 from training.planner.mppi import Demonstration
-import PIL.Image
 
 ARRAYS = ("qpos", "qvel", "obs", "targets", "trunk_height", "up_z", "gate", "kneeling", "waypoint")
 REPORT = "report.json"

@@ -20,7 +20,6 @@ from training.envs import sagittal
 from training.planner import costs, keyframes
 
 
-
 @dataclass
 class Demonstration:
     """One planned rise, per control step t (T steps; states have T + 1 rows: before each step and after the

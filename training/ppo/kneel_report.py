@@ -17,7 +17,8 @@ from training.ppo.train import export_checkpoint
 
 ROWS = "report.json"
 REPORT = "report.md"
-COLUMNS = (("env_steps", "env steps"), ("mean_of", "mean of the policies at"), ("bc_weight", "BC weight"), ("reached_kneel", "reached the kneel"),
+COLUMNS = (("env_steps", "env steps"), ("mean_of", "mean of the policies at"), ("bc_weight", "BC weight"),
+           ("reached_kneel", "reached the kneel"),
            ("face_down", "… face down"), ("on_back", "… on the back"),
            ("kneeled", "the gate in the kneeling posture"), ("kneeled_face_down", "… face down"),
            ("kneeled_on_back", "… on the back"), ("kneeled_unseen", "… from seeds it never started from"),

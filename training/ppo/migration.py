@@ -67,8 +67,9 @@ _STAGE2_KEYS = ("stage2_start_probs", "stage2_fall_trunk_height_m", "stage2_fall
 SPLIT: dict[str, dict[str, dict[str, Any]]] = {
     "stage1": {"renamed": {"stage1_start_probs": "start_probs", "stage1_gate_reward": "reward.scales.gate",
                            "stage1_upright_reward": "reward.scales.upright"},
-               "removed": {"stage": UNUSED, "stage1_drop_below_m": 0.0, "start_probs": UNUSED, **dict.fromkeys(_STAGE2_KEYS, UNUSED),
-                           "reverse_curriculum": UNUSED, "gate_latches": True, "knockdown_starts": {"prob": 0.0}}},
+               "removed": {"stage": UNUSED, "stage1_drop_below_m": 0.0, "start_probs": UNUSED,
+                           **dict.fromkeys(_STAGE2_KEYS, UNUSED), "reverse_curriculum": UNUSED, "gate_latches": True,
+                           "knockdown_starts": {"prob": 0.0}}},
     "stage2": {"renamed": {"stage2_start_probs": "start_probs", "stage2_fall_trunk_height_m": "fall_trunk_height_m",
                            "stage2_fall_up_z": "fall_up_z"},
                "removed": {"stage": UNUSED, "start_probs": UNUSED, **dict.fromkeys(_STAGE1_KEYS, UNUSED),

@@ -25,17 +25,16 @@ from ml_collections import config_dict
 
 from common.artifact import read_artifact
 from training import envs
-from training.core import checkpoints
-from training.core import curves
+from training.core import checkpoints, curves
 from training.core import networks as ppo_networks
 from training.core.backend import default_backend
 from training.core.networks import ACTIVATION
 from training.core.overrides import apply_overrides
 from training.export import brax as export
 from training.export.brax import export_brax_ppo, exported_as_trained, exported_policy, run_provenance
-from training.ppo import extensions
-from training.ppo import migration
+from training.ppo import extensions, migration
 from training.ppo.configs import build_configs
+
 
 @dataclass
 class TrainResult:

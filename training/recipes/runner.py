@@ -27,13 +27,23 @@ from training.export import untrained
 from training.export.brax import ship_artifact, ship_chain
 from training.imitation import campaign as imitation
 from training.imitation.finetune import LEARNER_KEYS as IMITATION_KEYS
-from training.ppo import kneel_report
-from training.ppo import migration
-from training.ppo import train
+from training.ppo import kneel_report, migration, train
 from training.recipes import base as R
 from training.recipes.stages import (  # noqa: F401  (stage_complete, end_checkpoint: also the runner's API)
-    DISTILL_STATE, TOY_END_AT_STEPS, TOY_PPO_STEPS, _json, _rounds, artifact_name, end_at, end_checkpoint, referenced,
-    stage_artifact, stage_complete, stage_dirs, superseded)
+    DISTILL_STATE,
+    TOY_END_AT_STEPS,
+    TOY_PPO_STEPS,
+    _json,
+    _rounds,
+    artifact_name,
+    end_at,
+    end_checkpoint,
+    referenced,
+    stage_artifact,
+    stage_complete,
+    stage_dirs,
+    superseded,
+)
 
 RUNS_ROOT = checkpoints.REPO_ROOT / "runs"
 CAMPAIGNS_ROOT = checkpoints.REPO_ROOT / "training" / "campaigns"

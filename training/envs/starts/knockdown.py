@@ -32,7 +32,8 @@ def knockdown_starts(env, group) -> tuple[np.ndarray, np.ndarray]:
 
 
 @functools.lru_cache(maxsize=4)
-def knockdown_bank(make_env: Callable, joystick_policy: str, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def knockdown_bank(make_env: Callable, joystick_policy: str, num_starts: int,
+                   seed: int) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) where the teacher hands `joystick_policy` (artifact or checkpoint), knocked over from
     `num_starts` seeded standing starts (random commands, half of them zero; full-body collision, CPU
     physics), to the getup expert: the first control tick with the waist below the switch height. Cached
@@ -41,8 +42,8 @@ def knockdown_bank(make_env: Callable, joystick_policy: str, num_starts: int, se
     rng = np.random.default_rng(seed)
     knock_tick = np.round(rng.uniform(*KNOCK_AT_S, num_starts) / env.dt).astype(int)
     heading = rng.uniform(0.0, 2.0 * np.pi, num_starts)
-    push = jnp.asarray(np.stack([np.cos(heading), np.sin(heading)], 1) * rng.uniform(*KNOCKDOWN_MPS, num_starts)[:, None],
-                       jnp.float32)
+    speed_mps = rng.uniform(*KNOCKDOWN_MPS, num_starts)
+    push = jnp.asarray(np.stack([np.cos(heading), np.sin(heading)], 1) * speed_mps[:, None], jnp.float32)
 
     def knock(tick, state):
         due = jnp.asarray(knock_tick == tick)[:, None]

@@ -68,7 +68,8 @@ class TorsoShove:
 
 
 @functools.lru_cache(maxsize=4)
-def push_test_bank(make_env: Callable, joystick_policy: str, num_starts: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def push_test_bank(make_env: Callable, joystick_policy: str, num_starts: int,
+                   seed: int) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) where the teacher hands `joystick_policy` over to the getup expert in the loop's push test
     (this module's docstring) from `num_starts` seeded standing starts: start i is shoved as the test's trial i of
     seed `seed + i` (push_test.push_draw), relative to the robot's heading then; the first control tick with the
