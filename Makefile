@@ -35,9 +35,11 @@ build: setup
 	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_PREFIX_PATH=$(SITE) -DPython3_EXECUTABLE=$(PY) >/dev/null
 	cmake --build $(BUILD) -j $(JOBS)
 
-# Everything: C unit tests (CTest) and Python tests (pytest), all inside one private network namespace; then
-# the same ctest suite under AddressSanitizer + UBSan and a short pass of every fuzz harness (FUZZ_TEST_S each).
+# Everything: the style check (make lint), C unit tests (CTest) and Python tests (pytest), all inside one private
+# network namespace; then the same ctest suite under AddressSanitizer + UBSan and a short pass of every fuzz
+# harness (FUZZ_TEST_S each).
 test: build
+	$(MAKE) --no-print-directory lint
 	$(NETNS) bash -c 'set -e; ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS); \
 	  $(PY) -m pytest -q -n $(JOBS) tests'
 	$(MAKE) --no-print-directory test-sanitize
