@@ -102,11 +102,16 @@ RECIPE = Recipe(
         Stage("stand_swing", task="getup_stand", steps=7_024_640, init="stand_path",
               config={**STAND, "env.reverse_curriculum.min_progress": 1.0}),
         Stage("stand", task="getup_stand", steps=7_024_640, init="stand_swing", config=STAND),
-        Stage("stand_band", task="getup_stand", steps=4_014_080, init="stand", config=STAND_BAND),
+        # the ship campaign's stages end at the checkpoint where its first period's CPU time ended (LESSONS: ships
+        # as a chain, period 1)
+        Stage("stand_band", task="getup_stand", steps=4_014_080, end_at=819_200, init="stand", config=STAND_BAND),
         # the energy fine-tune of each member, stand first (612 W while standing still), then the rise and the roll
-        Stage("stand_energy", task="getup_stand", steps=3_010_560, init="stand_band",
+        Stage("stand_energy", task="getup_stand", steps=3_010_560, end_at=1_208_320, init="stand_band",
               config={**STAND_BAND, **ENERGY_COST}),
-        Stage("rise_energy", task="getup_kneel", steps=3_010_560, init="rise_rolled",
+        Stage("rise_energy", task="getup_kneel", steps=3_010_560, end_at=1_208_320, init="rise_rolled",
               config={**RISE_ROLLED, **ENERGY_COST}),
-        Stage("roll_energy", task="getup_roll", steps=1_505_280, init="roll_side", config={**ROLL_SIDE, **ENERGY_COST}),
-    ))
+        Stage("roll_energy", task="getup_roll", steps=1_505_280, end_at=921_600, init="roll_side",
+              config={**ROLL_SIDE, **ENERGY_COST}),
+    ),
+    # what ships (recipe --ship): the energy-tuned members, the rise handing over at the kneel band
+    chain={"roll": "roll_energy", "rise": "rise_energy", "stand": "stand_energy"}, handover="kneel_band")
