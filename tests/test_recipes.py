@@ -285,7 +285,6 @@ def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(
         assert (tmp_path / "getup_keyframe" / kept).is_dir(), kept
     assert (tmp_path / "getup_keyframe" / "dagger" / "data").is_dir()
     assert ran == []
-    recipe = R.load("getup_keyframe")
     # a later stage reads a restored stage's artifact: the campaign keeps no export, so its newest checkpoint is one
     artifact = Path(recipe_runner.resolve_ref("@getup_keyframe/rise_rolled", tmp_path))
     manifest = read_artifact(artifact)[3]
