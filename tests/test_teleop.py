@@ -194,15 +194,18 @@ def test_keyboard_through_a_pty_drives_t1_joystick_and_stops_after_the_timeout(n
         deadline = time.monotonic() + 10.0                             # python start-up
         while not sub.collect(0.1):
             assert time.monotonic() < deadline and proc.poll() is None, "teleop published nothing"
-        for _ in range(10):                                             # a held key, as the terminal repeats it
+        deadline = time.monotonic() + 10.0                             # a held key, as the terminal repeats it
+        while not any(m.vx > 0 for m in sub.collect(0.05)):
+            assert time.monotonic() < deadline, "a held forward key never reached T1_JOYSTICK"
             os.write(master, b"w")
-            sub.collect(0.05)
-        pressed = sub.collect(0.1)
-        assert pressed and all(m.vx > 0 for m in pressed)
+        deadline = time.monotonic() + 10.0
         os.write(master, b"\x1b[D")                                     # left arrow: turn counter-clockwise
-        assert any(m.yaw_rate > 0 for m in sub.collect(0.1))
-        sub.collect(KEY_RELEASE_TIMEOUT_S + 0.05)
-        assert all(m.vx == 0 and m.yaw_rate == 0 for m in sub.collect(0.2)), "no key for 0.25 s, still moving"
+        while not any(m.yaw_rate > 0 for m in sub.collect(0.05)):
+            assert time.monotonic() < deadline, "the left arrow never turned the command"
+        deadline = time.monotonic() + 10.0                             # no key for the release timeout: stop
+        while not any(m.vx == 0 and m.yaw_rate == 0 for m in sub.collect(KEY_RELEASE_TIMEOUT_S)):
+            assert time.monotonic() < deadline, "no key for the release timeout, still moving"
+        assert all(m.vx == 0 and m.yaw_rate == 0 for m in sub.collect(0.2)), "released, yet moving again"
         os.write(master, b"\x03")                                       # Ctrl-C: stops, sends a zero command
         assert proc.wait(5) == 0
         assert sub.msgs and all(m.sender_id == 5 and m.tag == tag(operator.key, contract.CH_JOYSTICK, signed_body(d))
