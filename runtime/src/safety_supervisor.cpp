@@ -38,6 +38,7 @@ constexpr bool gains_within(const JointArray& gains, float max) {
 static_assert(gains_within(kPrepareKp, T1_KP_MAX) && gains_within(kPrepareKd, T1_KD_MAX),
               "PREPARE gains must fit the motor command frame's kp/kd range");
 bool commanding(Mode m) { return m == Mode::kPrepare || m == Mode::kPolicy; }
+constexpr float kNoLimit = std::numeric_limits<float>::infinity();  // an interval's open end
 // The point of [lo, hi] nearest to x; an empty interval (lo > hi) is never passed in.
 float nearest_in(float x, float lo, float hi) { return std::min(std::max(x, lo), hi); }
 // [lo, hi] narrowed to [a, b] as far as it reaches: past it, only its end nearest to [a, b] is left.
@@ -265,16 +266,12 @@ void Supervisor::advance_watch(const StateView& s) {
     // R10: further past the range, or faster, than any joint of the model went in falls, getups and pushes.
     const bool outside = q < m.q_min_rad - kImpossibleRangeMarginRad || q > m.q_max_rad + kImpossibleRangeMarginRad;
     const float v_max = kImpossibleSpeedFactor * T1_CLASS_RANGES[m.motor_class].v_max_rads;  // [rad/s]
-    const float max_step = have_prev
-                               ? v_max * static_cast<float>(kLoopDtS) * static_cast<float>(s.joint_seq - w.last_seq) +
-                                     kImpossibleJumpQuanta * kQQuantumRad
-                               : std::numeric_limits<float>::infinity();
-    w.impossible = outside                              ? MotorWatch::kOutside
-                   : std::fabs(q - w.last_q) > max_step ? MotorWatch::kJump
-                                                        : MotorWatch::kPlausible;
+    const float gap_s = have_prev ? static_cast<float>(s.joint_seq - w.last_seq) * static_cast<float>(kLoopDtS) : 0.0f;
+    const float max_step = have_prev ? v_max * gap_s + kImpossibleJumpQuanta * kQQuantumRad : kNoLimit;
+    const bool jumped = std::fabs(q - w.last_q) > max_step;
+    w.impossible = outside ? MotorWatch::kOutside : jumped ? MotorWatch::kJump : MotorWatch::kPlausible;
     w.impossible_from = w.last_q;
-    w.impossible_ms =
-        have_prev ? static_cast<float>(s.joint_seq - w.last_seq) * static_cast<float>(kLoopDtS * 1e3) : 0.0f;
+    w.impossible_ms = gap_s * 1e3f;
     // R9: still under load, away from the stops that would explain it, while the body moves.
     const float tau = cmd_kp_[i] * (cmd_q_[i] - q) - cmd_kd_[i] * s.dq[i];  // dq_des = tau_ff = 0
     const bool loaded = std::fabs(tau) > frozen_encoder_torque_nm(m.torque_limit_nm);
@@ -317,8 +314,8 @@ int Supervisor::watch_motors(const StateView& s, int32_t* bit, char* why, std::s
     if (w.frozen_cycles > kFrozenEncoderMaxCycles) {
       *bit = fault_bit::kEncoderFrozen;
       std::snprintf(why, why_size,
-                    "motor %d (%s) encoder frozen: q bit-identical for %d replies under |PD torque| > %.1f N*m "
-                    "while the body turned",
+                    "motor %d (%s) encoder frozen: q bit-identical for %d replies under |PD torque| > %.1f N*m while "
+                    "the body turned",
                     motor, m.name, static_cast<int>(w.frozen_cycles),
                     static_cast<double>(frozen_encoder_torque_nm(m.torque_limit_nm)));
       return motor;
@@ -343,7 +340,7 @@ void Supervisor::clamp_targets(const StateView& s, const JointArray& kps, const 
     const float wanted = target[i];
     // 1. Rate: the allowed interval around the last target (without one, e.g. PREPARE's first tick
     //    where last_target_ = q, anything).
-    float lo = -std::numeric_limits<float>::infinity(), hi = std::numeric_limits<float>::infinity();
+    float lo = -kNoLimit, hi = kNoLimit;
     if (have_last_target_) {
       lo = last_target_[i] - cfg_.max_target_step_rad;
       hi = last_target_[i] + cfg_.max_target_step_rad;
