@@ -3,6 +3,8 @@ rising robot from the shipped keyframe getup expert to the joystick expert, and 
 from them. The slow tests roll the getup expert (CPU physics) and compile one joystick reset."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -10,6 +12,7 @@ import numpy as np
 import pytest
 
 from common import model as t1model
+from messages import contract
 from messages.contract import WAIST_SWITCH_HEIGHT_M
 from training import envs
 from training.envs.starts import handover, knockdown
@@ -48,27 +51,55 @@ def test_joystick_env_refuses_a_bad_handover_config(over, why):
         envs.make("joystick", config_overrides=over)
 
 
+def _group(**fields):
+    group = envs.default_config("joystick").handover
+    group.update({"bank_starts": BANK_STARTS, **fields})
+    return group
+
+
 @pytest.fixture(scope="module")
 def bank():
-    return handover.handover_bank(envs.make, GETUP, BANK_STARTS, seed=handover_seed())
+    return handover.handover_bank(envs.make, _group(getup_policy=GETUP))
 
 
-def handover_seed():
-    return int(envs.default_config("joystick").handover.seed)
-
-
-@pytest.mark.slow
-def test_bank_holds_the_states_where_the_waist_passes_the_switch(bank):
+def _assert_waist_at_the_switch(states, num_starts):
     mj = t1model.load_model()
     data = mujoco.MjData(mj)
     waist = mj.body("Waist").id
-    assert 1 <= bank.qpos.shape[0] <= BANK_STARTS
-    for qpos, qvel, targets in zip(*bank):
+    assert 1 <= states.qpos.shape[0] <= num_starts
+    for qpos, qvel, targets in zip(*states):
         data.qpos[:] = qpos
         mujoco.mj_kinematics(mj, data)
         assert WAIST_SWITCH_HEIGHT_M <= data.xpos[waist, 2] < WAIST_SWITCH_HEIGHT_M + 0.1   # the first tick past
         assert np.all(np.isfinite(qvel)) and np.all(np.isfinite(targets))
-    assert np.median(bank.qvel[:, 2]) > 0.0          # the keyframe expert's rise: the trunk still going up
+    assert np.median(states.qvel[:, 2]) > 0.0          # the rise: the trunk still going up
+
+
+@pytest.mark.slow
+def test_bank_holds_the_states_where_the_waist_passes_the_switch(bank):
+    _assert_waist_at_the_switch(bank, BANK_STARTS)
+
+
+# the keyframe chain's members as the campaign keeps them (newest checkpoints)
+CAMPAIGN = Path("training/campaigns/getup_keyframe")
+CHAIN = {role: str(sorted((CAMPAIGN / stage / "checkpoints").glob("*"))[-1])
+         for role, stage in (("roll", "roll_side"), ("rise", "rise_rolled"), ("stand", "stand_energy"))}
+
+
+@pytest.mark.slow
+def test_the_keyframe_chain_hands_over_from_its_stand_at_the_switch():
+    """With rise_policy set, the bank is the chain's: its stand rolled from the kneels its rise hands over."""
+    states = handover.handover_bank(envs.make, _group(getup_policy=CHAIN["stand"], rise_policy=CHAIN["rise"],
+                                                      roll_policy=CHAIN["roll"], bank_starts=4))
+    _assert_waist_at_the_switch(states, 4)
+    # handed over on the way up from the kneel: the trunk already above the kneel gate's height
+    assert np.all(states.qpos[:, 2] > contract.KNEEL_GATE_HEIGHT_M)
+
+
+def test_a_chain_bank_refuses_a_bad_up_error():
+    with pytest.raises(ValueError, match="handover.up_error"):
+        handover.handover_bank(envs.make, _group(getup_policy=CHAIN["stand"], rise_policy=CHAIN["rise"],
+                                                 up_error=2.5))
 
 
 @pytest.mark.slow

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from common import events
 from common.artifact import read_artifact, stitched_teacher
 from training import cli
 from training.core import checkpoints
@@ -66,6 +67,19 @@ def test_every_recipe_runs_to_its_policy_at_toy_size(toy_root, name):
     if recipe.stages[-1].kind != "random_init":
         assert manifest["provenance"]["recipe"] == {"name": name, "stage": recipe.stages[-1].name,
                                                     "sha256": R.content_hash(name)}
+
+
+@pytest.mark.slow
+def test_the_kneeling_joystick_expert_starts_from_the_shipped_one_on_the_chains_handovers(toy_root):
+    """joystick_kneeling: a fine-tune of the shipped artifact (at its own network size, even at toy scale), its
+    hand-over starts rolled by the keyframe chain's stand from the kneels its rise reaches."""
+    recipe = R.load("joystick_kneeling")
+    run = recipe_runner.stage_dirs(toy_root, recipe, recipe.stages[0])[-1]
+    state = json.loads((run / checkpoints.RUN_STATE).read_text())
+    assert state["init"] == recipe.stages[0].init == "policies/joystick_handover/joystick_handover.safetensors"
+    assert state["ppo_config"]["policy_hidden_layer_sizes"] == [512, 256, 128]
+    handover = state["env_config"]["handover"]
+    assert handover["rise_policy"] and handover["roll_policy"] and handover["up_error"] == events.KNEEL_BAND_UP_ERROR
 
 
 @pytest.mark.slow
@@ -201,6 +215,10 @@ def test_recipe_errors_name_the_problem(capsys, tmp_path):
     assert cli.main(["recipe"]) == 2
     with pytest.raises(ValueError, match="init 'later' is not an earlier stage"):
         R.Recipe("x", "x", "", (R.Stage("a", init="later"), R.Stage("later")))
+    shipped = "policies/joystick/joystick.safetensors"
+    R.Recipe("x", "x", "", (R.Stage("a", init=shipped, init_artifact=True),))      # a fine-tune of what ships
+    with pytest.raises(ValueError, match="with init_artifact, a shipped artifact under policies/"):
+        R.Recipe("x", "x", "", (R.Stage("a", init=shipped),))
     with pytest.raises(ValueError, match="a teacher is getup and joystick"):
         R.Recipe("x", "x", "", (R.Stage("a", kind="distill"),))
     with pytest.raises(ValueError, match=r"roll, rise and stand \(the keyframe chain\)"):

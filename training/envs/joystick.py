@@ -61,7 +61,7 @@ class Joystick(Walking):
         if h.prob > 0:
             if not h.getup_policy:
                 raise ValueError("handover.prob > 0 needs handover.getup_policy (a getup artifact or checkpoint)")
-            bank = handover.handover_bank(self._make_env, h.getup_policy, int(h.bank_starts), int(h.seed))
+            bank = handover.handover_bank(self._make_env, h)
             self._handover = jax.tree.map(jnp.asarray, bank)
 
     # ------------------------------------------------------------------ reset / step

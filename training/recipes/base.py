@@ -6,7 +6,8 @@ A stage is one PPO run (`train`), one DAgger run (`distill`: the student from ex
 campaign with the rise planner as the expert (`imitation`: training/imitation/) or the seeded random init of
 the untrained placeholder. `init` names the stage of the same recipe whose newest checkpoint (an imitation
 campaign: its learner's artifact) it starts from (a fine-tune); `init` may also be `@RECIPE/STAGE`: that
-stage of another recipe, run into the same runs root. Policy
+stage of another recipe, run into the same runs root; with `init_artifact`, also a shipped artifact under policies/
+(a fine-tune of what ships, whose own run is not kept). Policy
 references in a stage (`teacher`, or config values) are paths under policies/ or `@RECIPE/STAGE`, the
 artifact that stage exported.
 
@@ -34,6 +35,7 @@ TEACHERS = ({"getup", "joystick"}, set(KEYFRAME_STAGES), {*KEYFRAME_STAGES, "joy
 
 KINDS = ("ppo", "distill", "imitation", "random_init")
 REF_PREFIX = "@"
+SHIPPED_PREFIX = "policies/"
 
 
 @dataclass(frozen=True)
@@ -42,7 +44,9 @@ class Stage:
     kind: str = "ppo"
     task: str = ""                 # ppo: a task of training/envs (envs.TASKS); distill: the env (default unified)
     steps: int = 0                 # ppo: env steps of this stage; distill: DAgger phases; imitation: rounds
-    init: str | None = None        # the stage to fine-tune from (this recipe's, or @RECIPE/STAGE); None = scratch
+    # the stage to fine-tune from (this recipe's, or @RECIPE/STAGE; with init_artifact also a shipped artifact
+    # policies/…); None = scratch
+    init: str | None = None
     # the diff: {"env.x": v, "ppo.y": v, "bc.z": v}; imitation: {"dagger.x": v, "planner.y": v}
     config: Mapping[str, Any] = field(default_factory=dict)
     # distill: {"getup": ref, "joystick": ref} or {"roll": ref, "rise": ref, "stand": ref}; ppo: the same for a
@@ -92,8 +96,10 @@ class Recipe:
         for i, s in enumerate(self.stages):
             if s.kind not in KINDS:
                 raise ValueError(f"recipe {self.name}, stage {s.name}: kind {s.kind!r} is not one of {KINDS}")
-            if s.init is not None and not s.init.startswith(REF_PREFIX) and s.init not in names[:i]:
-                raise ValueError(f"recipe {self.name}, stage {s.name}: init {s.init!r} is not an earlier stage")
+            shipped = s.init_artifact and s.init is not None and s.init.startswith(SHIPPED_PREFIX)
+            if s.init is not None and not s.init.startswith(REF_PREFIX) and s.init not in names[:i] and not shipped:
+                raise ValueError(f"recipe {self.name}, stage {s.name}: init {s.init!r} is not an earlier stage (or, "
+                                 f"with init_artifact, a shipped artifact under {SHIPPED_PREFIX})")
             if s.advance_at is not None and (s.kind != "ppo" or len(s.advance_at) != 2):
                 raise ValueError(f"recipe {self.name}, stage {s.name}: advance_at is a PPO stage's (metric, value)")
             if s.end_at is not None and (s.kind not in ("ppo", "distill") or not 0 < int(s.end_at) <= int(s.steps)):

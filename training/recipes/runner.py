@@ -120,7 +120,12 @@ def ended_artifact(run_dir: Path, recipe: R.Recipe, stage: R.Stage) -> Path:
 
 def _policy_path(policy: str, recipe: R.Recipe, root: Path) -> Path:
     """The artifact of the stage `policy` names (at its end): what an imitation stage's rounds are rolled out
-    by, or what a PPO stage with init_artifact starts from."""
+    by, or what a PPO stage with init_artifact starts from (which may also be a shipped artifact)."""
+    if policy.startswith(R.SHIPPED_PREFIX):
+        path = checkpoints.repo_path(policy)
+        if not path.is_file():
+            raise FileNotFoundError(f"{policy}: no such shipped artifact")
+        return path
     run_dir = _run_dir(policy, recipe, root)
     recipe, stage = _stage_of(policy, recipe)
     return ended_artifact(run_dir, recipe, stage)
@@ -242,6 +247,9 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         config.update({f"ppo.teacher.{k}": checkpoints.repo_relative(resolve_ref(v, root))
                        for k, v in s.teacher.items()})   # its run state then reads the same on any clone
     overrides = _overrides(config, toy)
+    if toy and s.init_artifact and s.init.startswith(R.SHIPPED_PREFIX):   # a shipped learner keeps its size
+        hidden = [w.shape[0] for w, _ in read_artifact(init)[0][:-1]]
+        overrides.append(f"ppo.policy_hidden_layer_sizes={hidden!r}")
     name = artifact_name(recipe, s)
     if s.kind == "random_init":
         out = root / recipe.name / s.name

@@ -76,7 +76,7 @@ def superseded(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
     campaign may keep only the newest stage of a chain), and no imitation stage still to run rolls out by it."""
     for later in recipe.stages[recipe.stages.index(stage) + 1:]:
         chain, s = set(), later
-        while s.init and not s.init.startswith(R.REF_PREFIX):
+        while s.init and not s.init.startswith((R.REF_PREFIX, R.SHIPPED_PREFIX)):
             chain.add(s.init)
             s = recipe.stage(s.init)
         if stage.name in chain and stage_complete(root, recipe, later):
