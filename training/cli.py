@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from common.events import LYING_SIDES
 from messages import contract
 
 # = training.envs.TASKS (checked when the envs load)
@@ -283,6 +284,31 @@ def _add_evaluate(sub) -> None:
     p.set_defaults(func=_cmd_evaluate)
 
 
+def _cmd_strip(args, command: str) -> int:
+    from training.evaluation import strip  # lazy: keeps JAX out of --help
+    path, seed, labels = strip.getup_strip(args.policy, args.out, lying=args.lying, first_seed=args.first_seed,
+                                           seconds=args.seconds, frames=args.frames,
+                                           handover_up_error=args.handover_up_error)
+    print(f"{path}: fallen seed {seed} ({args.lying.replace('_', ' ')}), frames at {', '.join(labels)}")
+    return 0
+
+
+def _add_strip(sub) -> None:
+    p = sub.add_parser("strip", help="a frame strip of one getup from a held-back fallen start (a card's figure)")
+    p.add_argument("--policy", required=True, help="getup artifact, GETUP,UPRIGHT, or a keyframe chain (its folder "
+                   "or chain:ROLL,RISE,STAND)")
+    p.add_argument("--lying", choices=LYING_SIDES, default="on_back",
+                   help="the first fallen seed lying this way is drawn")
+    p.add_argument("--first-seed", type=int, default=9500, help="where the search for that seed starts (default: "
+                   "the held-back seeds' first)")
+    p.add_argument("--seconds", type=float, default=15.0, help="episode length [s]")
+    p.add_argument("--frames", type=int, default=8)
+    p.add_argument("--handover-up-error", type=float, metavar="E", help="a chain's rise → stand hand-over, "
+                   "‖u − e_z‖ < E (default: its folder's, or §4.8's gate)")
+    p.add_argument("--out", required=True, help="the strip's PNG")
+    p.set_defaults(func=_cmd_strip)
+
+
 def _add_recipe(sub) -> None:
     p = sub.add_parser("recipe", help="run a named recipe (training/recipes/): a shipped policy's chain of stages")
     p.add_argument("name", nargs="?", help="recipe name (see --list)")
@@ -306,7 +332,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="python -m training", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="command", required=True)
     for add in (_add_train, _add_teacher, _add_distill, _add_export_phase, _add_export_checkpoint, _add_evaluate,
-                _add_recipe):
+                _add_strip, _add_recipe):
         add(sub)
     return ap
 
