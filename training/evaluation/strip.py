@@ -9,6 +9,8 @@ import math
 from pathlib import Path
 
 import numpy as np
+import PIL.Image
+import PIL.ImageDraw
 
 from common.render import render_frames, tracking_camera  # first: it picks the offscreen GL before mujoco loads
 
@@ -68,8 +70,6 @@ def getup_strip(policy_path: str, out_png, lying: str = "on_back", first_seed: i
                 frames: int = 8, handover_up_error: float | None = None) -> tuple[Path, int, list[str]]:
     """Roll out `policy_path` (artifact, GETUP,UPRIGHT or a chain) from the first held-back fallen start lying
     `lying` and draw `frames` moments of it into out_png; returns (path, seed, frame labels)."""
-    import PIL.Image
-    import PIL.ImageDraw
     checkpoints.jax_setup()
     if frames < 4:
         raise ValueError(f"--frames {frames}: at least 4 (the start, the kneel, the stand-up and after it)")
