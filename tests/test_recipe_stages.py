@@ -14,6 +14,7 @@ from training.core import checkpoints
 from training.imitation import campaign as imitation
 from training.imitation import config as imitation_config
 from training.recipes import base as R
+from training.recipes import campaign
 from training.recipes import runner as recipe_runner
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -99,8 +100,8 @@ def test_the_campaign_keeps_no_stage_that_saving_it_would_drop():
     recipe = R.load("getup_keyframe")
     for folder in sorted(p for p in CAMPAIGN.iterdir() if p.is_dir() and p.name != "demos"):
         stage = recipe.stage(folder.name.split(".")[0])
-        assert not recipe_runner.droppable(CAMPAIGN.parent, recipe, stage), f"{folder.name} is superseded"
-    assert recipe_runner.droppable(CAMPAIGN.parent, recipe, recipe.stage("rise_best"))
+        assert not campaign.droppable(CAMPAIGN.parent, recipe, stage), f"{folder.name} is superseded"
+    assert campaign.droppable(CAMPAIGN.parent, recipe, recipe.stage("rise_best"))
 
 
 def _distill_run(root: Path, recipe: str, stage: str, phases: list[int], state: dict) -> Path:

@@ -17,6 +17,7 @@ from common.artifact import read_artifact, stitched_teacher
 from training import cli
 from training.core import checkpoints
 from training.recipes import base as R
+from training.recipes import campaign
 from training.recipes import runner as recipe_runner
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -320,10 +321,10 @@ def test_a_kept_run_state_names_other_stages_by_their_kept_runs(tmp_path):
                                  "ppo_config": {"teacher": {"stand": "runs/getup_keyframe/stand/s.safetensors",
                                                             "bc_weight": 3.0}},
                                  "init": f"{runs}/rise/checkpoints/000000000010"}))
-    recipe_runner._refer_to_campaign(state, runs, kept)
+    campaign._refer_to_campaign(state, runs, kept)
     saved = json.loads(state.read_text())
     assert saved["env_config"]["rolled_starts"]["roll_policy"] == "training/campaigns/x/roll_side"
-    recipe_runner._refer_to_campaign(state, checkpoints.REPO_ROOT / "runs" / "getup_keyframe", kept)
+    campaign._refer_to_campaign(state, checkpoints.REPO_ROOT / "runs" / "getup_keyframe", kept)
     teacher = json.loads(state.read_text())["ppo_config"]["teacher"]
     assert teacher == {"stand": "training/campaigns/x/stand", "bc_weight": 3.0}   # a repository-relative name too
     assert saved["env_config"]["upright"] == "policies/joystick/joystick.safetensors"

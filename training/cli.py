@@ -16,7 +16,7 @@ from messages import contract
 
 # = training.envs.TASKS (checked when the envs load)
 TASKS = ("joystick", "getup", "getup_kneel", "getup_roll", "getup_stand", "getup_baseline", "unified")
-RUNS_DIR = "runs"   # experiments' default home (ignored by git): = training.recipes.runner.RUNS_ROOT
+RUNS_DIR = "runs"   # experiments' default home (ignored by git): = training.recipes.campaign.RUNS_ROOT
 
 
 # ---------------------------------------------------------------- subcommands

@@ -161,7 +161,7 @@ def _module_file(name: str) -> Path:
 
 
 # the recipes package's modules that are no recipe: this file and the runner
-NOT_RECIPES = ("base", "runner", "stages")   # the machinery beside the recipes
+NOT_RECIPES = ("base", "campaign", "runner", "stages")   # the machinery beside the recipes
 
 
 def names() -> list[str]:
