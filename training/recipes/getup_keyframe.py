@@ -14,7 +14,8 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
   (rise_rolled).
 - stage 2, the stand from the kneel (task getup_stand) along a reverse curriculum of starts up the lunge, then
   from the kneels the chain's rise really hands over (stand_band).
-- the seed's energy fine-tune (§4.7) of each member: stand_energy, rise_energy, roll_energy.
+- the seed's energy fine-tune (§4.7) of each member: stand_energy, rise_energy, roll_energy; then the stand at five
+  times the cost (stand_quiet: it still chattered while standing).
 The runtime's target rule R6 is in every stage.
 The members ship as a switched chain, not as one network: policies/getup_keyframe/ holds the three artifacts and
 chain.json (common/keyframe_chain.py), which names them and the rise → stand hand-over; common/events.keyframe_stage
