@@ -6,7 +6,7 @@ from training.recipes.base import Recipe, Stage
 JOYSTICK = "policies/joystick_handover/joystick_handover.safetensors"
 # the chain as it ships (getup_keyframe's members); the rise hands over to the stand at the kneel band (the default
 # of env.handover.up_error), as in the student's labels
-CHAIN = {"env.handover.prob": 0.5, "env.handover.getup_policy": "@getup_keyframe/stand_energy",
+CHAIN = {"env.handover.prob": 0.5, "env.handover.getup_policy": "@getup_keyframe/stand_still",
          "env.handover.rise_policy": "@getup_keyframe/rise_energy",
          "env.handover.roll_policy": "@getup_keyframe/roll_energy"}
 # joystick_handover's rewards (the joystick recipe's sharp yaw-rate tracking)
