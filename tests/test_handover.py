@@ -83,7 +83,7 @@ def test_bank_holds_the_states_where_the_waist_passes_the_switch(bank):
 # the keyframe chain's members as the campaign keeps them (newest checkpoints)
 CAMPAIGN = Path("training/campaigns/getup_keyframe")
 CHAIN = {role: str(sorted((CAMPAIGN / stage / "checkpoints").glob("*"))[-1])
-         for role, stage in (("roll", "roll_side"), ("rise", "rise_rolled"), ("stand", "stand_energy"))}
+         for role, stage in (("roll", "roll_side"), ("rise", "rise_rolled"), ("stand", "stand_still"))}
 
 
 @pytest.mark.slow

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from common import events
+from common import events, keyframe_chain
 from common.artifact import read_artifact, stitched_teacher
 from training import cli
 from training.core import checkpoints
@@ -199,10 +199,12 @@ def test_recipes_are_listed_with_their_policies(capsys):
 
 def test_every_shipped_policy_has_a_recipe_and_a_card():
     shipped = sorted(p.name for p in (ROOT / "policies").iterdir() if p.is_dir())
-    policies = {R.load(n).policy for n in R.names()}
+    recipes = {R.load(n).policy: R.load(n) for n in R.names()}
     for name in shipped:
-        assert name in policies, f"policies/{name}/ has no recipe in training/recipes/"
-        assert (ROOT / "policies" / name / f"{name}.safetensors").exists()
+        assert name in recipes, f"policies/{name}/ has no recipe in training/recipes/"
+        # an artifact, or a keyframe chain's manifest beside its members
+        expected = keyframe_chain.MANIFEST if recipes[name].chain else f"{name}.safetensors"
+        assert (ROOT / "policies" / name / expected).exists(), f"policies/{name}/ has no {expected}"
         assert (ROOT / "policies" / name / checkpoints.CARD).exists(), f"policies/{name}/ has no CARD.md"
 
 
@@ -294,13 +296,13 @@ def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():
 
 
 def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(tmp_path, monkeypatch):
-    """getup_keyframe keeps each member's newest stage (stand_energy, rise_energy, roll_energy), the stages their
+    """getup_keyframe keeps each member's newest stage (stand_still, rise_energy, roll_energy), the stages their
     start banks read and its stage-1 DAgger campaign: on a fresh runs root --resume restores them, so complete
     stages and the stages they started from are not trained again (the kept campaign is complete: none runs)."""
     ran = []
     monkeypatch.setattr(recipe_runner, "_run_stage", lambda recipe, s, *a, **k: ran.append(s.name))
     assert recipe_runner.run("getup_keyframe", root=tmp_path, resume=True, progress=False)
-    for kept in ("stand_energy", "rise_energy", "roll_energy", "rise_rolled", "roll_side"):
+    for kept in ("stand_still", "rise_energy", "roll_energy", "rise_rolled", "roll_side"):
         assert (tmp_path / "getup_keyframe" / kept).is_dir(), kept
     assert (tmp_path / "getup_keyframe" / "dagger" / "data").is_dir()
     assert ran == []
