@@ -56,6 +56,10 @@ def test_a_stage_ends_at_its_end_at_checkpoint_however_far_its_run_went(tmp_path
     recipe_runner.save_campaign("r", tmp_path, tmp_path / "campaigns")
     kept = tmp_path / "campaigns" / "r" / "long" / checkpoints.CHECKPOINT_DIR
     assert [p.name for p in kept.iterdir()] == [f"{100:012d}"]
+    # a chain's evaluation report kept beside the run's files stays when the campaign is saved again
+    (kept.parent / "chain_report.md").write_text("1000 seeds")
+    recipe_runner.save_campaign("r", tmp_path, tmp_path / "campaigns")
+    assert (kept.parent / "chain_report.md").read_text() == "1000 seeds" and kept.is_dir()
     fresh = tmp_path / "fresh"
     recipe_runner.restore_campaign(recipe, long, fresh, tmp_path / "campaigns")
     assert recipe_runner.stage_complete(fresh, recipe, long)

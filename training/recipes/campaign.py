@@ -37,12 +37,15 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
                       "itself): kept")
                 saved.append(dest)
                 continue
+            # what the campaign folder holds beside the run's files (a chain's evaluation report, its figures) stays
+            extra = {f.name: f.read_bytes() for f in dest.glob("*") if f.is_file() and not (run_dir / f.name).exists()}
             if dest.exists():
                 shutil.rmtree(dest)
             if drop:
                 continue
             if s.kind == "imitation":
                 shutil.copytree(run_dir, dest)
+                _write(dest, extra)
                 saved.append(dest)
                 continue
             dest.mkdir(parents=True)
@@ -56,8 +59,14 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
             if ended is not None or kept:     # the checkpoint the stage ended at, else its newest
                 chosen = ended or kept[-1]
                 shutil.copytree(chosen, dest / checkpoints.CHECKPOINT_DIR / chosen.name)
+            _write(dest, extra)
             saved.append(dest)
     return saved
+
+
+def _write(folder: Path, files: dict[str, bytes]) -> None:
+    for name, data in files.items():
+        (folder / name).write_bytes(data)
 
 
 def _refer_to_campaign(run_state: Path, runs: Path, kept: Path) -> None:
