@@ -314,20 +314,21 @@ def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(
 
 
 def test_a_kept_run_state_names_other_stages_by_their_kept_runs(tmp_path):
-    """A setting that names another stage's file under runs/ (a start bank's policy, a teacher) names that stage's
-    kept run in the campaign, repository-relative: runs/ is not on another clone; settings outside runs/ stay."""
-    runs, kept = tmp_path / "runs" / "getup_keyframe", checkpoints.REPO_ROOT / "training" / "campaigns" / "x"
+    """A setting that names another stage's file under runs/ (a start bank's policy, a teacher; of this recipe or
+    another) names that stage's kept run in the campaign, repository-relative: runs/ is not on another clone;
+    settings outside runs/ stay."""
+    runs, kept = tmp_path / "runs" / "getup_keyframe", checkpoints.REPO_ROOT / "training" / "campaigns"
     state = tmp_path / "run_state.json"
     state.write_text(json.dumps({"env_config": {"rolled_starts": {"roll_policy": f"{runs}/roll_side/a.safetensors"},
                                                 "upright": "policies/joystick/joystick.safetensors"},
                                  "ppo_config": {"teacher": {"stand": "runs/getup_keyframe/stand/s.safetensors",
                                                             "bc_weight": 3.0}},
                                  "init": f"{runs}/rise/checkpoints/000000000010"}))
-    campaign._refer_to_campaign(state, runs, kept)
+    campaign._refer_to_campaign(state, runs.parent, kept)
     saved = json.loads(state.read_text())
-    assert saved["env_config"]["rolled_starts"]["roll_policy"] == "training/campaigns/x/roll_side"
-    campaign._refer_to_campaign(state, checkpoints.REPO_ROOT / "runs" / "getup_keyframe", kept)
+    assert saved["env_config"]["rolled_starts"]["roll_policy"] == "training/campaigns/getup_keyframe/roll_side"
+    campaign._refer_to_campaign(state, checkpoints.REPO_ROOT / "runs", kept)
     teacher = json.loads(state.read_text())["ppo_config"]["teacher"]
-    assert teacher == {"stand": "training/campaigns/x/stand", "bc_weight": 3.0}   # a repository-relative name too
+    assert teacher == {"stand": "training/campaigns/getup_keyframe/stand", "bc_weight": 3.0}   # repository-relative
     assert saved["env_config"]["upright"] == "policies/joystick/joystick.safetensors"
     assert saved["init"] == f"{runs}/rise/checkpoints/000000000010"      # provenance, as it ran

@@ -53,7 +53,7 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
                 if (run_dir / f).exists():
                     shutil.copy2(run_dir / f, dest / f)
             if (dest / checkpoints.RUN_STATE).exists():
-                _refer_to_campaign(dest / checkpoints.RUN_STATE, root / name, campaigns / name)
+                _refer_to_campaign(dest / checkpoints.RUN_STATE, root, campaigns)
             kept = checkpoints.list_checkpoints(run_dir)
             ended = end_checkpoint(run_dir, s) if s.kind == "ppo" else None
             if ended is not None or kept:     # the checkpoint the stage ended at, else its newest
@@ -69,18 +69,19 @@ def _write(folder: Path, files: dict[str, bytes]) -> None:
         (folder / name).write_bytes(data)
 
 
-def _refer_to_campaign(run_state: Path, runs: Path, kept: Path) -> None:
-    """A kept run state's settings that name a file of another stage's run (runs/NAME/<stage>/…, absolute or
-    repository-relative: a start bank's policy, a teacher) name that stage's kept run instead (repository-relative):
-    runs/ is not on another clone."""
+def _refer_to_campaign(run_state: Path, runs: Path, campaigns: Path) -> None:
+    """A kept run state's settings that name a file of a stage's run (runs/RECIPE/<stage>/…, absolute or
+    repository-relative; this recipe's or another's: a start bank's policy, a teacher) name that stage's kept run
+    instead (campaigns/RECIPE/<stage>, repository-relative): runs/ is not on another clone."""
     def point(value):
         if isinstance(value, dict):
             return {k: point(v) for k, v in value.items()}
         if isinstance(value, list):
             return [point(v) for v in value]
         path = checkpoints.repo_path(value).resolve() if isinstance(value, str) and value else None
-        if path is not None and path.is_relative_to(runs.resolve()) and path != runs.resolve():
-            return checkpoints.repo_relative(kept / path.relative_to(runs.resolve()).parts[0])
+        if path is not None and path.is_relative_to(runs.resolve()) and len(path.relative_to(runs.resolve()).parts) > 1:
+            recipe, stage = path.relative_to(runs.resolve()).parts[:2]
+            return checkpoints.repo_relative(campaigns / recipe / stage)
         return value
     state = json.loads(run_state.read_text())
     state = {k: point(v) if k in ("env_config", "ppo_config") else v for k, v in state.items()}
