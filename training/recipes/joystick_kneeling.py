@@ -4,8 +4,8 @@ switch: the lunge out of the kneel, which a squat-up never makes."""
 from training.recipes.base import Recipe, Stage
 
 JOYSTICK = "policies/joystick_handover/joystick_handover.safetensors"
-# the chain as it ships (getup_keyframe's members); the rise hands over to the stand at the kneel band (the default
-# of env.handover.up_error), as in the student's labels
+# the members the getup_keyframe recipe's chain names; the rise hands over to the stand at the kneel band (the
+# default of env.handover.up_error), as in the student's labels
 CHAIN = {"env.handover.prob": 0.5, "env.handover.getup_policy": "@getup_keyframe/stand_still",
          "env.handover.rise_policy": "@getup_keyframe/rise_energy",
          "env.handover.roll_policy": "@getup_keyframe/roll_energy"}
