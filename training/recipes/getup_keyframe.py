@@ -61,6 +61,11 @@ ROLL_SIDE = {**ROLL, "env.fallen.side_weights": [0, 1, 4]}
 # starts face down, and its on-back misses are rises that fail from the roll's hand-over (period 3)
 RISE_ROLLED = {**RISE_BEST, "env.rolled_starts.prob": 0.3, "env.rolled_starts.roll_policy": "@getup_keyframe/roll_side",
                "env.fallen.side_weights": [1, 0, 0]}
+# the rise's energy fine-tune lies still after its first miss in 3 % of held-back falls (its next attempt pays only
+# seconds later, lying still at once; the rise before it tries again): a fifth of its starts where the rise has just
+# failed, so that trying again is paid from an episode's first step (ships as a chain, period 3)
+RETRY = {"env.fell_back.prob": 0.2, "env.fell_back.rise_policy": "@getup_keyframe/rise_rolled",
+         "env.fell_back.roll_policy": "@getup_keyframe/roll_side", "env.demo_starts.prob": 0.3}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
 # half the stand's starts where the chain's rise hands over (the kneel band's first tick, or §4.8's gate's), with
 # the rise's velocities: the stand fell from 2.9° kneels it had never started from (a hand-over at the band: 0.86)
@@ -118,6 +123,8 @@ RECIPE = Recipe(
               config={**STAND_BAND, **QUIET, "ppo.value_warmup_steps": 0}),
         Stage("rise_energy", task="getup_kneel", steps=3_010_560, end_at=1_208_320, init="rise_rolled",
               config={**RISE_ROLLED, **ENERGY_COST}),
+        Stage("rise_retry", task="getup_kneel", steps=3_010_560, init="rise_rolled",
+              config={**RISE_ROLLED, **ENERGY_COST, **RETRY}),
         Stage("roll_energy", task="getup_roll", steps=1_505_280, end_at=921_600, init="roll_side",
               config={**ROLL_SIDE, **ENERGY_COST}),
     ),

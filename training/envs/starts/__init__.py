@@ -12,6 +12,7 @@ are LANDINGS: each a module's bank of where the joystick expert, pushed or walke
                     distillation reads them too)
   rolled.py         where the keyframe chain's roll hands over to the face-down rise (the kneel task's)
   rise_kneels.py    where the chain's rise hands over to the stand, at the kneel band or §4.8's gate (the stand task's)
+  fell_back.py      where the chain's rise has just failed an attempt (the kneel task's: try again)
   knockdown.py      the joystick expert knocked over by a velocity push, mid-fall
   push.py           the loop's push test (a torso impulse), mid-fall; the unified env's torso shove
   wall_approach.py  the low-wall course's approaches, and where the joystick expert falls over a wall
@@ -51,6 +52,8 @@ SOURCES: tuple[StartSource, ...] = (
                 "folder"),
     StartSource(("getup_kneel",), "rolled_starts", "training.envs.starts.rolled", "rolled_config", "rolled_starts",
                 "roll_policy"),
+    StartSource(("getup_kneel",), "fell_back", "training.envs.starts.fell_back", "fell_back_config",
+                "fell_back_starts", "rise_policy"),
     StartSource(("getup_stand",), "rise_kneels", "training.envs.starts.rise_kneels", "rise_kneels_config", "",
                 "rise_policy"),
     StartSource(("joystick",), "handover", "training.envs.starts.handover", "handover_config", "", "getup_policy"),

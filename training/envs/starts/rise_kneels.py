@@ -37,6 +37,18 @@ def rise_kneels_bank(make_env, group, prepare_s: float) -> tuple[np.ndarray, np.
                       int(group.seed), prepare_s, up_errors)
 
 
+def rise_env(make_env, roll_policy: str, num_starts: int, seed: int, prepare_s: float):
+    """The kneel task (CPU physics, no observation noise) whose starts are where the chain's rise begins: face-down
+    fallen starts (seeds seed …) and, with `roll_policy`, as many of the roll's hand-overs (seeds after them)."""
+    overrides = {"backend": "cpu", "start_probs": [1.0, 0.0, 0.0], "fallen.bank_starts": num_starts,
+                 "fallen.seed": seed, "fallen.prepare_s": prepare_s, "fallen.side_weights": [1, 0, 0],
+                 "obs_noise_scale": 0.0}
+    if roll_policy:
+        overrides.update({"rolled_starts.prob": ROLLED_SHARE, "rolled_starts.roll_policy": roll_policy,
+                          "rolled_starts.bank_starts": num_starts, "rolled_starts.seed": seed + num_starts})
+    return make_env("getup_kneel", config_overrides=overrides)
+
+
 @functools.lru_cache(maxsize=2)
 def kneel_bank(make_env, rise_policy: str, roll_policy: str, num_starts: int, seed: int, prepare_s: float,
                up_errors: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -44,13 +56,7 @@ def kneel_bank(make_env, rise_policy: str, roll_policy: str, num_starts: int, se
     (seeds seed … seed + num_starts − 1, after a PREPARE ramp of prepare_s [s]). Cached (read-only arrays)."""
     if num_starts < 1:
         raise ValueError(f"rise_kneels: bank_starts must be ≥ 1, got {num_starts}")
-    overrides = {"backend": "cpu", "start_probs": [1.0, 0.0, 0.0], "fallen.bank_starts": num_starts,
-                 "fallen.seed": seed, "fallen.prepare_s": prepare_s, "fallen.side_weights": [1, 0, 0],
-                 "obs_noise_scale": 0.0}
-    if roll_policy:
-        overrides.update({"rolled_starts.prob": ROLLED_SHARE, "rolled_starts.roll_policy": roll_policy,
-                          "rolled_starts.bank_starts": num_starts, "rolled_starts.seed": seed + num_starts})
-    env = make_env("getup_kneel", config_overrides=overrides)
+    env = rise_env(make_env, roll_policy, num_starts, seed, prepare_s)
     qpos, qvel = [], []
     for up_error in up_errors:
         def at_handover(info, bound=up_error):
