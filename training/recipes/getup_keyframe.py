@@ -57,6 +57,9 @@ ROLL = {"ppo.policy_std_scale": 0.5, "env.fallen.bank_starts": 512, "env.fallen.
         "env.fallen.side_weights": [0, 1, 1]}
 # the side starts (a twentieth of the bank) are where the chain's roll fails: weighted four times
 ROLL_SIDE = {**ROLL, "env.fallen.side_weights": [0, 1, 4]}
+# face-down starts too: a robot lying face down but short of the rise's hand-over (forward axis between −0.5 and
+# −0.8 down) starts with the roll, which had never seen such a start and lay still (3 of 1000 held-back falls)
+ROLL_PRONE = {**ROLL_SIDE, "env.fallen.side_weights": [1, 1, 4]}
 # the rise from where the roll hands it over as well as from face-down falls: in the chain the rise only ever
 # starts face down, and its on-back misses are rises that fail from the roll's hand-over (period 3)
 RISE_ROLLED = {**RISE_BEST, "env.rolled_starts.prob": 0.3, "env.rolled_starts.roll_policy": "@getup_keyframe/roll_side",
@@ -127,6 +130,8 @@ RECIPE = Recipe(
               config={**RISE_ROLLED, **ENERGY_COST, **RETRY}),
         Stage("roll_energy", task="getup_roll", steps=1_505_280, end_at=921_600, init="roll_side",
               config={**ROLL_SIDE, **ENERGY_COST}),
+        Stage("roll_prone", task="getup_roll", steps=1_505_280, init="roll_energy",
+              config={**ROLL_PRONE, **ENERGY_COST}),
     ),
     # what ships (recipe --ship): the energy-tuned members, the stand the quiet one; the rise hands over at §4.8's
     # gate, where they stand most (LESSONS: ships as a chain, periods 1 and 2)
