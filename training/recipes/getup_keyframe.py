@@ -15,7 +15,9 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
 - stage 2, the stand from the kneel (task getup_stand) along a reverse curriculum of starts up the lunge, then
   from the kneels the chain's rise really hands over (stand_band).
 - the seed's energy fine-tune (§4.7) of each member: stand_energy, rise_energy, roll_energy; then the stand at five
-  times the cost (stand_quiet, stand_still: it still chattered while standing).
+  times the cost (stand_quiet, stand_still: it still chattered while standing); the rise's again from rise_rolled
+  with a fifth of its starts where it has just failed (rise_retry: rise_energy lay still after a miss); the roll's
+  with face-down starts too (roll_prone: some lie face down short of the rise's hand-over).
 The runtime's target rule R6 is in every stage.
 The members ship as a switched chain, not as one network: policies/getup_keyframe/ holds the three artifacts and
 chain.json (common/keyframe_chain.py), which names them and the rise → stand hand-over; common/events.keyframe_stage
@@ -64,9 +66,9 @@ ROLL_PRONE = {**ROLL_SIDE, "env.fallen.side_weights": [1, 1, 4]}
 # starts face down, and its on-back misses are rises that fail from the roll's hand-over (period 3)
 RISE_ROLLED = {**RISE_BEST, "env.rolled_starts.prob": 0.3, "env.rolled_starts.roll_policy": "@getup_keyframe/roll_side",
                "env.fallen.side_weights": [1, 0, 0]}
-# the rise's energy fine-tune lies still after its first miss in 3 % of held-back falls (its next attempt pays only
-# seconds later, lying still at once; the rise before it tries again): a fifth of its starts where the rise has just
-# failed, so that trying again is paid from an episode's first step (ships as a chain, period 3)
+# the rise, before and after its energy fine-tune, lay still face down after a miss in 3 % of held-back falls (its
+# next attempt pays only seconds later, lying still at once): a fifth of its starts where the rise has just failed,
+# so that trying again is paid from an episode's first step (ships as a chain, period 3)
 RETRY = {"env.fell_back.prob": 0.2, "env.fell_back.rise_policy": "@getup_keyframe/rise_rolled",
          "env.fell_back.roll_policy": "@getup_keyframe/roll_side", "env.demo_starts.prob": 0.3}
 STAND = {"ppo.policy_std_scale": 0.25, "env.reverse_curriculum.max_progress": 2.0}
@@ -133,6 +135,7 @@ RECIPE = Recipe(
         Stage("roll_prone", task="getup_roll", steps=1_505_280, init="roll_energy",
               config={**ROLL_PRONE, **ENERGY_COST}),
     ),
-    # what ships (recipe --ship): the energy-tuned members, the stand the quiet one; the rise hands over at §4.8's
-    # gate, where they stand most (LESSONS: ships as a chain, periods 1 and 2)
-    chain={"roll": "roll_energy", "rise": "rise_energy", "stand": "stand_still"}, handover="kneel_gate")
+    # what ships (recipe --ship): the energy-tuned members, the stand the quiet one, the rise the one that tries
+    # again, the roll the one that also turns a face-down robot the rest of the way; the rise hands over at §4.8's
+    # gate, where they stand most (LESSONS: ships as a chain, periods 1–3)
+    chain={"roll": "roll_prone", "rise": "rise_retry", "stand": "stand_still"}, handover="kneel_gate")

@@ -30,7 +30,9 @@ def stage_dirs(root: Path, recipe: R.Recipe, stage: R.Stage) -> list[Path]:
 
 
 def artifact_name(recipe: R.Recipe, stage: R.Stage) -> str:
-    return recipe.policy if stage is recipe.stages[-1] else f"{recipe.policy}_{stage.name}"
+    """The last stage's artifact is the recipe's policy; a chain's members, like every other stage, are named
+    after their stage (the chain ships as a folder of them)."""
+    return recipe.policy if stage is recipe.stages[-1] and not recipe.chain else f"{recipe.policy}_{stage.name}"
 
 
 def stage_artifact(run_dir: Path, recipe: R.Recipe, stage: R.Stage) -> Path:

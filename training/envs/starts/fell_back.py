@@ -3,8 +3,8 @@ chain's rise begins (face-down falls and the roll's hand-overs, rise_kneels.rise
 failed attempt, in common/events' terms: the trunk had risen ATTEMPT_RISE_M above its lowest and is back down
 ATTEMPT_RISE_M from the attempt's highest. A share of the kneel task's fallen starts is instead one of these states
 (config fell_back), so that the rise learns to try again from a failed rise at the start of an episode as well as
-late in one: under §4.7's energy cost the rise learnt to lie still after its first miss (the rise's next attempt
-pays only seconds later, lying still pays at once). Ours, not the seed's."""
+late in one: the rise had learnt to lie still face down after a miss in a few falls in a hundred (its next
+attempt pays only seconds later, lying still at once). Ours, not the seed's."""
 from __future__ import annotations
 
 import functools
