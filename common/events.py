@@ -211,10 +211,11 @@ def rolled_face_down(forward_z, trunk_height, ang_speed_rad_s, xp=np):
             & (xp.asarray(ang_speed_rad_s) < ROLLED_MAX_ANG_SPEED_RAD_S))
 
 
-def lying_on_back(forward_z, trunk_height, ang_speed_rad_s, xp=np):
-    """Per sample: lying still on the back (the lying-side rule's on_back, trunk below the fallen height): a rise
-    that tipped over backwards hands the robot back to the roll."""
-    return ((xp.asarray(forward_z) > FACING_Z) & (xp.asarray(trunk_height) < FALLEN_TRUNK_HEIGHT_M)
+def lying_back_or_side(forward_z, trunk_height, ang_speed_rad_s, xp=np):
+    """Per sample: lying still, not face down (the lying-side rule's on_back or side, trunk below the fallen
+    height): a rise that tipped over backwards or sideways hands the robot back to the roll (the rise learnt only
+    from face-down starts; on its side it lay still)."""
+    return ((xp.asarray(forward_z) > -FACING_Z) & (xp.asarray(trunk_height) < FALLEN_TRUNK_HEIGHT_M)
             & (xp.asarray(ang_speed_rad_s) < ROLLED_MAX_ANG_SPEED_RAD_S))
 
 
@@ -225,7 +226,7 @@ KEYFRAME_START = -1                            # keyframe_stage's `stage` at an 
 def keyframe_stage(stage, forward_z, trunk_height, up_z, ang_speed_rad_s, xp=np,
                    handover_up_error: float = KNEEL_GATE_UP_ERROR):
     """The chain stage (KEYFRAME_STAGES index) that acts at this sample, from the one that acted at the last: roll
-    until rolled_face_down, rise until §4.8's gate (back to roll if it tipped the robot onto its back), stand
+    until rolled_face_down, rise until §4.8's gate (back to roll if it tipped the robot onto its back or side), stand
     until the trunk is down (then roll again). At KEYFRAME_START the trunk's height picks the first: lying, roll
     (the rise if already face down); above the fallen height, the rise; standing, stand. xp: numpy or jax.numpy.
     handover_up_error: the rise hands over at the gate with this upright condition (kneel_gate's up_error_max)."""
@@ -235,7 +236,7 @@ def keyframe_stage(stage, forward_z, trunk_height, up_z, ang_speed_rad_s, xp=np,
     stage = xp.where(xp.asarray(stage) == KEYFRAME_START, first, stage)
     roll = xp.where(rolled_face_down(forward_z, h, ang_speed_rad_s, xp), rise_, roll_)
     rise = xp.where(kneel_gate(h, up_z, xp, handover_up_error), stand_,
-                    xp.where(lying_on_back(forward_z, h, ang_speed_rad_s, xp), roll_, rise_))
+                    xp.where(lying_back_or_side(forward_z, h, ang_speed_rad_s, xp), roll_, rise_))
     stand = xp.where(h < FALLEN_TRUNK_HEIGHT_M, roll_, stand_)
     return xp.where(stage == roll_, roll, xp.where(stage == rise_, rise, stand)).astype(xp.int32)
 

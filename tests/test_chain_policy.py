@@ -23,6 +23,7 @@ def _pitched(angle_rad):
 
 
 FACE_DOWN, ON_BACK, UPRIGHT = _pitched(math.pi / 2), _pitched(-math.pi / 2), _pitched(0.0)
+ON_SIDE = np.array([math.cos(math.pi / 4), math.sin(math.pi / 4), 0.0, 0.0], np.float32)   # rolled 90° about x
 
 
 def _state(quat, spin_rad_s=0.0):
@@ -45,7 +46,8 @@ def test_the_hand_over_rules():
     assert not events.rolled_face_down(-events.ROLLED_FORWARD_Z + 0.01, low, 0.0)        # not turned far enough
     assert not events.rolled_face_down(-1.0, low, events.ROLLED_MAX_ANG_SPEED_RAD_S)      # still tumbling
     assert not events.rolled_face_down(-1.0, events.FALLEN_TRUNK_HEIGHT_M, 0.0)           # not lying
-    assert events.lying_on_back(1.0, low, 0.0) and not events.lying_on_back(0.0, low, 0.0)
+    assert events.lying_back_or_side(1.0, low, 0.0) and events.lying_back_or_side(0.0, low, 0.0)
+    assert not events.lying_back_or_side(-events.FACING_Z - 0.01, low, 0.0)               # face down
     np.testing.assert_array_equal(events.rolled_face_down(np.array([-1.0, 1.0]), low, 0.0), [True, False])
 
 
@@ -55,6 +57,7 @@ def test_the_hand_over_rules():
     (ChainPolicy.ROLL, FACE_DOWN, 0.0, 0.2, 0.0, ChainPolicy.RISE),     # rolled: the rise takes over
     (ChainPolicy.RISE, FACE_DOWN, 0.0, 0.2, 0.0, ChainPolicy.RISE),
     (ChainPolicy.RISE, ON_BACK, 0.0, 0.2, 0.0, ChainPolicy.ROLL),       # the rise tipped it onto its back
+    (ChainPolicy.RISE, ON_SIDE, 0.0, 0.2, 0.0, ChainPolicy.ROLL),       # ... onto its side
     (ChainPolicy.RISE, UPRIGHT, 0.0, 0.4, 1.0, ChainPolicy.STAND),      # §4.8's gate
     (ChainPolicy.RISE, UPRIGHT, 0.0, 0.4, 0.9, ChainPolicy.RISE),       # tilted: no gate
     (ChainPolicy.STAND, UPRIGHT, 0.0, 0.6, 0.8, ChainPolicy.STAND),     # latched until down

@@ -96,7 +96,8 @@ ChainStage next_stage(ChainStage stage, const TrunkReadings& r, float handover_u
       return lying(r) && still(r) && r.forward_z < -t1::kRolledForwardZ ? ChainStage::kRise : ChainStage::kRoll;
     case ChainStage::kRise:
       if (at_kneel(r, handover_up_error)) return ChainStage::kStand;
-      return lying(r) && still(r) && r.forward_z > t1::kLyingFacingZ ? ChainStage::kRoll : ChainStage::kRise;
+      // lying still on the back or side (not face down): the roll turns it over again
+      return lying(r) && still(r) && r.forward_z > -t1::kLyingFacingZ ? ChainStage::kRoll : ChainStage::kRise;
     default:
       return lying(r) ? ChainStage::kRoll : ChainStage::kStand;
   }

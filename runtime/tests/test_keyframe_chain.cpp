@@ -89,6 +89,12 @@ TEST(KeyframeChainRule, RiseHandsOverAtTheKneelWithinItsUprightBound) {
       << "below the gate's height";
   EXPECT_EQ(next_stage(ChainStage::kRise, readings(kLyingM, -90.0f), 0.01f), ChainStage::kRoll)
       << "tipped onto its back";
+  const float half = 0.5f * 90.0f * kDegToRad;
+  const std::array<float, 4> on_side = {std::cos(half), std::sin(half), 0.0f, 0.0f};  // rolled 90° about x
+  const float still[3] = {0.0f, 0.0f, 0.0f};
+  EXPECT_EQ(next_stage(ChainStage::kRise, trunk_readings(on_side.data(), still, kLyingM), 0.01f), ChainStage::kRoll)
+      << "tipped onto its side";
+  EXPECT_EQ(next_stage(ChainStage::kRise, readings(kLyingM, 60.0f), 0.01f), ChainStage::kRise) << "face down";
 }
 
 TEST(KeyframeChainRule, StandLatchesUntilTheTrunkIsDown) {

@@ -151,10 +151,10 @@ class CompositePolicy:
 class ChainPolicy:
     """The keyframe getup's stages as one latched chain (`chain:ROLL,RISE,STAND`), switched by
     common/events.keyframe_stage: roll until the robot lies face down, rise until §4.8's gate, stand until the
-    trunk is down, then roll again; a rise that tipped the robot onto its back goes back to the roll. Training's
-    teacher and the batch evaluations' reference (it switches on the trunk's height, which only the simulation
-    knows). Each member reads its own last action, the idle ones the applied targets in their map (as CompositePolicy);
-    the carry is (own actions (3, 23), stage)."""
+    trunk is down, then roll again; a rise that tipped the robot onto its back or side goes back to the roll.
+    Training's teacher and the batch evaluations' reference (it switches on the trunk's height, which only the
+    simulation knows). Each member reads its own last action, the idle ones the applied targets in their map (as
+    CompositePolicy); the carry is (own actions (3, 23), stage)."""
     members: tuple[ArtifactPolicy, ArtifactPolicy, ArtifactPolicy]
     handover_up_error: float = events.KNEEL_GATE_UP_ERROR   # the rise → stand hand-over (keyframe_stage's)
 

@@ -1,7 +1,7 @@
 // Chain mode: the keyframe getup as it ships (policies/getup_keyframe/, common/keyframe_chain.py), three members
 // switched and latched by the rules of common/events.keyframe_stage: roll until the robot lies face down and
 // still, rise until the kneel hand-over (§4.8's gate or the kneel band, named by the chain's manifest), stand
-// until the Trunk is down; a rise that tipped the robot onto its back goes back to the roll.
+// until the Trunk is down; a rise that tipped the robot onto its back or side goes back to the roll.
 //
 // The Trunk's height is a PRIVILEGED simulator signal (T1_SIM_STATUS, sim_status_t.trunk_height), as the
 // composite's waist height: chain mode is for evaluation in the simulator, and the runtime says so. The rest
