@@ -16,8 +16,9 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
   from the kneels the chain's rise really hands over (stand_band).
 - the seed's energy fine-tune (§4.7) of each member: stand_energy, rise_energy, roll_energy; then the stand at five
   times the cost (stand_quiet, stand_still: it still chattered while standing); the rise's again from rise_rolled
-  with a fifth of its starts where it has just failed (rise_retry: rise_energy lay still after a miss); the roll's
-  with face-down starts too (roll_prone: some lie face down short of the rise's hand-over).
+  with a fifth of its starts where it has just failed (rise_retry, the student's teacher's rise: no better in the
+  chain once a rise lying on its side goes back to the roll); the roll's with face-down starts too (roll_prone: some
+  lie face down short of the rise's hand-over).
 The runtime's target rule R6 is in every stage.
 The members ship as a switched chain, not as one network: policies/getup_keyframe/ holds the three artifacts and
 chain.json (common/keyframe_chain.py), which names them and the rise → stand hand-over; common/events.keyframe_stage
@@ -135,7 +136,7 @@ RECIPE = Recipe(
         Stage("roll_prone", task="getup_roll", steps=1_505_280, init="roll_energy",
               config={**ROLL_PRONE, **ENERGY_COST}),
     ),
-    # what ships (recipe --ship): the energy-tuned members, the stand the quiet one, the rise the one that tries
-    # again, the roll the one that also turns a face-down robot the rest of the way; the rise hands over at §4.8's
-    # gate, where they stand most (LESSONS: ships as a chain, periods 1–3)
-    chain={"roll": "roll_prone", "rise": "rise_retry", "stand": "stand_still"}, handover="kneel_gate")
+    # what ships (recipe --ship): the energy-tuned members, the stand the quiet one, the roll the one that also
+    # turns a face-down robot the rest of the way (rise_retry stood as often, with more attempts and energy); the
+    # rise hands over at §4.8's gate, where they stand most (LESSONS: ships as a chain, periods 1–3)
+    chain={"roll": "roll_prone", "rise": "rise_energy", "stand": "stand_still"}, handover="kneel_gate")
