@@ -63,8 +63,10 @@ def test_every_recipe_runs_to_its_policy_at_toy_size(toy_root, name):
     for stage in recipe.stages:
         assert recipe_runner.stage_complete(toy_root, recipe, stage), f"{name}: stage {stage.name} incomplete"
     final = recipe_runner.stage_dirs(toy_root, recipe, recipe.stages[-1])[-1]
-    manifest = read_artifact(final / f"{recipe.policy}.safetensors")[3]
-    assert manifest["name"] == recipe.policy and manifest["trained"] is False     # toy: never trained
+    artifact = recipe_runner.artifact_name(recipe, recipe.stages[-1])   # the policy's; a chain's member's own
+    assert artifact == (f"{recipe.policy}_{recipe.stages[-1].name}" if recipe.chain else recipe.policy)
+    manifest = read_artifact(final / f"{artifact}.safetensors")[3]
+    assert manifest["name"] == artifact and manifest["trained"] is False     # toy: never trained
     if recipe.stages[-1].kind != "random_init":
         assert manifest["provenance"]["recipe"] == {"name": name, "stage": recipe.stages[-1].name,
                                                     "sha256": R.content_hash(name)}
