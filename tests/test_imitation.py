@@ -106,9 +106,24 @@ def test_best_of_k_labels_the_first_rise_that_meets_the_gate_up_to_it_and_the_ho
     assert 0 < got["held_s"][0] <= 0.2 and got["held_s"][1] == 0
     assert got["obs"].shape == (steps, 52)                          # the hold outlasts the rollout: every step
     np.testing.assert_allclose(got["q_des"], np.clip(hold(got["obs"]), teacher.p.lo, teacher.p.hi), atol=1e-6)
+    bok.clean = True                                                # the kneel start never lay: no attempt failed
+    clean = best_of_k.collect(teacher, hold, *(np.concatenate(x) for x in zip(at_gate, fallen)), bok, 0.2,
+                              np.random.default_rng(0))
+    assert clean["met_gate"] == 1
+    np.testing.assert_array_equal(clean["q_des"], got["q_des"])
     dq = best_of_k.noise(np.random.default_rng(1), 4, 25, 23, 0.05, 5)
     assert dq.shape == (25, 4, 23) and 0.02 < dq.std() < 0.08
     np.testing.assert_allclose(dq[5], dq[4] + (dq[6] - dq[4]) / 2, atol=0.05)   # linear between knots
+
+
+def test_a_clean_rise_is_one_without_a_failed_attempt_by_the_events_rule():
+    up = np.ones(7)
+    lying, rise, fall_back = 0.05, 0.05 + events.ATTEMPT_RISE_M + 0.05, 0.05
+    assert best_of_k.failed_attempts(np.array([lying, 0.1, 0.2, 0.3, 0.35, 0.4, 0.41]), up, 0.02) == 0
+    assert best_of_k.failed_attempts(np.array([lying, 0.1, rise, fall_back, 0.2, 0.3, 0.41]), up, 0.02) == 1
+    # a dip smaller than the rule's is no failed attempt
+    dip = rise - events.ATTEMPT_RISE_M + 0.02
+    assert best_of_k.failed_attempts(np.array([lying, 0.1, rise, dip, 0.3, 0.35, 0.41]), up, 0.02) == 0
 
 
 def test_the_coverage_cli_refuses_bad_input_naming_it(tmp_path, capsys):

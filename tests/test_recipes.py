@@ -154,7 +154,8 @@ def test_the_dagger_rounds_between_the_rise_stages_are_rolled_out_by_them(toy_ro
     recipe = R.load("getup_keyframe")
     dagger = toy_root / "getup_keyframe" / "dagger"
     rows = json.loads((dagger / imitation_config.STATE).read_text())["rounds"]
-    assert [r["round"] for r in rows] == list(range(recipe.rounds_through(recipe.stage("dagger_best"))))
+    last = [s for s in recipe.stages if s.kind == "imitation"][-1]
+    assert [r["round"] for r in rows] == list(range(recipe.rounds_through(last)))
     for s in (s for s in recipe.stages if s.kind == "imitation" and s.policy):
         policy = recipe_runner.stage_artifact(toy_root / "getup_keyframe" / s.policy, recipe, recipe.stage(s.policy))
         for row in rows[recipe.rounds_through(s) - s.steps:recipe.rounds_through(s)]:
@@ -163,6 +164,8 @@ def test_the_dagger_rounds_between_the_rise_stages_are_rolled_out_by_them(toy_ro
     best = json.loads((toy_root / "getup_keyframe" / "rise_best" / checkpoints.RUN_STATE).read_text())
     assert recipe.stage("rise_best").config["ppo.imitation.first_round"] == \
         recipe.rounds_through(recipe.stage("dagger_back"))
+    assert recipe.stage("rise_clean").config["ppo.imitation.first_round"] == \
+        recipe.rounds_through(recipe.stage("dagger_best"))
     assert best["ppo_config"]["imitation"]["first_round"] == 0          # a toy best-of-K round labels nothing
     assert best["end_at"] == recipe_runner.TOY_END_AT_STEPS[1] and best["env_steps"] == best["end_at"]
 

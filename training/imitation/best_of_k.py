@@ -4,7 +4,9 @@ kneeling posture is the demonstration, its steps up to the gate plus the hold ar
 it sent). The planner's takeovers label toward its own keyframe chain, which from the learner's states meets the
 gate less often than the learner does (`python -m training.imitation.coverage`); a rise judged by the gate itself
 is better than the learner wherever it labels (a success the policy nearly makes: self-imitation of its best
-rises, from the starts where they fail)."""
+rises, from the starts where they fail). With `clean`, only rises without a failed getup attempt before the gate
+(common/events' rule: the trunk fell back attempt_rise_m below an attempt's peak) are candidates: labels that rise
+in one go, where the policy itself falls back and tries again."""
 from __future__ import annotations
 
 import time
@@ -23,6 +25,12 @@ def noise(rng: np.random.Generator, rises: int, steps: int, nu: int, sigma_rad: 
     return (1.0 - w) * knots[lo] + w * knots[lo + 1]
 
 
+def failed_attempts(trunk_m: np.ndarray, up_z: np.ndarray, dt_s: float) -> int:
+    """Failed getup attempts (common/events' rule) in a rise's trunk height [m] and up_z series, one per tick."""
+    t = np.arange(1, len(trunk_m) + 1) * dt_s
+    return sum(a.outcome == "failed" for a in events.getup_events(t, trunk_m, up_z).attempt_log)
+
+
 def collect(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, cfg, rollout_s: float,
             rng: np.random.Generator) -> dict:
     """One round's labels from the starts (qpos, qvel) by best-of-K (cfg: the expert's best_of_k group; `policy`:
@@ -38,6 +46,7 @@ def collect(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, cfg, rollout_s:
     dq = noise(rng, n * k, steps, p.nu, float(cfg.sigma_rad), max(1, int(round(float(cfg.knot_s) / p.ctrl_dt))))
     dq[:, ::k] = 0.0                                       # rise 0 of every start: the policy as it acts
     obs, q, gate = [], [], np.zeros((steps, n * k), bool)
+    trunk_m, up_z = np.zeros((steps, n * k)), np.zeros((steps, n * k))
     for j in range(steps):
         o = teacher.observe(robots)
         q_des = np.clip(policy(o) + dq[j], p.lo, p.hi)
@@ -45,9 +54,15 @@ def collect(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, cfg, rollout_s:
         q.append(q_des.astype(np.float32))
         robots.step(q_des)
         gate[j] = teacher.at_gate(robots)
+        r = p.readings(robots.b)
+        trunk_m[j], up_z[j] = r["h"], r["up_z"]
     obs, q = np.stack(obs), np.stack(q)                    # (steps, n·k, ·)
-    met = gate.reshape(steps, n, k).any(axis=0)            # (n, k)
     first = np.argmax(gate, axis=0)                        # per rise: the step whose result met the gate
+    met = gate.any(axis=0)
+    if bool(cfg.clean):
+        met &= [m and failed_attempts(trunk_m[:f + 1, r], up_z[:f + 1, r], p.ctrl_dt) == 0
+                for r, (m, f) in enumerate(zip(met, first))]
+    met = met.reshape(n, k)                                # (n, k)
     labels_o, labels_q = [], []
     gate_time_s, held_s = np.full(n, np.nan), np.zeros(n)
     for i in np.flatnonzero(met.any(axis=1)):

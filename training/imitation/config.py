@@ -40,8 +40,9 @@ def default_config() -> config_dict.ConfigDict:
             restart_below_m=0.25,
             # best-of-K in place of the takeovers (best_of_k.py; k 0 = the planner): from each start k rises of
             # the policy, all but the first with Gaussian target noise sigma_rad at knots knot_s apart; the first
-            # that meets the gate labels every step of it up to the gate plus the hold
-            best_of_k=config_dict.create(k=0, sigma_rad=0.1, knot_s=0.1),
+            # that meets the gate labels every step of it up to the gate plus the hold; clean: only rises
+            # without a failed getup attempt before the gate (common/events' rule) count
+            best_of_k=config_dict.create(k=0, sigma_rad=0.1, knot_s=0.1, clean=False),
         ),
         # the fit: brax's tanh-normal policy MLP (the getup experts' network), MSE of tanh(loc) to the labels'
         # actions, warm-started from the previous round; Adam, the rate cosine-decayed to final_lr_share of it

@@ -18,7 +18,8 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
   times the cost (stand_quiet, stand_still: it still chattered while standing); the rise's again from rise_rolled
   with a fifth of its starts where it has just failed (rise_retry, the student's teacher's rise: no better in the
   chain once a rise lying on its side goes back to the roll); the roll's with face-down starts too (roll_prone: some
-  lie face down short of the rise's hand-over).
+  lie face down short of the rise's hand-over); best-of-K rounds of the energy-tuned rise that keep only rises
+  without a failed attempt (dagger_clean), and the rise's BC term on them (rise_clean).
 The runtime's target rule R6 is in every stage.
 The members ship as a switched chain, not as one network: policies/getup_keyframe/ holds the three artifacts and
 chain.json (common/keyframe_chain.py), which names them and the rise → stand hand-over; common/events.keyframe_stage
@@ -83,6 +84,11 @@ ENERGY_COST = {"env.reward.scales.energy": -0.01, "ppo.value_warmup_steps": 300_
 # at that weight the stand still chattered (534 W standing; the cost was 0.35 of the 2.0 a step pays): five times
 # the weight, so that the chatter costs most of what standing pays
 QUIET = {**ENERGY_COST, "env.reward.scales.energy": -0.05}
+# a third of the chain's stand-ups came after the rise fell back to the floor once (1.62 attempts per fall, period
+# 3): best of 32 rises of the energy-tuned rise from face-down falls, only those without a failed attempt
+CLEAN_BEST_OF_K = {**BEST_OF_K, "dagger.expert.best_of_k.clean": True}
+# the BC term reads only those rounds (15 …): the rise in one go
+RISE_CLEAN = {**RISE_ROLLED, **ENERGY_COST, "ppo.value_warmup_steps": 0, "ppo.imitation.first_round": 15}
 
 RECIPE = Recipe(
     name="getup_keyframe", policy="getup_keyframe",
@@ -135,6 +141,9 @@ RECIPE = Recipe(
               config={**ROLL_SIDE, **ENERGY_COST}),
         Stage("roll_prone", task="getup_roll", steps=1_505_280, init="roll_energy",
               config={**ROLL_PRONE, **ENERGY_COST}),
+        Stage("dagger_clean", kind="imitation", steps=4, continues="dagger", policy="rise_energy", lying="face_down",
+              config=CLEAN_BEST_OF_K),
+        Stage("rise_clean", task="getup_kneel", steps=6_021_120, init="rise_energy", config=RISE_CLEAN),
     ),
     # what ships (recipe --ship): the energy-tuned members, the stand the quiet one, the roll the one that also
     # turns a face-down robot the rest of the way (rise_retry stood as often, with more attempts and energy); the
