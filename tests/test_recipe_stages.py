@@ -147,6 +147,13 @@ def test_a_distill_stage_ends_at_its_phase_and_the_next_stage_starts_from_there(
     assert recipe_runner._init_path("d", recipe, tmp_path) == tmp_path / "r" / "d.2"
 
 
+def test_a_resumed_distill_stage_checkpoints_as_often_as_the_stage_itself():
+    assert recipe_runner.resumed_evals(2600, 3400, 35) == 26        # every 100 phases, as its first run did
+    assert recipe_runner.resumed_evals(300, 400, 5) == 3
+    assert recipe_runner.resumed_evals(250, 400, 5) == 2            # never more often than every 100
+    assert recipe_runner.resumed_evals(7, 400, 5) == 1
+
+
 def test_a_distill_run_ends_only_at_a_phase_it_checkpoints():
     from training.distill import dagger
     cfg = dagger.dagger_configs("getup", "gpu", ["bc.dagger_steps=400", "bc.num_evals=5"], None,

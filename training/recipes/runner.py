@@ -287,7 +287,7 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         before = _json(init / DISTILL_STATE).get("phases", 0) if init else 0
         phases = max(phases - (int(done_phases) - int(before)), 1)
         ends = None if ends is None else ends - (int(done_phases) - int(before))
-        evals = math.gcd(phases, int(s.config.get("bc.num_evals", 11)) - 1)
+        evals = resumed_evals(phases, int(s.steps), int(s.config.get("bc.num_evals", 11)))
         if ends is not None:      # a checkpoint at the end phase too
             evals = phases // math.gcd(phases // evals, ends)
         overrides = [o for o in overrides if not o.startswith(("bc.dagger_steps=", "bc.num_evals="))]
@@ -301,6 +301,14 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
                     overrides=overrides, preset="toy" if toy else "gpu", num_envs=None if toy else s.envs,
                     command=command, progress=progress, max_minutes=max_minutes, name=name, backend=backend,
                     from_checkpoint=start, recipe=provenance, end_at=ends)
+
+
+def resumed_evals(phases_left: int, steps: int, num_evals: int) -> int:
+    """Evaluations (each a checkpoint, and where --max-minutes can stop) of a resumed DAgger stage's run over its
+    phases_left: the most that divide them without checkpointing more often than the stage itself (steps /
+    (num_evals − 1) phases apart)."""
+    most = max(phases_left // max(steps // max(num_evals - 1, 1), 1), 1)
+    return max(d for d in range(1, most + 1) if phases_left % d == 0)
 
 
 def _run_rounds(recipe: R.Recipe, s: R.Stage, root: Path, overrides: list[str], *, resume: bool,
