@@ -58,6 +58,7 @@ def test_a_stage_ends_at_its_end_at_checkpoint_however_far_its_run_went(tmp_path
     assert [p.name for p in kept.iterdir()] == [f"{100:012d}"]
     # a chain's evaluation report kept beside the run's files stays when the campaign is saved again
     (kept.parent / "chain_report.md").write_text("1000 seeds")
+    (run / "chain_report.md").write_text("an older report in the run")     # not one of the files a save copies
     recipe_runner.save_campaign("r", tmp_path, tmp_path / "campaigns")
     assert (kept.parent / "chain_report.md").read_text() == "1000 seeds" and kept.is_dir()
     fresh = tmp_path / "fresh"
@@ -168,14 +169,16 @@ def test_a_distill_run_ends_only_at_a_phase_it_checkpoints():
 def test_imitation_stages_continue_one_campaign_and_are_complete_at_their_rounds(tmp_path):
     recipe = R.load("getup_keyframe")
     rounds = [s for s in recipe.stages if s.kind == "imitation"]
-    assert [s.name for s in rounds] == ["dagger", "dagger_explore", "dagger_fine", "dagger_back", "dagger_best"]
-    assert [recipe.rounds_through(s) for s in rounds] == [7, 8, 9, 12, 15]
+    assert [s.name for s in rounds] == ["dagger", "dagger_explore", "dagger_fine", "dagger_back", "dagger_best",
+                                       "dagger_clean"]
+    assert [recipe.rounds_through(s) for s in rounds] == [7, 8, 9, 12, 15, 19]
     folder = tmp_path / "getup_keyframe" / "dagger"
     assert all(recipe_runner.stage_dirs(tmp_path, recipe, s) == [] for s in rounds)
     folder.mkdir(parents=True)
     (folder / imitation_config.STATE).write_text(json.dumps({"config": {}, "rounds": [{}] * 9}))
     assert all(recipe_runner.stage_dirs(tmp_path, recipe, s) == [folder] for s in rounds)
-    assert [recipe_runner.stage_complete(tmp_path, recipe, s) for s in rounds] == [True, True, True, False, False]
+    assert [recipe_runner.stage_complete(tmp_path, recipe, s) for s in rounds] == [True, True, True, False, False,
+                                                                                   False]
 
 
 def test_the_campaigns_rounds_were_made_as_the_recipe_says():

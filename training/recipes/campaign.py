@@ -16,6 +16,7 @@ RUNS_ROOT = checkpoints.REPO_ROOT / "runs"
 CAMPAIGNS_ROOT = checkpoints.REPO_ROOT / "training" / "campaigns"
 CURVE_FILES = ("metrics.csv", "learning_curve.png")
 REPORT_FILES = (kneel_report.REPORT, kneel_report.ROWS)   # a run's figures per checkpoint beside its curve
+RUN_FILES = (checkpoints.RUN_STATE, DISTILL_STATE, *CURVE_FILES, *REPORT_FILES)   # what a kept stage copies
 
 
 def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS_ROOT) -> list[Path]:
@@ -37,8 +38,10 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
                       "itself): kept")
                 saved.append(dest)
                 continue
-            # what the campaign folder holds beside the run's files (a chain's evaluation report, its figures) stays
-            extra = {f.name: f.read_bytes() for f in dest.glob("*") if f.is_file() and not (run_dir / f.name).exists()}
+            # what the campaign folder holds beside the files copied from the run (a chain's evaluation report, its
+            # figures) stays, even where the run has a file of that name
+            copied = {f.name for f in run_dir.glob("*")} if s.kind == "imitation" else set(RUN_FILES)
+            extra = {f.name: f.read_bytes() for f in dest.glob("*") if f.is_file() and f.name not in copied}
             if dest.exists():
                 shutil.rmtree(dest)
             if drop:
@@ -49,7 +52,7 @@ def save_campaign(name: str, root: Path = RUNS_ROOT, campaigns: Path = CAMPAIGNS
                 saved.append(dest)
                 continue
             dest.mkdir(parents=True)
-            for f in (checkpoints.RUN_STATE, DISTILL_STATE, *CURVE_FILES, *REPORT_FILES):
+            for f in RUN_FILES:
                 if (run_dir / f).exists():
                     shutil.copy2(run_dir / f, dest / f)
             if (dest / checkpoints.RUN_STATE).exists():
