@@ -53,8 +53,8 @@ def collect(teacher, policy, qpos: np.ndarray, qvel: np.ndarray, cfg, rollout_s:
         obs.append(o)
         q.append(q_des.astype(np.float32))
         robots.step(q_des)
-        gate[j] = teacher.at_gate(robots)
         r = p.readings(robots.b)
+        gate[j] = teacher.at_gate(robots, r)
         trunk_m[j], up_z[j] = r["h"], r["up_z"]
     obs, q = np.stack(obs), np.stack(q)                    # (steps, n·k, ·)
     first = np.argmax(gate, axis=0)                        # per rise: the step whose result met the gate

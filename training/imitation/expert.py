@@ -207,7 +207,8 @@ class Teacher:
         return {"obs": np.concatenate(obs), "q_des": np.concatenate(q), "plans": plans, "waypoint": waypoint,
                 "gate": np.array(gate)}
 
-    def at_gate(self, robots: Robots) -> np.ndarray:
-        """Per robot: §4.8's gate holds in the kneeling posture."""
-        r = self.p.readings(robots.b)
+    def at_gate(self, robots: Robots, readings: dict | None = None) -> np.ndarray:
+        """Per robot: §4.8's gate holds in the kneeling posture (from `readings`, the planner's of these robots,
+        where the caller has them)."""
+        r = self.p.readings(robots.b) if readings is None else readings
         return costs.gate(r["h"], r["up_z"]) & self.p.kneeling(r["q"])
