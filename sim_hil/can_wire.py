@@ -9,8 +9,10 @@ import can
 from can.interfaces.virtual import VirtualBus, channels_lock
 
 UDP_GROUP = "239.74.163.2"      # IPv4: the IPv6 default group delivers nothing inside the namespace
-UDP_BASE_PORT = 43113           # bus b on port 43113 + b: Linux delivers a group's datagrams to every
-                                # socket bound to the port, whatever group it joined, so ports separate buses
+UDP_BASE_PORT = 31113           # bus b on port 31113 + b: Linux delivers a group's datagrams to every
+                                # socket bound to the port, whatever group it joined, so ports separate buses.
+                                # Below Linux's ephemeral range (32768-60999): any unbound UDP sender (LCM,
+                                # DDS) may be handed a port there, and a bus could then not bind its own
 
 
 class SimVirtualBus(VirtualBus):
@@ -62,8 +64,18 @@ def open_pair(interface: str, bus_index: int) -> tuple[can.BusABC, can.BusABC]:
         kw = dict(channel=channel, receive_own_messages=False, preserve_timestamps=True)
         return SimVirtualBus(**kw), SimVirtualBus(**kw)
     if interface == "udp_multicast":
-        kw = dict(interface="udp_multicast", channel=UDP_GROUP, port=UDP_BASE_PORT + bus_index, hop_limit=0)
-        return can.Bus(**kw), can.Bus(**kw)
+        port = UDP_BASE_PORT + bus_index
+        kw = dict(interface="udp_multicast", channel=UDP_GROUP, port=port, hop_limit=0)
+        ends: list[can.BusABC] = []
+        try:
+            while len(ends) < 2:
+                ends.append(can.Bus(**kw))
+        except can.CanInitializationError as exc:
+            for end in ends:
+                end.shutdown()
+            raise OSError(f"CAN bus {bus_index}: cannot bind UDP port {port} on {UDP_GROUP} ({exc.__cause__ or exc}):"
+                          " another program holds it without SO_REUSEADDR") from exc
+        return ends[0], ends[1]
     raise ValueError(f"unknown --can-interface '{interface}' (virtual | udp_multicast)")
 
 

@@ -62,3 +62,21 @@ def test_the_interface_is_chosen_by_name_and_a_can_log_needs_python_can(tmp_path
     logged.close()
     with pytest.raises(ValueError, match="unknown --can-interface 'socketcan'"):
         open_motor_bus("socketcan")
+
+
+def test_a_udp_bus_whose_port_is_held_says_which_and_leaves_nothing_open(netns, monkeypatch):
+    """A port held by a socket without SO_REUSEADDR is refused by name (the sim reports it as a usage error)."""
+    import socket
+
+    from sim_hil import can_wire
+    monkeypatch.setattr(can_wire, "UDP_BASE_PORT", can_wire.UDP_BASE_PORT + 400)   # clear of a running sim's
+    held = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    held.bind(("", can_wire.UDP_BASE_PORT + 1))
+    try:
+        with pytest.raises(OSError, match=f"CAN bus 1: cannot bind UDP port {can_wire.UDP_BASE_PORT + 1}"):
+            can_wire.open_pair("udp_multicast", 1)
+    finally:
+        held.close()
+    host, motor = can_wire.open_pair("udp_multicast", 1)     # free again: nothing of the failed try is left
+    host.shutdown()
+    motor.shutdown()

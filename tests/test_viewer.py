@@ -29,10 +29,12 @@ def _shows_robot(img) -> bool:
 @contextlib.contextmanager
 def _virtual_display():
     """The env of an Xvfb server on a display it picks itself (-displayfd: tests running side by side cannot
-    race for one number, as `xvfb-run -a`'s probing can), stopped afterwards."""
+    race for one number, as `xvfb-run -a`'s probing can), stopped afterwards. -noreset: by default the server
+    resets when its last client leaves (a screen grab's), refusing the sim's connection meanwhile."""
     read_end, write_end = os.pipe()
     server = subprocess.Popen(["Xvfb", "-displayfd", str(write_end), "-screen", "0", "640x480x24", "-nolisten",
-                               "tcp"], pass_fds=(write_end,), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                               "tcp", "-noreset"], pass_fds=(write_end,), stdout=subprocess.DEVNULL,
+                              stderr=subprocess.PIPE)
     os.close(write_end)
     try:
         with os.fdopen(read_end) as ready:
