@@ -3,6 +3,7 @@ reproducibility, the data set on disk, the learner's export and the CLI's errors
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -195,6 +196,8 @@ def test_a_round_rolled_out_by_another_policy_keeps_it_beside_its_data(tiny, tmp
     assert "policy" not in camp.store_round(2, got, 2)
     again = camp.store_round(3, got, 2, policy)           # a later round by the same policy keeps it once
     assert again["policy"] == stats["policy"] and not dataset.policy_path(camp.data, 3).exists()
+    rolled = camp.store_round(4, got, 2, policy, rolled_by=policy)    # the roll its starts came from, named
+    assert rolled["rolled_by"] == str(policy) and "lying" not in rolled
 
 
 def test_a_round_from_one_lying_side_starts_only_from_starts_lying_that_way(tiny):
@@ -205,6 +208,19 @@ def test_a_round_from_one_lying_side_starts_only_from_starts_lying_that_way(tiny
     both, _ = env.fallen_starts(dagger.LYING_DRAWS * 3, 100)      # the first of the round's seeds that lie so
     on_back = [q for q in both if start_side(q) == "on_back"][:3]
     np.testing.assert_array_equal(qpos, np.asarray(on_back))
+
+
+@pytest.mark.slow
+def test_a_round_rolled_by_a_roll_starts_face_down_where_that_roll_hands_over(tiny):
+    _, _, env, _, _ = tiny
+    from common import model as t1model
+    roll = sorted(Path("training/campaigns/getup_keyframe/roll_prone/checkpoints").glob("*"))[-1]
+    qpos, qvel = dagger.round_starts(env, 4, 100, rolled_by=roll)
+    assert 1 <= len(qpos) <= 4 and qvel.shape == (len(qpos), env.mj_model.nv)
+    assert np.all(t1model.trunk_forward_z(qpos) < -events.ROLLED_FORWARD_Z)        # the rise's hand-over
+    assert np.all(np.linalg.norm(qvel[:, 3:6], axis=1) < events.ROLLED_MAX_ANG_SPEED_RAD_S)
+    fallen, _ = env.fallen_starts(4, 100)
+    assert not any(np.allclose(q, f) for q in qpos for f in fallen)                # rolled, not the falls
 
 
 def test_a_campaign_is_given_more_rounds_but_refuses_other_fit_settings(tiny, tmp_path):

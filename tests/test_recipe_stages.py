@@ -170,30 +170,32 @@ def test_imitation_stages_continue_one_campaign_and_are_complete_at_their_rounds
     recipe = R.load("getup_keyframe")
     rounds = [s for s in recipe.stages if s.kind == "imitation"]
     assert [s.name for s in rounds] == ["dagger", "dagger_explore", "dagger_fine", "dagger_back", "dagger_best",
-                                       "dagger_clean"]
-    assert [recipe.rounds_through(s) for s in rounds] == [7, 8, 9, 12, 15, 19]
+                                       "dagger_clean", "dagger_handover"]
+    assert [recipe.rounds_through(s) for s in rounds] == [7, 8, 9, 12, 15, 19, 23]
     folder = tmp_path / "getup_keyframe" / "dagger"
     assert all(recipe_runner.stage_dirs(tmp_path, recipe, s) == [] for s in rounds)
     folder.mkdir(parents=True)
     (folder / imitation_config.STATE).write_text(json.dumps({"config": {}, "rounds": [{}] * 9}))
     assert all(recipe_runner.stage_dirs(tmp_path, recipe, s) == [folder] for s in rounds)
     assert [recipe_runner.stage_complete(tmp_path, recipe, s) for s in rounds] == [True, True, True, False, False,
-                                                                                   False]
+                                                                                   False, False]
 
 
 def test_the_campaigns_rounds_were_made_as_the_recipe_says():
     """Each round of the kept DAgger campaign was rolled out by its stage's policy (or the learner), from the
-    stage's lying side, with its expert (the planner's takeovers or best-of-K)."""
+    stage's lying side or its roll's hand-overs, with its expert (the planner's takeovers or best-of-K); the
+    rounds the campaign keeps so far."""
     recipe = R.load("getup_keyframe")
     rows = json.loads((CAMPAIGN / "dagger" / imitation_config.STATE).read_text())["rounds"]
     collected = json.loads((CAMPAIGN / "dagger" / "data" / imitation_config.COLLECTED).read_text())["rounds"]
     for s in (s for s in recipe.stages if s.kind == "imitation"):
         for k in range(recipe.rounds_through(s) - s.steps, recipe.rounds_through(s)):
-            if k == 0:
-                continue          # the demonstrations' fit
+            if k == 0 or k >= len(rows):
+                continue          # the demonstrations' fit; a round still to run
             row, stats = rows[k], collected[str(k)]
             assert bool(row.get("policy")) == bool(s.policy), (s.name, k)
             assert row.get("lying", "") == s.lying, (s.name, k)
+            assert bool(row.get("rolled_by")) == bool(s.rolled_by), (s.name, k)
             best_of_k = stats["expert"].get("best_of_k", {"k": 0})
             assert best_of_k["k"] == s.config.get("dagger.expert.best_of_k.k", 0), (s.name, k)
             if best_of_k["k"]:
@@ -207,8 +209,9 @@ def _recorded_rounds(monkeypatch) -> list[dict]:
     calls = []
 
     def run(out, overrides, demos=None, rounds=None, max_minutes=None, eval_dir=None, refit=False, policy=None,
-            lying=""):
-        calls.append({"rounds": rounds, "policy": policy, "lying": lying, "overrides": list(overrides)})
+            lying="", rolled_by=None):
+        calls.append({"rounds": rounds, "policy": policy, "lying": lying, "rolled_by": rolled_by,
+                      "overrides": list(overrides)})
         state = json.loads((Path(out) / imitation_config.STATE).read_text())
         state["rounds"] += [{}] * (rounds - len(state["rounds"]))
         (Path(out) / imitation_config.STATE).write_text(json.dumps(state))
@@ -260,6 +263,22 @@ def test_interleaved_imitation_stages_roll_each_round_out_by_their_policy(tmp_pa
     assert [c["rounds"] for c in calls] == [14, 15]
 
 
+def test_a_stage_rolled_by_a_roll_starts_each_round_at_that_rolls_hand_overs(tmp_path, monkeypatch):
+    calls = _recorded_rounds(monkeypatch)
+    recipe = R.load("getup_keyframe")
+    folder = tmp_path / "getup_keyframe" / "dagger"
+    folder.mkdir(parents=True)
+    (folder / imitation_config.STATE).write_text(json.dumps({"config": {}, "rounds": [{}] * 19}))
+    for name in ("rise_clean", "roll_prone"):
+        (tmp_path / "getup_keyframe" / name).mkdir()
+    _run(recipe, "dagger_handover", tmp_path)
+    assert [c["rounds"] for c in calls] == [20, 21, 22, 23]
+    roll = tmp_path / "getup_keyframe" / "roll_prone" / "getup_keyframe_roll_prone.safetensors"
+    rise = tmp_path / "getup_keyframe" / "rise_clean" / "getup_keyframe_rise_clean.safetensors"
+    assert all(c["rolled_by"] == roll and c["policy"] == rise and c["lying"] == "" for c in calls)
+    assert all("dagger.expert.best_of_k.clean=True" in c["overrides"] for c in calls)
+
+
 def test_the_first_imitation_stage_runs_its_rounds_in_one_call(tmp_path, monkeypatch):
     calls = _recorded_rounds(monkeypatch)
     recipe = R.load("getup_keyframe")
@@ -276,14 +295,19 @@ def test_imitation_stage_settings_are_checked():
     ppo = R.Stage("p", task="getup_kneel", steps=10, init="d")
     with pytest.raises(ValueError, match="continues 'p' is not an earlier imitation stage"):
         R.Recipe("x", "x", "", (dagger, ppo, R.Stage("e", kind="imitation", steps=1, continues="p")))
-    with pytest.raises(ValueError, match="policy and lying take over rounds after the first"):
+    with pytest.raises(ValueError, match="policy, lying and rolled_by take over rounds after the first"):
         R.Recipe("x", "x", "", (dagger, ppo, R.Stage("e", kind="imitation", steps=1, policy="p")))
     with pytest.raises(ValueError, match="policy 'later' is not an earlier stage"):
         R.Recipe("x", "x", "", (dagger, R.Stage("e", kind="imitation", steps=1, continues="d", policy="later")))
     with pytest.raises(ValueError, match="lying must be one of face_down, on_back, side"):
         R.Recipe("x", "x", "", (dagger, R.Stage("e", kind="imitation", steps=1, continues="d", lying="up")))
-    with pytest.raises(ValueError, match="continues, policy and lying are an imitation stage's"):
+    with pytest.raises(ValueError, match="continues, policy, lying and rolled_by are an imitation stage's"):
         R.Recipe("x", "x", "", (dagger, R.Stage("q", task="getup_kneel", steps=10, lying="on_back")))
+    with pytest.raises(ValueError, match="rolled_by 'later' is not an earlier stage"):
+        R.Recipe("x", "x", "", (dagger, R.Stage("e", kind="imitation", steps=1, continues="d", rolled_by="later")))
+    with pytest.raises(ValueError, match="lying and rolled_by are two sources"):
+        R.Recipe("x", "x", "", (dagger, ppo, R.Stage("e", kind="imitation", steps=1, continues="d", lying="side",
+                                                     rolled_by="p")))
     ok = R.Recipe("x", "x", "", (dagger, ppo, R.Stage("e", kind="imitation", steps=3, continues="d", policy="p",
                                                       lying="on_back")))
     assert ok.campaign_stage(ok.stage("e")) is dagger and ok.rounds_through(ok.stage("e")) == 5

@@ -1,7 +1,7 @@
 """`python -m training.imitation`: DAgger with the rise planner as the expert, into one campaign folder.
 
     python -m training.imitation --out DIR [--demos DIR] [--rounds R] [--config key=value ...] [--max-minutes M]
-                                 [--policy ARTIFACT] [--lying face_down|on_back|side]
+                                 [--policy ARTIFACT] [--lying face_down|on_back|side | --rolled-by ROLL]
 
 `--config` sets training/imitation/config.py's fields (e.g. starts_per_round=8) or, prefixed `planner.`, the
 planner's (training/planner/config.py). A folder with finished rounds resumes at its next round (its config must
@@ -32,13 +32,16 @@ def main(argv=None) -> int:
                         "round rolls out and refits from, in place of the campaign's learner")
     p.add_argument("--lying", default="", help="the next round starts only from fallen starts lying this way "
                                                 "(face_down, on_back, side): labels where that side's rises fail")
+    p.add_argument("--rolled-by", type=Path, default=None,
+                   help="a roll policy (getup_roll artifact): the next round starts where it hands the on-back and "
+                        "side falls over to the rise")
     p.add_argument("--eval-dir", type=Path, default=None, help="where each round's batch evaluation goes")
     args = p.parse_args(argv)
     try:
         if args.rounds is not None and args.rounds < 1:
             raise ValueError(f"--rounds must be at least 1, got {args.rounds}")
         state = run(args.out, args.config, args.demos, args.rounds, args.max_minutes, args.eval_dir, args.refit,
-                    args.policy, args.lying)
+                    args.policy, args.lying, args.rolled_by)
     except ValueError as e:
         print(f"imitation: {e}", file=sys.stderr)
         return 2

@@ -23,8 +23,8 @@ def build(overrides: list[str]):
 
 
 def run(out, overrides: list[str], demos=None, rounds: int | None = None, max_minutes: float | None = None,
-        eval_dir=None, refit: bool = False, policy=None, lying: str = "") -> dict:
+        eval_dir=None, refit: bool = False, policy=None, lying: str = "", rolled_by=None) -> dict:
     """DAgger into the campaign folder `out` (dagger.run) with `key=value` overrides; returns its state."""
     cfg, teacher, env = build(overrides)
     return dagger.run(out, demos or dagger.DEFAULT_DEMOS, cfg, teacher, env, rounds, max_minutes, eval_dir, refit,
-                      policy, lying)
+                      policy, lying, rolled_by)

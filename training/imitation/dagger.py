@@ -18,6 +18,7 @@ import numpy as np
 from common.events import LYING_SIDES
 from training.core import checkpoints
 from training.core.checkpoints import repo_relative
+from training.envs.starts.rolled import rolled_bank
 from training.evaluation.batch import kneel_figures
 from training.imitation import best_of_k, config, dataset, expert, report
 from training.imitation.learner import fit, load_learner, new_learner
@@ -119,10 +120,12 @@ class Campaign:
     def collected_round(self, k: int) -> dict | None:
         return self.collected["rounds"].get(str(k))
 
-    def store_round(self, k: int, got: dict, starts: int, policy: Path | None = None, lying: str = "") -> dict:
+    def store_round(self, k: int, got: dict, starts: int, policy: Path | None = None, lying: str = "",
+                    rolled_by: Path | None = None) -> dict:
         """Save round k's labels and its figures; `policy`: the artifact rolled out, when not the learner, kept
         beside the round's data (the labels' provenance, and what a fine-tune from it starts from, on any clone);
-        `lying`: the one way its starts lay, when the round was rolled out from those alone."""
+        `lying`: the one way its starts lay, when the round was rolled out from those alone; `rolled_by`: the
+        roll whose hand-overs it started from."""
         dataset.save_round(self.data, k, got["obs"], got["q_des"])
         stats = {"rollouts": starts, "rollouts_met_gate": got["met_gate"], "labels": len(got["obs"]),
                  **({"policy_met_gate": got["policy_met_gate"]} if "policy_met_gate" in got else {}),
@@ -130,6 +133,8 @@ class Campaign:
                  "cpu_s_per_label": round(got["cpu_s"] / max(len(got["obs"]), 1), 4), "expert": self.expert}
         if lying:
             stats["lying"] = lying
+        if rolled_by is not None:
+            stats["rolled_by"] = repo_relative(rolled_by)
         if policy is not None:
             kept = self._kept_copy(Path(policy)) or dataset.policy_path(self.data, k)
             if not kept.exists():
@@ -151,10 +156,14 @@ class Campaign:
         report.write(self.folder, self.state)
 
 
-def round_starts(env, n: int, first_seed: int, lying: str = "") -> tuple[np.ndarray, np.ndarray]:
+def round_starts(env, n: int, first_seed: int, lying: str = "",
+                 rolled_by: Path | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) of a round's n fallen starts, seeds first_seed …; with `lying` (common/events.py's sides) the
     first n of those seeds that lie that way (from LYING_DRAWS · n seeds, twice as many where those hold fewer:
-    a small round may draw few of one side)."""
+    a small round may draw few of one side); with `rolled_by` (a roll policy) where that roll hands over to the
+    rise from the on-back and side starts among those n seeds (training/envs/starts/rolled.py)."""
+    if rolled_by is not None:
+        return rolled_bank(env.make_env, str(rolled_by), n, first_seed, float(env.config.fallen.prepare_s))
     if not lying:
         return env.fallen_starts(n, first_seed)
     draws = LYING_DRAWS * n
@@ -169,16 +178,20 @@ def round_starts(env, n: int, first_seed: int, lying: str = "") -> tuple[np.ndar
 
 def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: int | None = None,
         max_minutes: float | None = None, eval_dir: Path | None = None, refit: bool = False,
-        policy: Path | None = None, lying: str = "", log=print) -> dict:
+        policy: Path | None = None, lying: str = "", rolled_by: Path | None = None, log=print) -> dict:
     """The rounds from the campaign's next on. `policy`: an artifact of the learner's network and action map (a
     PPO fine-tune of it) that the next round rolls out and its fit starts from, in place of the campaign's
     learner: DAgger on the states that policy visits; `lying`: the next round starts only from fallen starts
-    lying that way (labels where that side's rises fail)."""
+    lying that way (labels where that side's rises fail); `rolled_by`: the next round starts where that roll
+    policy hands the on-back and side falls over to the rise (labels where the chain's rises start)."""
     camp = Campaign(folder, cfg, teacher.p.cfg, refit)
     if lying and lying not in LYING_SIDES:
         raise ValueError(f"--lying must be one of {', '.join(LYING_SIDES)}, got {lying!r}")
-    if (policy is not None or lying) and (refit or camp.next_round == 0):
-        raise ValueError("--policy and --lying take over a round's rollouts: not for round 0 or a --refit")
+    if (policy is not None or lying or rolled_by is not None) and (refit or camp.next_round == 0):
+        raise ValueError("--policy, --lying and --rolled-by take over a round's rollouts: not for round 0 or a "
+                         "--refit")
+    if lying and rolled_by is not None:
+        raise ValueError("--lying and --rolled-by are two sources of a round's starts: give one")
     data = camp.data
     eval_dir = Path(eval_dir or Path("runs") / "imitation_eval")
     fields = env.manifest_fields()
@@ -202,16 +215,16 @@ def run(folder: Path, demos: Path, cfg, teacher: expert.Teacher, env, rounds: in
             stats = camp.collected_round(k)
             if stats is None or not dataset.round_path(data, k).exists():
                 n = int(cfg.starts_per_round)
-                side = lying if k == first else ""
+                side, roll = (lying, rolled_by) if k == first else ("", None)
                 qpos, qvel = (a.astype(np.float64) for a in round_starts(env, n, int(cfg.first_seed) + (k - 1) * n,
-                                                                        side))
+                                                                        side, roll))
                 rng = np.random.default_rng([int(cfg.seed), k])
                 if int(cfg.expert.best_of_k.k) > 0:
                     got = best_of_k.collect(teacher, learner.targets, qpos, qvel, cfg.expert.best_of_k,
                                             float(cfg.rollout_s), rng)
                 else:
                     got = collect(teacher, learner, qpos, qvel, b, float(cfg.rollout_s), rng)
-                stats = camp.store_round(k, got, n, policy if k == first else None, side)
+                stats = camp.store_round(k, got, len(qpos), policy if k == first else None, side, roll)
             row.update(stats)
         obs, q = dataset.aggregate(data, demos, k + 1)
         learner, loss = fit(learner, obs, learner.label_actions(q), cfg.fit, int(cfg.fit.seed) + k)

@@ -16,7 +16,7 @@ checkpoint is what a later stage starts from and what the stage exports. A disti
 finished, at that DAgger phase (on the schedule of its `steps` phases). An imitation stage that `continues`
 another appends its rounds to that stage's campaign folder (DAgger aggregates every round); with `policy`, each of
 its rounds is rolled out by that stage's artifact (and refitted from it), with `lying`, from fallen starts lying
-that way only.
+that way only, with `rolled_by`, from where that roll stage's artifact hands on-back and side falls over.
 """
 from __future__ import annotations
 
@@ -67,10 +67,12 @@ class Stage:
     # imitation: the stage (this recipe's, or @RECIPE/STAGE) whose artifact rolls out each of this stage's rounds
     policy: str | None = None
     lying: str = ""                # imitation: this stage's rounds start only from fallen starts lying this way
+    # imitation: the roll stage (getup_roll) whose hand-overs to the rise this stage's rounds start from
+    rolled_by: str | None = None
 
     def references(self) -> list[str]:
         """Every `@RECIPE/STAGE` this stage reads."""
-        values = [*self.teacher.values(), *self.config.values(), self.init, self.policy]
+        values = [*self.teacher.values(), *self.config.values(), self.init, self.policy, self.rolled_by]
         return [v for v in values if isinstance(v, str) and v.startswith(REF_PREFIX)]
 
 
@@ -117,16 +119,19 @@ class Recipe:
     def _check_rounds(self, s: Stage, earlier: list[str]) -> None:
         where = f"recipe {self.name}, stage {s.name}"
         if s.kind != "imitation":
-            if s.continues or s.policy or s.lying:
-                raise ValueError(f"{where}: continues, policy and lying are an imitation stage's")
+            if s.continues or s.policy or s.lying or s.rolled_by:
+                raise ValueError(f"{where}: continues, policy, lying and rolled_by are an imitation stage's")
             return
         if s.continues is not None and (s.continues not in earlier or self.stage(s.continues).kind != "imitation"):
             raise ValueError(f"{where}: continues {s.continues!r} is not an earlier imitation stage")
-        if s.policy is not None and not s.policy.startswith(REF_PREFIX) and s.policy not in earlier:
-            raise ValueError(f"{where}: policy {s.policy!r} is not an earlier stage")
-        if (s.policy or s.lying) and s.continues is None:
-            raise ValueError(f"{where}: policy and lying take over rounds after the first: the stage continues "
-                             "an earlier imitation stage's campaign")
+        for what, name in (("policy", s.policy), ("rolled_by", s.rolled_by)):
+            if name is not None and not name.startswith(REF_PREFIX) and name not in earlier:
+                raise ValueError(f"{where}: {what} {name!r} is not an earlier stage")
+        if (s.policy or s.lying or s.rolled_by) and s.continues is None:
+            raise ValueError(f"{where}: policy, lying and rolled_by take over rounds after the first: the stage "
+                             "continues an earlier imitation stage's campaign")
+        if s.lying and s.rolled_by:
+            raise ValueError(f"{where}: lying and rolled_by are two sources of the rounds' starts: give one")
         if s.lying and s.lying not in LYING_SIDES:
             raise ValueError(f"{where}: lying must be one of {', '.join(LYING_SIDES)}, got {s.lying!r}")
 

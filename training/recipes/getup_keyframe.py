@@ -89,6 +89,14 @@ QUIET = {**ENERGY_COST, "env.reward.scales.energy": -0.05}
 CLEAN_BEST_OF_K = {**BEST_OF_K, "dagger.expert.best_of_k.clean": True}
 # the BC term reads only those rounds (15 …): the rise in one go
 RISE_CLEAN = {**RISE_ROLLED, **ENERGY_COST, "ppo.value_warmup_steps": 0, "ppo.imitation.first_round": 15}
+# on the back and side the chain's extra attempts are rises that fall back from the roll's hand-over, where no
+# round had started (period 4): best-of-K rounds from there too, the BC term on all clean rounds (15 …), 0.4 of the
+# starts at the shipped roll's hand-overs (0.4 demo windows, 0.2 face-down falls), and twice §4.7's weight (energy
+# to stand was 1.003× the baseline's)
+RISE_HANDOVER = {**RISE_CLEAN, "env.rolled_starts.prob": 0.4, "env.demo_starts.prob": 0.4,
+                 "env.rolled_starts.roll_policy": "@getup_keyframe/roll_prone",
+                 "env.reward.scales.energy": 2 * ENERGY_COST["env.reward.scales.energy"],
+                 "ppo.value_warmup_steps": ENERGY_COST["ppo.value_warmup_steps"]}
 
 RECIPE = Recipe(
     name="getup_keyframe", policy="getup_keyframe",
@@ -144,6 +152,9 @@ RECIPE = Recipe(
         Stage("dagger_clean", kind="imitation", steps=4, continues="dagger", policy="rise_energy", lying="face_down",
               config=CLEAN_BEST_OF_K),
         Stage("rise_clean", task="getup_kneel", steps=6_021_120, init="rise_energy", config=RISE_CLEAN),
+        Stage("dagger_handover", kind="imitation", steps=4, continues="dagger", policy="rise_clean",
+              rolled_by="roll_prone", config=CLEAN_BEST_OF_K),
+        Stage("rise_handover", task="getup_kneel", steps=6_021_120, init="rise_clean", config=RISE_HANDOVER),
     ),
     # what ships (recipe --ship): the energy-tuned members, the stand the quiet one, the roll the one that also
     # turns a face-down robot the rest of the way, the rise the one cloned toward rises in one go (fewer attempts

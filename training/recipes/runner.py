@@ -258,7 +258,7 @@ def _run_stage(recipe: R.Recipe, s: R.Stage, root: Path, *, resume: bool, max_mi
         return
     if s.kind == "imitation":
         _run_rounds(recipe, s, root, overrides + list(TOY_IMITATION if toy else ()), resume=resume,
-                    max_minutes=max_minutes)
+                    max_minutes=max_minutes, toy=toy)
         return
     if s.kind == "ppo":
         out = root / recipe.name / s.name
@@ -312,10 +312,10 @@ def resumed_evals(phases_left: int, steps: int, num_evals: int) -> int:
 
 
 def _run_rounds(recipe: R.Recipe, s: R.Stage, root: Path, overrides: list[str], *, resume: bool,
-                max_minutes) -> None:
-    """An imitation stage's rounds into its campaign folder. With a policy or a lying side, one call per round
-    (each call's first round is the one `--policy` rolls out and `--lying` starts: each of the stage's rounds
-    is rolled out by that policy and refitted from it)."""
+                max_minutes, toy: bool = False) -> None:
+    """An imitation stage's rounds into its campaign folder. With a policy, a lying side or a roll, one call per
+    round (each call's first round is the one `--policy` rolls out and `--lying` / `--rolled-by` starts: each of
+    the stage's rounds is rolled out by that policy and refitted from it)."""
     folder = root / recipe.name / recipe.campaign_stage(s).name
     last = recipe.rounds_through(s)
     first = last - int(s.steps)
@@ -326,13 +326,17 @@ def _run_rounds(recipe: R.Recipe, s: R.Stage, root: Path, overrides: list[str], 
                                 f"run `python -m training recipe {recipe.name} --stage {s.continues}` first")
     overrides = [*overrides, f"dagger.rounds={last}"]
     policy = _policy_path(s.policy, recipe, root) if s.policy else None
+    rolled_by = None
+    if s.rolled_by:     # a toy roll never rolls over: a toy run starts where the kept or shipped roll hands over
+        rolled_by = Path(resolve_ref(f"{R.REF_PREFIX}{recipe.name}/{s.rolled_by}", root, shipped=True)) if toy \
+            else _policy_path(s.rolled_by, recipe, root)
     t0 = time.monotonic()
-    each = policy is not None or bool(s.lying)
+    each = policy is not None or bool(s.lying) or rolled_by is not None
     while _rounds(folder) < last:
         left = None if max_minutes is None else max_minutes - (time.monotonic() - t0) / 60.0
         if left is not None and left <= 0:
             return
         imitation.run(folder, overrides, rounds=_rounds(folder) + 1 if each else last, max_minutes=left,
-                      policy=policy, lying=s.lying)
+                      policy=policy, lying=s.lying, rolled_by=rolled_by)
         if not each:
             return

@@ -82,8 +82,8 @@ def superseded(root: Path, recipe: R.Recipe, stage: R.Stage) -> bool:
             chain.add(s.init)
             s = recipe.stage(s.init)
         if stage.name in chain and stage_complete(root, recipe, later):
-            return not any(s.policy == stage.name and not stage_complete(root, recipe, s)   # rounds it rolls out
-                           for s in recipe.stages if s.kind == "imitation")
+            return not any(stage.name in (s.policy, s.rolled_by) and not stage_complete(root, recipe, s)
+                           for s in recipe.stages if s.kind == "imitation")     # rounds it rolls out or starts
     return False
 
 
