@@ -219,7 +219,7 @@ def test_a_round_rolled_by_a_roll_starts_face_down_where_that_roll_hands_over(ti
     assert 1 <= len(qpos) <= 4 and qvel.shape == (len(qpos), env.mj_model.nv)
     assert np.all(t1model.trunk_forward_z(qpos) < -events.ROLLED_FORWARD_Z)        # the rise's hand-over
     assert np.all(np.linalg.norm(qvel[:, 3:6], axis=1) < events.ROLLED_MAX_ANG_SPEED_RAD_S)
-    fallen, _ = env.fallen_starts(4, 100)
+    fallen, _ = env.fallen_starts(dagger.ROLLED_DRAWS * 4, 100)
     assert not any(np.allclose(q, f) for q in qpos for f in fallen)                # rolled, not the falls
 
 

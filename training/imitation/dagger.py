@@ -29,6 +29,8 @@ DEFAULT_DEMOS = REPO_ROOT / "training" / "campaigns" / "getup_keyframe" / "demos
 STATE, ARTIFACT, DATA, COLLECTED = config.STATE, config.ARTIFACT, config.DATA, config.COLLECTED
 LYING_DRAWS = 4    # a round from one lying side draws its starts from this many times as many seeds (each side ~0.4)
 LYING_DOUBLINGS = 3   # … doubled up to this many times where those seeds hold too few of the side
+ROLLED_DRAWS = 3   # a round from a roll's hand-overs draws from this many times as many seeds (~0.6 lie on the back
+                   # or side; a bank's draws repeat some)
 
 
 def beta(cfg, k: int) -> float:
@@ -160,10 +162,13 @@ def round_starts(env, n: int, first_seed: int, lying: str = "",
                  rolled_by: Path | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(qpos, qvel) of a round's n fallen starts, seeds first_seed …; with `lying` (common/events.py's sides) the
     first n of those seeds that lie that way (from LYING_DRAWS · n seeds, twice as many where those hold fewer:
-    a small round may draw few of one side); with `rolled_by` (a roll policy) where that roll hands over to the
-    rise from the on-back and side starts among those n seeds (training/envs/starts/rolled.py)."""
+    a small round may draw few of one side); with `rolled_by` (a roll policy) the first n distinct states where
+    that roll hands over to the rise from the on-back and side starts among ROLLED_DRAWS · n seeds
+    (training/envs/starts/rolled.py; fewer where those hold fewer)."""
     if rolled_by is not None:
-        return rolled_bank(env.make_env, str(rolled_by), n, first_seed, float(env.config.fallen.prepare_s))
+        qpos, qvel = rolled_bank(env.make_env, str(rolled_by), ROLLED_DRAWS * n, first_seed,
+                                 float(env.config.fallen.prepare_s))
+        return qpos[:n], qvel[:n]
     if not lying:
         return env.fallen_starts(n, first_seed)
     draws = LYING_DRAWS * n

@@ -152,8 +152,7 @@ RECIPE = Recipe(
         Stage("dagger_clean", kind="imitation", steps=4, continues="dagger", policy="rise_energy", lying="face_down",
               config=CLEAN_BEST_OF_K),
         Stage("rise_clean", task="getup_kneel", steps=6_021_120, init="rise_energy", config=RISE_CLEAN),
-        # 8 rounds: a round's 32 seeds hold ~11 distinct on-back and side starts the roll hands over
-        Stage("dagger_handover", kind="imitation", steps=8, continues="dagger", policy="rise_clean",
+        Stage("dagger_handover", kind="imitation", steps=4, continues="dagger", policy="rise_clean",
               rolled_by="roll_prone", config=CLEAN_BEST_OF_K),
         Stage("rise_handover", task="getup_kneel", steps=6_021_120, init="rise_clean", config=RISE_HANDOVER),
     ),
