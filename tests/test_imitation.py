@@ -264,3 +264,12 @@ def test_bad_input_is_refused_naming_the_problem(tmp_path, capsys):
     for bad in (["--lying", "upside_down"], ["--lying", "on_back"]):    # not a side; round 0 rolls nothing out
         assert cli.main(["--out", str(tmp_path / "fresh"), *bad, *sum((["--config", o] for o in TINY), [])]) == 2
         assert "--lying" in capsys.readouterr().err
+    assert cli.main(["--out", str(tmp_path / "fresh"), "--rolled-by", str(tmp_path / "roll.safetensors"), *sum(
+        (["--config", o] for o in TINY), [])]) == 2
+    assert "--rolled-by" in capsys.readouterr().err         # round 0 rolls nothing out
+    cfg, teacher, _ = build(TINY)
+    dagger.Campaign(tmp_path / "begun", cfg, teacher.p.cfg).finish_round(
+        {"round": 0, "labels_total": 0, "reached_kneel": 0.0, "face_down": 0.0, "on_back": 0.0})
+    assert cli.main(["--out", str(tmp_path / "begun"), "--lying", "on_back", "--rolled-by", str(tmp_path / "r"),
+                     *sum((["--config", o] for o in TINY), [])]) == 2
+    assert "two sources of a round's starts" in capsys.readouterr().err
