@@ -301,13 +301,13 @@ def test_toy_size_keeps_the_env_diff_and_shrinks_the_landing_banks():
 
 
 def test_resume_on_a_fresh_machine_restores_the_campaign_before_choosing_stages(tmp_path, monkeypatch):
-    """getup_keyframe keeps each member's stage (stand_still, rise_clean, roll_prone), the stages their start
+    """getup_keyframe keeps each member's stage (stand_still, rise_handover, roll_prone), the stages their start
     banks or other recipes read and its stage-1 DAgger campaign: on a fresh runs root --resume restores them, so
     complete stages and the stages they started from are not trained again (the kept campaign is complete)."""
     ran = []
     monkeypatch.setattr(recipe_runner, "_run_stage", lambda recipe, s, *a, **k: ran.append(s.name))
     assert recipe_runner.run("getup_keyframe", root=tmp_path, resume=True, progress=False)
-    for kept in ("stand_still", "rise_clean", "rise_energy", "rise_retry", "roll_prone", "rise_rolled", "roll_side"):
+    for kept in ("stand_still", "rise_handover", "rise_energy", "rise_retry", "roll_prone", "rise_rolled", "roll_side"):
         assert (tmp_path / "getup_keyframe" / kept).is_dir(), kept
     assert (tmp_path / "getup_keyframe" / "dagger" / "data").is_dir()
     assert ran == []

@@ -19,7 +19,8 @@ Stages (each one line of why below; the runs behind each: training/LESSONS.md, t
   with a fifth of its starts where it has just failed (rise_retry, the student's teacher's rise: no better in the
   chain once a rise lying on its side goes back to the roll); the roll's with face-down starts too (roll_prone: some
   lie face down short of the rise's hand-over); best-of-K rounds of the energy-tuned rise that keep only rises
-  without a failed attempt (dagger_clean), and the rise's BC term on them (rise_clean).
+  without a failed attempt (dagger_clean), and the rise's BC term on them (rise_clean); the same rounds from where
+  the roll hands over (dagger_handover), and the rise from them at twice the cost (rise_handover).
 The runtime's target rule R6 is in every stage.
 The members ship as a switched chain, not as one network: policies/getup_keyframe/ holds the three artifacts and
 chain.json (common/keyframe_chain.py), which names them and the rise → stand hand-over; common/events.keyframe_stage
@@ -157,7 +158,7 @@ RECIPE = Recipe(
         Stage("rise_handover", task="getup_kneel", steps=6_021_120, init="rise_clean", config=RISE_HANDOVER),
     ),
     # what ships (recipe --ship): the energy-tuned members, the stand the quiet one, the roll the one that also
-    # turns a face-down robot the rest of the way, the rise the one cloned toward rises in one go (fewer attempts
-    # than rise_energy and rise_retry); the rise hands over at §4.8's gate, where they stand most (LESSONS: ships
-    # as a chain, periods 1–4)
-    chain={"roll": "roll_prone", "rise": "rise_clean", "stand": "stand_still"}, handover="kneel_gate")
+    # turns a face-down robot the rest of the way, the rise the one cloned toward rises in one go from falls and
+    # from the roll's hand-overs (fewest attempts and least energy to stand); the rise hands over at §4.8's gate,
+    # where they stand most (LESSONS: ships as a chain, periods 1–5)
+    chain={"roll": "roll_prone", "rise": "rise_handover", "stand": "stand_still"}, handover="kneel_gate")
